@@ -1,0 +1,11 @@
+//! PLC MCU core: everything the PLC does, as synchronous sans-IO state machines.
+#![cfg_attr(not(test), no_std)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::indexing_slicing,
+        clippy::panic
+    )
+)]

@@ -1,0 +1,1 @@
+//! hil-sim: runs the firmware cores against a simulated plant in virtual time.

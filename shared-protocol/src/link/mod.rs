@@ -1,0 +1,1 @@
+//! The PLC-drive link wire format. See link.md.

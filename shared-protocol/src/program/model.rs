@@ -1,0 +1,347 @@
+//! The program model: 1000 lines, each empty or one instruction (program.md section 1).
+//!
+//! These types are the contract between the assembler, the keypad editor, the EEPROM
+//! storage, the link download, and both VMs. A [`Program`] can hold anything the types
+//! allow; only [`super::verify`] decides whether it may run.
+
+/// Number of program lines (000-999).
+pub const LINES: usize = 1000;
+/// First line of the PLC section; lines below it are the drive section.
+pub const PLC_FIRST_LINE: u16 = 150;
+/// Number of drive-section lines (000-149).
+pub const DRIVE_LINES: usize = PLC_FIRST_LINE as usize;
+/// Largest value of a line's 4-digit constant.
+pub const CONSTANT_MAX: u16 = 9999;
+
+/// Which MCU a line belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Section {
+    /// Lines 000-149, executed by the drive MCU every 1 ms.
+    Drive,
+    /// Lines 150-999, executed by the PLC MCU scan after scan.
+    Plc,
+}
+
+impl Section {
+    /// The section a line number falls in (`None` for 1000 and above).
+    pub const fn of_line(line: u16) -> Option<Section> {
+        if line < PLC_FIRST_LINE {
+            Some(Section::Drive)
+        } else if (line as usize) < LINES {
+            Some(Section::Plc)
+        } else {
+            None
+        }
+    }
+}
+
+/// Every mnemonic of both sections. `Ld` and `Wr` exist in both with different meanings.
+///
+/// The discriminants are the binary encoding's mnemonic codes: never renumber them
+/// (stored EEPROM images and the link download depend on them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[repr(u8)]
+pub enum Mnemonic {
+    // Both sections.
+    Ld = 1,
+    Wr = 2,
+    // PLC section.
+    Ldc = 3,
+    Wrc = 4,
+    Not = 5,
+    And = 6,
+    Or = 7,
+    Xor = 8,
+    Anc = 9,
+    Orc = 10,
+    Let = 11,
+    /// `I/O`, the T flip-flop.
+    Io = 12,
+    Set = 13,
+    Res = 14,
+    Eq = 15,
+    Gt = 16,
+    Lt = 17,
+    Ctu = 18,
+    Ctd = 19,
+    Ton = 20,
+    Tof = 21,
+    Imp = 22,
+    Add = 23,
+    Sub = 24,
+    Mul = 25,
+    Div = 26,
+    Lcd = 27,
+    Rev = 28,
+    Ack = 29,
+    // Drive section.
+    Pwf = 40,
+    Pr0 = 41,
+    Pr1 = 42,
+    Pr2 = 43,
+    Pi = 44,
+    Sn1 = 45,
+    Sn2 = 46,
+    Sn3 = 47,
+    /// `Rs=`
+    RsSet = 48,
+    /// `Uc=`
+    UcSet = 49,
+    /// `Iz=`
+    IzSet = 50,
+    /// `=dU`
+    CalcDu = 51,
+    /// `dU=`
+    DuSet = 52,
+    /// `U>`
+    UMax = 53,
+    /// `U<`
+    UMin = 54,
+    /// `I>`
+    IMax = 55,
+    Fmn = 56,
+    Fjm = 57,
+    Fmx = 58,
+    Frv = 59,
+}
+
+impl Mnemonic {
+    /// All mnemonics, in the order the editor offers them.
+    pub const ALL: [Mnemonic; 49] = [
+        Mnemonic::Ld,
+        Mnemonic::Ldc,
+        Mnemonic::Wr,
+        Mnemonic::Wrc,
+        Mnemonic::Not,
+        Mnemonic::And,
+        Mnemonic::Or,
+        Mnemonic::Xor,
+        Mnemonic::Anc,
+        Mnemonic::Orc,
+        Mnemonic::Let,
+        Mnemonic::Io,
+        Mnemonic::Set,
+        Mnemonic::Res,
+        Mnemonic::Eq,
+        Mnemonic::Gt,
+        Mnemonic::Lt,
+        Mnemonic::Ctu,
+        Mnemonic::Ctd,
+        Mnemonic::Ton,
+        Mnemonic::Tof,
+        Mnemonic::Imp,
+        Mnemonic::Add,
+        Mnemonic::Sub,
+        Mnemonic::Mul,
+        Mnemonic::Div,
+        Mnemonic::Lcd,
+        Mnemonic::Rev,
+        Mnemonic::Ack,
+        Mnemonic::Pwf,
+        Mnemonic::Pr0,
+        Mnemonic::Pr1,
+        Mnemonic::Pr2,
+        Mnemonic::Pi,
+        Mnemonic::Sn1,
+        Mnemonic::Sn2,
+        Mnemonic::Sn3,
+        Mnemonic::RsSet,
+        Mnemonic::UcSet,
+        Mnemonic::IzSet,
+        Mnemonic::CalcDu,
+        Mnemonic::DuSet,
+        Mnemonic::UMax,
+        Mnemonic::UMin,
+        Mnemonic::IMax,
+        Mnemonic::Fmn,
+        Mnemonic::Fjm,
+        Mnemonic::Fmx,
+        Mnemonic::Frv,
+    ];
+
+    /// The text form, exactly as program.md writes it (canonical case).
+    pub const fn text(self) -> &'static str {
+        match self {
+            Mnemonic::Ld => "LD",
+            Mnemonic::Wr => "WR",
+            Mnemonic::Ldc => "LDC",
+            Mnemonic::Wrc => "WRC",
+            Mnemonic::Not => "NOT",
+            Mnemonic::And => "AND",
+            Mnemonic::Or => "OR",
+            Mnemonic::Xor => "XOR",
+            Mnemonic::Anc => "ANC",
+            Mnemonic::Orc => "ORC",
+            Mnemonic::Let => "LET",
+            Mnemonic::Io => "I/O",
+            Mnemonic::Set => "SET",
+            Mnemonic::Res => "RES",
+            Mnemonic::Eq => "EQ",
+            Mnemonic::Gt => "GT",
+            Mnemonic::Lt => "LT",
+            Mnemonic::Ctu => "CTU",
+            Mnemonic::Ctd => "CTD",
+            Mnemonic::Ton => "TON",
+            Mnemonic::Tof => "TOF",
+            Mnemonic::Imp => "IMP",
+            Mnemonic::Add => "ADD",
+            Mnemonic::Sub => "SUB",
+            Mnemonic::Mul => "MUL",
+            Mnemonic::Div => "DIV",
+            Mnemonic::Lcd => "LCD",
+            Mnemonic::Rev => "REV",
+            Mnemonic::Ack => "ACK",
+            Mnemonic::Pwf => "PWF",
+            Mnemonic::Pr0 => "PR0",
+            Mnemonic::Pr1 => "PR1",
+            Mnemonic::Pr2 => "PR2",
+            Mnemonic::Pi => "PI",
+            Mnemonic::Sn1 => "SN1",
+            Mnemonic::Sn2 => "SN2",
+            Mnemonic::Sn3 => "SN3",
+            Mnemonic::RsSet => "Rs=",
+            Mnemonic::UcSet => "Uc=",
+            Mnemonic::IzSet => "Iz=",
+            Mnemonic::CalcDu => "=dU",
+            Mnemonic::DuSet => "dU=",
+            Mnemonic::UMax => "U>",
+            Mnemonic::UMin => "U<",
+            Mnemonic::IMax => "I>",
+            Mnemonic::Fmn => "fmn",
+            Mnemonic::Fjm => "fjm",
+            Mnemonic::Fmx => "fmx",
+            Mnemonic::Frv => "frv",
+        }
+    }
+}
+
+/// An operand: an area letter with a two-digit index, or a named operand.
+///
+/// `K` operands are labels only; the value is the line's constant.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Operand {
+    /// Digital input D00-D07 (bit).
+    D(u8),
+    /// Digital output O00-O05 (bit).
+    O(u8),
+    /// Bit memory B00-B99 (bit).
+    B(u8),
+    /// Analog input A00-A03 (int).
+    A(u8),
+    /// Constant label K00-K99 (int; value from the line's constant).
+    K(u8),
+    /// Integer variable Q00-Q63 (int).
+    Q(u8),
+    /// Drive's aux ADC channel (int).
+    Com,
+    /// Convert P from DC-link ADC counts to 0.1 V (only with `LD`).
+    Vlt,
+    /// Convert P from current ADC counts to 0.1 A (only with `LD`).
+    Amp,
+    /// Direct duty of phase pair 1 (drive `WR` only).
+    Pw1,
+    /// Direct duty of phase pair 2 (drive `WR` only).
+    Pw3,
+    /// Direct duty of phase pair 3 (drive `WR` only).
+    Pw5,
+    /// Extension: drive's output frequency, 0.1 Hz (int, read-only).
+    Frq,
+    /// Extension: DC-link voltage, 0.1 V (int, read-only).
+    Udc,
+    /// Extension: largest |phase current| in the last 10 ms, 0.01 A (int, read-only).
+    Imx,
+    /// Extension: latched drive fault code (int, read-only).
+    Flt,
+    /// Extension: applied direction, 0 forward 1 reverse (int, read-only).
+    Dir,
+    /// Extension: drive ready (bit, LD/LDC only).
+    Rdy,
+    /// Extension: any fault latched (bit, LD/LDC only).
+    Flb,
+}
+
+/// One program line's instruction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Instruction {
+    pub mnemonic: Mnemonic,
+    pub operand: Option<Operand>,
+    /// The 4-digit constant (0..=9999); meaningful only when the operand is `K`, and 0
+    /// otherwise.
+    pub constant: u16,
+}
+
+/// A whole program: 1000 lines, each empty (`None`) or one instruction.
+#[derive(Clone, PartialEq, Eq)]
+pub struct Program {
+    pub lines: [Option<Instruction>; LINES],
+}
+
+impl Default for Program {
+    fn default() -> Self {
+        Program {
+            lines: [None; LINES],
+        }
+    }
+}
+
+impl core::fmt::Debug for Program {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let mut list = f.debug_map();
+        for (n, line) in self.lines.iter().enumerate() {
+            if let Some(i) = line {
+                list.entry(&n, i);
+            }
+        }
+        list.finish()
+    }
+}
+
+impl Program {
+    /// The instruction on `line`, `None` when empty or out of range.
+    pub fn get(&self, line: u16) -> Option<&Instruction> {
+        self.lines.get(line as usize).and_then(|l| l.as_ref())
+    }
+
+    /// The non-empty lines of one section, in ascending order.
+    pub fn section(&self, section: Section) -> impl Iterator<Item = (u16, &Instruction)> {
+        let range = match section {
+            Section::Drive => 0..DRIVE_LINES,
+            Section::Plc => DRIVE_LINES..LINES,
+        };
+        self.lines
+            .get(range.clone())
+            .unwrap_or(&[])
+            .iter()
+            .zip(range)
+            .filter_map(|(l, n)| l.as_ref().map(|i| (n as u16, i)))
+    }
+
+    /// The drive section as the drive MCU holds it.
+    pub fn drive_section(&self) -> DriveSection {
+        let mut d = DriveSection::default();
+        for (n, i) in self.section(Section::Drive) {
+            if let Some(slot) = d.lines.get_mut(n as usize) {
+                *slot = Some(*i);
+            }
+        }
+        d
+    }
+}
+
+/// Lines 000-149 only: what the drive MCU stores and executes.
+#[derive(Clone, PartialEq, Eq, Debug)]
+pub struct DriveSection {
+    pub lines: [Option<Instruction>; DRIVE_LINES],
+}
+
+impl Default for DriveSection {
+    fn default() -> Self {
+        DriveSection {
+            lines: [None; DRIVE_LINES],
+        }
+    }
+}
