@@ -18,3 +18,4 @@
 
 pub mod link;
 pub mod program;
+pub mod units;
