@@ -161,6 +161,17 @@ impl Mnemonic {
         Mnemonic::Frv,
     ];
 
+    /// The binary encoding's code of this mnemonic (its `repr(u8)` discriminant).
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The mnemonic with this binary code, `None` for an unused code (0 means an empty
+    /// line in stored images, 255 is erased EEPROM).
+    pub fn from_code(code: u8) -> Option<Mnemonic> {
+        Mnemonic::ALL.iter().copied().find(|m| m.code() == code)
+    }
+
     /// The text form, exactly as program.md writes it (canonical case).
     pub const fn text(self) -> &'static str {
         match self {

@@ -1,0 +1,657 @@
+//! The single source of truth on what may run: which mnemonics a section has, which
+//! operands each takes, and which constants. The assembler, the keypad editor ("offer only
+//! valid choices"), the PLC before RUN and the drive before accepting a download all ask
+//! this module, so they can never disagree.
+//!
+//! Decisions where program.md is silent (also in `docs/program-format.md`):
+//! * Compare, arithmetic and timer instructions take `K` or `Q` only, as the spec's table
+//!   says. Analog inputs, `COM` and the extension ints (`FRQ UDC IMX FLT DIR`) are read
+//!   with `LD` into P and then compared (`LD FRQ` / `GT K00 0200`), the instruction-list
+//!   way. `RDY`/`FLB` are bit operands for `LD`/`LDC` only.
+//! * `WR`/`WRC` write `O`, `B`, `Q` (never `D`, `A`, `K` or read-only operands).
+//! * Every 4-digit constant is 0000-9999 unless the instruction needs more: `DIV` needs
+//!   1-9999 (a constant divisor of 0 is a program error, a `Q` divisor of 0 is the run-time
+//!   warning), drive `PWF` 0500-9999 Hz, `PI` limit 0001-9999, `Uc=` 0001-9999 (divisor
+//!   of `=dU`), `dU=` 0000-1023, `U>` 0001-9999 (0 would brake permanently), `I>`
+//!   0001-9999 (0 would trip at once), `fjm` 0001-9999 (divisor of the V/f ratio), `fmx`
+//!   0001-9999. `Rs=`, `Iz=`, `U<` (0 = no undervoltage trip), `fmn`, `frv` and timers
+//!   (0.1 s units, 0000-9999 = 0-999.9 s) take 0000-9999.
+//! * A constant on a line without a `K` operand must be 0 (the text format has no column
+//!   for it).
+
+use core::ops::RangeInclusive;
+
+use super::model::{
+    DriveSection, Instruction, Mnemonic, Operand, Program, Section, CONSTANT_MAX, PLC_FIRST_LINE,
+};
+use super::operand::{OperandClass, OperandSet};
+
+use OperandClass as C;
+
+const PLC_BITS: OperandSet = OperandSet::of(&[C::D, C::O, C::B, C::Rdy, C::Flb]);
+const PLC_LD: OperandSet = OperandSet::of(&[
+    C::D,
+    C::O,
+    C::B,
+    C::A,
+    C::K,
+    C::Q,
+    C::Com,
+    C::Vlt,
+    C::Amp,
+    C::Frq,
+    C::Udc,
+    C::Imx,
+    C::Flt,
+    C::Dir,
+    C::Rdy,
+    C::Flb,
+]);
+const PLC_WR: OperandSet = OperandSet::of(&[C::O, C::B, C::Q]);
+const B_ONLY: OperandSet = OperandSet::of(&[C::B]);
+const B_O: OperandSet = OperandSet::of(&[C::O, C::B]);
+const K_Q: OperandSet = OperandSet::of(&[C::K, C::Q]);
+const Q_ONLY: OperandSet = OperandSet::of(&[C::Q]);
+const K_ONLY: OperandSet = OperandSet::of(&[C::K]);
+const DRIVE_WR: OperandSet = OperandSet::of(&[C::Q, C::Pw1, C::Pw3, C::Pw5]);
+
+/// The operand classes `m` accepts in `section`; `None` when the mnemonic does not exist
+/// in that section, [`OperandSet::NONE`] when it takes no operand.
+pub fn operand_set(m: Mnemonic, section: Section) -> Option<OperandSet> {
+    use Mnemonic as M;
+    match section {
+        Section::Plc => match m {
+            M::Ld => Some(PLC_LD),
+            M::Ldc => Some(PLC_BITS),
+            M::Wr | M::Wrc => Some(PLC_WR),
+            M::Not | M::And | M::Or | M::Xor | M::Anc | M::Orc | M::Lcd | M::Rev | M::Ack => {
+                Some(OperandSet::NONE)
+            }
+            M::Let => Some(B_ONLY),
+            M::Io | M::Set | M::Res => Some(B_O),
+            M::Eq
+            | M::Gt
+            | M::Lt
+            | M::Ton
+            | M::Tof
+            | M::Imp
+            | M::Add
+            | M::Sub
+            | M::Mul
+            | M::Div => Some(K_Q),
+            M::Ctu | M::Ctd => Some(Q_ONLY),
+            _ => None,
+        },
+        Section::Drive => match m {
+            M::Ld | M::Pwf => Some(K_Q),
+            M::Wr => Some(DRIVE_WR),
+            M::Pr0 | M::Pr1 | M::Pr2 | M::Sn1 | M::Sn2 | M::Sn3 | M::CalcDu => {
+                Some(OperandSet::NONE)
+            }
+            M::Pi
+            | M::RsSet
+            | M::UcSet
+            | M::IzSet
+            | M::DuSet
+            | M::UMax
+            | M::UMin
+            | M::IMax
+            | M::Fmn
+            | M::Fjm
+            | M::Fmx
+            | M::Frv => Some(K_ONLY),
+            _ => None,
+        },
+    }
+}
+
+/// The mnemonics of a section, in editor order ([`Mnemonic::ALL`]).
+pub fn mnemonics_for(section: Section) -> impl Iterator<Item = Mnemonic> + Clone {
+    Mnemonic::ALL
+        .into_iter()
+        .filter(move |m| operand_set(*m, section).is_some())
+}
+
+/// Every valid operand of `m` in `section`, in editor order (classes as in
+/// [`OperandClass::ALL`], indices ascending). Yields a single `None` when the mnemonic
+/// takes no operand, nothing when the mnemonic is not in the section.
+pub fn operands_for(m: Mnemonic, section: Section) -> Operands {
+    match operand_set(m, section) {
+        None => Operands {
+            set: OperandSet::NONE,
+            class: 0,
+            index: 0,
+            none_pending: false,
+        },
+        Some(set) => Operands {
+            set,
+            class: 0,
+            index: 0,
+            none_pending: set.is_empty(),
+        },
+    }
+}
+
+/// Iterator of [`operands_for`].
+#[derive(Debug, Clone)]
+pub struct Operands {
+    set: OperandSet,
+    class: usize,
+    index: u8,
+    none_pending: bool,
+}
+
+impl Iterator for Operands {
+    type Item = Option<Operand>;
+
+    fn next(&mut self) -> Option<Option<Operand>> {
+        if self.none_pending {
+            self.none_pending = false;
+            return Some(None);
+        }
+        loop {
+            let class = *OperandClass::ALL.get(self.class)?;
+            if self.set.contains(class) {
+                if let Some(op) = class.operand(self.index) {
+                    self.index = self.index.saturating_add(1);
+                    return Some(Some(op));
+                }
+            }
+            self.class = self.class.saturating_add(1);
+            self.index = 0;
+        }
+    }
+}
+
+/// The constants `m` accepts with operand `op` in `section`; `None` when the line has no
+/// constant (no `K` operand, or `K` not valid there).
+pub fn constant_range(
+    m: Mnemonic,
+    section: Section,
+    op: Option<Operand>,
+) -> Option<RangeInclusive<u16>> {
+    use Mnemonic as M;
+    if !op.is_some_and(|o| o.is_k()) || !operand_set(m, section)?.contains(C::K) {
+        return None;
+    }
+    let min = match (section, m) {
+        (Section::Plc, M::Div) => 1,
+        (Section::Drive, M::Pwf) => 500,
+        (Section::Drive, M::Pi | M::UcSet | M::UMax | M::IMax | M::Fjm | M::Fmx) => 1,
+        _ => 0,
+    };
+    let max = match (section, m) {
+        (Section::Drive, M::DuSet) => 1023,
+        _ => CONSTANT_MAX,
+    };
+    Some(min..=max)
+}
+
+/// Why a line may not run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum VerifyErrorKind {
+    /// Line number 1000 or above.
+    LineOutOfRange,
+    /// The mnemonic belongs to the other section.
+    WrongSection {
+        mnemonic: Mnemonic,
+        section: Section,
+    },
+    /// The mnemonic needs an operand.
+    OperandMissing {
+        mnemonic: Mnemonic,
+        section: Section,
+    },
+    /// The mnemonic takes no operand.
+    OperandNotAllowed {
+        mnemonic: Mnemonic,
+        operand: Operand,
+    },
+    /// The operand's kind is not accepted by this mnemonic in this section.
+    OperandWrongKind {
+        mnemonic: Mnemonic,
+        section: Section,
+        operand: Operand,
+    },
+    /// `LDC` on an int operand (only bits can be loaded complemented).
+    LdcOnInt { operand: Operand },
+    /// The operand's index is outside its area (`D09`).
+    OperandOutOfRange { operand: Operand },
+    /// The constant is outside the instruction's range.
+    ConstantOutOfRange {
+        mnemonic: Mnemonic,
+        value: u16,
+        min: u16,
+        max: u16,
+    },
+    /// A non-zero constant on a line without a `K` operand.
+    ConstantWithoutK { value: u16 },
+}
+
+struct ClassList(OperandSet);
+
+impl core::fmt::Display for ClassList {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        for (n, c) in self.0.classes().enumerate() {
+            if n > 0 {
+                f.write_str(", ")?;
+            }
+            f.write_str(c.name())?;
+        }
+        Ok(())
+    }
+}
+
+fn section_text(section: Section) -> &'static str {
+    match section {
+        Section::Drive => "drive section (lines 000-149)",
+        Section::Plc => "PLC section (lines 150-999)",
+    }
+}
+
+fn other(section: Section) -> Section {
+    match section {
+        Section::Drive => Section::Plc,
+        Section::Plc => Section::Drive,
+    }
+}
+
+impl VerifyErrorKind {
+    /// At most 16 characters, for a 20x4 LCD status line.
+    pub fn short(&self) -> &'static str {
+        match self {
+            VerifyErrorKind::LineOutOfRange => "bad line number",
+            VerifyErrorKind::WrongSection { .. } => "wrong section",
+            VerifyErrorKind::OperandMissing { .. } => "operand missing",
+            VerifyErrorKind::OperandNotAllowed { .. } => "no operand here",
+            VerifyErrorKind::OperandWrongKind { .. } => "wrong operand",
+            VerifyErrorKind::LdcOnInt { .. } => "LDC needs a bit",
+            VerifyErrorKind::OperandOutOfRange { .. } => "operand range",
+            VerifyErrorKind::ConstantOutOfRange { .. } => "constant range",
+            VerifyErrorKind::ConstantWithoutK { .. } => "constant w/o K",
+        }
+    }
+}
+
+impl core::fmt::Display for VerifyErrorKind {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            VerifyErrorKind::LineOutOfRange => f.write_str("line number above 999"),
+            VerifyErrorKind::WrongSection { mnemonic, section } => write!(
+                f,
+                "{} is not allowed in the {}, only in the {}",
+                mnemonic.text(),
+                section_text(section),
+                section_text(other(section))
+            ),
+            VerifyErrorKind::OperandMissing { mnemonic, section } => write!(
+                f,
+                "{} needs an operand ({})",
+                mnemonic.text(),
+                ClassList(operand_set(mnemonic, section).unwrap_or_default())
+            ),
+            VerifyErrorKind::OperandNotAllowed { mnemonic, operand } => {
+                write!(f, "{} takes no operand, found {}", mnemonic.text(), operand)
+            }
+            VerifyErrorKind::OperandWrongKind {
+                mnemonic,
+                section,
+                operand,
+            } => write!(
+                f,
+                "operand {} not allowed with {} here (expected {})",
+                operand,
+                mnemonic.text(),
+                ClassList(operand_set(mnemonic, section).unwrap_or_default())
+            ),
+            VerifyErrorKind::LdcOnInt { operand } => write!(
+                f,
+                "LDC needs a bit operand ({}), {} is an int",
+                ClassList(PLC_BITS),
+                operand
+            ),
+            VerifyErrorKind::OperandOutOfRange { operand } => {
+                let class = operand.class();
+                write!(
+                    f,
+                    "operand {} out of range ({}00-{}{:02})",
+                    operand,
+                    class.name(),
+                    class.name(),
+                    class.count().saturating_sub(1)
+                )
+            }
+            VerifyErrorKind::ConstantOutOfRange {
+                mnemonic,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "constant {:04} out of range for {} ({:04}-{:04})",
+                value,
+                mnemonic.text(),
+                min,
+                max
+            ),
+            VerifyErrorKind::ConstantWithoutK { value } => write!(
+                f,
+                "constant {value:04} not allowed: only a K operand takes a constant"
+            ),
+        }
+    }
+}
+
+/// The first line that may not run, and why.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct VerifyError {
+    pub line: u16,
+    pub kind: VerifyErrorKind,
+}
+
+impl core::fmt::Display for VerifyError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(f, "line {:03}: {}", self.line, self.kind)
+    }
+}
+
+/// Check one line as it would stand on program line `line`.
+pub fn verify_line(line: u16, i: &Instruction) -> Result<(), VerifyErrorKind> {
+    let section = Section::of_line(line).ok_or(VerifyErrorKind::LineOutOfRange)?;
+    let mnemonic = i.mnemonic;
+    let set = operand_set(mnemonic, section)
+        .ok_or(VerifyErrorKind::WrongSection { mnemonic, section })?;
+    match i.operand {
+        None if !set.is_empty() => Err(VerifyErrorKind::OperandMissing { mnemonic, section }),
+        None => {
+            if i.constant != 0 {
+                return Err(VerifyErrorKind::ConstantWithoutK { value: i.constant });
+            }
+            Ok(())
+        }
+        Some(operand) if set.is_empty() => {
+            Err(VerifyErrorKind::OperandNotAllowed { mnemonic, operand })
+        }
+        Some(operand) => {
+            let class = operand.class();
+            if !set.contains(class) {
+                if mnemonic == Mnemonic::Ldc
+                    && operand_set(Mnemonic::Ld, section).is_some_and(|s| s.contains(class))
+                {
+                    return Err(VerifyErrorKind::LdcOnInt { operand });
+                }
+                return Err(VerifyErrorKind::OperandWrongKind {
+                    mnemonic,
+                    section,
+                    operand,
+                });
+            }
+            if !operand.in_range() {
+                return Err(VerifyErrorKind::OperandOutOfRange { operand });
+            }
+            match constant_range(mnemonic, section, Some(operand)) {
+                Some(r) if !r.contains(&i.constant) => Err(VerifyErrorKind::ConstantOutOfRange {
+                    mnemonic,
+                    value: i.constant,
+                    min: *r.start(),
+                    max: *r.end(),
+                }),
+                Some(_) => Ok(()),
+                None if i.constant != 0 => {
+                    Err(VerifyErrorKind::ConstantWithoutK { value: i.constant })
+                }
+                None => Ok(()),
+            }
+        }
+    }
+}
+
+fn first_error<'a>(
+    lines: impl Iterator<Item = (u16, &'a Option<Instruction>)>,
+) -> Result<(), VerifyError> {
+    for (line, slot) in lines {
+        if let Some(i) = slot {
+            verify_line(line, i).map_err(|kind| VerifyError { line, kind })?;
+        }
+    }
+    Ok(())
+}
+
+/// Check a whole program; the error names the first bad line (ascending).
+pub fn verify(p: &Program) -> Result<(), VerifyError> {
+    first_error((0u16..).zip(p.lines.iter()))
+}
+
+/// Check a drive section as the drive receives it (every line must be a drive line).
+pub fn verify_drive(d: &DriveSection) -> Result<(), VerifyError> {
+    first_error((0u16..PLC_FIRST_LINE).zip(d.lines.iter()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ins(mnemonic: Mnemonic, operand: Option<Operand>, constant: u16) -> Instruction {
+        Instruction {
+            mnemonic,
+            operand,
+            constant,
+        }
+    }
+
+    #[test]
+    fn every_offered_choice_verifies_and_nothing_else_does() {
+        for section in [Section::Drive, Section::Plc] {
+            let line = match section {
+                Section::Drive => 0,
+                Section::Plc => 150,
+            };
+            for m in Mnemonic::ALL {
+                let offered: std::vec::Vec<_> = operands_for(m, section).collect();
+                let in_section = mnemonics_for(section).any(|x| x == m);
+                assert_eq!(in_section, !offered.is_empty(), "{m:?} {section:?}");
+                // All possible operands, including out-of-range indices.
+                let mut all: std::vec::Vec<Option<Operand>> = std::vec![None];
+                for c in OperandClass::ALL {
+                    for idx in 0..=c.count() {
+                        all.push(Some(c.operand_unchecked_range(idx)));
+                    }
+                }
+                for op in all {
+                    let c = constant_range(m, section, op).map_or(0, |r| *r.start());
+                    let ok = verify_line(line, &ins(m, op, c)).is_ok();
+                    assert_eq!(ok, offered.contains(&op), "{m:?} {op:?} {section:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn editor_order_and_counts() {
+        let ld: std::vec::Vec<_> = operands_for(Mnemonic::Ld, Section::Plc).collect();
+        assert_eq!(ld.first(), Some(&Some(Operand::D(0))));
+        assert_eq!(ld.last(), Some(&Some(Operand::Flb)));
+        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 10 named.
+        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 10);
+        let not: std::vec::Vec<_> = operands_for(Mnemonic::Not, Section::Plc).collect();
+        assert_eq!(not, std::vec![None]);
+        assert_eq!(operands_for(Mnemonic::Pwf, Section::Plc).count(), 0);
+        assert_eq!(mnemonics_for(Section::Plc).count(), 29);
+        assert_eq!(mnemonics_for(Section::Drive).count(), 22);
+    }
+
+    #[test]
+    fn constant_ranges() {
+        let k = Some(Operand::K(0));
+        assert_eq!(
+            constant_range(Mnemonic::Pwf, Section::Drive, k),
+            Some(500..=9999)
+        );
+        assert_eq!(
+            constant_range(Mnemonic::DuSet, Section::Drive, k),
+            Some(0..=1023)
+        );
+        assert_eq!(
+            constant_range(Mnemonic::Div, Section::Plc, k),
+            Some(1..=9999)
+        );
+        assert_eq!(
+            constant_range(Mnemonic::Ton, Section::Plc, k),
+            Some(0..=9999)
+        );
+        assert_eq!(
+            constant_range(Mnemonic::Ton, Section::Plc, Some(Operand::Q(1))),
+            None
+        );
+        assert_eq!(constant_range(Mnemonic::Pwf, Section::Plc, k), None);
+        assert_eq!(constant_range(Mnemonic::Wr, Section::Plc, k), None);
+    }
+
+    #[test]
+    fn error_kinds() {
+        use VerifyErrorKind as E;
+        let e = |line, m, op, c| verify_line(line, &ins(m, op, c)).unwrap_err();
+        assert!(matches!(e(1000, Mnemonic::Ld, None, 0), E::LineOutOfRange));
+        assert!(matches!(
+            e(150, Mnemonic::Pwf, Some(Operand::K(0)), 600),
+            E::WrongSection { .. }
+        ));
+        assert!(matches!(
+            e(149, Mnemonic::Lcd, None, 0),
+            E::WrongSection { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Wr, None, 0),
+            E::OperandMissing { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Not, Some(Operand::B(0)), 0),
+            E::OperandNotAllowed { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Wr, Some(Operand::A(0)), 0),
+            E::OperandWrongKind { .. }
+        ));
+        assert!(matches!(
+            e(10, Mnemonic::Ld, Some(Operand::D(0)), 0),
+            E::OperandWrongKind { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Ldc, Some(Operand::K(0)), 0),
+            E::LdcOnInt { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Ld, Some(Operand::D(8)), 0),
+            E::OperandOutOfRange { .. }
+        ));
+        assert!(matches!(
+            e(5, Mnemonic::Pwf, Some(Operand::K(0)), 499),
+            E::ConstantOutOfRange { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Ld, Some(Operand::K(0)), 10000),
+            E::ConstantOutOfRange { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Ld, Some(Operand::D(0)), 1),
+            E::ConstantWithoutK { .. }
+        ));
+        assert!(matches!(
+            e(150, Mnemonic::Lcd, None, 1),
+            E::ConstantWithoutK { .. }
+        ));
+    }
+
+    #[test]
+    fn messages() {
+        let msg = |k: VerifyErrorKind| std::format!("{k}");
+        assert_eq!(
+            msg(VerifyErrorKind::OperandOutOfRange {
+                operand: Operand::D(9)
+            }),
+            "operand D09 out of range (D00-D07)"
+        );
+        assert_eq!(
+            msg(VerifyErrorKind::OperandWrongKind {
+                mnemonic: Mnemonic::Wr,
+                section: Section::Plc,
+                operand: Operand::A(0)
+            }),
+            "operand A00 not allowed with WR here (expected O, B, Q)"
+        );
+        assert_eq!(
+            msg(VerifyErrorKind::ConstantOutOfRange {
+                mnemonic: Mnemonic::Pwf,
+                value: 100,
+                min: 500,
+                max: 9999
+            }),
+            "constant 0100 out of range for PWF (0500-9999)"
+        );
+        let err = VerifyError {
+            line: 7,
+            kind: VerifyErrorKind::LineOutOfRange,
+        };
+        assert_eq!(std::format!("{err}"), "line 007: line number above 999");
+    }
+
+    #[test]
+    fn short_texts_fit_the_lcd() {
+        let kinds = [
+            VerifyErrorKind::LineOutOfRange,
+            VerifyErrorKind::WrongSection {
+                mnemonic: Mnemonic::Ld,
+                section: Section::Plc,
+            },
+            VerifyErrorKind::OperandMissing {
+                mnemonic: Mnemonic::Ld,
+                section: Section::Plc,
+            },
+            VerifyErrorKind::OperandNotAllowed {
+                mnemonic: Mnemonic::Ld,
+                operand: Operand::Com,
+            },
+            VerifyErrorKind::OperandWrongKind {
+                mnemonic: Mnemonic::Ld,
+                section: Section::Plc,
+                operand: Operand::Com,
+            },
+            VerifyErrorKind::LdcOnInt {
+                operand: Operand::Com,
+            },
+            VerifyErrorKind::OperandOutOfRange {
+                operand: Operand::D(9),
+            },
+            VerifyErrorKind::ConstantOutOfRange {
+                mnemonic: Mnemonic::Ld,
+                value: 0,
+                min: 0,
+                max: 0,
+            },
+            VerifyErrorKind::ConstantWithoutK { value: 1 },
+        ];
+        for k in kinds {
+            assert!(k.short().len() <= 16, "{}", k.short());
+        }
+    }
+
+    #[test]
+    fn program_reports_first_bad_line() {
+        let mut p = Program::default();
+        p.lines[300] = Some(ins(Mnemonic::Wr, None, 0));
+        p.lines[200] = Some(ins(Mnemonic::Ld, Some(Operand::D(9)), 0));
+        p.lines[150] = Some(ins(Mnemonic::Ld, Some(Operand::D(0)), 0));
+        p.lines[0] = Some(ins(Mnemonic::Pwf, Some(Operand::Q(0)), 0));
+        assert_eq!(verify(&p).unwrap_err().line, 200);
+        p.lines[200] = None;
+        assert_eq!(verify(&p).unwrap_err().line, 300);
+        p.lines[300] = None;
+        assert_eq!(verify(&p), Ok(()));
+        let mut d = p.drive_section();
+        assert_eq!(verify_drive(&d), Ok(()));
+        d.lines[149] = Some(ins(Mnemonic::Lcd, None, 0));
+        assert_eq!(verify_drive(&d).unwrap_err().line, 149);
+    }
+}
