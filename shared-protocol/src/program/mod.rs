@@ -1,14 +1,22 @@
 //! The user program model (program.md sections 1-2, shared by both MCUs and the host).
 //!
-//! * [`model`](self): lines, instructions, operands ([`Program`], [`Instruction`]).
+//! * model: lines, instructions, operands ([`Program`], [`Instruction`], [`Operand`]).
 //! * [`encode_line`]/[`decode_line`]: the 4-byte binary line (EEPROM image, link download).
-//! * [`verify`]: what may run, and the valid choices the keypad editor offers.
+//! * [`verify()`]: what may run, and the valid choices the keypad editor offers
+//!   ([`mnemonics_for`], [`operands_for`], [`constant_range`]).
+//! * [`assemble`]/[`disassemble`]: the `.plc` text format.
+//!
+//! The format decisions are collected in `docs/program-format.md`.
 
+mod asm;
+mod disasm;
 mod encode;
 mod model;
 mod operand;
 mod verify;
 
+pub use asm::*;
+pub use disasm::*;
 pub use encode::*;
 pub use model::*;
 pub use operand::*;
