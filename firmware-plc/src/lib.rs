@@ -9,3 +9,6 @@
         clippy::panic
     )
 )]
+
+pub mod vm;
+pub mod storage;

@@ -1,0 +1,85 @@
+//! What a scan reads and what it reports: plain data, so the board layer, the link endpoint,
+//! the LCD and hil-sim can fill and read it without knowing the VM.
+
+use shared_protocol::units::{CentiAmps, Decihertz, Decivolts};
+
+/// Number of `LCD` value fields on the run screen (program.md 3.2).
+pub const LCD_FIELDS: usize = 4;
+/// Number of digital outputs O00-O05.
+pub const OUTPUTS: u8 = 6;
+/// Mask of the valid bits of [`ScanOutputs::outputs`].
+pub const OUTPUT_MASK: u8 = (1 << OUTPUTS) - 1;
+
+/// The drive's status as last reported over the link: the source of `COM` and the
+/// extension operands (program.md 3.4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct DriveView {
+    /// Aux ADC channel, 10-bit; larger values are clamped to 1023.
+    pub com: u16,
+    /// `FRQ`: actual commanded output frequency.
+    pub frq: Decihertz,
+    /// `UDC`: DC-link voltage.
+    pub udc: Decivolts,
+    /// `IMX`: largest |phase current| in the last 10 ms.
+    pub imx: CentiAmps,
+    /// `FLT`: latched fault code, 0 = none.
+    pub flt: u8,
+    /// `DIR`: applied direction (`true` = reverse, read as 1).
+    pub dir_reverse: bool,
+    /// `RDY`: drive ready, no fault, program running.
+    pub ready: bool,
+    /// `FLB`: any fault latched.
+    pub fault_latched: bool,
+}
+
+/// Everything one scan reads from the outside world.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct ScanInputs {
+    /// D00..D07, bit n = Dn; sampled by the caller once at the start of the scan.
+    pub digital: u8,
+    /// A00..A03 in ADC counts 0..1023 (larger values are clamped to 1023).
+    pub analog: [u16; 4],
+    pub drive: DriveView,
+}
+
+/// A run-time warning raised by a scan; the scan itself goes on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Warning {
+    /// `DIV` by zero on this program line (shown as `DIV0 @ line`); P was set to 0.
+    Div0 { line: u16 },
+}
+
+/// Everything one scan produces. [`crate::vm::PlcVm::scan`] overwrites all of it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct ScanOutputs {
+    /// Output image O00..O05 (bit n = On) to write to the pins now.
+    pub outputs: u8,
+    /// The `LCD` fields filled by this scan, in execution order; `None` = no `LCD` reached it.
+    pub lcd: [Option<i16>; LCD_FIELDS],
+    /// Bit n set = Qn was written by `WR`/`WRC` in this scan (even with an unchanged
+    /// value); the value to send is [`crate::vm::PlcVm::q`]`(n)`, the newest write wins.
+    pub q_dirty: u64,
+    /// New direction request for the drive (`true` = reverse), only when it differs from
+    /// the last one reported since RUN started (which begins as forward).
+    pub rev_request: Option<bool>,
+    /// An `ACK` saw a rising edge: acknowledge the drive's latched faults.
+    pub ack_request: bool,
+    /// The first run-time warning of this scan.
+    pub warning: Option<Warning>,
+}
+
+impl ScanOutputs {
+    /// The Q addresses written in this scan, ascending.
+    pub fn dirty_q(&self) -> impl Iterator<Item = u8> + '_ {
+        (0u8..64).filter(move |n| self.q_dirty & (1u64 << n) != 0)
+    }
+
+    /// Output On as the scan left it.
+    pub fn output(&self, n: u8) -> bool {
+        n < OUTPUTS && self.outputs & (1 << n) != 0
+    }
+}

@@ -1,0 +1,418 @@
+//! The PLC logic VM: executes lines 150-999 of a verified [`Program`] scan after scan
+//! (program.md section 3). See `docs/vm.md` for the decisions the spec leaves open.
+//!
+//! Sans-IO: one [`PlcVm::scan`] call per scan takes the sampled inputs and the monotonic
+//! time and fills [`ScanOutputs`]. It never panics and never allocates, on any
+//! [`Program`] (lines the verifier would reject execute as no-ops), any inputs and any
+//! time (wrapping-safe).
+//!
+//! The scan interprets the [`Program`] directly: the worst case (850 lines) stays far
+//! below the 1 ms budget on the 170 MHz Cortex-M4 (see `benches/scan.rs` and
+//! `src/bin/m4bench.rs`), so no compiled form is needed and the editor's program is
+//! always the one that runs.
+
+mod arith;
+mod io;
+mod timer;
+
+pub use io::{DriveView, ScanInputs, ScanOutputs, Warning, LCD_FIELDS, OUTPUTS, OUTPUT_MASK};
+
+use shared_protocol::program::{Instruction, Mnemonic, Operand, Program, LINES, PLC_FIRST_LINE};
+use shared_protocol::units::Millis;
+use timer::LineState;
+
+/// Number of PLC-section lines (150-999), each with its own timer/edge state.
+pub const PLC_LINES: usize = LINES - PLC_FIRST_LINE as usize;
+/// Bit memory B00-B99.
+pub const B_COUNT: usize = 100;
+/// Integer variables Q00-Q63.
+pub const Q_COUNT: usize = 64;
+/// Largest value of the 10-bit analog operands (A, COM).
+const ADC_MAX: u16 = 1023;
+
+/// The PLC's data memory: what RUN clears and the program reads and writes.
+struct Memory {
+    b: [bool; B_COUNT],
+    q: [i16; Q_COUNT],
+    /// Output image O00-O05 (bit n = On); kept between scans.
+    o: u8,
+}
+
+/// The working registers of one scan.
+struct Regs {
+    /// Bit stack, bit 0 = S0 (top).
+    s: u16,
+    /// Accumulator ("pomkonst").
+    p: i16,
+}
+
+impl Regs {
+    fn top(&self) -> bool {
+        self.s & 1 != 0
+    }
+    fn push(&mut self, bit: bool) {
+        self.s = (self.s << 1) | u16::from(bit);
+    }
+    fn set_top(&mut self, bit: bool) {
+        self.s = (self.s & !1) | u16::from(bit);
+    }
+    /// Pops t = S0 and combines the new S0 with it.
+    fn combine(&mut self, op: impl Fn(bool, bool) -> bool) {
+        let t = self.top();
+        self.s >>= 1;
+        let s0 = self.top();
+        self.set_top(op(s0, t));
+    }
+}
+
+/// Read-only context of one scan.
+struct Env<'a> {
+    inputs: &'a ScanInputs,
+    now: Millis,
+    first_scan: bool,
+}
+
+/// The PLC VM: data memory, per-line timer/edge state, the first-scan flag and the last
+/// direction request. About 4.6 KiB, all inline (no allocation).
+pub struct PlcVm {
+    mem: Memory,
+    /// Per PLC line (index = line - 150): timer/edge flags, see `timer`.
+    flags: [u8; PLC_LINES],
+    /// Per PLC line: when its timer started.
+    since: [Millis; PLC_LINES],
+    first_scan: bool,
+    /// Direction most recently set by a `REV` in this RUN (`true` = reverse).
+    rev_state: bool,
+    /// Direction last reported in [`ScanOutputs::rev_request`] (forward at RUN start).
+    rev_reported: bool,
+}
+
+impl Default for PlcVm {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl PlcVm {
+    /// A VM in the state RUN starts from (as after [`PlcVm::start`]).
+    pub const fn new() -> Self {
+        PlcVm {
+            mem: Memory {
+                b: [false; B_COUNT],
+                q: [0; Q_COUNT],
+                o: 0,
+            },
+            flags: [0; PLC_LINES],
+            since: [Millis(0); PLC_LINES],
+            first_scan: true,
+            rev_state: false,
+            rev_reported: false,
+        }
+    }
+
+    /// RUN starts: clears B, Q, the output image and every line's timer/edge state, and
+    /// arms the first-scan rule. The direction request starts as forward.
+    pub fn start(&mut self, now: Millis) {
+        *self = Self::new();
+        self.since = [now; PLC_LINES];
+    }
+
+    /// The PLC's copy of Qn (0 for n out of range).
+    pub fn q(&self, addr: u8) -> i16 {
+        self.mem.q.get(usize::from(addr)).copied().unwrap_or(0)
+    }
+
+    /// Bit memory Bn (false for n out of range).
+    pub fn b(&self, addr: u8) -> bool {
+        self.mem.b.get(usize::from(addr)).copied().unwrap_or(false)
+    }
+
+    /// Output image On as the last scan left it.
+    pub fn output(&self, n: u8) -> bool {
+        n < OUTPUTS && self.mem.o & (1 << n) != 0
+    }
+
+    /// `true` until the first scan after [`PlcVm::start`] has run.
+    pub fn is_first_scan(&self) -> bool {
+        self.first_scan
+    }
+
+    /// One scan: executes lines 150-999 in order with the inputs sampled by the caller at
+    /// the start of the scan and `now` from the monotonic ms clock; overwrites `out`.
+    ///
+    /// S and P start every scan at 0.
+    pub fn scan(
+        &mut self,
+        program: &Program,
+        inputs: &ScanInputs,
+        now: Millis,
+        out: &mut ScanOutputs,
+    ) {
+        *out = ScanOutputs::default();
+        let env = Env {
+            inputs,
+            now,
+            first_scan: self.first_scan,
+        };
+        let mut regs = Regs { s: 0, p: 0 };
+        let mut lcd_used = 0usize;
+        let plc = program
+            .lines
+            .get(usize::from(PLC_FIRST_LINE)..)
+            .unwrap_or(&[]);
+        let lines = plc
+            .iter()
+            .zip(self.flags.iter_mut().zip(self.since.iter_mut()));
+        for (line, (ins, (flags, since))) in (PLC_FIRST_LINE..).zip(lines) {
+            let Some(ins) = ins else { continue };
+            let st = LineState { flags, since };
+            let ctx = Step {
+                mem: &mut self.mem,
+                regs: &mut regs,
+                env: &env,
+                out,
+            };
+            match ctx.exec(ins, line, st) {
+                Effect::None => {}
+                Effect::Lcd(v) => {
+                    if let Some(field) = out.lcd.get_mut(lcd_used) {
+                        *field = Some(v);
+                        lcd_used += 1;
+                    }
+                }
+                Effect::Rev(reverse) => self.rev_state = reverse,
+            }
+        }
+        if self.rev_state != self.rev_reported {
+            self.rev_reported = self.rev_state;
+            out.rev_request = Some(self.rev_state);
+        }
+        out.outputs = self.mem.o & OUTPUT_MASK;
+        self.first_scan = false;
+    }
+}
+
+/// What an instruction asks of the scan loop beyond memory and registers.
+enum Effect {
+    None,
+    Lcd(i16),
+    Rev(bool),
+}
+
+/// One instruction's view of the machine.
+struct Step<'a> {
+    mem: &'a mut Memory,
+    regs: &'a mut Regs,
+    env: &'a Env<'a>,
+    out: &'a mut ScanOutputs,
+}
+
+impl Step<'_> {
+    fn exec(self, ins: &Instruction, line: u16, st: LineState<'_>) -> Effect {
+        use Mnemonic as M;
+        let Step {
+            mem,
+            regs,
+            env,
+            out,
+        } = self;
+        let x = ins.operand;
+        let k = ins.constant;
+        match ins.mnemonic {
+            M::Ld => match x {
+                Some(Operand::Vlt) => regs.p = arith::vlt(regs.p),
+                Some(Operand::Amp) => regs.p = arith::amp(regs.p),
+                Some(op) => {
+                    if let Some(bit) = read_bit(mem, env, op) {
+                        regs.push(bit);
+                    } else if let Some(v) = read_int(mem, env, op, k) {
+                        regs.p = v;
+                    }
+                }
+                None => {}
+            },
+            M::Ldc => {
+                if let Some(bit) = x.and_then(|op| read_bit(mem, env, op)) {
+                    regs.push(!bit);
+                }
+            }
+            M::Wr | M::Wrc => {
+                // WR stores S0, WRC its complement; to Q only when that is 1.
+                let value = regs.top() == (ins.mnemonic == M::Wr);
+                match x {
+                    Some(Operand::Q(n)) if value => write_q(mem, out, n, regs.p),
+                    // write_bit ignores Q (the condition was false) and non-bit operands.
+                    Some(op) => write_bit(mem, op, value),
+                    None => {}
+                }
+            }
+            M::Not => regs.s ^= 1,
+            M::And => regs.combine(|s, t| s & t),
+            M::Or => regs.combine(|s, t| s | t),
+            M::Xor => regs.combine(|s, t| s ^ t),
+            M::Anc => regs.combine(|s, t| s & !t),
+            M::Orc => regs.combine(|s, t| s | !t),
+            M::Let => {
+                if let Some(Operand::B(n)) = x {
+                    if let Some(b) = mem.b.get_mut(usize::from(n)) {
+                        let s0 = regs.top();
+                        let edge = s0 && !*b && !env.first_scan;
+                        *b = s0;
+                        regs.set_top(edge);
+                    }
+                }
+            }
+            M::Io | M::Set | M::Res => {
+                if let Some(op) = x.filter(|_| regs.top()) {
+                    let value = match ins.mnemonic {
+                        M::Set => Some(true),
+                        M::Res => Some(false),
+                        _ => read_bit(mem, env, op).map(|v| !v),
+                    };
+                    if let Some(v) = value {
+                        write_bit(mem, op, v);
+                    }
+                }
+            }
+            M::Eq | M::Gt | M::Lt => {
+                if let Some(v) = x.and_then(|op| read_int(mem, env, op, k)) {
+                    let p = regs.p;
+                    regs.set_top(match ins.mnemonic {
+                        M::Eq => p == v,
+                        M::Gt => p > v,
+                        _ => p < v,
+                    });
+                }
+            }
+            M::Ctu | M::Ctd => {
+                if let Some(Operand::Q(n)) = x {
+                    if let Some(q) = mem.q.get_mut(usize::from(n)) {
+                        let reset = regs.top();
+                        regs.s >>= 1;
+                        if reset {
+                            *q = 0;
+                        } else if regs.top() {
+                            *q = if ins.mnemonic == M::Ctu {
+                                q.saturating_add(1)
+                            } else {
+                                q.saturating_sub(1)
+                            };
+                        }
+                    }
+                }
+            }
+            M::Ton | M::Tof | M::Imp => {
+                if let Some(v) = x.and_then(|op| read_int(mem, env, op, k)) {
+                    let preset = timer::preset_ms(v);
+                    let input = regs.top();
+                    regs.set_top(match ins.mnemonic {
+                        M::Ton => timer::on_delay(st, input, env.now, preset),
+                        M::Tof => timer::off_delay(st, input, env.now, preset),
+                        _ => timer::pulse(st, input, env.now, preset, env.first_scan),
+                    });
+                }
+            }
+            M::Add | M::Sub | M::Mul | M::Div => {
+                if let Some(v) = x.and_then(|op| read_int(mem, env, op, k)) {
+                    let p = regs.p;
+                    regs.p = match ins.mnemonic {
+                        M::Add => arith::add(p, v),
+                        M::Sub => arith::sub(p, v),
+                        M::Mul => arith::mul(p, v),
+                        _ => arith::div(p, v).unwrap_or_else(|| {
+                            out.warning.get_or_insert(Warning::Div0 { line });
+                            0
+                        }),
+                    };
+                }
+            }
+            M::Lcd => return Effect::Lcd(regs.p),
+            M::Rev => return Effect::Rev(regs.top()),
+            M::Ack => {
+                if timer::rising_edge(st.flags, regs.top(), env.first_scan) {
+                    out.ack_request = true;
+                }
+            }
+            // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
+            M::Pwf
+            | M::Pr0
+            | M::Pr1
+            | M::Pr2
+            | M::Pi
+            | M::Sn1
+            | M::Sn2
+            | M::Sn3
+            | M::RsSet
+            | M::UcSet
+            | M::IzSet
+            | M::CalcDu
+            | M::DuSet
+            | M::UMax
+            | M::UMin
+            | M::IMax
+            | M::Fmn
+            | M::Fjm
+            | M::Fmx
+            | M::Frv => {}
+        }
+        Effect::None
+    }
+}
+
+/// A bit operand's value; `None` if `op` is not a (valid) bit operand.
+fn read_bit(mem: &Memory, env: &Env<'_>, op: Operand) -> Option<bool> {
+    let inputs = env.inputs;
+    match op {
+        Operand::D(n) if n < 8 => Some(inputs.digital & (1 << n) != 0),
+        Operand::O(n) if n < OUTPUTS => Some(mem.o & (1 << n) != 0),
+        Operand::B(n) => mem.b.get(usize::from(n)).copied(),
+        Operand::Rdy => Some(inputs.drive.ready),
+        Operand::Flb => Some(inputs.drive.fault_latched),
+        _ => None,
+    }
+}
+
+/// An int operand's value; `None` if `op` is not a (valid) int operand.
+fn read_int(mem: &Memory, env: &Env<'_>, op: Operand, constant: u16) -> Option<i16> {
+    let d = &env.inputs.drive;
+    let adc = |v: u16| v.min(ADC_MAX) as i16;
+    match op {
+        Operand::A(n) => env.inputs.analog.get(usize::from(n)).map(|&v| adc(v)),
+        Operand::K(_) => Some(i16::try_from(constant).unwrap_or(i16::MAX)),
+        Operand::Q(n) => mem.q.get(usize::from(n)).copied(),
+        Operand::Com => Some(adc(d.com)),
+        Operand::Frq => Some(d.frq.0),
+        Operand::Udc => Some(d.udc.0),
+        Operand::Imx => Some(d.imx.0),
+        Operand::Flt => Some(i16::from(d.flt)),
+        Operand::Dir => Some(i16::from(d.dir_reverse)),
+        _ => None,
+    }
+}
+
+/// Writes a bit operand (O, B); anything else is ignored.
+fn write_bit(mem: &mut Memory, op: Operand, value: bool) {
+    match op {
+        Operand::O(n) if n < OUTPUTS => {
+            let mask = 1u8 << n;
+            mem.o = if value { mem.o | mask } else { mem.o & !mask };
+        }
+        Operand::B(n) => {
+            if let Some(b) = mem.b.get_mut(usize::from(n)) {
+                *b = value;
+            }
+        }
+        _ => {}
+    }
+}
+
+/// `WR`/`WRC` to Qn: stores it and reports it for the drive.
+fn write_q(mem: &mut Memory, out: &mut ScanOutputs, n: u8, value: i16) {
+    if let Some(q) = mem.q.get_mut(usize::from(n)) {
+        *q = value;
+        out.q_dirty |= 1u64 << n;
+    }
+}
+
+#[cfg(test)]
+mod tests;
