@@ -1,0 +1,361 @@
+//! The simulated power stage and machine: DC-link supply, capacitor and brake resistor,
+//! the inverter, the induction motor on its shaft, the sensors and the hardware comparators.
+//!
+//! The plant is advanced in virtual time with a fixed-step RK4 whose steps never cross a
+//! switching edge (switching model) and are at most [`MAX_STEP_NS`] long. Inputs are held
+//! constant over each step; a floating leg's diode is chosen from the current at the start
+//! of the step.
+
+pub mod inverter;
+pub mod motor;
+pub mod sensors;
+
+pub use inverter::{GateCommand, Leg, PwmMode};
+pub use motor::MotorParams;
+pub use sensors::{AdcSample, BreakCause, Comparators};
+
+use inverter::Conn;
+
+/// Longest integration step. 25 µs keeps RK4 far inside its stability region for every
+/// time constant of the default rig (the fastest is the DC link's R·C = 0.5 ms) and gives
+/// four steps per period at 10 kHz.
+pub const MAX_STEP_NS: u64 = 25_000;
+
+/// Below this stator current (A, peak of any phase) with all legs floating the diodes stop
+/// conducting and the stator is treated as open.
+pub const OPEN_CIRCUIT_A: f64 = 0.02;
+
+/// Every parameter of the rig (defaults: `docs/rig.md`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigParams {
+    pub motor: MotorParams,
+    /// Open-circuit voltage of the rectified supply.
+    pub supply_v: f64,
+    /// Source resistance of the supply (transformer + rectifier).
+    pub supply_r_ohm: f64,
+    pub dc_capacitor_f: f64,
+    pub brake_resistor_ohm: f64,
+    pub comparators: Comparators,
+    pub pwm_mode: PwmMode,
+}
+
+impl Default for RigParams {
+    fn default() -> Self {
+        RigParams {
+            motor: MotorParams::DEFAULT_RIG,
+            supply_v: 30.0,
+            supply_r_ohm: 0.5,
+            dc_capacitor_f: 1000e-6,
+            brake_resistor_ohm: 10.0,
+            comparators: Comparators {
+                oc_hw_a: 3.0,
+                ov_hw_v: 40.0,
+            },
+            pwm_mode: PwmMode::Averaged,
+        }
+    }
+}
+
+/// Integrated state: ψs (2), ψr (2), shaft speed, DC-link voltage.
+type State = [f64; 6];
+const PSA: usize = 0;
+const PSB: usize = 1;
+const PRA: usize = 2;
+const PRB: usize = 3;
+const WM: usize = 4;
+const UDC: usize = 5;
+
+/// What is observable at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PlantOutputs {
+    pub i_abc_a: [f64; 3],
+    pub u_dc_v: f64,
+    pub speed_rad_s: f64,
+    pub torque_nm: f64,
+    pub brake_on: bool,
+    /// Hardware break latched (outputs forced off).
+    pub hw_break: bool,
+}
+
+/// The rig's state and the command it is under.
+#[derive(Debug, Clone)]
+pub struct Plant {
+    params: RigParams,
+    x: State,
+    /// The stator is open: no leg driven and the diodes have stopped conducting.
+    open: bool,
+    cmd: GateCommand,
+    brake_on: bool,
+    period_ns: u64,
+    /// Time into the current PWM period (switching model).
+    tau_ns: u64,
+    /// Latched hardware break: all legs float until the drive sends an all-off command.
+    hw_break: Option<BreakCause>,
+    /// A break that fired and was not yet collected by [`Plant::take_break`].
+    break_event: Option<BreakCause>,
+    /// Mechanical angle, rad (for plots and tests of reversal).
+    angle_rad: f64,
+    brake_energy_j: f64,
+}
+
+impl Plant {
+    pub fn new(params: RigParams) -> Self {
+        let mut x = [0.0; 6];
+        x[UDC] = params.supply_v;
+        Plant {
+            params,
+            x,
+            open: true,
+            cmd: GateCommand::OFF,
+            brake_on: false,
+            period_ns: 100_000,
+            tau_ns: 0,
+            hw_break: None,
+            break_event: None,
+            angle_rad: 0.0,
+            brake_energy_j: 0.0,
+        }
+    }
+
+    pub fn params(&self) -> &RigParams {
+        &self.params
+    }
+
+    /// Run-time parameter changes (scenario events). The state is kept.
+    pub fn params_mut(&mut self) -> &mut RigParams {
+        &mut self.params
+    }
+
+    /// Starts a PWM period with a new gate command (the timer's preload taking effect).
+    pub fn start_period(&mut self, period_ns: u64, cmd: GateCommand) {
+        self.period_ns = period_ns.max(1);
+        self.tau_ns = 0;
+        self.set_command(cmd);
+    }
+
+    /// Changes the gate command now, inside the period (outputs disabled by software).
+    pub fn set_command(&mut self, cmd: GateCommand) {
+        if !cmd.any_driven() {
+            // The drive has seen the break and turned its outputs off: re-arm (MOE).
+            self.hw_break = None;
+        }
+        self.cmd = cmd;
+    }
+
+    pub fn set_brake(&mut self, on: bool) {
+        self.brake_on = on;
+    }
+
+    /// A hardware break that fired since the last call.
+    pub fn take_break(&mut self) -> Option<BreakCause> {
+        self.break_event.take()
+    }
+
+    pub fn hw_break(&self) -> Option<BreakCause> {
+        self.hw_break
+    }
+
+    pub fn brake_energy_j(&self) -> f64 {
+        self.brake_energy_j
+    }
+
+    pub fn angle_rad(&self) -> f64 {
+        self.angle_rad
+    }
+
+    /// Forces the electrical and mechanical state (tests).
+    pub fn set_speed_rad_s(&mut self, w: f64) {
+        self.x[WM] = w;
+    }
+
+    pub fn outputs(&self) -> PlantOutputs {
+        let m = &self.params.motor;
+        let (i_s, psi_s) = self.stator(&self.x);
+        let i_abc = motor::inverse_clarke(i_s);
+        PlantOutputs {
+            i_abc_a: i_abc,
+            u_dc_v: self.x[UDC],
+            speed_rad_s: self.x[WM],
+            torque_nm: motor::torque_nm(m, psi_s, i_s),
+            brake_on: self.brake_on,
+            hw_break: self.hw_break.is_some(),
+        }
+    }
+
+    /// What the drive's ADC converts now.
+    pub fn adc_sample(&self) -> AdcSample {
+        let o = self.outputs();
+        AdcSample {
+            i_a_counts: sensors::current_counts(o.i_abc_a[0]),
+            i_b_counts: sensors::current_counts(o.i_abc_a[1]),
+            u_dc_counts: sensors::udc_counts(o.u_dc_v),
+        }
+    }
+
+    fn stator(&self, x: &State) -> ([f64; 2], [f64; 2]) {
+        if self.open {
+            let m = &self.params.motor;
+            let k = m.lm_h / m.lr_h();
+            ([0.0, 0.0], [k * x[PRA], k * x[PRB]])
+        } else {
+            let f = motor::Fluxes {
+                psi_s: [x[PSA], x[PSB]],
+                psi_r: [x[PRA], x[PRB]],
+            };
+            (f.currents(&self.params.motor).i_s, f.psi_s)
+        }
+    }
+
+    /// Advances the plant by `dt_ns` under the present command.
+    pub fn advance(&mut self, dt_ns: u64) {
+        let mut left = dt_ns;
+        while left > 0 {
+            let seg_end = match self.params.pwm_mode {
+                PwmMode::Averaged => self.tau_ns.saturating_add(left),
+                PwmMode::Switching => {
+                    if self.tau_ns >= self.period_ns {
+                        // No new period was started (should not happen): wrap the carrier.
+                        self.tau_ns %= self.period_ns;
+                    }
+                    inverter::next_edge_ns(&self.cmd, self.tau_ns, self.period_ns)
+                        .min(self.tau_ns.saturating_add(left))
+                }
+            };
+            let seg = seg_end.saturating_sub(self.tau_ns).max(1).min(left);
+            let conns = self.conns();
+            let n = seg.div_ceil(MAX_STEP_NS);
+            let mut done = 0;
+            for k in 0..n {
+                let step = (seg * (k + 1)) / n - (seg * k) / n;
+                self.step(step, conns);
+                done += step;
+                if self.hw_break.is_some() && conns.iter().any(|c| matches!(c, Conn::Frac(_))) {
+                    // The break forces every leg off at once: finish the segment floating.
+                    break;
+                }
+            }
+            self.tau_ns = self.tau_ns.saturating_add(done);
+            left -= done;
+        }
+    }
+
+    fn conns(&self) -> [Conn; 3] {
+        if self.hw_break.is_some() {
+            return [Conn::Float; 3];
+        }
+        match self.params.pwm_mode {
+            PwmMode::Averaged => self.cmd.legs.map(inverter::averaged_conn),
+            PwmMode::Switching => self.cmd.legs.map(|l| {
+                inverter::switching_conn(l, self.tau_ns, self.period_ns, self.cmd.dead_time_ns)
+            }),
+        }
+    }
+
+    /// One RK4 step of `dt_ns` with the legs connected as given.
+    fn step(&mut self, dt_ns: u64, conns: [Conn; 3]) {
+        let h = dt_ns as f64 * 1e-9;
+        let all_float = conns.iter().all(|c| matches!(c, Conn::Float));
+        let (i_s, _) = self.stator(&self.x);
+        let i_abc = motor::inverse_clarke(i_s);
+        if all_float {
+            if !self.open && i_abc.iter().all(|i| i.abs() < OPEN_CIRCUIT_A) {
+                self.open = true;
+            }
+        } else if self.open {
+            // Leaving the open state: the stator flux is the one the rotor induces (is = 0).
+            let m = &self.params.motor;
+            let k = m.lm_h / m.lr_h();
+            self.x[PSA] = k * self.x[PRA];
+            self.x[PSB] = k * self.x[PRB];
+            self.open = false;
+        }
+        let fracs = [
+            conns[0].frac(i_abc[0]),
+            conns[1].frac(i_abc[1]),
+            conns[2].frac(i_abc[2]),
+        ];
+        let x0 = self.x;
+        let k1 = self.deriv(&x0, fracs);
+        let k2 = self.deriv(&axpy(&x0, h / 2.0, &k1), fracs);
+        let k3 = self.deriv(&axpy(&x0, h / 2.0, &k2), fracs);
+        let k4 = self.deriv(&axpy(&x0, h, &k3), fracs);
+        for i in 0..6 {
+            self.x[i] = x0[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        if self.open {
+            let m = &self.params.motor;
+            let k = m.lm_h / m.lr_h();
+            self.x[PSA] = k * self.x[PRA];
+            self.x[PSB] = k * self.x[PRB];
+        }
+        self.angle_rad += h * 0.5 * (x0[WM] + self.x[WM]);
+        if self.brake_on {
+            let u = 0.5 * (x0[UDC] + self.x[UDC]);
+            self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
+        }
+        if self.hw_break.is_none() && self.cmd.any_driven() {
+            let o = self.outputs();
+            if let Some(cause) = self
+                .params
+                .comparators
+                .check(o.i_abc_a[0], o.i_abc_a[1], o.u_dc_v)
+            {
+                self.hw_break = Some(cause);
+                self.break_event = Some(cause);
+            }
+        }
+    }
+
+    fn deriv(&self, x: &State, fracs: [f64; 3]) -> State {
+        let p = &self.params;
+        let m = &p.motor;
+        let udc = x[UDC];
+        let wr = f64::from(m.pole_pairs) * x[WM];
+        let mut dx = [0.0; 6];
+        let (te, i_dc_inv) = if self.open {
+            // is = 0: ir = ψr / Lr.
+            let lr = m.lr_h();
+            dx[PRA] = -m.rr_ohm * x[PRA] / lr - wr * x[PRB];
+            dx[PRB] = -m.rr_ohm * x[PRB] / lr + wr * x[PRA];
+            (0.0, 0.0)
+        } else {
+            let f = motor::Fluxes {
+                psi_s: [x[PSA], x[PSB]],
+                psi_r: [x[PRA], x[PRB]],
+            };
+            let c = f.currents(m);
+            let v_ab = motor::clarke([fracs[0] * udc, fracs[1] * udc, fracs[2] * udc]);
+            dx[PSA] = v_ab[0] - m.rs_ohm * c.i_s[0];
+            dx[PSB] = v_ab[1] - m.rs_ohm * c.i_s[1];
+            dx[PRA] = -m.rr_ohm * c.i_r[0] - wr * x[PRB];
+            dx[PRB] = -m.rr_ohm * c.i_r[1] + wr * x[PRA];
+            let i_abc = motor::inverse_clarke(c.i_s);
+            let i_dc = fracs[0] * i_abc[0] + fracs[1] * i_abc[1] + fracs[2] * i_abc[2];
+            (motor::torque_nm(m, f.psi_s, c.i_s), i_dc)
+        };
+        dx[WM] = if m.locked_rotor {
+            0.0
+        } else {
+            (te - motor::load_torque_nm(m, x[WM])) / m.inertia_kgm2
+        };
+        let i_src = ((p.supply_v - udc) / p.supply_r_ohm).max(0.0);
+        let i_brake = if self.brake_on {
+            udc / p.brake_resistor_ohm
+        } else {
+            0.0
+        };
+        dx[UDC] = (i_src - i_dc_inv - i_brake) / p.dc_capacitor_f;
+        dx
+    }
+}
+
+fn axpy(x: &State, a: f64, k: &State) -> State {
+    let mut y = *x;
+    for i in 0..6 {
+        y[i] += a * k[i];
+    }
+    y
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,217 @@
+//! Plant tests: the dynamic model against the steady-state equivalent circuit, the DC link
+//! energy paths, the comparators and the switching model.
+
+use super::*;
+use std::f64::consts::PI;
+
+/// A rig whose DC link is stiff, so the phase voltage is exactly m · Udc / 2.
+fn stiff_rig() -> RigParams {
+    RigParams {
+        supply_r_ohm: 1e-3,
+        dc_capacitor_f: 1.0,
+        comparators: Comparators {
+            oc_hw_a: 1e3,
+            ov_hw_v: 1e3,
+        },
+        ..RigParams::default()
+    }
+}
+
+fn sine_command(theta: f64, m: f64) -> GateCommand {
+    let leg = |k: f64| Leg::Duty(0.5 + 0.5 * m * (theta - k * 2.0 * PI / 3.0).sin());
+    GateCommand {
+        legs: [leg(0.0), leg(1.0), leg(2.0)],
+        dead_time_ns: 0,
+    }
+}
+
+/// Drives the plant with sine PWM (duties taken at mid-period so the staircase has no
+/// delay) for `duration_ns`, calling `observe` after every period.
+fn drive_sine(
+    plant: &mut Plant,
+    f_hz: f64,
+    m: f64,
+    period_ns: u64,
+    duration_ns: u64,
+    mut observe: impl FnMut(&Plant, u64),
+) {
+    let mut t = 0u64;
+    while t < duration_ns {
+        let mid = (t as f64 + period_ns as f64 / 2.0) * 1e-9;
+        plant.start_period(period_ns, sine_command(2.0 * PI * f_hz * mid, m));
+        plant.advance(period_ns);
+        t += period_ns;
+        observe(plant, t);
+    }
+}
+
+/// Torque (mean) and stator current (rms) in steady state at a fixed slip.
+fn measure_at_slip(slip: f64, f_hz: f64, m: f64) -> (f64, f64) {
+    let mut rig = stiff_rig();
+    rig.motor.locked_rotor = true; // holds the speed set below
+    let mut plant = Plant::new(rig);
+    let w_sync = 2.0 * PI * f_hz / f64::from(rig.motor.pole_pairs);
+    plant.set_speed_rad_s((1.0 - slip) * w_sync);
+    let period = 20_000;
+    let settle = 1_500_000_000;
+    // Whole electrical periods for the averages.
+    let window = (10.0 / f_hz * 1e9) as u64;
+    let mut torque_sum = 0.0;
+    let mut i2_sum = 0.0;
+    let mut n = 0.0;
+    drive_sine(&mut plant, f_hz, m, period, settle + window, |p, t| {
+        if t > settle {
+            let o = p.outputs();
+            torque_sum += o.torque_nm;
+            i2_sum += o.i_abc_a.iter().map(|i| i * i).sum::<f64>() / 3.0;
+            n += 1.0;
+        }
+    });
+    (torque_sum / n, (i2_sum / n).sqrt())
+}
+
+#[test]
+fn dynamic_model_matches_equivalent_circuit_within_1_percent() {
+    let m = 0.9;
+    let rig = stiff_rig();
+    for (slip, f_hz) in [(0.03, 50.0), (0.1, 50.0), (0.3, 25.0)] {
+        let (torque, i_rms) = measure_at_slip(slip, f_hz, m);
+        let v_rms = m * rig.supply_v / 2.0 / 2.0_f64.sqrt();
+        let ec = motor::equivalent_circuit(&rig.motor, v_rms, f_hz, slip);
+        let e_t = (torque - ec.torque_nm) / ec.torque_nm;
+        let e_i = (i_rms - ec.i_s_rms_a) / ec.i_s_rms_a;
+        println!(
+            "slip {slip} f {f_hz} Hz: torque {torque:.5} vs {:.5} N·m ({:+.3} %), current {i_rms:.4} vs {:.4} A ({:+.3} %)",
+            ec.torque_nm,
+            100.0 * e_t,
+            ec.i_s_rms_a,
+            100.0 * e_i
+        );
+        assert!(e_t.abs() < 0.01, "torque error {e_t} at slip {slip}");
+        assert!(e_i.abs() < 0.01, "current error {e_i} at slip {slip}");
+    }
+}
+
+#[test]
+fn supply_cannot_sink_so_regeneration_charges_the_capacitor() {
+    let mut rig = RigParams::default();
+    rig.motor.locked_rotor = true;
+    rig.comparators.ov_hw_v = 1000.0;
+    let mut plant = Plant::new(rig);
+    // Above synchronous speed: generating.
+    plant.set_speed_rad_s(1.2 * 2.0 * PI * 25.0 / 2.0);
+    let mut max_u: f64 = 0.0;
+    drive_sine(&mut plant, 25.0, 0.5, 62_500, 300_000_000, |p, _| {
+        max_u = max_u.max(p.outputs().u_dc_v);
+    });
+    assert!(max_u > rig.supply_v + 1.0, "udc only reached {max_u}");
+    assert_eq!(plant.brake_energy_j(), 0.0);
+    // Chopper on: the resistor takes the energy and the link falls back.
+    plant.set_brake(true);
+    let before = plant.outputs().u_dc_v;
+    drive_sine(&mut plant, 25.0, 0.5, 62_500, 100_000_000, |_, _| {});
+    assert!(plant.outputs().u_dc_v < before);
+    assert!(plant.brake_energy_j() > 0.0);
+}
+
+#[test]
+fn motoring_draws_from_the_supply_and_accelerates() {
+    let mut plant = Plant::new(RigParams::default());
+    drive_sine(&mut plant, 10.0, 0.25, 62_500, 1_000_000_000, |_, _| {});
+    let o = plant.outputs();
+    let w_sync = 2.0 * PI * 10.0 / 2.0;
+    assert!(
+        o.speed_rad_s > 0.8 * w_sync && o.speed_rad_s < w_sync,
+        "{o:?}"
+    );
+    assert!(o.u_dc_v < 30.0);
+}
+
+#[test]
+fn hardware_comparator_breaks_and_outputs_float() {
+    let mut rig = RigParams::default();
+    rig.motor.locked_rotor = true;
+    rig.comparators.oc_hw_a = 2.0;
+    let mut plant = Plant::new(rig);
+    let mut peak: f64 = 0.0;
+    drive_sine(&mut plant, 50.0, 1.0, 62_500, 200_000_000, |p, _| {
+        let i = p.outputs().i_abc_a;
+        peak = peak.max(i[0].abs()).max(i[1].abs());
+    });
+    assert_eq!(plant.take_break(), Some(BreakCause::Overcurrent));
+    // The break acts within one integration step: hardly any overshoot.
+    assert!(peak < 2.1, "peak {peak}");
+    // Long after the break the current has decayed through the diodes.
+    let o = plant.outputs();
+    assert!(o.i_abc_a.iter().all(|i| i.abs() < 0.05), "{o:?}");
+    // An all-off command re-arms the break input.
+    plant.start_period(62_500, GateCommand::OFF);
+    assert!(plant.hw_break().is_none());
+}
+
+#[test]
+fn outputs_off_lets_the_motor_coast_with_no_current() {
+    let mut plant = Plant::new(RigParams::default());
+    drive_sine(&mut plant, 20.0, 0.45, 62_500, 1_000_000_000, |_, _| {});
+    let w0 = plant.outputs().speed_rad_s;
+    plant.start_period(62_500, GateCommand::OFF);
+    plant.advance(200_000_000);
+    let o = plant.outputs();
+    assert_eq!(o.i_abc_a, [0.0; 3]);
+    assert_eq!(o.torque_nm, 0.0);
+    assert!(o.speed_rad_s > 0.0 && o.speed_rad_s < w0);
+}
+
+#[test]
+fn switching_model_agrees_with_averaged_on_the_fundamental() {
+    let run = |mode| {
+        let mut rig = stiff_rig();
+        rig.pwm_mode = mode;
+        rig.motor.locked_rotor = true;
+        let mut plant = Plant::new(rig);
+        plant.set_speed_rad_s(0.9 * 2.0 * PI * 25.0 / 2.0);
+        let mut sum = 0.0;
+        let mut n = 0.0;
+        drive_sine(&mut plant, 25.0, 0.5, 100_000, 1_400_000_000, |p, t| {
+            if t > 1_000_000_000 {
+                sum += p.outputs().torque_nm;
+                n += 1.0;
+            }
+        });
+        sum / n
+    };
+    let avg = run(PwmMode::Averaged);
+    let sw = run(PwmMode::Switching);
+    assert!(
+        (sw - avg).abs() / avg < 0.02,
+        "switching {sw} vs averaged {avg}"
+    );
+}
+
+#[test]
+fn dead_time_loses_voltage_in_the_switching_model() {
+    let run = |dead| {
+        let mut rig = stiff_rig();
+        rig.pwm_mode = PwmMode::Switching;
+        rig.motor.locked_rotor = true;
+        let mut plant = Plant::new(rig);
+        let mut sum = 0.0;
+        let mut n = 0.0;
+        let mut t = 0u64;
+        while t < 600_000_000 {
+            let mid = (t as f64 + 50_000.0) * 1e-9;
+            let mut cmd = sine_command(2.0 * PI * 25.0 * mid, 0.5);
+            cmd.dead_time_ns = dead;
+            plant.start_period(100_000, cmd);
+            plant.advance(100_000);
+            t += 100_000;
+            if t > 400_000_000 {
+                let o = plant.outputs();
+                sum += o.i_abc_a.iter().map(|i| i * i).sum::<f64>();
+                n += 1.0;
+            }
+        }
+        (sum / n).sqrt()
+    };
+    assert!(run(3_000) < 0.97 * run(0));
+}
