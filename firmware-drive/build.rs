@@ -1,14 +1,44 @@
-//! Links the target binaries against the workspace's `memory.x`; host builds are untouched.
-use std::{env, fs, path::PathBuf};
+//! Build script.
+//!
+//! * Generates the modulator's sine table into `OUT_DIR/sine_table.rs` (host and target):
+//!   the firmware never evaluates trigonometry at run time, and a table computed here in
+//!   `f64` is exact to the last bit of its Q15 format.
+//! * Links the target binaries against the workspace's `memory.x`; host builds are untouched.
+use std::{env, fmt::Write as _, fs, path::PathBuf};
+
+/// Points per full sine period; must match `sine::TABLE_BITS` (2^10).
+const SINE_POINTS: usize = 1024;
+
+fn sine_table() -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "/// round(32767 * sin(2*pi*k/{SINE_POINTS})) for k = 0..={SINE_POINTS} (the last entry\n\
+         /// repeats the first so that interpolation never wraps the index).\n\
+         pub static SINE_Q15: [i16; {}] = [",
+        SINE_POINTS + 1
+    );
+    for k in 0..=SINE_POINTS {
+        let x = (2.0 * std::f64::consts::PI * k as f64 / SINE_POINTS as f64).sin();
+        let v = (32767.0 * x).round() as i16;
+        let _ = write!(s, "{v},");
+        if k % 16 == 15 {
+            s.push('\n');
+        }
+    }
+    s.push_str("];\n");
+    s
+}
 
 fn main() {
     let target = env::var("TARGET").unwrap_or_default();
     println!("cargo:rerun-if-changed=../memory.x");
     println!("cargo:rerun-if-changed=build.rs");
+    let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    fs::write(out.join("sine_table.rs"), sine_table()).expect("write OUT_DIR/sine_table.rs");
     if !target.starts_with("thumb") {
         return;
     }
-    let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     fs::copy("../memory.x", out.join("memory.x")).expect("copy ../memory.x to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rustc-link-arg-bins=--nmagic");

@@ -9,3 +9,25 @@
         clippy::panic
     )
 )]
+
+// Drive core modules (issue 4). Units, scaling and every decision: `docs/drive-core.md`.
+pub mod config;
+pub mod drive;
+pub mod link;
+pub mod measure;
+pub mod modulator;
+pub mod protection;
+pub mod reversal;
+pub mod sine;
+pub mod state;
+pub mod timing;
+pub mod vm;
+
+pub use crate::config::{DriveConfig, ResetCause};
+pub use crate::drive::{
+    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, DriveWarning, PwmCommand,
+};
+pub use crate::measure::AdcSample;
+pub use crate::protection::{FaultCode, HwBreak};
+pub use crate::state::DriveState;
+pub use crate::timing::PwmTiming;

@@ -1,0 +1,50 @@
+//! Build-time/board-time configuration of the drive core (not part of the user program).
+
+/// Why the MCU last started; the board reads it from the reset flags (RCC_CSR).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ResetCause {
+    PowerOn,
+    /// The independent watchdog restarted the MCU: reported as fault `WDG` after boot.
+    Watchdog,
+    /// Any other reset (pin, software): treated like power-on.
+    Other,
+}
+
+/// Board and safety parameters. `Default` is the B-G431B-ESC1 / NUCLEO-G431RB setup.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct DriveConfig {
+    /// TIM1 kernel clock (CK_INT), Hz.
+    pub timer_clock_hz: u32,
+    /// Requested dead time inserted at every transition of a leg, ns.
+    pub dead_time_ns: u32,
+    /// The dead time never goes below this, whatever `dead_time_ns` says (power-stage
+    /// datasheet limit), ns.
+    pub min_dead_time_ns: u32,
+    /// Duties of 1..=this many counts become 0 and of N-this..N-1 become N (program.md 4.3).
+    pub min_pulse_counts: u16,
+    /// Min-max (third-harmonic equivalent) injection: raises the linear range of the
+    /// modulation index from 1.0 to 1.1547. Off by default (the source did plain sine PWM,
+    /// and the documented V/f ratio assumes it).
+    pub min_max_injection: bool,
+    /// Switching frequency before the program's `PWF` has run, Hz.
+    pub default_pwm_hz: u16,
+    /// Boot self-test: a phase-current channel must read within this many counts of
+    /// 2048 (0 A) while the PWM is off.
+    pub current_offset_tolerance_counts: u16,
+}
+
+impl Default for DriveConfig {
+    fn default() -> Self {
+        DriveConfig {
+            timer_clock_hz: 170_000_000,
+            dead_time_ns: 1000,
+            min_dead_time_ns: 500,
+            min_pulse_counts: 4,
+            min_max_injection: false,
+            default_pwm_hz: 16_000,
+            current_offset_tolerance_counts: 205,
+        }
+    }
+}

@@ -1,0 +1,830 @@
+//! [`DriveCore`]: the whole drive as one sans-IO state machine. The board (or hil-sim)
+//! calls three entry points and applies what they return:
+//!
+//! * [`DriveCore::pwm_period`] once per PWM period (TIM1 update interrupt) with the ADC
+//!   sample of that period: software trips, brake chopper, modulator. Returns the duties.
+//! * [`DriveCore::tick_1ms`] every millisecond: state machine, drive section, reversal,
+//!   modulator parameters; returns events through the callback.
+//! * [`DriveCore::command`], [`DriveCore::load_program`], [`DriveCore::trip`],
+//!   [`DriveCore::hardware_break`] from the link and the break input.
+//!
+//! All take `&mut self`: on the target the caller serialises them (e.g. the 1 ms tick and
+//! the link handler run inside a critical section or at the PWM interrupt's priority).
+//! A trip latched by any of them takes effect in the next `pwm_period` at the latest, and
+//! the `pwm_period` that detects a trip already returns the outputs off.
+
+use heapless::Deque;
+use shared_protocol::program::{verify_drive, DriveSection, VerifyError};
+use shared_protocol::units::{CentiAmps, Decihertz, Decivolts};
+
+use crate::config::{DriveConfig, ResetCause};
+use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, PeakTracker};
+use crate::modulator::{LegMode, Modulator, ModulatorParams};
+use crate::protection::{FaultCode, HwBreak, Limits};
+use crate::reversal::Reversal;
+use crate::sine::{phase_of_decidegrees, SINE_Q15};
+use crate::state::DriveState;
+use crate::timing::PwmTiming;
+use crate::vm::{DriveVm, VmWarning};
+
+/// Events queued between two `tick_1ms` calls (the queue drops the newest beyond it and
+/// reports [`DriveEvent::EventsLost`]).
+pub const EVENT_QUEUE: usize = 16;
+
+/// Commands from the PLC (through the link layer).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DriveCommand {
+    /// Start executing the loaded drive section (IDLE -> RUN).
+    Run,
+    /// Stop: PWM off at once (coast), RUN -> IDLE.
+    Stop,
+    /// Acknowledge the latched fault.
+    Ack,
+    /// The PLC wrote Q`addr` (`WR`/`WRC`): update the drive's copy.
+    SetQ { addr: u8, value: i16 },
+    /// The PLC's `REV` request.
+    Direction { reverse: bool },
+}
+
+/// Why a command was not carried out.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum CommandError {
+    /// Still in BOOT.
+    Booting,
+    /// RUN while a fault is latched (ACK first).
+    Faulted,
+    /// RUN without an accepted drive section.
+    NoProgram,
+    /// ACK while the fault's cause is still present.
+    CauseActive(FaultCode),
+    /// ACK while the commanded frequency is at or above fmn.
+    FrequencyNotBelowFmn,
+    /// Q index beyond Q63.
+    BadAddress,
+}
+
+/// Warnings: reported, nothing latched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DriveWarning {
+    Vm(VmWarning),
+}
+
+/// What the core reports (never logs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DriveEvent {
+    State {
+        from: DriveState,
+        to: DriveState,
+    },
+    /// A fault was latched (the first one; later trips while latched are not reported).
+    Fault(FaultCode),
+    Warning(DriveWarning),
+    /// A pending direction request was applied (true = reverse).
+    Reversed(bool),
+    /// Events were dropped because the queue was full.
+    EventsLost(u16),
+}
+
+/// What the PWM interrupt writes to TIM1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct PwmCommand {
+    /// Main output enable (MOE): false = all six switches open.
+    pub enable: bool,
+    /// CCR1..3 in counts, 0..=`period_counts` (all 0 when disabled).
+    pub duty: [u16; 3],
+    /// ARR the duties refer to (= [`PwmTiming::arr`]); reprogram TIM1 when it changes.
+    pub period_counts: u16,
+    /// Brake-chopper switch on.
+    pub brake: bool,
+}
+
+/// Snapshot for the link's status frame and the PLC's extension operands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct DriveStatus {
+    pub state: DriveState,
+    pub fault: Option<FaultCode>,
+    /// `FRQ`: frequency being generated (0 while the outputs are off).
+    pub f_applied: Decihertz,
+    /// Commanded frequency from the drive section (0 when not running).
+    pub f_command: Decihertz,
+    /// `DIR`: applied direction (true = reverse).
+    pub reverse: bool,
+    /// A direction request waits for the frv rule.
+    pub reverse_pending: bool,
+    /// `UDC`.
+    pub u_dc: Decivolts,
+    /// `IMX`: largest |phase current| over the last 10 ms.
+    pub i_peak: CentiAmps,
+    /// `COM`: aux channel, 10-bit.
+    pub com: u16,
+    /// Modulation index applied, 0.001 (0 while the outputs are off).
+    pub modulation_permille: u16,
+    pub brake: bool,
+    pub pwm_millihertz: u32,
+    pub program_loaded: bool,
+}
+
+impl DriveStatus {
+    /// `RDY`: no fault, program running.
+    pub fn ready(&self) -> bool {
+        self.state == DriveState::Run && self.fault.is_none()
+    }
+}
+
+/// The drive (see the module docs for how to drive it).
+pub struct DriveCore {
+    cfg: DriveConfig,
+    reset_cause: ResetCause,
+    state: DriveState,
+    fault: Option<FaultCode>,
+    program: Option<DriveSection>,
+    vm: DriveVm,
+    /// The PLC is in RUN: the section executes (also while FAULT, so that the frequency
+    /// command follows the PLC and the ACK rule can see it fall below fmn).
+    run_requested: bool,
+    reversal: Reversal,
+    limits: Limits,
+    timing: PwmTiming,
+    timing_key: (u16, u16),
+    modulator: Modulator,
+    /// Set by the tick: RUN, f >= fmn and at least one leg in use.
+    outputs_on: bool,
+    /// Outputs were on in the previous PWM period (to restart the sine at angle 0).
+    was_on: bool,
+    brake: bool,
+    last: AdcSample,
+    peak: PeakTracker,
+    hw_break_active: [bool; 2],
+    boot_samples: u32,
+    boot_offset_bad: bool,
+    events: Deque<DriveEvent, EVENT_QUEUE>,
+    events_lost: u16,
+}
+
+impl DriveCore {
+    pub fn new(cfg: DriveConfig, reset_cause: ResetCause) -> Self {
+        let vm = DriveVm::new(cfg.default_pwm_hz);
+        let s = vm.settings();
+        let key = (s.pwf_hz, s.prescaler);
+        DriveCore {
+            timing: Self::timing_for(&cfg, key),
+            timing_key: key,
+            cfg,
+            reset_cause,
+            state: DriveState::Boot,
+            fault: None,
+            program: None,
+            vm,
+            run_requested: false,
+            reversal: Reversal::default(),
+            limits: Limits::default(),
+            modulator: Modulator::new(cfg.min_pulse_counts, cfg.min_max_injection),
+            outputs_on: false,
+            was_on: false,
+            brake: false,
+            last: AdcSample::default(),
+            peak: PeakTracker::default(),
+            hw_break_active: [false; 2],
+            boot_samples: 0,
+            boot_offset_bad: false,
+            events: Deque::new(),
+            events_lost: 0,
+        }
+    }
+
+    fn timing_for(cfg: &DriveConfig, (pwf, pre): (u16, u16)) -> PwmTiming {
+        PwmTiming::compute(
+            cfg.timer_clock_hz,
+            u32::from(pwf),
+            u32::from(pre),
+            cfg.dead_time_ns,
+            cfg.min_dead_time_ns,
+        )
+    }
+
+    pub fn state(&self) -> DriveState {
+        self.state
+    }
+
+    pub fn fault(&self) -> Option<FaultCode> {
+        self.fault
+    }
+
+    pub fn config(&self) -> &DriveConfig {
+        &self.cfg
+    }
+
+    /// The interpreter (read-only: settings, Q copy, outputs).
+    pub fn vm(&self) -> &DriveVm {
+        &self.vm
+    }
+
+    /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
+    pub fn pwm_timing(&self) -> PwmTiming {
+        self.timing
+    }
+
+    /// Verify and take a new drive section. Rejected: no program, PWM off, fault `PROG`
+    /// latched, and the error (line + reason) for the download reply. A download while in
+    /// RUN stops first (the PLC downloads only when it starts RUN).
+    pub fn load_program(&mut self, s: &DriveSection) -> Result<(), VerifyError> {
+        if self.state == DriveState::Run {
+            self.set_state(DriveState::Idle);
+        }
+        self.run_requested = false;
+        self.outputs_on = false;
+        if let Err(e) = verify_drive(s) {
+            self.program = None;
+            self.vm.stop_outputs();
+            self.trip(FaultCode::Prog);
+            return Err(e);
+        }
+        self.vm.load(s);
+        self.program = Some(s.clone());
+        self.apply_settings();
+        Ok(())
+    }
+
+    /// Latch a fault detected outside the core (e.g. `FaultCode::Link` from the link
+    /// layer). PWM goes off at the next `pwm_period` at the latest.
+    pub fn trip(&mut self, f: FaultCode) {
+        self.outputs_on = false;
+        if self.state != DriveState::Fault {
+            let from = self.state;
+            self.state = DriveState::Fault;
+            self.fault = Some(f);
+            self.push_event(DriveEvent::State {
+                from,
+                to: DriveState::Fault,
+            });
+            self.push_event(DriveEvent::Fault(f));
+        }
+    }
+
+    /// The TIM1 break input fired (the hardware has already opened all switches). The
+    /// cause counts as present until [`DriveCore::hardware_break_released`].
+    pub fn hardware_break(&mut self, cause: HwBreak) {
+        if let Some(a) = self.hw_break_active.get_mut(cause.index()) {
+            *a = true;
+        }
+        self.trip(cause.fault());
+    }
+
+    /// The comparator behind the break input is back below its threshold.
+    pub fn hardware_break_released(&mut self, cause: HwBreak) {
+        if let Some(a) = self.hw_break_active.get_mut(cause.index()) {
+            *a = false;
+        }
+    }
+
+    pub fn command(&mut self, c: DriveCommand) -> Result<(), CommandError> {
+        match c {
+            DriveCommand::Run => match self.state {
+                DriveState::Boot => Err(CommandError::Booting),
+                DriveState::Fault => Err(CommandError::Faulted),
+                DriveState::Run => Ok(()),
+                DriveState::Idle => {
+                    if self.program.is_none() {
+                        return Err(CommandError::NoProgram);
+                    }
+                    self.vm.start_run();
+                    self.reversal.restart(0);
+                    self.modulator.reset_phase();
+                    self.run_requested = true;
+                    self.set_state(DriveState::Run);
+                    Ok(())
+                }
+            },
+            DriveCommand::Stop => {
+                self.run_requested = false;
+                self.outputs_on = false;
+                self.vm.stop_outputs();
+                if self.state == DriveState::Run {
+                    self.set_state(DriveState::Idle);
+                }
+                Ok(())
+            }
+            DriveCommand::Ack => {
+                let Some(f) = self.fault else {
+                    return Ok(());
+                };
+                if !self.cause_gone(f) {
+                    return Err(CommandError::CauseActive(f));
+                }
+                let cmd = self.f_command();
+                if cmd != 0 && cmd >= self.vm.settings().fmn {
+                    return Err(CommandError::FrequencyNotBelowFmn);
+                }
+                self.fault = None;
+                self.run_requested = false;
+                self.vm.stop_outputs();
+                self.set_state(DriveState::Idle);
+                Ok(())
+            }
+            DriveCommand::SetQ { addr, value } => {
+                if self.vm.set_q(addr, value) {
+                    Ok(())
+                } else {
+                    Err(CommandError::BadAddress)
+                }
+            }
+            DriveCommand::Direction { reverse } => {
+                self.reversal.request(reverse);
+                Ok(())
+            }
+        }
+    }
+
+    /// Every millisecond. Events (including those raised by the interrupt and by commands
+    /// since the last tick) come out through `events`.
+    pub fn tick_1ms(&mut self, events: &mut impl FnMut(DriveEvent)) {
+        self.peak.next_ms();
+        if self.state == DriveState::Boot {
+            self.finish_boot();
+        }
+        let vm_active = self.run_requested
+            && matches!(self.state, DriveState::Run | DriveState::Fault)
+            && self.program.is_some();
+        if vm_active {
+            if let Some(p) = self.program.as_ref() {
+                let mut warnings: heapless::Vec<VmWarning, 4> = heapless::Vec::new();
+                self.vm.run(p, &mut |w| {
+                    let _ = warnings.push(w);
+                });
+                for w in warnings {
+                    self.push_event(DriveEvent::Warning(DriveWarning::Vm(w)));
+                }
+            }
+        } else {
+            self.vm.stop_outputs();
+        }
+        let f = self.f_command();
+        if let Some(dir) = self.reversal.cycle(f, self.vm.settings().frv) {
+            self.push_event(DriveEvent::Reversed(dir));
+        }
+        self.apply_settings();
+        self.update_modulator();
+        while let Some(e) = self.events.pop_front() {
+            events(e);
+        }
+        if self.events_lost > 0 {
+            events(DriveEvent::EventsLost(self.events_lost));
+            self.events_lost = 0;
+        }
+    }
+
+    /// The PWM interrupt: measurements, software trips and the duties for the next period.
+    #[inline]
+    pub fn pwm_period(&mut self, s: &AdcSample) -> PwmCommand {
+        self.last = *s;
+        let abs_i = s.abs_current_counts();
+        self.peak.record(abs_i);
+        let period_counts = self.timing.arr;
+        let off = |brake| PwmCommand {
+            enable: false,
+            duty: [0; 3],
+            period_counts,
+            brake,
+        };
+        match self.state {
+            DriveState::Boot => {
+                self.boot_samples = self.boot_samples.saturating_add(1);
+                if abs_i > u32::from(self.cfg.current_offset_tolerance_counts) {
+                    self.boot_offset_bad = true;
+                }
+                return off(false);
+            }
+            DriveState::Idle | DriveState::Run => {
+                if self.limits.overcurrent(abs_i) {
+                    self.trip(FaultCode::Oc);
+                }
+            }
+            DriveState::Fault => {}
+        }
+        self.brake = self.limits.brake(self.brake, s);
+        let mut on = self.state == DriveState::Run && self.outputs_on;
+        if on && self.limits.undervoltage(s) {
+            self.trip(FaultCode::Uv);
+            on = false;
+        }
+        if !on {
+            if self.was_on {
+                self.modulator.reset_phase();
+                self.was_on = false;
+            }
+            return off(self.brake);
+        }
+        self.was_on = true;
+        PwmCommand {
+            enable: true,
+            duty: self.modulator.step(period_counts),
+            period_counts,
+            brake: self.brake,
+        }
+    }
+
+    pub fn status(&self) -> DriveStatus {
+        let on = self.state == DriveState::Run && self.outputs_on;
+        let m = if on {
+            (self.modulator.params().m_q16 * 1000 + 0x8000) >> 16
+        } else {
+            0
+        };
+        DriveStatus {
+            state: self.state,
+            fault: self.fault,
+            f_applied: Decihertz(if on { self.vm.outputs().f } else { 0 }),
+            f_command: Decihertz(self.f_command()),
+            reverse: self.reversal.applied(),
+            reverse_pending: self.reversal.pending(),
+            u_dc: udc_decivolts(self.last.u_dc),
+            i_peak: abs_counts_to_centiamps(self.peak.peak_counts()),
+            com: com_of(self.last.aux),
+            modulation_permille: m as u16,
+            brake: self.brake,
+            pwm_millihertz: self.timing.pwm_millihertz,
+            program_loaded: self.program.is_some(),
+        }
+    }
+
+    fn f_command(&self) -> i16 {
+        self.vm.outputs().f
+    }
+
+    fn set_state(&mut self, to: DriveState) {
+        let from = self.state;
+        if from != to {
+            self.state = to;
+            self.push_event(DriveEvent::State { from, to });
+        }
+    }
+
+    fn push_event(&mut self, e: DriveEvent) {
+        if self.events.push_back(e).is_err() {
+            self.events_lost = self.events_lost.saturating_add(1);
+        }
+    }
+
+    fn cause_gone(&self, f: FaultCode) -> bool {
+        match f {
+            FaultCode::Oc => !self.limits.overcurrent(self.last.abs_current_counts()),
+            FaultCode::OcHw => !self.hw_active(HwBreak::Overcurrent),
+            FaultCode::OvHw => !self.hw_active(HwBreak::Overvoltage),
+            FaultCode::Uv => !self.limits.undervoltage(&self.last),
+            // The ACK itself arrived over the link.
+            FaultCode::Link => true,
+            FaultCode::Prog => self.program.is_some(),
+            FaultCode::Wdg => true,
+            // A failed self-test needs a power cycle.
+            FaultCode::Boot => false,
+        }
+    }
+
+    fn hw_active(&self, c: HwBreak) -> bool {
+        self.hw_break_active.get(c.index()).copied().unwrap_or(true)
+    }
+
+    fn finish_boot(&mut self) {
+        let table_ok = SINE_Q15.first() == Some(&0)
+            && SINE_Q15.get(256) == Some(&32767)
+            && SINE_Q15.get(768) == Some(&-32767);
+        let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2;
+        let offsets_ok = !(self.boot_samples > 0 && self.boot_offset_bad);
+        if !(table_ok && timing_ok && offsets_ok) {
+            self.trip(FaultCode::Boot);
+        } else if self.reset_cause == ResetCause::Watchdog {
+            self.trip(FaultCode::Wdg);
+        } else {
+            self.set_state(DriveState::Idle);
+        }
+    }
+
+    /// Protection limits and timer setup from the program's settings.
+    fn apply_settings(&mut self) {
+        let s = *self.vm.settings();
+        self.limits.set_i_max(s.i_max_centiamps);
+        self.limits.set_u_min(s.u_min_volts);
+        self.limits.set_u_max(s.u_max_volts);
+        let key = (s.pwf_hz, s.prescaler);
+        if key != self.timing_key {
+            self.timing_key = key;
+            self.timing = Self::timing_for(&self.cfg, key);
+        }
+    }
+
+    /// Modulator parameters for the next millisecond (divisions happen here, not in the
+    /// interrupt).
+    fn update_modulator(&mut self) {
+        let s = *self.vm.settings();
+        let o = *self.vm.outputs();
+        let any_leg = o.legs.iter().any(|l| *l != LegMode::Unused);
+        self.outputs_on = self.state == DriveState::Run && any_leg && o.f >= s.fmn;
+        let fjm = u64::from(s.fjm.max(1) as u16);
+        let m = (u64::from(o.a.max(0) as u16) << 16) / fjm + (u64::from(s.du) << 16) / 1023;
+        let m_q16 = m.min(u64::from(self.modulator.m_max_q16())) as u32;
+        let [p1, p2, p3] = o.phase_decideg;
+        self.modulator.set_params(ModulatorParams {
+            step: self.timing.phase_step(o.f),
+            m_q16,
+            phi: [
+                phase_of_decidegrees(p1),
+                phase_of_decidegrees(p2),
+                phase_of_decidegrees(p3),
+            ],
+            legs: o.legs,
+            swap_1_2: self.reversal.applied(),
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shared_protocol::program::assemble;
+
+    fn section(text: &str) -> DriveSection {
+        assemble(text).expect("assembles").drive_section()
+    }
+
+    /// 50 Hz three-phase sine, fmn 5 Hz, limits 35 V / 25 V / 2 A.
+    const SINE: &str = "
+000 PWF K00 9800
+001 LD  Q01
+002 LD  Q01
+003 LD  K01 0000
+004 SN1
+005 LD  K02 1200
+006 SN2
+007 LD  K03 2400
+008 SN3
+009 fmn K04 0050
+010 U>  K05 0035
+011 U<  K06 0025
+012 I>  K07 0200
+";
+
+    fn ok_sample() -> AdcSample {
+        AdcSample {
+            u_dc: 2730, // 30 V
+            ..AdcSample::default()
+        }
+    }
+
+    fn events(core: &mut DriveCore) -> Vec<DriveEvent> {
+        let mut v = Vec::new();
+        core.tick_1ms(&mut |e| v.push(e));
+        v
+    }
+
+    fn running(f: i16) -> DriveCore {
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        core.pwm_period(&ok_sample());
+        events(&mut core);
+        core.load_program(&section(SINE)).expect("valid");
+        core.command(DriveCommand::SetQ { addr: 1, value: f })
+            .unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        events(&mut core);
+        core
+    }
+
+    #[test]
+    fn boots_to_idle_and_reports_the_transition() {
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        assert_eq!(core.state(), DriveState::Boot);
+        assert_eq!(core.command(DriveCommand::Run), Err(CommandError::Booting));
+        assert!(!core.pwm_period(&ok_sample()).enable);
+        let ev = events(&mut core);
+        assert_eq!(
+            ev,
+            vec![DriveEvent::State {
+                from: DriveState::Boot,
+                to: DriveState::Idle
+            }]
+        );
+        assert_eq!(
+            core.command(DriveCommand::Run),
+            Err(CommandError::NoProgram)
+        );
+    }
+
+    #[test]
+    fn watchdog_reset_is_reported_as_wdg_and_acknowledgeable() {
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::Watchdog);
+        let ev = events(&mut core);
+        assert!(ev.contains(&DriveEvent::Fault(FaultCode::Wdg)));
+        assert_eq!(core.fault(), Some(FaultCode::Wdg));
+        core.command(DriveCommand::Ack).unwrap();
+        assert_eq!(core.state(), DriveState::Idle);
+    }
+
+    #[test]
+    fn current_sensor_offset_fails_the_self_test() {
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        core.pwm_period(&AdcSample {
+            i_a: 2048 + 400,
+            ..ok_sample()
+        });
+        events(&mut core);
+        assert_eq!(core.fault(), Some(FaultCode::Boot));
+        assert!(core.command(DriveCommand::Ack).is_err());
+    }
+
+    #[test]
+    fn outputs_follow_fmn() {
+        let mut core = running(40); // 4 Hz < fmn 5 Hz
+        assert!(!core.pwm_period(&ok_sample()).enable);
+        assert_eq!(core.status().f_applied, Decihertz(0));
+        assert_eq!(core.status().f_command, Decihertz(40));
+        core.command(DriveCommand::SetQ { addr: 1, value: 50 })
+            .unwrap();
+        events(&mut core);
+        let c = core.pwm_period(&ok_sample());
+        assert!(c.enable);
+        assert_eq!(c.period_counts, core.pwm_timing().arr);
+        assert_eq!(core.status().f_applied, Decihertz(50));
+        // A = f = 5 Hz at fjm 50 Hz: m = 0.1.
+        assert_eq!(core.status().modulation_permille, 100);
+    }
+
+    #[test]
+    fn overcurrent_trips_in_the_same_period_and_needs_ack_and_run() {
+        let mut core = running(500);
+        assert!(core.pwm_period(&ok_sample()).enable);
+        let over = AdcSample {
+            i_b: 2048 - 420, // -2.05 A
+            ..ok_sample()
+        };
+        let c = core.pwm_period(&over);
+        assert!(!c.enable);
+        assert_eq!(c.duty, [0; 3]);
+        assert_eq!(core.fault(), Some(FaultCode::Oc));
+        let ev = events(&mut core);
+        assert!(ev.contains(&DriveEvent::Fault(FaultCode::Oc)));
+        // Cause still present.
+        assert_eq!(
+            core.command(DriveCommand::Ack),
+            Err(CommandError::CauseActive(FaultCode::Oc))
+        );
+        core.pwm_period(&ok_sample());
+        // The PLC still commands 50 Hz: refused.
+        assert_eq!(
+            core.command(DriveCommand::Ack),
+            Err(CommandError::FrequencyNotBelowFmn)
+        );
+        assert_eq!(core.command(DriveCommand::Run), Err(CommandError::Faulted));
+        core.command(DriveCommand::SetQ { addr: 1, value: 0 })
+            .unwrap();
+        events(&mut core);
+        for _ in 0..100 {
+            assert!(!core.pwm_period(&ok_sample()).enable);
+        }
+        core.command(DriveCommand::Ack).unwrap();
+        assert_eq!(core.state(), DriveState::Idle);
+        events(&mut core);
+        // No automatic restart.
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 500,
+        })
+        .unwrap();
+        for _ in 0..10 {
+            events(&mut core);
+            assert!(!core.pwm_period(&ok_sample()).enable);
+        }
+        core.command(DriveCommand::Run).unwrap();
+        events(&mut core);
+        assert!(core.pwm_period(&ok_sample()).enable);
+    }
+
+    #[test]
+    fn undervoltage_only_while_the_pwm_is_on() {
+        let low = AdcSample {
+            u_dc: 2000, // 22 V
+            ..AdcSample::default()
+        };
+        let mut core = running(10); // below fmn: outputs off
+        assert!(!core.pwm_period(&low).enable);
+        assert_eq!(core.fault(), None);
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 300,
+        })
+        .unwrap();
+        events(&mut core);
+        assert!(!core.pwm_period(&low).enable);
+        assert_eq!(core.fault(), Some(FaultCode::Uv));
+    }
+
+    #[test]
+    fn hardware_break_latches_until_released() {
+        let mut core = running(500);
+        core.hardware_break(HwBreak::Overvoltage);
+        assert!(!core.pwm_period(&ok_sample()).enable);
+        assert_eq!(core.fault(), Some(FaultCode::OvHw));
+        core.command(DriveCommand::Stop).unwrap();
+        assert_eq!(
+            core.command(DriveCommand::Ack),
+            Err(CommandError::CauseActive(FaultCode::OvHw))
+        );
+        core.hardware_break_released(HwBreak::Overvoltage);
+        core.command(DriveCommand::Ack).unwrap();
+        assert_eq!(core.state(), DriveState::Idle);
+    }
+
+    #[test]
+    fn first_fault_stays_latched() {
+        let mut core = running(500);
+        core.trip(FaultCode::Link);
+        core.hardware_break(HwBreak::Overcurrent);
+        assert_eq!(core.fault(), Some(FaultCode::Link));
+        let ev = events(&mut core);
+        let faults: Vec<_> = ev
+            .iter()
+            .filter(|e| matches!(e, DriveEvent::Fault(_)))
+            .collect();
+        assert_eq!(faults, vec![&DriveEvent::Fault(FaultCode::Link)]);
+    }
+
+    #[test]
+    fn rejected_download_latches_prog_until_a_good_one() {
+        let mut core = running(500);
+        let mut bad = section(SINE);
+        bad.lines[20] = Some(shared_protocol::program::Instruction {
+            mnemonic: shared_protocol::program::Mnemonic::Pwf,
+            operand: Some(shared_protocol::program::Operand::K(0)),
+            constant: 100,
+        });
+        let e = core.load_program(&bad).unwrap_err();
+        assert_eq!(e.line, 20);
+        assert_eq!(core.fault(), Some(FaultCode::Prog));
+        assert!(!core.pwm_period(&ok_sample()).enable);
+        assert_eq!(
+            core.command(DriveCommand::Ack),
+            Err(CommandError::CauseActive(FaultCode::Prog))
+        );
+        core.load_program(&section(SINE)).unwrap();
+        core.command(DriveCommand::Ack).unwrap();
+        core.command(DriveCommand::Run).unwrap();
+    }
+
+    #[test]
+    fn stop_coasts_at_once() {
+        let mut core = running(500);
+        assert!(core.pwm_period(&ok_sample()).enable);
+        core.command(DriveCommand::Stop).unwrap();
+        assert!(!core.pwm_period(&ok_sample()).enable);
+        assert_eq!(core.state(), DriveState::Idle);
+    }
+
+    #[test]
+    fn brake_chopper_works_in_idle_and_fault() {
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        events(&mut core);
+        core.load_program(&section(SINE)).unwrap();
+        let high = AdcSample {
+            u_dc: 3200, // 35.2 V
+            ..AdcSample::default()
+        };
+        let c = core.pwm_period(&high);
+        assert!(c.brake && !c.enable);
+        core.trip(FaultCode::Link);
+        assert!(core.pwm_period(&high).brake);
+        assert!(!core.pwm_period(&ok_sample()).brake);
+    }
+
+    #[test]
+    fn pwf_change_reprograms_the_timer_and_keeps_the_frequency() {
+        let mut core = running(500);
+        let t1 = core.pwm_timing();
+        assert_eq!(t1.arr, 8673); // 170 MHz / (2 * 9800)
+        let step1 = core.modulator.params().step;
+        let f1 = f64::from(step1) / 4294967296.0 * f64::from(t1.pwm_millihertz) / 1000.0;
+        assert!((f1 - 50.0).abs() < 1e-3, "{f1}");
+        let p = section(&SINE.replace("PWF K00 9800", "PWF K00 9800\n013 PR0"));
+        core.load_program(&p).unwrap();
+        assert_eq!(core.pwm_timing().arr, 34694); // 2450 Hz
+    }
+
+    #[test]
+    fn status_scales_measurements() {
+        let mut core = running(500);
+        core.pwm_period(&AdcSample {
+            i_a: 2048 + 205,
+            i_b: 2048 - 100,
+            u_dc: 2730,
+            aux: 4095,
+        });
+        let s = core.status();
+        assert_eq!(s.u_dc, Decivolts(300));
+        assert_eq!(s.i_peak, CentiAmps(100));
+        assert_eq!(s.com, 1023);
+        assert!(s.ready());
+    }
+}

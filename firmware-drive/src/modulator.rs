@@ -1,0 +1,255 @@
+//! The PWM-rate part of the drive: phase accumulator, sine lookup, V/f amplitude, duty
+//! in timer counts, and the dead-time-safe clamp. Called once per PWM period from the
+//! interrupt, so it is integer-only and branch-light; everything that needs a division
+//! (modulation index, phase step) is computed by the 1 ms tick and handed over in
+//! [`ModulatorParams`].
+//!
+//! duty_k = N/2 + N/2 * m * sin(theta + phi_k), theta += step every period (32-bit turn).
+//! With min-max injection, the common-mode offset -(max v + min v)/2 is added to all three
+//! legs (equivalent to third-harmonic injection, line-to-line voltages unchanged), which
+//! keeps duties inside 0..N up to m = 2/sqrt(3) = 1.1547.
+
+use crate::sine::sin_q15;
+
+/// Modulation index 1.0 in Q16.
+pub const M_ONE_Q16: u32 = 1 << 16;
+/// 2/sqrt(3) in Q16: the linear limit with min-max injection.
+pub const M_MAX_MIN_MAX_Q16: u32 = 75_674;
+
+/// What one leg (phase pair PW0/PW1, PW2/PW3, PW4/PW5) outputs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum LegMode {
+    /// Not set by the program: duty 0 (low switch on), as the source's reset PDC value.
+    #[default]
+    Unused,
+    /// `WR PWx`: fixed duty, 0.1 % of the period (0..=1000).
+    Direct { permille: u16 },
+    /// `SNx`: sine with the common amplitude and frequency.
+    Sine,
+}
+
+/// Set by the 1 ms tick; read by every PWM period.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ModulatorParams {
+    /// Phase advance per PWM period (2^32 = one turn).
+    pub step: u32,
+    /// Modulation index, Q16 (already limited to m_max).
+    pub m_q16: u32,
+    /// Phase offsets of the three sine phases (2^32 = one turn).
+    pub phi: [u32; 3],
+    pub legs: [LegMode; 3],
+    /// Reverse direction: legs 1 and 2 exchange their outputs.
+    pub swap_1_2: bool,
+}
+
+#[derive(Debug, Clone)]
+pub struct Modulator {
+    theta: u32,
+    p: ModulatorParams,
+    min_pulse_counts: u16,
+    min_max_injection: bool,
+}
+
+impl Modulator {
+    pub fn new(min_pulse_counts: u16, min_max_injection: bool) -> Self {
+        Modulator {
+            theta: 0,
+            p: ModulatorParams::default(),
+            min_pulse_counts,
+            min_max_injection,
+        }
+    }
+
+    /// Largest modulation index this configuration can produce undistorted.
+    pub fn m_max_q16(&self) -> u32 {
+        if self.min_max_injection {
+            M_MAX_MIN_MAX_Q16
+        } else {
+            M_ONE_Q16
+        }
+    }
+
+    pub fn set_params(&mut self, p: ModulatorParams) {
+        self.p = p;
+    }
+
+    pub fn params(&self) -> &ModulatorParams {
+        &self.p
+    }
+
+    /// Angle of the accumulator (phase 1 without its offset).
+    pub fn theta(&self) -> u32 {
+        self.theta
+    }
+
+    /// Restart the sine at angle 0 (outputs were off).
+    pub fn reset_phase(&mut self) {
+        self.theta = 0;
+    }
+
+    /// Duties in counts (0..=n) for this PWM period, then advance the angle by one period.
+    #[inline]
+    pub fn step(&mut self, n: u16) -> [u16; 3] {
+        let p = &self.p;
+        let nn = i64::from(n);
+        // Half the period times m, Q16 counts: the sine's amplitude in counts.
+        let half_amp_q16 = (u64::from(n) * u64::from(p.m_q16)) >> 1;
+        let mut v = [0i64; 3];
+        for k in 0..3 {
+            if let (Some(slot), Some(phi)) = (v.get_mut(k), p.phi.get(k)) {
+                let s = sin_q15(self.theta.wrapping_add(*phi));
+                *slot = (half_amp_q16 as i64 * i64::from(s)) >> 15;
+            }
+        }
+        let all_sine = p.legs.iter().all(|l| *l == LegMode::Sine);
+        if self.min_max_injection && all_sine {
+            let [a, b, c] = v;
+            let offset = -((a.max(b).max(c) + a.min(b).min(c)) >> 1);
+            for x in v.iter_mut() {
+                *x += offset;
+            }
+        }
+        let mut duty = [0u16; 3];
+        for ((d, leg), vk) in duty.iter_mut().zip(p.legs.iter()).zip(v.iter()) {
+            let counts = match *leg {
+                LegMode::Unused => 0,
+                LegMode::Direct { permille } => (nn * i64::from(permille.min(1000)) + 500) / 1000,
+                LegMode::Sine => ((nn << 15) + vk + 0x8000) >> 16,
+            };
+            *d = dead_time_safe(counts.clamp(0, nn) as u16, n, self.min_pulse_counts);
+        }
+        if p.swap_1_2 {
+            duty.swap(0, 1);
+        }
+        self.theta = self.theta.wrapping_add(p.step);
+        duty
+    }
+}
+
+/// No pulse of `min` counts or less: a duty of 1..=min becomes 0 (no high pulse) and
+/// N-min..N-1 becomes N (no low pulse). The source's silicon-errata rule, generalised.
+/// Duties above `n` are clamped to `n`.
+#[inline(always)]
+pub fn dead_time_safe(d: u16, n: u16, min: u16) -> u16 {
+    let d = d.min(n);
+    if d <= min {
+        0
+    } else if d >= n.saturating_sub(min) {
+        n
+    } else {
+        d
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sine::phase_of_decidegrees;
+
+    fn three_phase(m_q16: u32, step: u32) -> ModulatorParams {
+        ModulatorParams {
+            step,
+            m_q16,
+            phi: [0, phase_of_decidegrees(1200), phase_of_decidegrees(2400)],
+            legs: [LegMode::Sine; 3],
+            swap_1_2: false,
+        }
+    }
+
+    #[test]
+    fn clamp_follows_the_four_count_rule() {
+        let n = 1000;
+        assert_eq!(dead_time_safe(0, n, 4), 0);
+        assert_eq!(dead_time_safe(1, n, 4), 0);
+        assert_eq!(dead_time_safe(4, n, 4), 0);
+        assert_eq!(dead_time_safe(5, n, 4), 5);
+        assert_eq!(dead_time_safe(995, n, 4), 995);
+        assert_eq!(dead_time_safe(996, n, 4), 1000);
+        assert_eq!(dead_time_safe(999, n, 4), 1000);
+        assert_eq!(dead_time_safe(1000, n, 4), 1000);
+        assert_eq!(dead_time_safe(4000, n, 4), 1000);
+    }
+
+    #[test]
+    fn sine_duty_spans_the_period_at_m_one() {
+        let mut m = Modulator::new(4, false);
+        // 1/400 of a turn per period.
+        m.set_params(three_phase(M_ONE_Q16, (1u64 << 32).div_ceil(400) as u32));
+        let (mut lo, mut hi) = (u16::MAX, 0);
+        let mut sum = 0u64;
+        for _ in 0..400 {
+            let d = m.step(4250);
+            lo = lo.min(d[0]);
+            hi = hi.max(d[0]);
+            sum += u64::from(d[0]);
+        }
+        assert_eq!((lo, hi), (0, 4250));
+        let mean = sum as f64 / 400.0;
+        assert!((mean - 2125.0).abs() < 2.0, "{mean}");
+    }
+
+    #[test]
+    fn phases_are_120_degrees_apart_and_reverse_swaps_1_2() {
+        let mut m = Modulator::new(0, false);
+        let mut p = three_phase(M_ONE_Q16 / 2, 0);
+        m.set_params(p);
+        // theta = 0: sin 0, sin 120, sin 240.
+        let d = m.step(10_000);
+        assert_eq!(d[0], 5000);
+        assert_eq!(d[1], 5000 + 2165);
+        assert_eq!(d[2], 5000 - 2165);
+        p.swap_1_2 = true;
+        m.set_params(p);
+        let r = m.step(10_000);
+        assert_eq!(r, [d[1], d[0], d[2]]);
+    }
+
+    #[test]
+    fn direct_duty_is_in_tenths_of_percent() {
+        let mut m = Modulator::new(4, false);
+        m.set_params(ModulatorParams {
+            legs: [
+                LegMode::Direct { permille: 500 },
+                LegMode::Direct { permille: 1000 },
+                LegMode::Unused,
+            ],
+            ..Default::default()
+        });
+        assert_eq!(m.step(4250), [2125, 4250, 0]);
+    }
+
+    #[test]
+    fn min_max_injection_keeps_duties_in_range_up_to_1_1547() {
+        let mut m = Modulator::new(0, true);
+        m.set_params(three_phase(
+            M_MAX_MIN_MAX_Q16,
+            (1u64 << 32).div_ceil(997) as u32,
+        ));
+        let n = 5000u16;
+        let mut worst_line = 0f64;
+        for _ in 0..997 {
+            let d = m.step(n);
+            for x in d {
+                assert!(x <= n);
+            }
+            let l = (f64::from(d[0]) - f64::from(d[1])) / f64::from(n);
+            worst_line = worst_line.max(l.abs());
+        }
+        // Line-to-line amplitude m*sqrt(3)/2 = 1.0 of the DC link at m = 1.1547.
+        assert!((worst_line - 1.0).abs() < 0.002, "{worst_line}");
+    }
+
+    #[test]
+    fn accumulator_advances_by_step_and_wraps() {
+        let mut m = Modulator::new(4, false);
+        m.set_params(ModulatorParams {
+            step: 0x8000_0000,
+            ..three_phase(0, 0)
+        });
+        m.step(100);
+        assert_eq!(m.theta(), 0x8000_0000);
+        m.step(100);
+        assert_eq!(m.theta(), 0);
+    }
+}

@@ -1,0 +1,223 @@
+//! Fault codes and the per-PWM-period checks (drive.md "Trips"). Limits from the program
+//! (V, 0.01 A) are converted to ADC counts once, when the program sets them, so that the
+//! interrupt only compares integers.
+
+use crate::measure::{udc_counts_at_volts, AdcSample};
+
+/// Latched fault codes (drive.md table; `Boot` is this project's addition).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[repr(u8)]
+pub enum FaultCode {
+    /// Software overcurrent: |i_a| or |i_b| above `I>`.
+    Oc = 1,
+    /// Hardware comparator on a phase current (TIM1 break input).
+    OcHw = 2,
+    /// Hardware comparator on the DC link (TIM1 break input).
+    OvHw = 3,
+    /// DC link below `U<` while the PWM is on.
+    Uv = 4,
+    /// No valid frame from the PLC within the link timeout in RUN.
+    Link = 5,
+    /// Drive section rejected on download.
+    Prog = 6,
+    /// The drive restarted through its watchdog.
+    Wdg = 7,
+    /// Extension: the boot self-test failed (sine table, timer setup or current-sensor
+    /// offset out of tolerance).
+    Boot = 8,
+}
+
+impl FaultCode {
+    pub const ALL: [FaultCode; 8] = [
+        FaultCode::Oc,
+        FaultCode::OcHw,
+        FaultCode::OvHw,
+        FaultCode::Uv,
+        FaultCode::Link,
+        FaultCode::Prog,
+        FaultCode::Wdg,
+        FaultCode::Boot,
+    ];
+
+    /// The code shown by `FLT` and sent over the link.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    pub fn from_code(c: u8) -> Option<FaultCode> {
+        FaultCode::ALL.into_iter().find(|f| f.code() == c)
+    }
+
+    /// Short name (drive.md).
+    pub const fn name(self) -> &'static str {
+        match self {
+            FaultCode::Oc => "OC",
+            FaultCode::OcHw => "OC_HW",
+            FaultCode::OvHw => "OV_HW",
+            FaultCode::Uv => "UV",
+            FaultCode::Link => "LINK",
+            FaultCode::Prog => "PROG",
+            FaultCode::Wdg => "WDG",
+            FaultCode::Boot => "BOOT",
+        }
+    }
+
+    /// One-line text for the LCD status line (fits 20 columns).
+    pub const fn text(self) -> &'static str {
+        match self {
+            FaultCode::Oc => "overcurrent",
+            FaultCode::OcHw => "overcurrent (hw)",
+            FaultCode::OvHw => "overvoltage (hw)",
+            FaultCode::Uv => "undervoltage",
+            FaultCode::Link => "PLC link lost",
+            FaultCode::Prog => "program rejected",
+            FaultCode::Wdg => "watchdog reset",
+            FaultCode::Boot => "self-test failed",
+        }
+    }
+}
+
+/// Causes of the TIM1 break input (comparators of the G4, or hil-sim's model of them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum HwBreak {
+    Overcurrent,
+    Overvoltage,
+}
+
+impl HwBreak {
+    pub const fn fault(self) -> FaultCode {
+        match self {
+            HwBreak::Overcurrent => FaultCode::OcHw,
+            HwBreak::Overvoltage => FaultCode::OvHw,
+        }
+    }
+
+    pub(crate) const fn index(self) -> usize {
+        match self {
+            HwBreak::Overcurrent => 0,
+            HwBreak::Overvoltage => 1,
+        }
+    }
+}
+
+/// The program's protection settings, in ADC counts. `None` = not set (no check).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Limits {
+    /// `I>` * 2048 (0.01 A): trip when |counts from zero| * 1000 exceeds it.
+    oc_x2048: Option<u32>,
+    /// Trip when the DC-link reading is below this (counts of `U<` V).
+    uv_counts: Option<u32>,
+    /// Brake on above this reading (counts of `U>` V) ...
+    brake_on_above: Option<u32>,
+    /// ... and off again below this one (`U>` - 1 V).
+    brake_off_below: u32,
+}
+
+impl Limits {
+    /// `I>` in 0.01 A (0 = no software overcurrent trip).
+    pub fn set_i_max(&mut self, centiamps: u16) {
+        self.oc_x2048 = (centiamps > 0).then_some(u32::from(centiamps) * 2048);
+    }
+
+    /// `U<` in V (0 = no undervoltage trip).
+    pub fn set_u_min(&mut self, volts: u16) {
+        self.uv_counts = (volts > 0).then_some(udc_counts_at_volts(u32::from(volts)));
+    }
+
+    /// `U>` in V (0 = no brake chopper).
+    pub fn set_u_max(&mut self, volts: u16) {
+        let v = u32::from(volts);
+        // counts_at(V) is exact (4095/45 = 91 counts per volt): "above V" is "> counts".
+        self.brake_on_above = (volts > 0).then_some(udc_counts_at_volts(v));
+        self.brake_off_below = udc_counts_at_volts(v.saturating_sub(1));
+    }
+
+    /// Software overcurrent on this sample?
+    #[inline(always)]
+    pub fn overcurrent(&self, abs_current_counts: u32) -> bool {
+        match self.oc_x2048 {
+            Some(lim) => abs_current_counts * 1000 > lim,
+            None => false,
+        }
+    }
+
+    /// DC link below `U<`?
+    #[inline(always)]
+    pub fn undervoltage(&self, s: &AdcSample) -> bool {
+        match self.uv_counts {
+            Some(lim) => u32::from(s.u_dc) < lim,
+            None => false,
+        }
+    }
+
+    /// Brake-chopper state after this sample, with 1 V hysteresis.
+    #[inline(always)]
+    pub fn brake(&self, was_on: bool, s: &AdcSample) -> bool {
+        let u = u32::from(s.u_dc);
+        match self.brake_on_above {
+            None => false,
+            Some(on) if u > on => true,
+            Some(_) => was_on && u >= self.brake_off_below,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn udc(counts: u16) -> AdcSample {
+        AdcSample {
+            u_dc: counts,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn codes_round_trip_and_match_drive_md() {
+        for f in FaultCode::ALL {
+            assert_eq!(FaultCode::from_code(f.code()), Some(f));
+        }
+        assert_eq!(FaultCode::Oc.code(), 1);
+        assert_eq!(FaultCode::Wdg.code(), 7);
+        assert_eq!(FaultCode::from_code(0), None);
+        assert!(FaultCode::ALL.iter().all(|f| f.text().len() <= 20));
+    }
+
+    #[test]
+    fn overcurrent_is_strictly_above_the_limit() {
+        let mut l = Limits::default();
+        assert!(!l.overcurrent(2048));
+        l.set_i_max(200); // 2.00 A = 409.6 counts
+        assert!(!l.overcurrent(409));
+        assert!(l.overcurrent(410));
+    }
+
+    #[test]
+    fn undervoltage_below_u_min() {
+        let mut l = Limits::default();
+        assert!(!l.undervoltage(&udc(0)));
+        l.set_u_min(25);
+        let edge = udc_counts_at_volts(25) as u16;
+        assert!(l.undervoltage(&udc(edge - 1)));
+        assert!(!l.undervoltage(&udc(edge)));
+        assert!(f64::from(edge - 1) * 45.0 / 4095.0 < 25.0);
+        assert!(f64::from(edge) * 45.0 / 4095.0 >= 25.0);
+    }
+
+    #[test]
+    fn brake_has_one_volt_hysteresis() {
+        let mut l = Limits::default();
+        l.set_u_max(35);
+        let on = udc_counts_at_volts(35) as u16;
+        let off = udc_counts_at_volts(34) as u16;
+        assert!(!l.brake(false, &udc(on)));
+        assert!(l.brake(false, &udc(on + 1)));
+        assert!(l.brake(true, &udc(off + 10)));
+        assert!(l.brake(true, &udc(off)));
+        assert!(!l.brake(true, &udc(off - 1)));
+        assert!(!l.brake(false, &udc(off + 10)));
+    }
+}

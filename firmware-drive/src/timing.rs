@@ -1,0 +1,159 @@
+//! TIM1 settings for a switching frequency: prescaler, auto-reload, dead time, and the
+//! phase-accumulator step per 0.1 Hz that makes the output frequency exact for the
+//! period the timer really has (ARR is an integer, so f_pwm is rarely the requested one).
+//!
+//! Centre-aligned counting: f_pwm = f_tim / (2 * ARR * (PSC + 1)).
+
+/// Largest value of the 16-bit ARR and PSC registers.
+const REG_MAX: u64 = 65_535;
+
+/// What the board programs into TIM1 (and the core uses for the phase step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct PwmTiming {
+    /// TIM1_PSC (the counter runs at f_tim / (psc + 1)).
+    pub psc: u16,
+    /// TIM1_ARR: the period in counts, the full-scale duty `N`.
+    pub arr: u16,
+    /// Dead time in CK_INT (= f_tim) periods, as realised by [`PwmTiming::dtg`] (never
+    /// below the requested or minimum dead time).
+    pub dead_time_counts: u16,
+    /// TIM1_BDTR.DTG encoding of `dead_time_counts` (CKD = 0, tDTS = 1/f_tim).
+    pub dtg: u8,
+    /// The switching frequency the timer really produces, mHz.
+    pub pwm_millihertz: u32,
+    /// Phase-accumulator step per PWM period for 0.1 Hz output, Q16 (so the step for f
+    /// is `f * step / 65536`).
+    pub(crate) phase_step_per_decihertz_q16: u64,
+}
+
+impl PwmTiming {
+    /// Timer setup for `pwf_hz / prescaler` switching frequency.
+    ///
+    /// `pwf_hz` is clamped to 1.. and `prescaler` to 1..; the ARR is rounded to the
+    /// nearest count, the PSC is the smallest that makes ARR fit in 16 bits (best duty
+    /// resolution).
+    pub fn compute(
+        timer_clock_hz: u32,
+        pwf_hz: u32,
+        prescaler: u32,
+        dead_time_ns: u32,
+        min_dead_time_ns: u32,
+    ) -> PwmTiming {
+        let f_tim = u64::from(timer_clock_hz.max(1));
+        let pwf = u64::from(pwf_hz.max(1));
+        let pre = u64::from(prescaler.max(1));
+        // ARR * (PSC + 1), rounded.
+        let total = ((f_tim * pre + pwf) / (2 * pwf)).max(1);
+        let psc1 = total.div_ceil(REG_MAX).clamp(1, REG_MAX + 1);
+        let arr = ((total + psc1 / 2) / psc1).clamp(1, REG_MAX);
+        let ticks_per_period = 2 * arr * psc1;
+        let pwm_millihertz = ((f_tim * 1000 + ticks_per_period / 2) / ticks_per_period) as u32;
+        // step(0.1 Hz) = 0.1 * T_pwm * 2^32 = ticks * 2^32 / (10 * f_tim); kept in Q16.
+        let phase_step_per_decihertz_q16 =
+            ((u128::from(ticks_per_period) << 48) / (10 * u128::from(f_tim))) as u64;
+        let dead_ns = u64::from(dead_time_ns.max(min_dead_time_ns));
+        let dead_counts = (dead_ns * f_tim).div_ceil(1_000_000_000);
+        let (dtg, realised) = encode_dtg(dead_counts);
+        PwmTiming {
+            psc: (psc1 - 1) as u16,
+            arr: arr as u16,
+            dead_time_counts: realised,
+            dtg,
+            pwm_millihertz,
+            phase_step_per_decihertz_q16,
+        }
+    }
+
+    /// Phase-accumulator step per PWM period for an output frequency in 0.1 Hz (negative
+    /// is treated as 0). Capped just below half a turn per period (Nyquist): above it the
+    /// output would alias to a lower frequency.
+    pub fn phase_step(&self, f_decihertz: i16) -> u32 {
+        let f = u64::from(f_decihertz.max(0) as u16);
+        let step = (f * self.phase_step_per_decihertz_q16) >> 16;
+        step.min(0x7FFF_FFFF) as u32
+    }
+}
+
+/// The smallest BDTR.DTG code whose dead time is at least `counts` CK_INT periods
+/// (RM0440 BDTR: four ranges with steps of 1, 2, 8 and 16 counts). Saturates at the
+/// longest encodable dead time (1008 counts, 5.9 us at 170 MHz).
+pub fn encode_dtg(counts: u64) -> (u8, u16) {
+    if counts <= 127 {
+        (counts as u8, counts as u16)
+    } else if counts <= 254 {
+        let k = (counts.div_ceil(2) - 64) as u8;
+        (0x80 | k, (64 + u16::from(k)) * 2)
+    } else if counts <= 504 {
+        let k = (counts.div_ceil(8) - 32) as u8;
+        (0xC0 | k, (32 + u16::from(k)) * 8)
+    } else {
+        let k = (counts.div_ceil(16).min(63) - 32) as u8;
+        (0xE0 | k, (32 + u16::from(k)) * 16)
+    }
+}
+
+/// Dead time in CK_INT periods for a BDTR.DTG code (the inverse of [`encode_dtg`]).
+pub fn decode_dtg(dtg: u8) -> u16 {
+    let d = u16::from(dtg);
+    match dtg >> 5 {
+        0..=3 => d & 0x7F,
+        4 | 5 => (64 + (d & 0x3F)) * 2,
+        6 => (32 + (d & 0x1F)) * 8,
+        _ => (32 + (d & 0x1F)) * 16,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn twenty_khz_at_170_mhz_is_arr_4250() {
+        let t = PwmTiming::compute(170_000_000, 20_000, 1, 1000, 500);
+        assert_eq!((t.psc, t.arr), (0, 4250));
+        assert_eq!(t.pwm_millihertz, 20_000_000);
+        // 1 us = 170 counts, encoded in the 2-count range exactly.
+        assert_eq!(t.dead_time_counts, 170);
+        assert_eq!(decode_dtg(t.dtg), 170);
+    }
+
+    #[test]
+    fn low_frequencies_use_the_prescaler() {
+        // PWF 500 Hz with PR2 (/64): 7.8125 Hz.
+        let t = PwmTiming::compute(170_000_000, 500, 64, 1000, 500);
+        assert!(t.psc > 0);
+        let f = 170e6 / (2.0 * t.arr as f64 * (t.psc as f64 + 1.0));
+        assert!((f - 7.8125).abs() / 7.8125 < 1e-4, "{f}");
+        assert!(t.arr > 30_000, "resolution kept: {}", t.arr);
+    }
+
+    #[test]
+    fn dead_time_never_below_request_or_minimum() {
+        for ns in [0u32, 10, 100, 747, 748, 1000, 1500, 2999, 3000, 5000] {
+            let t = PwmTiming::compute(170_000_000, 16_000, 1, ns, 500);
+            let want = (u64::from(ns.max(500)) * 170).div_ceil(1000);
+            assert!(u64::from(t.dead_time_counts) >= want, "{ns} ns");
+            assert_eq!(decode_dtg(t.dtg), t.dead_time_counts);
+        }
+    }
+
+    #[test]
+    fn dtg_round_trips_every_code_boundary() {
+        for counts in 0..=1008u64 {
+            let (dtg, realised) = encode_dtg(counts);
+            assert_eq!(decode_dtg(dtg), realised);
+            assert!(u64::from(realised) >= counts);
+            assert!(u64::from(realised) - counts < 16, "{counts}");
+        }
+    }
+
+    #[test]
+    fn phase_step_makes_the_real_period_give_the_exact_frequency() {
+        let t = PwmTiming::compute(170_000_000, 16_000, 1, 1000, 500);
+        let f_pwm = 170e6 / (2.0 * t.arr as f64);
+        let step = t.phase_step(500) as f64;
+        let f_out = step / 4294967296.0 * f_pwm;
+        assert!((f_out - 50.0).abs() < 50.0 * 1e-6, "{f_out}");
+    }
+}
