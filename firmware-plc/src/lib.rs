@@ -11,4 +11,5 @@
 )]
 
 pub mod vm;
+pub mod link;
 pub mod storage;

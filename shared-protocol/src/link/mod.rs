@@ -1,1 +1,49 @@
-//! The PLC-drive link wire format. See link.md.
+//! The PLC-drive UART link (link.md): wire format and both endpoints, sans-IO.
+//!
+//! * [`frame`]: COBS framing with a 0x00 delimiter, CRC-32C, frame header (seq, ack).
+//! * [`message`]: every message of both directions (postcard + serde).
+//! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.
+//! * [`plc::PlcLink`] and [`drive::DriveLink`]: the two endpoint state machines; the
+//!   firmware crates re-export them as `firmware_plc::link` and `firmware_drive::link`.
+//! * [`channel`]: a byte-timed, impaired in-memory UART for tests, benchmarks and hil-sim.
+//!
+//! The full description (frame layout, messages, timing, decisions) is `docs/link.md`
+//! in this crate.
+
+pub mod channel;
+pub mod config;
+pub mod drive;
+pub mod frame;
+pub mod message;
+pub mod pair;
+pub mod plc;
+pub mod reliable;
+
+pub use config::LinkConfig;
+pub use drive::{DriveEvent, DriveLink, DriveLinkState};
+pub use frame::{FrameError, FrameReader, MAX_WIRE_FRAME};
+pub use message::{
+    fault_name, fault_text, DownloadResult, DriveMsg, DriveState, DriveStatus, PlcMsg, QValue,
+    RejectReason, PROTOCOL_VERSION,
+};
+pub use plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
+
+/// Number of Q variables (Q00-Q63).
+pub const Q_COUNT: usize = 64;
+
+/// Counters of one endpoint, for diagnostics and tests.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct LinkStats {
+    /// Frames that passed CRC and parsing.
+    pub frames_ok: u32,
+    /// Delimited byte runs that were not a valid frame (corruption, cuts, garbage).
+    pub frames_bad: u32,
+    /// Reliable messages received again (or out of order) and not applied.
+    pub duplicates: u32,
+    /// Reliable messages sent again after a timeout.
+    pub retransmits: u32,
+    pub frames_sent: u32,
+    pub bytes_sent: u64,
+    pub link_losses: u32,
+}

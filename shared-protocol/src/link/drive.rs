@@ -1,0 +1,441 @@
+//! The drive's end of the link (sans-IO): answers the handshake, applies commands exactly
+//! once and in order, receives and verifies the drive section, reports status and faults,
+//! and supervises the link.
+//!
+//! Feed received bytes to [`DriveLink::receive`], call [`DriveLink::poll_transmit`] at
+//! least every millisecond (it also runs the timers) and drain [`DriveLink::poll_event`]
+//! after each `receive`.
+
+use super::config::LinkConfig;
+use super::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
+use super::message::{
+    verify_kind_code, DownloadResult, DriveMsg, DriveStatus, PlcMsg, RejectReason, MAX_Q_PER_FRAME,
+    PROTOCOL_VERSION,
+};
+use super::plc::section_crc;
+use super::reliable::{Arrival, RxSeq, TxWindow};
+use super::LinkStats;
+use crate::program::{decode_slot, verify_drive, DriveSection, DRIVE_LINES, LINE_BYTES};
+use crate::units::Micros;
+
+/// Unacknowledged reliable messages the drive keeps in flight.
+pub const DRIVE_WINDOW: usize = 4;
+const PENDING: usize = 16;
+const EVENTS: usize = 32;
+const SECTION_BYTES: usize = DRIVE_LINES * LINE_BYTES;
+
+/// The drive's view of the link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DriveLinkState {
+    /// No handshake yet, or lost: only `Hello` is listened to.
+    Down,
+    Up,
+    /// The PLC speaks another protocol version: the drive keeps its outputs off.
+    Incompatible {
+        plc_version: u16,
+    },
+}
+
+/// What the drive application hears from the link. Commands come exactly once, in the
+/// order the PLC issued them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DriveEvent {
+    Connected,
+    /// No valid frame for `drive_timeout_us` (the core trips `LINK` when in RUN).
+    LinkLost,
+    VersionMismatch {
+        plc_version: u16,
+    },
+    QWrite {
+        addr: u8,
+        value: i16,
+    },
+    Run,
+    Stop,
+    Direction {
+        reverse: bool,
+    },
+    AckFault,
+    /// A downloaded section passed the CRC and the verifier: take it with
+    /// [`DriveLink::take_program`].
+    ProgramAccepted,
+    /// A download was refused (the PLC has been told; the core trips `PROG`).
+    ProgramRejected {
+        line: u16,
+        reason: RejectReason,
+    },
+}
+
+struct DownloadRx {
+    buf: [u8; SECTION_BYTES],
+    crc: u32,
+    next_line: usize,
+    /// Set when a chunk was out of place: the download will be refused at its end.
+    broken: bool,
+    active: bool,
+}
+
+/// The drive endpoint.
+pub struct DriveLink {
+    cfg: LinkConfig,
+    state: DriveLinkState,
+    session: Option<u8>,
+    hello_reply: Option<u8>,
+    reader: FrameReader,
+    tx: TxWindow<DriveMsg, DRIVE_WINDOW>,
+    rx: RxSeq,
+    pending: heapless::Deque<DriveMsg, PENDING>,
+    events: heapless::Deque<DriveEvent, EVENTS>,
+    last_rx: Micros,
+    ack_owed: bool,
+    status: DriveStatus,
+    last_status: Option<(DriveStatus, Micros)>,
+    download: DownloadRx,
+    program: Option<DriveSection>,
+    stats: LinkStats,
+}
+
+impl DriveLink {
+    pub fn new(cfg: LinkConfig) -> Self {
+        DriveLink {
+            cfg,
+            state: DriveLinkState::Down,
+            session: None,
+            hello_reply: None,
+            reader: FrameReader::new(),
+            tx: TxWindow::new(),
+            rx: RxSeq::default(),
+            pending: heapless::Deque::new(),
+            events: heapless::Deque::new(),
+            last_rx: Micros(0),
+            ack_owed: false,
+            status: DriveStatus::default(),
+            last_status: None,
+            download: DownloadRx {
+                buf: [0; SECTION_BYTES],
+                crc: 0,
+                next_line: 0,
+                broken: false,
+                active: false,
+            },
+            program: None,
+            stats: LinkStats::default(),
+        }
+    }
+
+    pub fn config(&self) -> &LinkConfig {
+        &self.cfg
+    }
+
+    pub fn state(&self) -> DriveLinkState {
+        self.state
+    }
+
+    pub fn is_up(&self) -> bool {
+        self.state == DriveLinkState::Up
+    }
+
+    pub fn stats(&self) -> LinkStats {
+        LinkStats {
+            retransmits: self.tx.retransmits(),
+            ..self.stats
+        }
+    }
+
+    pub fn poll_event(&mut self) -> Option<DriveEvent> {
+        self.events.pop_front()
+    }
+
+    /// The section accepted by the last successful download (once).
+    pub fn take_program(&mut self) -> Option<DriveSection> {
+        self.program.take()
+    }
+
+    /// The drive's current state and measurements; sent every `status_us`, and at once
+    /// when the state or the fault code changes.
+    pub fn set_status(&mut self, status: DriveStatus) {
+        self.status = status;
+    }
+
+    /// Report a trip to the PLC (reliable; kept across a reconnection). Returns `false`
+    /// when 16 reports are already waiting.
+    pub fn report_fault(&mut self, code: u8, drive_time_ms: u32) -> bool {
+        self.pending
+            .push_back(DriveMsg::Fault {
+                code,
+                drive_time_ms,
+            })
+            .is_ok()
+    }
+
+    /// Bytes received from the UART, in order.
+    pub fn receive(&mut self, bytes: &[u8], now: Micros) {
+        for &b in bytes {
+            match self.reader.push::<PlcMsg>(b) {
+                None => {}
+                Some(Err(_)) => self.stats.frames_bad = self.stats.frames_bad.saturating_add(1),
+                Some(Ok(frame)) => {
+                    self.stats.frames_ok = self.stats.frames_ok.saturating_add(1);
+                    self.on_frame(frame, now);
+                }
+            }
+        }
+        self.tick(now);
+    }
+
+    fn push_event(&mut self, e: DriveEvent) {
+        if self.events.is_full() {
+            self.events.pop_front();
+        }
+        let _ = self.events.push_back(e);
+    }
+
+    fn on_frame(&mut self, f: Frame<PlcMsg>, now: Micros) {
+        if let PlcMsg::Hello { version, session } = f.msg {
+            self.on_hello(version, session, now);
+            return;
+        }
+        if self.state != DriveLinkState::Up {
+            return;
+        }
+        self.last_rx = now;
+        self.tx.on_ack(f.ack);
+        if !f.msg.is_reliable() {
+            return;
+        }
+        self.ack_owed = true;
+        // Room for the largest message's events, so nothing applied is ever lost.
+        let room = self.events.capacity() - self.events.len() >= MAX_Q_PER_FRAME + 1;
+        if self.rx.classify(f.seq) != Arrival::New || !room {
+            self.stats.duplicates = self.stats.duplicates.saturating_add(1);
+            return;
+        }
+        self.rx.advance();
+        match f.msg {
+            PlcMsg::QWrite(writes) => {
+                for q in writes {
+                    self.push_event(DriveEvent::QWrite {
+                        addr: q.addr,
+                        value: q.value,
+                    });
+                }
+            }
+            PlcMsg::Run => self.push_event(DriveEvent::Run),
+            PlcMsg::Stop => self.push_event(DriveEvent::Stop),
+            PlcMsg::Direction { reverse } => self.push_event(DriveEvent::Direction { reverse }),
+            PlcMsg::AckFault => self.push_event(DriveEvent::AckFault),
+            PlcMsg::DownloadBegin { crc } => {
+                self.download.crc = crc;
+                self.download.next_line = 0;
+                self.download.broken = false;
+                self.download.active = true;
+            }
+            PlcMsg::DownloadChunk { first_line, data } => self.on_chunk(first_line, &data),
+            PlcMsg::DownloadEnd => self.finish_download(),
+            PlcMsg::Hello { .. } | PlcMsg::Heartbeat => {}
+        }
+    }
+
+    fn on_hello(&mut self, version: u16, session: u8, now: Micros) {
+        self.hello_reply = Some(session);
+        if version != PROTOCOL_VERSION {
+            let st = DriveLinkState::Incompatible {
+                plc_version: version,
+            };
+            if self.state != st {
+                self.state = st;
+                self.push_event(DriveEvent::VersionMismatch {
+                    plc_version: version,
+                });
+            }
+            return;
+        }
+        if self.state == DriveLinkState::Up && self.session == Some(session) {
+            // The PLC did not get our reply yet: answer again, keep the session.
+            return;
+        }
+        self.session = Some(session);
+        self.state = DriveLinkState::Up;
+        self.last_rx = now;
+        self.rx.reset();
+        self.ack_owed = false;
+        self.last_status = None;
+        self.download.active = false;
+        // Reports not yet acknowledged go out again in the new session, oldest first.
+        let mut carried: heapless::Vec<DriveMsg, DRIVE_WINDOW> = heapless::Vec::new();
+        for m in self.tx.reset() {
+            let _ = carried.push(m);
+        }
+        for m in carried.into_iter().rev() {
+            if self.pending.push_front(m).is_err() {
+                break;
+            }
+        }
+        self.push_event(DriveEvent::Connected);
+    }
+
+    fn on_chunk(&mut self, first_line: u8, data: &[u8]) {
+        let d = &mut self.download;
+        let start = usize::from(first_line) * LINE_BYTES;
+        let end = start + data.len();
+        if !d.active
+            || usize::from(first_line) != d.next_line
+            || data.len() % LINE_BYTES != 0
+            || end > SECTION_BYTES
+        {
+            d.broken = true;
+            return;
+        }
+        if let Some(dst) = d.buf.get_mut(start..end) {
+            dst.copy_from_slice(data);
+            d.next_line += data.len() / LINE_BYTES;
+        } else {
+            d.broken = true;
+        }
+    }
+
+    fn finish_download(&mut self) {
+        let result = self.check_download();
+        self.download.active = false;
+        let msg = DriveMsg::Download(result);
+        if self.pending.push_back(msg).is_err() {
+            // Keep the answer even if fault reports fill the queue: drop the oldest report.
+            self.pending.pop_front();
+            let _ = self.pending.push_back(DriveMsg::Download(result));
+        }
+        match result {
+            DownloadResult::Accepted => self.push_event(DriveEvent::ProgramAccepted),
+            DownloadResult::Rejected { line, reason } => {
+                self.push_event(DriveEvent::ProgramRejected { line, reason })
+            }
+        }
+    }
+
+    fn check_download(&mut self) -> DownloadResult {
+        let d = &self.download;
+        let incomplete = DownloadResult::Rejected {
+            line: d.next_line.min(DRIVE_LINES) as u16,
+            reason: RejectReason::Incomplete,
+        };
+        if !d.active || d.broken || d.next_line != DRIVE_LINES {
+            return incomplete;
+        }
+        if section_crc(&d.buf) != d.crc {
+            return DownloadResult::Rejected {
+                line: 0,
+                reason: RejectReason::Crc,
+            };
+        }
+        let mut section = DriveSection::default();
+        for (n, (slot, bytes)) in section
+            .lines
+            .iter_mut()
+            .zip(d.buf.chunks_exact(LINE_BYTES))
+            .enumerate()
+        {
+            match decode_slot(bytes) {
+                Ok(i) => *slot = i,
+                Err(_) => {
+                    return DownloadResult::Rejected {
+                        line: n as u16,
+                        reason: RejectReason::Decode,
+                    }
+                }
+            }
+        }
+        if let Err(e) = verify_drive(&section) {
+            return DownloadResult::Rejected {
+                line: e.line,
+                reason: RejectReason::Verify(verify_kind_code(&e.kind)),
+            };
+        }
+        self.program = Some(section);
+        DownloadResult::Accepted
+    }
+
+    /// Run the timers (also done by `receive` and `poll_transmit`).
+    pub fn tick(&mut self, now: Micros) {
+        if self.state == DriveLinkState::Up
+            && now.0.saturating_sub(self.last_rx.0) > self.cfg.drive_timeout_us
+        {
+            self.state = DriveLinkState::Down;
+            self.session = None;
+            self.download.active = false;
+            self.stats.link_losses = self.stats.link_losses.saturating_add(1);
+            self.push_event(DriveEvent::LinkLost);
+        }
+    }
+
+    /// The next frame to send, written to `out`; returns its length, 0 when there is
+    /// nothing to send now or `out` is smaller than [`MAX_WIRE_FRAME`].
+    pub fn poll_transmit(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        self.tick(now);
+        if out.len() < MAX_WIRE_FRAME {
+            return 0;
+        }
+        if let Some(session) = self.hello_reply.take() {
+            let msg = DriveMsg::HelloReply {
+                version: PROTOCOL_VERSION,
+                session,
+            };
+            return self.send(0, msg, true, now, out);
+        }
+        if self.state != DriveLinkState::Up {
+            return 0;
+        }
+        while !self.tx.is_full() {
+            let Some(m) = self.pending.pop_front() else {
+                break;
+            };
+            if let Err(m) = self.tx.push(m) {
+                let _ = self.pending.push_front(m);
+                break;
+            }
+        }
+        let ack = self.rx.ack();
+        if let Some((seq, msg)) = self.tx.next_to_send(now, self.cfg.rto_us()) {
+            let frame = Frame { seq, ack, msg };
+            return match encode_frame(&frame, false, out) {
+                Ok(n) => self.sent(n, now),
+                Err(_) => 0,
+            };
+        }
+        let status_due = match self.last_status {
+            None => true,
+            Some((s, t)) => {
+                s.state != self.status.state
+                    || s.fault != self.status.fault
+                    || now.0.saturating_sub(t.0) >= self.cfg.status_us
+            }
+        };
+        if status_due {
+            self.last_status = Some((self.status, now));
+            return self.send(0, DriveMsg::Status(self.status), false, now, out);
+        }
+        if self.ack_owed {
+            return self.send(0, DriveMsg::Ack, false, now, out);
+        }
+        0
+    }
+
+    fn send(&mut self, seq: u8, msg: DriveMsg, lead: bool, now: Micros, out: &mut [u8]) -> usize {
+        let frame = Frame {
+            seq,
+            ack: self.rx.ack(),
+            msg,
+        };
+        match encode_frame(&frame, lead, out) {
+            Ok(n) => self.sent(n, now),
+            Err(_) => 0,
+        }
+    }
+
+    fn sent(&mut self, n: usize, _now: Micros) -> usize {
+        self.ack_owed = false;
+        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
+        self.stats.bytes_sent = self.stats.bytes_sent.saturating_add(n as u64);
+        n
+    }
+}

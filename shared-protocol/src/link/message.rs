@@ -1,0 +1,206 @@
+//! Every message of the link, in both directions (serialised with postcard).
+//!
+//! The variant order is the wire's message type byte: append new variants at the end,
+//! never reorder. `Hello`/`HelloReply` are variant 0 and their fields must never change, so
+//! that two firmware versions can always tell each other their protocol version.
+
+use serde::{Deserialize, Serialize};
+
+/// Protocol version stated in the handshake; bump on any incompatible wire change.
+pub const PROTOCOL_VERSION: u16 = 1;
+
+/// Most Q writes carried by one frame (a scan that writes more sends several frames).
+pub const MAX_Q_PER_FRAME: usize = 8;
+
+/// Bytes of encoded program lines per download chunk (16 lines of 4 bytes).
+pub const CHUNK_BYTES: usize = 64;
+
+/// One Q variable's new value.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct QValue {
+    /// Q00-Q63.
+    pub addr: u8,
+    pub value: i16,
+}
+
+/// PLC to drive.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum PlcMsg {
+    /// Start of a handshake. `session` is chosen by the PLC and echoed by the drive.
+    Hello { version: u16, session: u8 },
+    /// Nothing to say: keeps the drive's supervision fed and carries the ack.
+    Heartbeat,
+    /// Reliable: new values of Q variables, applied in the listed order.
+    QWrite(heapless::Vec<QValue, MAX_Q_PER_FRAME>),
+    /// Reliable: start the drive section (drive.md: IDLE -> RUN).
+    Run,
+    /// Reliable: coast to stop (PWM off).
+    Stop,
+    /// Reliable: requested direction (level, not a toggle).
+    Direction { reverse: bool },
+    /// Reliable: acknowledge latched faults.
+    AckFault,
+    /// Reliable: a drive-section download follows; `crc` is the CRC-32C of all
+    /// `DRIVE_LINES * LINE_BYTES` encoded slot bytes.
+    DownloadBegin { crc: u32 },
+    /// Reliable: encoded slots (`encode_slot`) of lines `first_line..`.
+    DownloadChunk {
+        first_line: u8,
+        data: heapless::Vec<u8, CHUNK_BYTES>,
+    },
+    /// Reliable: all chunks sent; the drive checks, verifies and answers `DownloadResult`.
+    DownloadEnd,
+}
+
+impl PlcMsg {
+    /// Whether this message is sequenced, acknowledged and retransmitted.
+    pub fn is_reliable(&self) -> bool {
+        !matches!(self, PlcMsg::Hello { .. } | PlcMsg::Heartbeat)
+    }
+}
+
+/// The drive core's state as reported to the PLC (drive.md "States").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DriveState {
+    #[default]
+    Boot,
+    Idle,
+    Run,
+    Fault,
+}
+
+impl DriveState {
+    /// Short text for the LCD.
+    pub const fn text(self) -> &'static str {
+        match self {
+            DriveState::Boot => "BOOT",
+            DriveState::Idle => "IDLE",
+            DriveState::Run => "RUN",
+            DriveState::Fault => "FAULT",
+        }
+    }
+}
+
+/// The drive's periodic report. Units are in the field names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct DriveStatus {
+    pub state: DriveState,
+    /// Latched fault code (drive.md table), 0 = none.
+    pub fault: u8,
+    /// Output frequency being generated, 0.1 Hz.
+    pub freq_dhz: i16,
+    /// Applied direction.
+    pub reverse: bool,
+    /// DC-link voltage, 0.1 V.
+    pub udc_dv: i16,
+    /// Largest |phase current| since the previous status, 0.01 A.
+    pub imax_ca: i16,
+    /// Auxiliary ADC channel (`COM`), 10-bit counts.
+    pub com: u16,
+}
+
+/// Why the drive refused a downloaded section.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum RejectReason {
+    /// The verifier refused the line; the code is [`verify_kind_code`] of its error.
+    Verify(u8),
+    /// The line's bytes are not an instruction.
+    Decode,
+    /// The whole-section CRC does not match.
+    Crc,
+    /// `DownloadEnd` before every line arrived, or a chunk out of place.
+    Incomplete,
+}
+
+impl RejectReason {
+    /// At most 16 characters, for the LCD status line.
+    pub const fn short(self) -> &'static str {
+        match self {
+            RejectReason::Verify(_) => "invalid line",
+            RejectReason::Decode => "bad line bytes",
+            RejectReason::Crc => "section CRC",
+            RejectReason::Incomplete => "incomplete",
+        }
+    }
+}
+
+/// A stable small code for a verifier error kind (the wire must not depend on the
+/// verifier's enum layout). The PLC can re-run `verify_line` on its copy for the full text.
+pub fn verify_kind_code(kind: &crate::program::VerifyErrorKind) -> u8 {
+    use crate::program::VerifyErrorKind as K;
+    match kind {
+        K::LineOutOfRange => 1,
+        K::WrongSection { .. } => 2,
+        K::OperandMissing { .. } => 3,
+        K::OperandNotAllowed { .. } => 4,
+        K::OperandWrongKind { .. } => 5,
+        K::LdcOnInt { .. } => 6,
+        K::OperandOutOfRange { .. } => 7,
+        K::ConstantOutOfRange { .. } => 8,
+        K::ConstantWithoutK { .. } => 9,
+    }
+}
+
+/// The drive's answer to a download.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DownloadResult {
+    Accepted,
+    Rejected { line: u16, reason: RejectReason },
+}
+
+/// Drive to PLC.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub enum DriveMsg {
+    /// Answer to `Hello`: the drive's version and the PLC's session.
+    HelloReply { version: u16, session: u8 },
+    /// Nothing else to say: carries the ack.
+    Ack,
+    /// Periodic report (also sent at once when state or fault changes).
+    Status(DriveStatus),
+    /// Reliable: the answer to a download.
+    Download(DownloadResult),
+    /// Reliable: a trip, with the drive's millisecond clock at the trip.
+    Fault { code: u8, drive_time_ms: u32 },
+}
+
+impl DriveMsg {
+    /// Whether this message is sequenced, acknowledged and retransmitted.
+    pub fn is_reliable(&self) -> bool {
+        matches!(self, DriveMsg::Download(_) | DriveMsg::Fault { .. })
+    }
+}
+
+/// Name of a drive fault code (drive.md table), for the LCD and the fault log.
+pub const fn fault_name(code: u8) -> &'static str {
+    match code {
+        0 => "none",
+        1 => "OC",
+        2 => "OC_HW",
+        3 => "OV_HW",
+        4 => "UV",
+        5 => "LINK",
+        6 => "PROG",
+        7 => "WDG",
+        _ => "?",
+    }
+}
+
+/// One-line description of a drive fault code, at most 20 characters (one LCD row).
+pub const fn fault_text(code: u8) -> &'static str {
+    match code {
+        0 => "no fault",
+        1 => "overcurrent",
+        2 => "overcurrent (HW)",
+        3 => "overvoltage (HW)",
+        4 => "undervoltage",
+        5 => "link lost",
+        6 => "program rejected",
+        7 => "watchdog reset",
+        _ => "unknown fault",
+    }
+}

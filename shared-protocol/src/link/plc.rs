@@ -1,0 +1,510 @@
+//! The PLC's end of the link (sans-IO): handshake, commands, download, supervision.
+//!
+//! Feed received bytes to [`PlcLink::receive`], call [`PlcLink::poll_transmit`] at least
+//! every millisecond (it also runs the timers) and whenever the UART can take a frame, and
+//! drain [`PlcLink::poll_event`].
+
+use super::config::LinkConfig;
+use super::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
+use super::message::{
+    DownloadResult, DriveMsg, DriveStatus, PlcMsg, QValue, CHUNK_BYTES, MAX_Q_PER_FRAME,
+    PROTOCOL_VERSION,
+};
+use super::reliable::{Arrival, RxSeq, TxWindow};
+use super::{LinkStats, Q_COUNT};
+use crate::program::{encode_slot, DriveSection, DRIVE_LINES, LINE_BYTES};
+use crate::units::Micros;
+
+/// Unacknowledged reliable messages the PLC keeps in flight.
+pub const PLC_WINDOW: usize = 8;
+/// Commands waiting for a place in the window (all 64 Q plus the download and a few more).
+const PENDING: usize = 96;
+const EVENTS: usize = 16;
+const SECTION_BYTES: usize = DRIVE_LINES * LINE_BYTES;
+const CHUNK_LINES: usize = CHUNK_BYTES / LINE_BYTES;
+
+/// The PLC's view of the link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum PlcLinkState {
+    /// Sending `Hello`, waiting for the drive's answer.
+    Connecting,
+    /// Handshake done, frames flowing.
+    Up,
+    /// The drive answered with another protocol version.
+    Incompatible { drive_version: u16 },
+}
+
+/// What the PLC application hears from the link.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum PlcEvent {
+    /// Handshake completed (also after a reconnection).
+    Connected,
+    /// No valid frame from the drive for `plc_timeout_us`; reconnecting.
+    /// `dropped` commands (RUN/STOP/ACK/download) were not known to be applied and are
+    /// not sent again; Q values and the direction are resent after reconnection.
+    LinkLost { dropped: u16 },
+    /// The drive speaks another protocol version (show it on the LCD).
+    VersionMismatch { drive_version: u16 },
+    /// The drive's answer to the last download.
+    Download(DownloadResult),
+    /// The drive tripped.
+    DriveFault { code: u8, drive_time_ms: u32 },
+}
+
+/// Why a command was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum CommandError {
+    /// The handshake has not completed: the command would be meaningless later.
+    NotConnected,
+    /// Too many commands waiting (the link is far slower than the caller).
+    QueueFull,
+    /// Q address above 63.
+    BadAddress,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pending {
+    Q(QValue),
+    Run,
+    Stop,
+    Direction(bool),
+    AckFault,
+    DownloadBegin,
+    /// First line of the chunk.
+    DownloadChunk(u8),
+    DownloadEnd,
+}
+
+impl Pending {
+    fn is_q(&self) -> bool {
+        matches!(self, Pending::Q(_))
+    }
+}
+
+/// The PLC endpoint.
+pub struct PlcLink {
+    cfg: LinkConfig,
+    state: PlcLinkState,
+    session: u8,
+    last_hello: Option<Micros>,
+    reader: FrameReader,
+    tx: TxWindow<PlcMsg, PLC_WINDOW>,
+    rx: RxSeq,
+    pending: heapless::Vec<Pending, PENDING>,
+    q_shadow: [Option<i16>; Q_COUNT],
+    direction: Option<bool>,
+    section: [u8; SECTION_BYTES],
+    section_crc: u32,
+    download_active: bool,
+    last_rx: Micros,
+    last_tx: Micros,
+    ack_owed: bool,
+    events: heapless::Deque<PlcEvent, EVENTS>,
+    status: Option<(DriveStatus, Micros)>,
+    stats: LinkStats,
+}
+
+impl PlcLink {
+    pub fn new(cfg: LinkConfig) -> Self {
+        PlcLink {
+            cfg,
+            state: PlcLinkState::Connecting,
+            session: 0,
+            last_hello: None,
+            reader: FrameReader::new(),
+            tx: TxWindow::new(),
+            rx: RxSeq::default(),
+            pending: heapless::Vec::new(),
+            q_shadow: [None; Q_COUNT],
+            direction: None,
+            section: [0; SECTION_BYTES],
+            section_crc: 0,
+            download_active: false,
+            last_rx: Micros(0),
+            last_tx: Micros(0),
+            ack_owed: false,
+            events: heapless::Deque::new(),
+            status: None,
+            stats: LinkStats::default(),
+        }
+    }
+
+    pub fn config(&self) -> &LinkConfig {
+        &self.cfg
+    }
+
+    pub fn state(&self) -> PlcLinkState {
+        self.state
+    }
+
+    pub fn is_up(&self) -> bool {
+        self.state == PlcLinkState::Up
+    }
+
+    /// The newest status from the drive in this session, with its arrival time.
+    pub fn last_status(&self) -> Option<(DriveStatus, Micros)> {
+        self.status
+    }
+
+    pub fn stats(&self) -> LinkStats {
+        LinkStats {
+            retransmits: self.tx.retransmits(),
+            ..self.stats
+        }
+    }
+
+    /// Commands not yet acknowledged (queued or in flight).
+    pub fn unacknowledged(&self) -> usize {
+        self.pending.len() + self.tx.len()
+    }
+
+    /// Whether a download was started and its result has not arrived yet.
+    pub fn download_in_progress(&self) -> bool {
+        self.download_active
+    }
+
+    pub fn poll_event(&mut self) -> Option<PlcEvent> {
+        self.events.pop_front()
+    }
+
+    /// New value of a Q variable for the drive. A value still waiting to be sent is
+    /// replaced (newest wins); one already on the wire is followed by the new one.
+    /// While the link is down only the PLC's copy is kept; all written Q are resent after
+    /// each handshake so the drive's copy equals the PLC's last write.
+    pub fn write_q(&mut self, addr: u8, value: i16) -> Result<(), CommandError> {
+        let slot = self
+            .q_shadow
+            .get_mut(usize::from(addr))
+            .ok_or(CommandError::BadAddress)?;
+        *slot = Some(value);
+        if !self.is_up() {
+            return Ok(());
+        }
+        self.queue_q(QValue { addr, value })
+    }
+
+    /// Coalesce with a write to the same Q still waiting in the run of Q writes at the end
+    /// of the queue: the old entry goes, the new one is appended, so the surviving writes
+    /// keep the order in which they were issued.
+    fn queue_q(&mut self, q: QValue) -> Result<(), CommandError> {
+        let tail = self
+            .pending
+            .iter()
+            .rposition(|p| !p.is_q())
+            .map_or(0, |i| i + 1);
+        let old = self
+            .pending
+            .iter()
+            .skip(tail)
+            .position(|p| matches!(p, Pending::Q(o) if o.addr == q.addr));
+        if let Some(i) = old {
+            self.pending.remove(tail + i);
+        }
+        self.pending
+            .push(Pending::Q(q))
+            .map_err(|_| CommandError::QueueFull)
+    }
+
+    fn command(&mut self, p: Pending) -> Result<(), CommandError> {
+        if !self.is_up() {
+            return Err(CommandError::NotConnected);
+        }
+        self.pending.push(p).map_err(|_| CommandError::QueueFull)
+    }
+
+    pub fn run(&mut self) -> Result<(), CommandError> {
+        self.command(Pending::Run)
+    }
+
+    pub fn stop(&mut self) -> Result<(), CommandError> {
+        self.command(Pending::Stop)
+    }
+
+    pub fn ack_fault(&mut self) -> Result<(), CommandError> {
+        self.command(Pending::AckFault)
+    }
+
+    /// Requested direction (a level). Remembered while the link is down and resent after
+    /// each handshake.
+    pub fn set_direction(&mut self, reverse: bool) -> Result<(), CommandError> {
+        self.direction = Some(reverse);
+        if !self.is_up() {
+            return Ok(());
+        }
+        self.command(Pending::Direction(reverse))
+    }
+
+    /// Send a drive section: `DownloadBegin`, chunks of 16 lines, `DownloadEnd`; the
+    /// drive answers with [`PlcEvent::Download`].
+    pub fn start_download(&mut self, section: &DriveSection) -> Result<(), CommandError> {
+        if !self.is_up() {
+            return Err(CommandError::NotConnected);
+        }
+        let chunks = DRIVE_LINES.div_ceil(CHUNK_LINES);
+        if self.pending.capacity() - self.pending.len() < chunks + 2 {
+            return Err(CommandError::QueueFull);
+        }
+        for (dst, line) in self
+            .section
+            .chunks_exact_mut(LINE_BYTES)
+            .zip(&section.lines)
+        {
+            dst.copy_from_slice(&encode_slot(line.as_ref()));
+        }
+        self.section_crc = section_crc(&self.section);
+        self.command(Pending::DownloadBegin)?;
+        for c in 0..chunks {
+            self.command(Pending::DownloadChunk((c * CHUNK_LINES) as u8))?;
+        }
+        self.command(Pending::DownloadEnd)?;
+        self.download_active = true;
+        Ok(())
+    }
+
+    /// Bytes received from the UART, in order.
+    pub fn receive(&mut self, bytes: &[u8], now: Micros) {
+        for &b in bytes {
+            match self.reader.push::<DriveMsg>(b) {
+                None => {}
+                Some(Err(_)) => self.stats.frames_bad = self.stats.frames_bad.saturating_add(1),
+                Some(Ok(frame)) => {
+                    self.stats.frames_ok = self.stats.frames_ok.saturating_add(1);
+                    self.on_frame(frame, now);
+                }
+            }
+        }
+        self.tick(now);
+    }
+
+    fn on_frame(&mut self, f: Frame<DriveMsg>, now: Micros) {
+        if let DriveMsg::HelloReply { version, session } = f.msg {
+            if session != self.session || self.state == PlcLinkState::Up {
+                return;
+            }
+            if version == PROTOCOL_VERSION {
+                self.connect(now);
+            } else if self.state
+                != (PlcLinkState::Incompatible {
+                    drive_version: version,
+                })
+            {
+                self.state = PlcLinkState::Incompatible {
+                    drive_version: version,
+                };
+                self.push_event(PlcEvent::VersionMismatch {
+                    drive_version: version,
+                });
+            }
+            return;
+        }
+        if self.state != PlcLinkState::Up {
+            return;
+        }
+        self.last_rx = now;
+        self.tx.on_ack(f.ack);
+        let reliable = f.msg.is_reliable();
+        if reliable {
+            self.ack_owed = true;
+            if self.rx.classify(f.seq) != Arrival::New || self.events.is_full() {
+                self.stats.duplicates = self.stats.duplicates.saturating_add(1);
+                return;
+            }
+            self.rx.advance();
+        }
+        match f.msg {
+            DriveMsg::Status(s) => self.status = Some((s, now)),
+            DriveMsg::Download(r) => {
+                self.download_active = false;
+                self.push_event(PlcEvent::Download(r));
+            }
+            DriveMsg::Fault {
+                code,
+                drive_time_ms,
+            } => self.push_event(PlcEvent::DriveFault {
+                code,
+                drive_time_ms,
+            }),
+            DriveMsg::HelloReply { .. } | DriveMsg::Ack => {}
+        }
+    }
+
+    fn push_event(&mut self, e: PlcEvent) {
+        if self.events.is_full() {
+            self.events.pop_front();
+        }
+        let _ = self.events.push_back(e);
+    }
+
+    fn connect(&mut self, now: Micros) {
+        self.state = PlcLinkState::Up;
+        self.last_rx = now;
+        self.rx.reset();
+        self.ack_owed = false;
+        for _ in self.tx.reset() {}
+        self.pending.clear();
+        for (addr, v) in self.q_shadow.iter().enumerate() {
+            if let Some(value) = *v {
+                let _ = self.pending.push(Pending::Q(QValue {
+                    addr: addr as u8,
+                    value,
+                }));
+            }
+        }
+        if let Some(d) = self.direction {
+            let _ = self.pending.push(Pending::Direction(d));
+        }
+        self.push_event(PlcEvent::Connected);
+    }
+
+    fn lose(&mut self) {
+        let dropped = self.pending.iter().filter(|p| !p.is_q()).count()
+            + self
+                .tx
+                .reset()
+                .filter(|m| !matches!(m, PlcMsg::QWrite(_)))
+                .count();
+        self.pending.clear();
+        self.download_active = false;
+        self.state = PlcLinkState::Connecting;
+        self.last_hello = None;
+        self.status = None;
+        self.stats.link_losses = self.stats.link_losses.saturating_add(1);
+        self.push_event(PlcEvent::LinkLost {
+            dropped: dropped as u16,
+        });
+    }
+
+    /// Run the timers (also done by `receive` and `poll_transmit`).
+    pub fn tick(&mut self, now: Micros) {
+        if self.state == PlcLinkState::Up
+            && now.0.saturating_sub(self.last_rx.0) > self.cfg.plc_timeout_us
+        {
+            self.lose();
+        }
+    }
+
+    /// The next frame to send, written to `out`; returns its length, 0 when there is
+    /// nothing to send now or `out` is smaller than the frame ([`MAX_WIRE_FRAME`] always
+    /// fits). Call it whenever the UART can take more, and at least every millisecond.
+    pub fn poll_transmit(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        self.tick(now);
+        if out.len() < MAX_WIRE_FRAME {
+            return 0;
+        }
+        match self.state {
+            PlcLinkState::Connecting | PlcLinkState::Incompatible { .. } => {
+                let period = if self.state == PlcLinkState::Connecting {
+                    self.cfg.hello_retry_us
+                } else {
+                    self.cfg.incompatible_retry_us
+                };
+                let due = self
+                    .last_hello
+                    .is_none_or(|t| now.0.saturating_sub(t.0) >= period);
+                if !due {
+                    return 0;
+                }
+                if self.state == PlcLinkState::Connecting {
+                    self.session = self.session.wrapping_add(1);
+                }
+                self.last_hello = Some(now);
+                let msg = PlcMsg::Hello {
+                    version: PROTOCOL_VERSION,
+                    session: self.session,
+                };
+                self.send(0, msg, true, now, out)
+            }
+            PlcLinkState::Up => self.transmit_up(now, out),
+        }
+    }
+
+    fn transmit_up(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        self.fill_window();
+        let rto = self.cfg.rto_us();
+        let ack = self.rx.ack();
+        if let Some((seq, msg)) = self.tx.next_to_send(now, rto) {
+            let frame = Frame { seq, ack, msg };
+            return match encode_frame(&frame, false, out) {
+                Ok(n) => self.sent(n, now),
+                Err(_) => 0,
+            };
+        }
+        if self.ack_owed || now.0.saturating_sub(self.last_tx.0) >= self.cfg.heartbeat_us {
+            return self.send(0, PlcMsg::Heartbeat, false, now, out);
+        }
+        0
+    }
+
+    fn send(&mut self, seq: u8, msg: PlcMsg, lead: bool, now: Micros, out: &mut [u8]) -> usize {
+        let frame = Frame {
+            seq,
+            ack: self.rx.ack(),
+            msg,
+        };
+        match encode_frame(&frame, lead, out) {
+            Ok(n) => self.sent(n, now),
+            Err(_) => 0,
+        }
+    }
+
+    fn sent(&mut self, n: usize, now: Micros) -> usize {
+        self.ack_owed = false;
+        self.last_tx = now;
+        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
+        self.stats.bytes_sent = self.stats.bytes_sent.saturating_add(n as u64);
+        n
+    }
+
+    /// Move waiting commands into the window, turning runs of Q writes into one frame.
+    fn fill_window(&mut self) {
+        while !self.tx.is_full() {
+            if self.pending.is_empty() {
+                return;
+            }
+            let first = self.pending.remove(0);
+            let msg = match first {
+                Pending::Q(q) => {
+                    let mut v = heapless::Vec::<QValue, MAX_Q_PER_FRAME>::new();
+                    let _ = v.push(q);
+                    while !v.is_full() {
+                        match self.pending.first() {
+                            Some(Pending::Q(next)) => {
+                                let _ = v.push(*next);
+                                self.pending.remove(0);
+                            }
+                            _ => break,
+                        }
+                    }
+                    PlcMsg::QWrite(v)
+                }
+                Pending::Run => PlcMsg::Run,
+                Pending::Stop => PlcMsg::Stop,
+                Pending::Direction(reverse) => PlcMsg::Direction { reverse },
+                Pending::AckFault => PlcMsg::AckFault,
+                Pending::DownloadBegin => PlcMsg::DownloadBegin {
+                    crc: self.section_crc,
+                },
+                Pending::DownloadChunk(first_line) => {
+                    let start = usize::from(first_line) * LINE_BYTES;
+                    let end = (start + CHUNK_BYTES).min(SECTION_BYTES);
+                    let data =
+                        heapless::Vec::from_slice(self.section.get(start..end).unwrap_or(&[]))
+                            .unwrap_or_default();
+                    PlcMsg::DownloadChunk { first_line, data }
+                }
+                Pending::DownloadEnd => PlcMsg::DownloadEnd,
+            };
+            if self.tx.push(msg).is_err() {
+                return;
+            }
+        }
+    }
+}
+
+/// CRC-32C of the encoded drive section, as carried by `DownloadBegin`.
+pub fn section_crc(bytes: &[u8]) -> u32 {
+    super::frame::CRC.checksum(bytes)
+}

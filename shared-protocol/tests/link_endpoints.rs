@@ -1,0 +1,412 @@
+//! Both link endpoints over the byte-timed in-memory UART: handshake, commands, download,
+//! supervision, reconnection, version mismatch.
+
+use shared_protocol::link::channel::Impairments;
+use shared_protocol::link::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
+use shared_protocol::link::pair::LinkPair;
+use shared_protocol::link::{
+    DownloadResult, DriveEvent, DriveLinkState, DriveMsg, DriveState, DriveStatus, LinkConfig,
+    PlcEvent, PlcLink, PlcLinkState, PlcMsg, RejectReason, PROTOCOL_VERSION,
+};
+use shared_protocol::program::{DriveSection, Instruction, Mnemonic, Operand};
+use shared_protocol::units::Micros;
+
+fn ms(t: u64) -> Micros {
+    Micros(t * 1000)
+}
+
+fn connected_pair(baud: u32) -> LinkPair {
+    let mut p = LinkPair::new(LinkConfig::at_baud(baud), Impairments::default(), 1);
+    p.run_until(ms(10), |_| {});
+    assert!(p.plc.is_up() && p.drive.is_up(), "handshake within 10 ms");
+    assert_eq!(p.plc.poll_event(), Some(PlcEvent::Connected));
+    assert_eq!(p.drive.poll_event(), Some(DriveEvent::Connected));
+    p
+}
+
+fn drive_events(p: &mut LinkPair) -> Vec<DriveEvent> {
+    std::iter::from_fn(|| p.drive.poll_event()).collect()
+}
+
+/// Run until the drive reports the predicate; returns the time it did.
+fn until_drive(
+    p: &mut LinkPair,
+    limit: Micros,
+    mut f: impl FnMut(&DriveEvent) -> bool,
+) -> Option<Micros> {
+    while p.now < limit {
+        p.step(limit);
+        while let Some(e) = p.drive.poll_event() {
+            if f(&e) {
+                return Some(p.now);
+            }
+        }
+    }
+    None
+}
+
+#[test]
+fn q_write_is_applied_within_2ms_at_115200() {
+    let mut p = connected_pair(115_200);
+    let mut worst = 0;
+    for k in 0..200u64 {
+        // Issue at awkward moments relative to heartbeats and status frames.
+        let issue = Micros(p.now.0 + 3_000 + (k * 377) % 9_000);
+        p.run_until(issue, |_| {});
+        drive_events(&mut p);
+        p.plc.write_q(5, k as i16).unwrap();
+        p.service();
+        let t = until_drive(&mut p, Micros(issue.0 + 50_000), |e| {
+            *e == DriveEvent::QWrite {
+                addr: 5,
+                value: k as i16,
+            }
+        })
+        .expect("applied");
+        worst = worst.max(t.0 - issue.0);
+    }
+    assert!(worst <= 2_000, "worst latency {worst} us");
+}
+
+#[test]
+fn commands_are_applied_once_in_order() {
+    let mut p = connected_pair(115_200);
+    p.plc.write_q(1, 10).unwrap();
+    p.plc.set_direction(true).unwrap();
+    p.plc.write_q(1, 11).unwrap();
+    p.plc.run().unwrap();
+    p.plc.write_q(2, -7).unwrap();
+    p.plc.ack_fault().unwrap();
+    p.plc.stop().unwrap();
+    let end = Micros(p.now.0 + 30_000);
+    p.run_until(end, |_| {});
+    assert_eq!(
+        drive_events(&mut p),
+        vec![
+            DriveEvent::QWrite { addr: 1, value: 10 },
+            DriveEvent::Direction { reverse: true },
+            DriveEvent::QWrite { addr: 1, value: 11 },
+            DriveEvent::Run,
+            DriveEvent::QWrite { addr: 2, value: -7 },
+            DriveEvent::AckFault,
+            DriveEvent::Stop,
+        ]
+    );
+    assert_eq!(p.plc.unacknowledged(), 0);
+}
+
+#[test]
+fn waiting_q_writes_coalesce_newest_wins() {
+    let mut p = connected_pair(115_200);
+    // One scan writing the same Q many times, while the UART is busy.
+    for v in 0..50 {
+        p.plc.write_q(3, v).unwrap();
+        p.plc.write_q(4, -v).unwrap();
+    }
+    let end = Micros(p.now.0 + 30_000);
+    p.run_until(end, |_| {});
+    let ev = drive_events(&mut p);
+    assert!(ev.len() <= 4, "coalesced: {ev:?}");
+    let last3 = ev.iter().rev().find_map(|e| match e {
+        DriveEvent::QWrite { addr: 3, value } => Some(*value),
+        _ => None,
+    });
+    let last4 = ev.iter().rev().find_map(|e| match e {
+        DriveEvent::QWrite { addr: 4, value } => Some(*value),
+        _ => None,
+    });
+    assert_eq!((last3, last4), (Some(49), Some(-49)));
+}
+
+#[test]
+fn status_reaches_the_plc_and_state_changes_are_prompt() {
+    let mut p = connected_pair(115_200);
+    let mut s = DriveStatus {
+        state: DriveState::Run,
+        freq_dhz: 500,
+        udc_dv: 300,
+        com: 512,
+        ..Default::default()
+    };
+    p.drive.set_status(s);
+    let end = Micros(p.now.0 + 25_000);
+    p.run_until(end, |_| {});
+    assert_eq!(p.plc.last_status().map(|(st, _)| st), Some(s));
+    // A trip is reported at once (not at the next 10 ms period) and as a reliable event.
+    s.state = DriveState::Fault;
+    s.fault = 1;
+    p.drive.set_status(s);
+    assert!(p.drive.report_fault(1, 1234));
+    let t0 = p.now;
+    let mut seen_status = None;
+    let mut seen_event = None;
+    p.run_until(Micros(t0.0 + 20_000), |p| {
+        if seen_status.is_none() && p.plc.last_status().map(|x| x.0.fault) == Some(1) {
+            seen_status = Some(p.now);
+        }
+        if let Some(PlcEvent::DriveFault {
+            code: 1,
+            drive_time_ms: 1234,
+        }) = p.plc.poll_event()
+        {
+            seen_event = Some(p.now);
+        }
+    });
+    assert!(seen_status.unwrap().0 - t0.0 < 5_000);
+    assert!(seen_event.unwrap().0 - t0.0 < 5_000);
+}
+
+fn ins(mnemonic: Mnemonic, operand: Option<Operand>, constant: u16) -> Option<Instruction> {
+    Some(Instruction {
+        mnemonic,
+        operand,
+        constant,
+    })
+}
+
+fn ramp_section() -> DriveSection {
+    let mut d = DriveSection::default();
+    d.lines[0] = ins(Mnemonic::Pwf, Some(Operand::K(0)), 5000);
+    d.lines[1] = ins(Mnemonic::Ld, Some(Operand::Q(0)), 0);
+    d.lines[2] = ins(Mnemonic::Wr, Some(Operand::Q(1)), 0);
+    d.lines[149] = ins(Mnemonic::Fmx, Some(Operand::K(1)), 500);
+    d
+}
+
+fn download(p: &mut LinkPair, section: &DriveSection) -> (Option<DownloadResult>, Vec<DriveEvent>) {
+    p.plc.start_download(section).unwrap();
+    assert!(p.plc.download_in_progress());
+    let mut result = None;
+    let mut drive = Vec::new();
+    let end = Micros(p.now.0 + 300_000);
+    p.run_until(end, |p| {
+        while let Some(e) = p.plc.poll_event() {
+            if let PlcEvent::Download(r) = e {
+                result = Some(r);
+            }
+        }
+        drive.extend(std::iter::from_fn(|| p.drive.poll_event()));
+    });
+    (result, drive)
+}
+
+#[test]
+fn download_is_verified_and_accepted() {
+    let mut p = connected_pair(115_200);
+    let section = ramp_section();
+    let (result, drive) = download(&mut p, &section);
+    assert_eq!(result, Some(DownloadResult::Accepted));
+    assert_eq!(drive, vec![DriveEvent::ProgramAccepted]);
+    assert_eq!(p.drive.take_program(), Some(section));
+    assert!(!p.plc.download_in_progress());
+}
+
+#[test]
+fn download_reject_names_line_and_reason() {
+    let mut p = connected_pair(115_200);
+    let mut section = ramp_section();
+    // A PLC instruction in the drive section.
+    section.lines[42] = ins(Mnemonic::Not, None, 0);
+    let (result, drive) = download(&mut p, &section);
+    let Some(DownloadResult::Rejected {
+        line: 42,
+        reason: RejectReason::Verify(code),
+    }) = result
+    else {
+        panic!("{result:?}");
+    };
+    assert_eq!(
+        drive,
+        vec![DriveEvent::ProgramRejected {
+            line: 42,
+            reason: RejectReason::Verify(code)
+        }]
+    );
+    assert_eq!(p.drive.take_program(), None);
+}
+
+#[test]
+fn download_survives_a_lossy_link() {
+    let imp = Impairments {
+        bit_error_rate: 1e-3,
+        frame_drop: 0.05,
+        ..Default::default()
+    };
+    let mut p = LinkPair::new(LinkConfig::default(), imp, 99);
+    p.run_until(ms(200), |_| {});
+    assert!(p.plc.is_up());
+    let section = ramp_section();
+    let (result, _) = download(&mut p, &section);
+    assert_eq!(result, Some(DownloadResult::Accepted));
+    assert_eq!(p.drive.take_program(), Some(section));
+}
+
+#[test]
+fn cut_link_is_detected_on_both_sides_then_reconnects() {
+    let mut p = connected_pair(115_200);
+    p.plc.write_q(7, 700).unwrap();
+    p.plc.set_direction(true).unwrap();
+    let end = Micros(p.now.0 + 20_000);
+    p.run_until(end, |_| {});
+    drive_events(&mut p);
+
+    let cut = p.now;
+    p.to_drive.set_cut(true);
+    p.to_plc.set_cut(true);
+    p.plc.write_q(7, 701).unwrap(); // while cut: kept, resent after the handshake
+    let mut drive_lost = None;
+    let mut plc_lost = None;
+    p.run_until(Micros(cut.0 + 150_000), |p| {
+        while let Some(e) = p.drive.poll_event() {
+            if e == DriveEvent::LinkLost {
+                drive_lost.get_or_insert(p.now);
+            }
+        }
+        while let Some(e) = p.plc.poll_event() {
+            if let PlcEvent::LinkLost { .. } = e {
+                plc_lost.get_or_insert(p.now);
+            }
+        }
+    });
+    let drive_lost = drive_lost.expect("drive saw the loss").0 - cut.0;
+    let plc_lost = plc_lost.expect("PLC saw the loss").0 - cut.0;
+    // 50 ms after the last valid frame, which came at most one heartbeat before the cut.
+    assert!(
+        (50_000 - 8_000..=51_000).contains(&drive_lost),
+        "drive after {drive_lost} us"
+    );
+    assert!(plc_lost <= 100_000, "PLC after {plc_lost} us");
+    assert_eq!(p.drive.state(), DriveLinkState::Down);
+    assert_eq!(p.plc.state(), PlcLinkState::Connecting);
+
+    p.to_drive.set_cut(false);
+    p.to_plc.set_cut(false);
+    let back = p.now;
+    let end = Micros(back.0 + 100_000);
+    p.run_until(end, |_| {});
+    assert!(p.plc.is_up() && p.drive.is_up());
+    assert_eq!(p.plc.poll_event(), Some(PlcEvent::Connected));
+    let ev = drive_events(&mut p);
+    assert_eq!(
+        ev,
+        vec![
+            DriveEvent::Connected,
+            DriveEvent::QWrite {
+                addr: 7,
+                value: 701
+            },
+            DriveEvent::Direction { reverse: true },
+        ]
+    );
+}
+
+#[test]
+fn plc_heartbeat_gap_stays_below_10ms() {
+    let mut p = connected_pair(115_200);
+    let mut last = p.now;
+    let mut sent = p.to_drive.stats().frames;
+    let mut worst = 0;
+    p.run_until(ms(2_000), |p| {
+        let f = p.to_drive.stats().frames;
+        if f != sent {
+            worst = worst.max(p.now.0 - last.0);
+            last = p.now;
+            sent = f;
+        }
+    });
+    assert!(worst <= 10_000, "gap {worst} us");
+    assert!(p.drive.is_up());
+}
+
+fn hello_session(plc: &mut PlcLink, now: Micros) -> u8 {
+    let mut out = [0u8; MAX_WIRE_FRAME];
+    let n = plc.poll_transmit(now, &mut out);
+    let mut r = FrameReader::new();
+    for &b in &out[..n] {
+        if let Some(Ok(Frame {
+            msg: PlcMsg::Hello { version, session },
+            ..
+        })) = r.push::<PlcMsg>(b)
+        {
+            assert_eq!(version, PROTOCOL_VERSION);
+            return session;
+        }
+    }
+    panic!("no hello");
+}
+
+#[test]
+fn version_mismatch_is_reported_on_both_sides() {
+    let cfg = LinkConfig::default();
+    // PLC side: the drive answers with version 99.
+    let mut plc = PlcLink::new(cfg);
+    let session = hello_session(&mut plc, Micros(0));
+    let reply = Frame {
+        seq: 0,
+        ack: 0,
+        msg: DriveMsg::HelloReply {
+            version: 99,
+            session,
+        },
+    };
+    let mut out = [0u8; MAX_WIRE_FRAME];
+    let n = encode_frame(&reply, true, &mut out).unwrap();
+    plc.receive(&out[..n], Micros(1_000));
+    assert_eq!(
+        plc.poll_event(),
+        Some(PlcEvent::VersionMismatch { drive_version: 99 })
+    );
+    assert_eq!(
+        plc.state(),
+        PlcLinkState::Incompatible { drive_version: 99 }
+    );
+    assert!(plc.run().is_err());
+
+    // Drive side: a PLC with version 99 never brings the link up.
+    let mut drive = shared_protocol::link::DriveLink::new(cfg);
+    let hello = Frame {
+        seq: 0,
+        ack: 0,
+        msg: PlcMsg::Hello {
+            version: 99,
+            session: 1,
+        },
+    };
+    let n = encode_frame(&hello, true, &mut out).unwrap();
+    drive.receive(&out[..n], Micros(0));
+    assert_eq!(
+        drive.poll_event(),
+        Some(DriveEvent::VersionMismatch { plc_version: 99 })
+    );
+    assert!(!drive.is_up());
+    // It still answers with its own version, so the PLC can show both.
+    let n = drive.poll_transmit(Micros(10), &mut out);
+    let mut r = FrameReader::new();
+    let got: Vec<_> = out[..n]
+        .iter()
+        .filter_map(|&b| r.push::<DriveMsg>(b))
+        .collect();
+    assert_eq!(
+        got,
+        vec![Ok(Frame {
+            seq: 0,
+            ack: 0,
+            msg: DriveMsg::HelloReply {
+                version: PROTOCOL_VERSION,
+                session: 1
+            }
+        })]
+    );
+}
+
+#[test]
+fn works_at_1_mbaud() {
+    let mut p = connected_pair(1_000_000);
+    p.plc.write_q(0, 1).unwrap();
+    p.service();
+    let t0 = p.now;
+    let t = until_drive(&mut p, ms(100), |e| {
+        *e == DriveEvent::QWrite { addr: 0, value: 1 }
+    });
+    assert!(t.unwrap().0 - t0.0 < 500);
+}
