@@ -44,6 +44,9 @@ struct Regs {
     s: u16,
     /// Accumulator ("pomkonst").
     p: i16,
+    /// How many bits loaded in this scan are still on S (0..=16); lets `CTU`/`CTD` tell
+    /// a lone count input from a count + reset pair.
+    depth: u8,
 }
 
 impl Regs {
@@ -52,6 +55,11 @@ impl Regs {
     }
     fn push(&mut self, bit: bool) {
         self.s = (self.s << 1) | u16::from(bit);
+        self.depth = (self.depth + 1).min(16);
+    }
+    fn pop(&mut self) {
+        self.s >>= 1;
+        self.depth = self.depth.saturating_sub(1);
     }
     fn set_top(&mut self, bit: bool) {
         self.s = (self.s & !1) | u16::from(bit);
@@ -59,7 +67,8 @@ impl Regs {
     /// Pops t = S0 and combines the new S0 with it.
     fn combine(&mut self, op: impl Fn(bool, bool) -> bool) {
         let t = self.top();
-        self.s >>= 1;
+        self.pop();
+        self.depth = self.depth.max(1);
         let s0 = self.top();
         self.set_top(op(s0, t));
     }
@@ -154,7 +163,11 @@ impl PlcVm {
             now,
             first_scan: self.first_scan,
         };
-        let mut regs = Regs { s: 0, p: 0 };
+        let mut regs = Regs {
+            s: 0,
+            p: 0,
+            depth: 0,
+        };
         let mut lcd_used = 0usize;
         let plc = program
             .lines
@@ -287,11 +300,19 @@ impl Step<'_> {
             M::Ctu | M::Ctd => {
                 if let Some(Operand::Q(n)) = x {
                     if let Some(q) = mem.q.get_mut(usize::from(n)) {
-                        let reset = regs.top();
-                        regs.s >>= 1;
+                        // With fewer than two bits loaded in this scan there is no reset
+                        // input: S0 is the count input (docs/vm.md).
+                        let pair = regs.depth >= 2;
+                        let s0 = regs.top();
+                        regs.pop();
+                        let (reset, count) = if pair {
+                            (s0, !s0 && regs.top())
+                        } else {
+                            (false, s0)
+                        };
                         if reset {
                             *q = 0;
-                        } else if regs.top() {
+                        } else if count {
                             *q = if ins.mnemonic == M::Ctu {
                                 q.saturating_add(1)
                             } else {

@@ -499,14 +499,44 @@ fn ctu_saturates_at_max() {
 }
 
 #[test]
-fn ctu_with_one_bit_loaded_sees_it_as_reset() {
-    // S starts each scan at 0, so a lone bit is the reset input.
-    let lines = vec![l(M::Ld, X::D(0)), l(M::Ctu, X::Q(1))];
+fn ctu_with_one_bit_loaded_counts_it() {
+    // A lone bit (the source's LCD example) is the count input, not a reset.
+    let lines = vec![
+        l(M::Ld, X::D(0)),
+        l(M::Ctu, X::Q(1)),
+        l(M::Ld, X::D(0)),
+        l(M::Ld, X::D(1)),
+        n(M::And),
+        l(M::Ctd, X::Q(2)),
+    ];
     let mut r = Rig::new(&lines);
     r.d(0, true);
     r.scan();
     r.scan();
+    assert_eq!(r.vm.q(1), 2);
+    assert_eq!(r.vm.q(2), 0, "AND result 0: no count");
+    r.d(1, true);
+    r.scan();
+    assert_eq!(r.vm.q(1), 3);
+    assert_eq!(r.vm.q(2), -1, "an AND result is one bit: counted");
+}
+
+#[test]
+fn ctu_with_two_bits_loaded_uses_s0_as_reset() {
+    let lines = vec![
+        l(M::Ld, X::D(1)),
+        l(M::Ld, X::D(0)),
+        l(M::Ctu, X::Q(1)),
+        l(M::Wr, X::O(0)),
+    ];
+    let mut r = Rig::new(&lines);
+    r.d(1, true);
+    r.scan();
+    assert_eq!(r.vm.q(1), 1);
+    r.d(0, true);
+    let out = r.scan();
     assert_eq!(r.vm.q(1), 0);
+    assert!(out.output(0), "after the pop S0 is the count input");
 }
 
 #[test]
