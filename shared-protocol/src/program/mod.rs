@@ -5,6 +5,7 @@
 //! * [`verify()`]: what may run, and the valid choices the keypad editor offers
 //!   ([`mnemonics_for`], [`operands_for`], [`constant_range`]).
 //! * [`assemble`]/[`disassemble`]: the `.plc` text format.
+//! * `testing` (feature `testing`): proptest strategies for valid programs.
 //!
 //! The format decisions are collected in `docs/program-format.md`.
 
@@ -14,6 +15,11 @@ mod encode;
 mod model;
 mod operand;
 mod verify;
+
+#[cfg(test)]
+mod proptests;
+#[cfg(any(test, feature = "testing"))]
+pub mod testing;
 
 pub use asm::*;
 pub use disasm::*;

@@ -1,0 +1,172 @@
+//! The source's example programs (program.md section 5) in `programs/`: each assembles,
+//! verifies, sits in the right section and survives the canonical text and binary forms.
+
+use shared_protocol::program::{
+    assemble, decode_slot, disassemble, encode_slot, verify, Instruction, Mnemonic, Operand,
+    Program, Section,
+};
+
+const PLC_EXAMPLES: &[(&str, &str)] = &[
+    ("rs_flipflop", include_str!("../programs/rs_flipflop.plc")),
+    ("t_flipflop", include_str!("../programs/t_flipflop.plc")),
+    ("and_or", include_str!("../programs/and_or.plc")),
+    ("counter100", include_str!("../programs/counter100.plc")),
+    ("on_delay_10s", include_str!("../programs/on_delay_10s.plc")),
+    ("arithmetic", include_str!("../programs/arithmetic.plc")),
+    ("lcd", include_str!("../programs/lcd.plc")),
+    ("rev_buttons", include_str!("../programs/rev_buttons.plc")),
+    (
+        "conditional_write",
+        include_str!("../programs/conditional_write.plc"),
+    ),
+    ("com_monitor", include_str!("../programs/com_monitor.plc")),
+];
+
+const DRIVE_EXAMPLES: &[(&str, &str)] = &[
+    ("pi_ramp", include_str!("../programs/pi_ramp.plc")),
+    (
+        "three_phase_sine",
+        include_str!("../programs/three_phase_sine.plc"),
+    ),
+    ("protections", include_str!("../programs/protections.plc")),
+    ("direct_pwm", include_str!("../programs/direct_pwm.plc")),
+    ("ir_boost", include_str!("../programs/ir_boost.plc")),
+];
+
+const MOTOR: &str = include_str!("../programs/motor.plc");
+
+fn checked(name: &str, text: &str) -> Program {
+    let p = assemble(text).unwrap_or_else(|e| panic!("{name}.plc:{e}"));
+    assert_eq!(verify(&p), Ok(()), "{name}");
+    let mut canonical = String::new();
+    disassemble(&p, &mut canonical).unwrap();
+    assert_eq!(assemble(&canonical).as_ref(), Ok(&p), "{name} round trip");
+    for slot in &p.lines {
+        assert_eq!(
+            decode_slot(&encode_slot(slot.as_ref())),
+            Ok(*slot),
+            "{name}"
+        );
+    }
+    p
+}
+
+fn ins(mnemonic: Mnemonic, operand: Option<Operand>, constant: u16) -> Instruction {
+    Instruction {
+        mnemonic,
+        operand,
+        constant,
+    }
+}
+
+#[test]
+fn plc_examples_are_plc_only_from_line_150() {
+    for (name, text) in PLC_EXAMPLES {
+        let p = checked(name, text);
+        assert_eq!(p.section(Section::Drive).count(), 0, "{name}");
+        let first = p.section(Section::Plc).next().map(|(n, _)| n);
+        assert_eq!(first, Some(150), "{name}");
+    }
+}
+
+#[test]
+fn drive_examples_are_drive_only_from_line_000() {
+    for (name, text) in DRIVE_EXAMPLES {
+        let p = checked(name, text);
+        assert_eq!(p.section(Section::Plc).count(), 0, "{name}");
+        let first = p.section(Section::Drive).next().map(|(n, _)| n);
+        assert_eq!(first, Some(0), "{name}");
+    }
+}
+
+#[test]
+fn every_file_in_programs_is_covered() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/programs");
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.ends_with(".plc"))
+        .collect();
+    names.sort();
+    let mut known: Vec<String> = PLC_EXAMPLES
+        .iter()
+        .chain(DRIVE_EXAMPLES)
+        .map(|(n, _)| format!("{n}.plc"))
+        .chain([String::from("motor.plc")])
+        .collect();
+    known.sort();
+    assert_eq!(names, known);
+}
+
+#[test]
+fn motor_example_is_the_listing_with_the_frv_correction() {
+    let p = checked("motor", MOTOR);
+    let drive: Vec<u16> = p.section(Section::Drive).map(|(n, _)| n).collect();
+    let plc: Vec<u16> = p.section(Section::Plc).map(|(n, _)| n).collect();
+    assert_eq!(drive, (0..=25).collect::<Vec<_>>());
+    assert_eq!(plc, (150..=175).collect::<Vec<_>>());
+    assert_eq!(
+        p.get(25),
+        Some(&ins(Mnemonic::Frv, Some(Operand::K(20)), 200))
+    );
+    assert_eq!(
+        p.get(5),
+        Some(&ins(Mnemonic::Pi, Some(Operand::K(2)), 1000))
+    );
+    assert_eq!(
+        p.get(2),
+        Some(&ins(Mnemonic::Ld, Some(Operand::K(1)), 2333))
+    );
+    assert_eq!(p.get(0), Some(&ins(Mnemonic::Pwf, Some(Operand::Q(0)), 0)));
+    assert_eq!(
+        p.get(167),
+        Some(&ins(Mnemonic::Imp, Some(Operand::K(16)), 70))
+    );
+    assert_eq!(
+        p.get(169),
+        Some(&ins(Mnemonic::Let, Some(Operand::B(4)), 0))
+    );
+    assert_eq!(p.get(175), Some(&ins(Mnemonic::Wr, Some(Operand::Q(0)), 0)));
+    // Exactly two LCD fields: A01 and the switching frequency.
+    let lcd = p
+        .section(Section::Plc)
+        .filter(|(_, i)| i.mnemonic == Mnemonic::Lcd)
+        .count();
+    assert_eq!(lcd, 2);
+}
+
+#[test]
+fn arithmetic_follows_the_prose_add_10_multiply_by_3() {
+    let p = checked("arithmetic", PLC_EXAMPLES[5].1);
+    assert_eq!(
+        p.get(151),
+        Some(&ins(Mnemonic::Add, Some(Operand::K(3)), 10))
+    );
+    assert_eq!(
+        p.get(152),
+        Some(&ins(Mnemonic::Mul, Some(Operand::K(4)), 3))
+    );
+}
+
+#[test]
+fn counters_get_their_reset_in_s0_and_count_in_s1() {
+    // In both counter examples the line before CTU pushes the reset bit (an LD of a B bit)
+    // and the line before that is the LET producing the count edge.
+    for (name, text) in [PLC_EXAMPLES[3], PLC_EXAMPLES[6]] {
+        let p = checked(name, text);
+        let (n, _) = p
+            .section(Section::Plc)
+            .find(|(_, i)| i.mnemonic == Mnemonic::Ctu)
+            .unwrap();
+        assert_eq!(
+            p.get(n - 1).map(|i| i.mnemonic),
+            Some(Mnemonic::Ld),
+            "{name}"
+        );
+        assert_eq!(
+            p.get(n - 2).map(|i| i.mnemonic),
+            Some(Mnemonic::Let),
+            "{name}"
+        );
+    }
+}
