@@ -1,0 +1,104 @@
+//! Every pin and peripheral instance the drive image uses, in one place
+//! (B-G431B-ESC1, STM32G431CBUx).
+//!
+//! The board layer gets its hardware only through [`split`], so a port to another board
+//! (e.g. NUCLEO-G431RB with a power shield) changes this file and nothing else. The README's
+//! pin map mirrors this table.
+//!
+//! | signal | pin | peripheral | ESC1 net |
+//! | --- | --- | --- | --- |
+//! | PWM U high / low | PA8 / PC13 | TIM1_CH1 / TIM1_CH1N | UH / UL |
+//! | PWM V high / low | PA9 / PA12 | TIM1_CH2 / TIM1_CH2N | VH / VL |
+//! | PWM W high / low | PA10 / PB15 | TIM1_CH3 / TIM1_CH3N | WH / WL |
+//! | phase current a (U shunt) | PA1 | ADC1_IN2, COMP1_INP | Curr_fdbk1 |
+//! | phase current b (V shunt) | PA7 | ADC2_IN4, COMP2_INP | Curr_fdbk2 |
+//! | DC link voltage | PA0 | ADC1_IN1, COMP3_INP | VBUS |
+//! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 | POT |
+//! | brake chopper gate | PB5 | GPIO out, active high | free pin |
+//! | link TX / RX | PB3 / PB4 | USART2 (AF7), DMA1 CH1 / CH2 | VCP TX / RX |
+//! | status LED | PC6 | GPIO out | LED |
+
+// Issue 8 binds the remaining groups; until then some fields are only reserved.
+#![allow(dead_code)]
+
+use embassy_stm32::{peripherals as p, Peri, Peripherals};
+
+/// The six TIM1 outputs and the timer itself.
+pub struct PowerStage {
+    pub tim: Peri<'static, p::TIM1>,
+    pub u_high: Peri<'static, p::PA8>,
+    pub u_low: Peri<'static, p::PC13>,
+    pub v_high: Peri<'static, p::PA9>,
+    pub v_low: Peri<'static, p::PA12>,
+    pub w_high: Peri<'static, p::PA10>,
+    pub w_low: Peri<'static, p::PB15>,
+}
+
+/// Analog front end: measurement pins and the converters behind them.
+pub struct Analog {
+    pub adc1: Peri<'static, p::ADC1>,
+    pub adc2: Peri<'static, p::ADC2>,
+    pub current_a: Peri<'static, p::PA1>,
+    pub current_b: Peri<'static, p::PA7>,
+    pub dc_link: Peri<'static, p::PA0>,
+    pub aux: Peri<'static, p::PB12>,
+}
+
+/// The PLC link USART with its DMA channels.
+pub struct Link {
+    pub usart: Peri<'static, p::USART2>,
+    pub tx: Peri<'static, p::PB3>,
+    pub rx: Peri<'static, p::PB4>,
+    pub tx_dma: Peri<'static, p::DMA1_CH1>,
+    pub rx_dma: Peri<'static, p::DMA1_CH2>,
+}
+
+/// Everything else the drive binds.
+pub struct Misc {
+    pub iwdg: Peri<'static, p::IWDG>,
+    pub brake: Peri<'static, p::PB5>,
+    pub led: Peri<'static, p::PC6>,
+}
+
+/// The drive board, grouped by job.
+pub struct Board {
+    pub power: PowerStage,
+    pub analog: Analog,
+    pub link: Link,
+    pub misc: Misc,
+}
+
+/// Hands each board module the peripherals it owns.
+pub fn split(p: Peripherals) -> Board {
+    Board {
+        power: PowerStage {
+            tim: p.TIM1,
+            u_high: p.PA8,
+            u_low: p.PC13,
+            v_high: p.PA9,
+            v_low: p.PA12,
+            w_high: p.PA10,
+            w_low: p.PB15,
+        },
+        analog: Analog {
+            adc1: p.ADC1,
+            adc2: p.ADC2,
+            current_a: p.PA1,
+            current_b: p.PA7,
+            dc_link: p.PA0,
+            aux: p.PB12,
+        },
+        link: Link {
+            usart: p.USART2,
+            tx: p.PB3,
+            rx: p.PB4,
+            tx_dma: p.DMA1_CH1,
+            rx_dma: p.DMA1_CH2,
+        },
+        misc: Misc {
+            iwdg: p.IWDG,
+            brake: p.PB5,
+            led: p.PC6,
+        },
+    }
+}

@@ -1,0 +1,161 @@
+//! Every pin and peripheral instance the PLC image uses, in one place (NUCLEO-G431RB,
+//! STM32G431RBTx).
+//!
+//! The board layer gets its hardware only through [`split`], so a port to the real PLC board
+//! changes this file and nothing else. The README's pin map mirrors this table.
+//!
+//! | signal | pin | peripheral | Nucleo connector |
+//! | --- | --- | --- | --- |
+//! | inputs I0..I7 (active high) | PC6, PC7, PC8, PC9, PC10, PC11, PC12, PD2 | GPIO in, pull-down | morpho |
+//! | outputs Q0..Q5 (active high) | PB10, PB11, PB12, PB13, PB14, PB15 | GPIO out | morpho |
+//! | analog A00, A01, A02, A03 | PA0, PA1, PB0, PC1 | ADC1_IN1, IN2, IN15, IN7 | Arduino A0, A1, A3, A4 |
+//! | keypad rows R0..R3 (driven low one at a time) | PA6, PA7, PB6, PB7 | GPIO out, open drain | morpho |
+//! | keypad columns C0..C3 | PC2, PC3, PC4, PC5 | GPIO in, pull-up | morpho |
+//! | I2C SCL / SDA (24C256 at 0x50, PCF8574 LCD at 0x27) | PB8 / PB9 | I2C1 (AF4), DMA1 CH4 / CH5 | Arduino D15 / D14 |
+//! | link TX / RX | PA9 / PA10 | USART1 (AF7), DMA1 CH1 / CH2 | Arduino D8 / D2 |
+//! | ADC DMA | - | DMA1 CH3 | - |
+//! | run LED | PA5 | GPIO out | LD2 |
+
+// Issue 8 binds the remaining groups; until then some fields are only reserved.
+#![allow(dead_code)]
+
+use embassy_stm32::{peripherals as p, Peri, Peripherals};
+
+/// The eight digital inputs I0..I7.
+pub struct Inputs {
+    pub i0: Peri<'static, p::PC6>,
+    pub i1: Peri<'static, p::PC7>,
+    pub i2: Peri<'static, p::PC8>,
+    pub i3: Peri<'static, p::PC9>,
+    pub i4: Peri<'static, p::PC10>,
+    pub i5: Peri<'static, p::PC11>,
+    pub i6: Peri<'static, p::PC12>,
+    pub i7: Peri<'static, p::PD2>,
+}
+
+/// The six digital outputs Q0..Q5.
+pub struct Outputs {
+    pub q0: Peri<'static, p::PB10>,
+    pub q1: Peri<'static, p::PB11>,
+    pub q2: Peri<'static, p::PB12>,
+    pub q3: Peri<'static, p::PB13>,
+    pub q4: Peri<'static, p::PB14>,
+    pub q5: Peri<'static, p::PB15>,
+}
+
+/// The four analog inputs A00..A03 on ADC1.
+pub struct Analog {
+    pub adc: Peri<'static, p::ADC1>,
+    pub dma: Peri<'static, p::DMA1_CH3>,
+    pub a00: Peri<'static, p::PA0>,
+    pub a01: Peri<'static, p::PA1>,
+    pub a02: Peri<'static, p::PB0>,
+    pub a03: Peri<'static, p::PC1>,
+}
+
+/// The 4x4 keypad matrix.
+pub struct Keypad {
+    pub r0: Peri<'static, p::PA6>,
+    pub r1: Peri<'static, p::PA7>,
+    pub r2: Peri<'static, p::PB6>,
+    pub r3: Peri<'static, p::PB7>,
+    pub c0: Peri<'static, p::PC2>,
+    pub c1: Peri<'static, p::PC3>,
+    pub c2: Peri<'static, p::PC4>,
+    pub c3: Peri<'static, p::PC5>,
+}
+
+/// The I2C bus with the EEPROM and the LCD backpack.
+pub struct Bus {
+    pub i2c: Peri<'static, p::I2C1>,
+    pub scl: Peri<'static, p::PB8>,
+    pub sda: Peri<'static, p::PB9>,
+    pub tx_dma: Peri<'static, p::DMA1_CH4>,
+    pub rx_dma: Peri<'static, p::DMA1_CH5>,
+}
+
+/// The drive link USART with its DMA channels.
+pub struct Link {
+    pub usart: Peri<'static, p::USART1>,
+    pub tx: Peri<'static, p::PA9>,
+    pub rx: Peri<'static, p::PA10>,
+    pub tx_dma: Peri<'static, p::DMA1_CH1>,
+    pub rx_dma: Peri<'static, p::DMA1_CH2>,
+}
+
+/// Everything else the PLC binds.
+pub struct Misc {
+    pub iwdg: Peri<'static, p::IWDG>,
+    pub led: Peri<'static, p::PA5>,
+}
+
+/// The PLC board, grouped by job.
+pub struct Board {
+    pub inputs: Inputs,
+    pub outputs: Outputs,
+    pub analog: Analog,
+    pub keypad: Keypad,
+    pub bus: Bus,
+    pub link: Link,
+    pub misc: Misc,
+}
+
+/// Hands each board module the peripherals it owns.
+pub fn split(p: Peripherals) -> Board {
+    Board {
+        inputs: Inputs {
+            i0: p.PC6,
+            i1: p.PC7,
+            i2: p.PC8,
+            i3: p.PC9,
+            i4: p.PC10,
+            i5: p.PC11,
+            i6: p.PC12,
+            i7: p.PD2,
+        },
+        outputs: Outputs {
+            q0: p.PB10,
+            q1: p.PB11,
+            q2: p.PB12,
+            q3: p.PB13,
+            q4: p.PB14,
+            q5: p.PB15,
+        },
+        analog: Analog {
+            adc: p.ADC1,
+            dma: p.DMA1_CH3,
+            a00: p.PA0,
+            a01: p.PA1,
+            a02: p.PB0,
+            a03: p.PC1,
+        },
+        keypad: Keypad {
+            r0: p.PA6,
+            r1: p.PA7,
+            r2: p.PB6,
+            r3: p.PB7,
+            c0: p.PC2,
+            c1: p.PC3,
+            c2: p.PC4,
+            c3: p.PC5,
+        },
+        bus: Bus {
+            i2c: p.I2C1,
+            scl: p.PB8,
+            sda: p.PB9,
+            tx_dma: p.DMA1_CH4,
+            rx_dma: p.DMA1_CH5,
+        },
+        link: Link {
+            usart: p.USART1,
+            tx: p.PA9,
+            rx: p.PA10,
+            tx_dma: p.DMA1_CH1,
+            rx_dma: p.DMA1_CH2,
+        },
+        misc: Misc {
+            iwdg: p.IWDG,
+            led: p.PA5,
+        },
+    }
+}
