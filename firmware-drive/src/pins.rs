@@ -10,10 +10,10 @@
 //! | PWM U high / low | PA8 / PC13 | TIM1_CH1 / TIM1_CH1N | UH / UL |
 //! | PWM V high / low | PA9 / PA12 | TIM1_CH2 / TIM1_CH2N | VH / VL |
 //! | PWM W high / low | PA10 / PB15 | TIM1_CH3 / TIM1_CH3N | WH / WL |
-//! | phase current a (U shunt) | PA1 | ADC1_IN2, COMP1_INP | Curr_fdbk1 |
-//! | phase current b (V shunt) | PA7 | ADC2_IN4, COMP2_INP | Curr_fdbk2 |
-//! | DC link voltage | PA0 | ADC1_IN1, COMP3_INP | VBUS |
-//! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 | POT |
+//! | phase current a | PA1 | ADC1_IN2 (injected), COMP1_INP vs DAC3_CH1 | Curr_fdbk1 |
+//! | phase current b | PA7 | ADC2_IN4 (injected), COMP2_INP vs DAC3_CH2 | Curr_fdbk2 |
+//! | DC link voltage | PA0 | ADC1_IN1 (injected), COMP3_INP vs DAC1_CH1 | VBUS |
+//! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 (injected) | POT |
 //! | brake chopper gate | PB5 | GPIO out, active high | free pin |
 //! | link TX / RX | PB3 / PB4 | USART2 (AF7), DMA1 CH1 / CH2 | VCP TX / RX |
 //! | status LED | PC6 | GPIO out | LED |
@@ -44,6 +44,18 @@ pub struct Analog {
     pub aux: Peri<'static, p::PB12>,
 }
 
+/// Hardware trip path: comparators and the DACs that set their thresholds.
+pub struct Protection {
+    /// Phase current a against DAC3 CH1.
+    pub comp_ia: Peri<'static, p::COMP1>,
+    /// Phase current b against DAC3 CH2.
+    pub comp_ib: Peri<'static, p::COMP2>,
+    /// DC link against DAC1 CH1.
+    pub comp_udc: Peri<'static, p::COMP3>,
+    pub dac_current: Peri<'static, p::DAC3>,
+    pub dac_voltage: Peri<'static, p::DAC1>,
+}
+
 /// The PLC link USART with its DMA channels.
 pub struct Link {
     pub usart: Peri<'static, p::USART2>,
@@ -64,6 +76,7 @@ pub struct Misc {
 pub struct Board {
     pub power: PowerStage,
     pub analog: Analog,
+    pub protection: Protection,
     pub link: Link,
     pub misc: Misc,
 }
@@ -88,6 +101,13 @@ pub fn split(p: Peripherals) -> Board {
             dc_link: p.PA0,
             aux: p.PB12,
         },
+        protection: Protection {
+            comp_ia: p.COMP1,
+            comp_ib: p.COMP2,
+            comp_udc: p.COMP3,
+            dac_current: p.DAC3,
+            dac_voltage: p.DAC1,
+        },
         link: Link {
             usart: p.USART2,
             tx: p.PB3,
@@ -100,5 +120,26 @@ pub fn split(p: Peripherals) -> Board {
             brake: p.PB5,
             led: p.PC6,
         },
+    }
+}
+
+/// Forces the six gate signals and the brake gate to push-pull GPIO outputs driven low,
+/// straight through the PAC, whatever TIM1 and the drivers are doing. Only for the panic and
+/// HardFault paths: it takes no ownership and never returns an error.
+pub fn force_power_outputs_low() {
+    use embassy_stm32::pac;
+    use embassy_stm32::pac::gpio::vals::Moder;
+    let gates = [
+        (pac::GPIOA, 8),  // U high
+        (pac::GPIOC, 13), // U low
+        (pac::GPIOA, 9),  // V high
+        (pac::GPIOA, 12), // V low
+        (pac::GPIOA, 10), // W high
+        (pac::GPIOB, 15), // W low
+        (pac::GPIOB, 5),  // brake
+    ];
+    for (port, pin) in gates {
+        port.bsrr().write(|w| w.set_br(pin, true));
+        port.moder().modify(|w| w.set_moder(pin, Moder::OUTPUT));
     }
 }

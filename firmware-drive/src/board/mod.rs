@@ -1,13 +1,30 @@
-//! Drive board layer: brings up the STM32G431 and binds the peripherals; no drive logic.
+//! Drive board layer: brings up the STM32G431 and binds the peripherals to the
+//! `firmware_drive` core; no drive logic lives here.
+//!
+//! Start-up order matters for safety: the power stage's pins go from reset (analog, the
+//! gate driver's pull-downs hold them off) straight to TIM1 with MOE = 0; the comparators
+//! and ADC are set up before TIM1's interrupts are unmasked, and the break input is armed
+//! before any code could set MOE.
 
+pub mod analog;
 pub mod clocks;
 pub mod control;
+#[cfg(feature = "dwt-cycles")]
+pub mod cycles;
+pub mod fault;
+pub mod hw_protection;
 pub mod link;
 pub mod power_stage;
+pub mod pwm_isr;
 pub mod reset_cause;
+pub mod shared;
 pub mod supervisor;
 
 use embassy_executor::Spawner;
+use embassy_stm32::gpio::{Level, Output, Speed};
+use firmware_drive::config::DriveConfig;
+use firmware_drive::drive::DriveCore;
+use static_cell::StaticCell;
 
 use crate::pins;
 
@@ -16,6 +33,10 @@ pub const IMAGE: &str = "firmware-drive";
 
 /// Brings the board up and starts every task.
 pub async fn start(spawner: Spawner) {
+    static ANALOG: StaticCell<analog::Converters> = StaticCell::new();
+    static HW: StaticCell<hw_protection::HwProtection> = StaticCell::new();
+    static PWM: StaticCell<power_stage::Tim1Pwm> = StaticCell::new();
+
     let cause = reset_cause::take();
     let p = embassy_stm32::init(clocks::config());
     defmt::info!(
@@ -25,12 +46,50 @@ pub async fn start(spawner: Spawner) {
         clocks::SYSCLK_HZ / 1_000_000,
         cause
     );
-    let board = pins::split(p);
-    // Outputs off first: nothing below may run with the gates floating.
-    let gates = power_stage::hold_off(board.power);
-    let port = link::open(board.link);
+    #[cfg(feature = "dwt-cycles")]
+    cycles::enable();
 
+    let cfg = DriveConfig::default();
+    defmt::assert_eq!(
+        cfg.timer_clock_hz,
+        clocks::SYSCLK_HZ,
+        "TIM1 clock differs from the core's"
+    );
+    let core = DriveCore::new(cfg, cause);
+    let timing = core.pwm_timing();
+    let min_dead_counts =
+        power_stage::min_dead_time_counts(cfg.timer_clock_hz, cfg.min_dead_time_ns);
+
+    let mut board = pins::split(p);
+    let a = &mut board.analog;
+    HW.init(hw_protection::init(
+        board.protection,
+        a.current_a.reborrow(),
+        a.current_b.reborrow(),
+        a.dc_link.reborrow(),
+    ));
+    ANALOG.init(analog::init(board.analog));
+    PWM.init(power_stage::init(board.power, timing, min_dead_counts));
+    let brake = Output::new(board.misc.brake, Level::Low, Speed::Low);
+    shared::install(shared::Shared {
+        core,
+        brake,
+        timing,
+        min_dead_counts,
+    });
+    power_stage::arm_break(&hw_protection::BREAK_COMPARATORS);
+    pwm_isr::enable();
+    defmt::info!(
+        "TIM1: PSC {} ARR {} DTG {=u8:#x} ({} counts), {} mHz",
+        timing.psc,
+        timing.arr,
+        timing.dtg,
+        timing.dead_time_counts,
+        timing.pwm_millihertz
+    );
+
+    let port = link::open(board.link);
     spawner.spawn(supervisor::run(board.misc.iwdg).expect("spawn supervisor"));
     spawner.spawn(link::run(port).expect("spawn link"));
-    spawner.spawn(control::run(gates).expect("spawn control"));
+    spawner.spawn(control::run().expect("spawn control"));
 }

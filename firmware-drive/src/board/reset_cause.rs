@@ -1,21 +1,16 @@
 //! Why the MCU restarted, read from RCC_CSR before anything else touches it.
 
 use embassy_stm32::pac;
+pub use firmware_drive::config::ResetCause;
 
-/// The reset causes the drive reports (a watchdog reset becomes fault `WDG`).
-#[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]
-pub enum ResetCause {
-    /// The independent or window watchdog expired.
-    Watchdog,
-    /// Power-on, brown-out, reset pin or software reset.
-    Other,
-}
-
-/// Reads and clears the reset flags.
+/// Reads and clears the reset flags (a watchdog reset becomes the core's fault `WDG`).
 pub fn take() -> ResetCause {
     let csr = pac::RCC.csr().read();
     let cause = if csr.iwdgrstf() || csr.wwdgrstf() {
         ResetCause::Watchdog
+    } else if csr.borrstf() {
+        // Power-on and brown-out both set BORRSTF on the G4.
+        ResetCause::PowerOn
     } else {
         ResetCause::Other
     };

@@ -1,0 +1,78 @@
+//! The TIM1 update interrupt (once per PWM period, at the valley) and the TIM1 break
+//! interrupt.
+
+use embassy_stm32::gpio::Level;
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
+
+use super::{analog, hw_protection, power_stage, shared};
+
+/// Unmasks both TIM1 interrupts at the highest priority.
+pub fn enable() {
+    for irq in [interrupt::TIM1_UP_TIM16, interrupt::TIM1_BRK_TIM15] {
+        irq.set_priority(Priority::P0);
+        // SAFETY: the handlers below only touch the shared state through its mutex and the
+        // TIM1/ADC registers nobody else writes after init.
+        unsafe { irq.enable() };
+    }
+}
+
+/// Per PWM period: sample in, core's per-period function, compares/MOE/brake out.
+#[interrupt]
+fn TIM1_UP_TIM16() {
+    if !power_stage::take_update() {
+        return;
+    }
+    #[cfg(feature = "dwt-cycles")]
+    let start = super::cycles::now();
+    let sample = analog::read();
+    let done = shared::with(|s| {
+        let cmd = s.core.pwm_period(&sample);
+        if !cmd.enable {
+            power_stage::outputs_off();
+        }
+        let timing = s.core.pwm_timing();
+        if timing != s.timing {
+            power_stage::apply_timing(&timing, s.min_dead_counts);
+            s.timing = timing;
+        }
+        // The core clamps its duties to the period; clamp again against the ARR the timer
+        // really has so a compare can never exceed it.
+        let max = timing.arr;
+        power_stage::write_duties(cmd.duty.map(|d| d.min(max)));
+        if cmd.enable {
+            power_stage::outputs_on();
+        }
+        s.brake.set_level(Level::from(cmd.brake));
+    });
+    if done.is_none() {
+        power_stage::outputs_off();
+    }
+    #[cfg(feature = "dwt-cycles")]
+    super::cycles::record_pwm(start);
+}
+
+/// The break input fired: MOE is already cleared by hardware. Tell the core which cause.
+#[interrupt]
+fn TIM1_BRK_TIM15() {
+    if !power_stage::take_break() {
+        return;
+    }
+    power_stage::outputs_off();
+    let causes = hw_protection::active();
+    shared::with(|s| {
+        let mut any = false;
+        for (cause, present) in causes {
+            if present {
+                s.core.hardware_break(cause);
+                any = true;
+            }
+        }
+        // The comparator may already be back below its threshold: blame overcurrent, the
+        // faster and more dangerous cause.
+        if !any {
+            s.core
+                .hardware_break(firmware_drive::protection::HwBreak::Overcurrent);
+        }
+    });
+}
