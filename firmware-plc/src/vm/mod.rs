@@ -13,6 +13,7 @@
 
 mod arith;
 mod io;
+pub mod sample;
 mod timer;
 
 pub use io::{DriveView, ScanInputs, ScanOutputs, Warning, LCD_FIELDS, OUTPUTS, OUTPUT_MASK};

@@ -1,0 +1,90 @@
+//! Host benchmark of the PLC scan: ns per scan and per executed instruction for full
+//! 850-line programs. `cargo bench -p firmware-plc --bench scan`
+//!
+//! The target figure (the 1 ms budget on the 170 MHz Cortex-M4) comes from
+//! `src/bin/m4bench.rs` + `m4count.py`; this one tracks regressions on the host.
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use firmware_plc::vm::sample::{mixed_program, plc_instructions, timer_program};
+use firmware_plc::vm::{PlcVm, ScanInputs, ScanOutputs};
+use shared_protocol::program::{assemble, Program};
+use shared_protocol::units::Millis;
+
+/// The source's full motor program, PLC lines only (26 instructions).
+const MOTOR_PLC: &str = "
+150 LD  D00
+151 LET B00
+152 I/O B01
+153 LDC B01
+154 LD  K15 0000
+155 WR  Q02
+156 LD  B01
+157 LD  A01
+158 LCD
+159 WR  Q02
+160 LD  D01
+161 LET B02
+162 I/O B03
+163 LD  B03
+164 REV
+165 LD  D01
+166 RES B01
+167 IMP K16 0070
+168 NOT
+169 LET B04
+170 SET B01
+171 LD  A00
+172 MUL K17 0010
+173 LCD
+174 LDC B06
+175 WR  Q00
+";
+
+fn bench(name: &str, program: &Program, scans: u32) {
+    let executed = plc_instructions(program);
+    let mut vm = PlcVm::new();
+    vm.start(Millis(0));
+    let mut out = ScanOutputs::default();
+    let mut inputs = ScanInputs::default();
+    // Warm-up, then the timed run; inputs and time change every scan.
+    let mut run = |vm: &mut PlcVm, n: u32, t0: u32| {
+        for i in 0..n {
+            inputs.digital = (i as u8).rotate_left(i % 8);
+            inputs.analog = [(i % 1024) as u16, (i * 7 % 1024) as u16, 512, 3];
+            let now = Millis(t0.wrapping_add(i));
+            vm.scan(black_box(program), black_box(&inputs), now, &mut out);
+            black_box(&out);
+        }
+    };
+    run(&mut vm, scans / 10, 0);
+    let start = Instant::now();
+    run(&mut vm, scans, scans / 10);
+    let elapsed = start.elapsed();
+    let ns_scan = elapsed.as_nanos() as f64 / f64::from(scans);
+    let per_instr = if executed == 0 {
+        "-".to_string()
+    } else {
+        format!("{:.2}", ns_scan / executed as f64)
+    };
+    println!(
+        "{name:<28} {executed:>4} instr/scan  {ns_scan:>9.0} ns/scan  {per_instr:>6} ns/instr"
+    );
+}
+
+fn main() {
+    println!(
+        "PLC scan on the host ({} build)",
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        }
+    );
+    bench("mixed, 850 lines", &mixed_program(), 20_000);
+    bench("timers only, 850 lines", &timer_program(), 20_000);
+    bench("empty program", &Program::default(), 20_000);
+    let motor = assemble(MOTOR_PLC).expect("motor program assembles");
+    bench("motor example, 26 lines", &motor, 200_000);
+}
