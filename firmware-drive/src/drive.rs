@@ -95,12 +95,29 @@ pub enum DriveEvent {
 pub struct PwmCommand {
     /// Main output enable (MOE): false = all six switches open.
     pub enable: bool,
-    /// CCR1..3 in counts, 0..=`period_counts` (all 0 when disabled).
+    /// Duties in counts, 0..=`period_counts`: the fraction duty/period of the period the
+    /// high switch is on (all 0 when disabled). Write them with [`PwmCommand::ccr`].
     pub duty: [u16; 3],
     /// ARR the duties refer to (= [`PwmTiming::arr`]); reprogram TIM1 when it changes.
     pub period_counts: u16,
     /// Brake-chopper switch on.
     pub brake: bool,
+}
+
+impl PwmCommand {
+    /// TIM1_CCR1..3 values. In centre-aligned PWM mode 1 the output is active while
+    /// CNT < CCR, and the counter touches ARR once per period, so CCR = ARR would leave a
+    /// one-count low pulse at the peak (RM0440: only CCR > ARR holds the output at 1).
+    /// A 100 % duty is therefore written as ARR + 1 (ARR is at most 65534, so it fits).
+    pub fn ccr(&self) -> [u16; 3] {
+        self.duty.map(|d| {
+            if d >= self.period_counts {
+                self.period_counts.saturating_add(1)
+            } else {
+                d
+            }
+        })
+    }
 }
 
 /// Snapshot for the link's status frame and the PLC's extension operands.

@@ -4,8 +4,11 @@
 //!
 //! Centre-aligned counting: f_pwm = f_tim / (2 * ARR * (PSC + 1)).
 
-/// Largest value of the 16-bit ARR and PSC registers.
-const REG_MAX: u64 = 65_535;
+/// Largest value of the 16-bit PSC register.
+const PSC_MAX: u64 = 65_535;
+/// Largest ARR used: one below the register's maximum so that a 100 % duty can be written
+/// as CCR = ARR + 1 (see `PwmCommand::ccr`).
+const ARR_MAX: u64 = 65_534;
 
 /// What the board programs into TIM1 (and the core uses for the phase step).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -45,8 +48,8 @@ impl PwmTiming {
         let pre = u64::from(prescaler.max(1));
         // ARR * (PSC + 1), rounded.
         let total = ((f_tim * pre + pwf) / (2 * pwf)).max(1);
-        let psc1 = total.div_ceil(REG_MAX).clamp(1, REG_MAX + 1);
-        let arr = ((total + psc1 / 2) / psc1).clamp(1, REG_MAX);
+        let psc1 = total.div_ceil(ARR_MAX).clamp(1, PSC_MAX + 1);
+        let arr = ((total + psc1 / 2) / psc1).clamp(1, ARR_MAX);
         let ticks_per_period = 2 * arr * psc1;
         let pwm_millihertz = ((f_tim * 1000 + ticks_per_period / 2) / ticks_per_period) as u32;
         // step(0.1 Hz) = 0.1 * T_pwm * 2^32 = ticks * 2^32 / (10 * f_tim); kept in Q16.

@@ -67,7 +67,7 @@ impl SlotCopy {
             SlotCopy::B => 1,
         }
     }
-    fn other(self) -> SlotCopy {
+    pub fn other(self) -> SlotCopy {
         match self {
             SlotCopy::A => SlotCopy::B,
             SlotCopy::B => SlotCopy::A,

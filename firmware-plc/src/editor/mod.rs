@@ -1,0 +1,819 @@
+//! The keypad/LCD front panel: program editor, run screen and fault log screen.
+//!
+//! Sans-IO: the application feeds [`Key`]s to [`Editor::key`] together with the program
+//! (which it owns, because the VM runs it too) and gets back a [`Request`] (save, load,
+//! run, stop, new, clear the fault log) to carry out; it reports how that went with
+//! [`Editor::notify`]. [`Editor::render`] draws the current page into a [`Screen`] from a
+//! [`View`] of the program and the live state. The same code drives a 20x4 and a 16x2 LCD.
+//!
+//! The key map is in `docs/keymap.md`. Decisions where panel.md is silent:
+//! * Editing is refused while the PLC runs (the VM executes the same program; a
+//!   half-entered line would run). Browsing, save, STOP and the other pages work.
+//! * A field being edited is a pending value shown on the LCD; it is written into the
+//!   program when the field is left (`5`, `4`/`6` to the next field, or any command key)
+//!   and discarded with `*`. Every pending value is valid by construction.
+//! * Insert and delete shift lines inside the line's own section only (000-149 or
+//!   150-999), so no line ever changes section; insert is refused when the section's
+//!   last line is in use.
+//! * `A` (RUN) verifies first; on an error the listing jumps to the bad line and the
+//!   status row shows `NNN:reason`, and no RUN is requested.
+
+mod choice;
+mod key;
+mod pages;
+mod screen;
+
+pub use key::Key;
+pub use screen::{Screen, MAX_COLS, MAX_ROWS};
+
+use crate::storage::{FaultEntry, LoadReport, OtherCopy, StorageError, SLOTS};
+use core::fmt::Write;
+use shared_protocol::link::DriveState;
+use shared_protocol::program::{verify, Instruction, Program, Section, LINES, PLC_FIRST_LINE};
+
+/// What the application must do after a key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Request {
+    /// Save the program into slot 1..=4, then [`Editor::notify`] the outcome.
+    Save(u8),
+    /// Load slot 1..=4 into the program, then notify the outcome.
+    Load(u8),
+    /// The program verified; start RUN. `slot` is the slot it was loaded from or saved
+    /// to, when unchanged since (for the boot record), else `None`.
+    Run {
+        slot: Option<u8>,
+    },
+    Stop,
+    /// The editor has emptied the program (`D` `0`).
+    New,
+    /// Erase the stored fault log.
+    ClearFaultLog,
+}
+
+/// Outcomes the application reports back; shown on the status row until the next key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Notice {
+    Saved {
+        slot: u8,
+    },
+    SaveFailed {
+        slot: u8,
+        error: StorageError,
+    },
+    /// A load (from a key, or at power-up) succeeded; says so when a copy was bad.
+    Loaded(LoadReport),
+    LoadFailed {
+        slot: u8,
+        error: StorageError,
+    },
+    /// RUN was refused further on (e.g. the drive rejected its section): the line and a
+    /// short reason (at most 16 characters).
+    RunRefused {
+        line: Option<u16>,
+        reason: &'static str,
+    },
+    /// Any other short text (at most 20 characters).
+    Text(&'static str),
+}
+
+/// A run-time warning for the status row, e.g. `DIV0` at line 163.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Warning<'a> {
+    pub text: &'a str,
+    pub line: Option<u16>,
+}
+
+/// The live state the run screen shows; the application fills it every refresh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunView<'a> {
+    /// The PLC is in RUN.
+    pub running: bool,
+    /// Valid frames arrive from the drive.
+    pub link_up: bool,
+    pub drive_state: DriveState,
+    /// Output frequency, 0.1 Hz.
+    pub freq_dhz: i16,
+    pub reverse: bool,
+    /// The newest drive fault (code of drive.md), `None` when there is none to show.
+    pub fault: Option<u8>,
+    /// The 4 `LCD` value fields, `None` when no `LCD` instruction filled them.
+    pub lcd: [Option<i16>; 4],
+    pub warning: Option<Warning<'a>>,
+}
+
+impl Default for RunView<'_> {
+    fn default() -> Self {
+        RunView {
+            running: false,
+            link_up: false,
+            drive_state: DriveState::Boot,
+            freq_dhz: 0,
+            reverse: false,
+            fault: None,
+            lcd: [None; 4],
+            warning: None,
+        }
+    }
+}
+
+/// Everything [`Editor::render`] draws from.
+#[derive(Debug, Clone, Copy)]
+pub struct View<'a> {
+    pub program: &'a Program,
+    pub run: RunView<'a>,
+    /// Stored faults, newest first.
+    pub fault_log: &'a [FaultEntry],
+    /// A monotonic millisecond clock: rotates the hints of the status row.
+    pub now_ms: u32,
+}
+
+/// The three pages, cycled with `B`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Page {
+    Listing,
+    Run,
+    FaultLog,
+}
+
+impl Page {
+    fn next(self) -> Page {
+        match self {
+            Page::Listing => Page::Run,
+            Page::Run => Page::FaultLog,
+            Page::FaultLog => Page::Listing,
+        }
+    }
+}
+
+/// The fields of a listing line the cursor can be on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Field {
+    Mnemonic,
+    Operand,
+    Constant,
+}
+
+/// A pending two-key command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Prefix {
+    /// `C`: save into a slot.
+    Save,
+    /// `D`: load a slot, or `0` for a new program.
+    Load,
+    /// `*`: line operations (insert, delete, clear, check) or clearing the fault log.
+    Line,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    Browse,
+    /// Editing the cursor field of the cursor line; `digit` is the constant digit.
+    Edit {
+        pending: Option<Instruction>,
+        digit: u8,
+    },
+    Prefix(Prefix),
+    /// `#` and up to three digits of a line number.
+    Goto {
+        value: u16,
+        digits: u8,
+    },
+}
+
+type Message = heapless::String<{ MAX_COLS }>;
+
+/// The front-panel state machine.
+#[derive(Debug, Clone)]
+pub struct Editor {
+    cols: u8,
+    rows: u8,
+    page: Page,
+    line: u16,
+    top: u16,
+    field: Field,
+    mode: Mode,
+    message: Option<Message>,
+    log_index: core::cell::Cell<u8>,
+    slot: Option<u8>,
+    modified: bool,
+}
+
+const LAST_LINE: u16 = LINES as u16 - 1;
+
+fn section_of(line: u16) -> Section {
+    Section::of_line(line).unwrap_or(Section::Plc)
+}
+
+/// Fields the cursor can visit on a line holding `i`.
+fn field_available(i: Option<&Instruction>, f: Field) -> bool {
+    match f {
+        Field::Mnemonic => true,
+        Field::Operand => i.is_some_and(|i| i.operand.is_some()),
+        Field::Constant => i.is_some_and(|i| i.operand.is_some_and(|o| o.is_k())),
+    }
+}
+
+impl Editor {
+    /// An editor for a `cols` x `rows` LCD (20x4 or 16x2; clamped to 1..=20 x 1..=4).
+    pub fn new(cols: u8, rows: u8) -> Editor {
+        Editor {
+            cols: cols.clamp(1, MAX_COLS as u8),
+            rows: rows.clamp(1, MAX_ROWS as u8),
+            page: Page::Listing,
+            line: 0,
+            top: 0,
+            field: Field::Mnemonic,
+            mode: Mode::Browse,
+            message: None,
+            log_index: core::cell::Cell::new(0),
+            slot: None,
+            modified: false,
+        }
+    }
+
+    /// A blank screen of this editor's size.
+    pub fn screen(&self) -> Screen {
+        Screen::new(self.cols, self.rows)
+    }
+
+    pub fn page(&self) -> Page {
+        self.page
+    }
+
+    /// The cursor line.
+    pub fn line(&self) -> u16 {
+        self.line
+    }
+
+    pub fn field(&self) -> Field {
+        self.field
+    }
+
+    /// Whether a field is being edited.
+    pub fn editing(&self) -> bool {
+        matches!(self.mode, Mode::Edit { .. })
+    }
+
+    /// The slot the program came from or went to, if unchanged since.
+    pub fn slot(&self) -> Option<u8> {
+        if self.modified {
+            None
+        } else {
+            self.slot
+        }
+    }
+
+    /// Whether the program changed since it was last loaded or saved.
+    pub fn modified(&self) -> bool {
+        self.modified
+    }
+
+    /// The status-row message, if one is showing.
+    pub fn message(&self) -> Option<&str> {
+        self.message.as_deref()
+    }
+
+    /// Show a page (the application may switch to the run screen when RUN starts).
+    pub fn show_page(&mut self, page: Page) {
+        self.page = page;
+    }
+
+    /// Rows of the listing (all but the status row).
+    fn listing_rows(&self) -> u16 {
+        u16::from(self.rows.saturating_sub(1).max(1))
+    }
+
+    fn set_message(&mut self, args: core::fmt::Arguments<'_>) {
+        let mut s = Message::new();
+        let mut long: heapless::String<64> = heapless::String::new();
+        let _ = long.write_fmt(args);
+        for ch in long.chars().take(usize::from(self.cols)) {
+            let _ = s.push(ch);
+        }
+        self.message = Some(s);
+    }
+
+    /// Report the outcome of a request (or a power-up load).
+    pub fn notify(&mut self, notice: Notice) {
+        let narrow = self.cols < 20;
+        match notice {
+            Notice::Saved { slot } => {
+                self.slot = Some(slot);
+                self.modified = false;
+                self.set_message(format_args!("SAVED IN SLOT {slot}"));
+            }
+            Notice::SaveFailed { slot, error } => {
+                self.set_message(format_args!("SAVE S{slot} FAILED {}", storage_short(error)));
+            }
+            Notice::Loaded(r) => {
+                self.slot = Some(r.slot);
+                self.modified = false;
+                self.line = 0;
+                self.top = 0;
+                self.field = Field::Mnemonic;
+                match r.other {
+                    OtherCopy::Bad(_) if narrow => self.set_message(format_args!(
+                        "S{} {} BAD,USED {}",
+                        r.slot,
+                        r.used.other().letter(),
+                        r.used.letter()
+                    )),
+                    OtherCopy::Bad(_) => self.set_message(format_args!(
+                        "S{}:COPY {} BAD,USED {}",
+                        r.slot,
+                        r.used.other().letter(),
+                        r.used.letter()
+                    )),
+                    _ => self.set_message(format_args!("LOADED SLOT {}", r.slot)),
+                }
+            }
+            Notice::LoadFailed { slot, error } => {
+                self.set_message(format_args!("S{slot} {}", storage_short(error)));
+            }
+            Notice::RunRefused { line, reason } => match line {
+                Some(l) => {
+                    self.goto_line(l);
+                    self.set_message(format_args!("{l:03}:{reason}"));
+                }
+                None => self.set_message(format_args!("NO RUN:{reason}")),
+            },
+            Notice::Text(t) => self.set_message(format_args!("{t}")),
+        }
+    }
+
+    fn goto_line(&mut self, line: u16) {
+        self.page = Page::Listing;
+        self.line = line.min(LAST_LINE);
+        self.field = Field::Mnemonic;
+        if self.line < self.top || self.line >= self.top + self.listing_rows() {
+            // A jump shows the target at the top, with what follows it below.
+            self.top = self.line;
+        }
+        self.follow();
+    }
+
+    /// Keep the cursor line inside the visible window.
+    fn follow(&mut self) {
+        let n = self.listing_rows();
+        if self.line < self.top {
+            self.top = self.line;
+        } else if self.line >= self.top + n {
+            self.top = self.line + 1 - n;
+        }
+        self.top = self.top.min(LINES as u16 - n.min(LINES as u16));
+    }
+
+    fn move_lines(&mut self, delta: i32) {
+        let l = (i32::from(self.line) + delta).clamp(0, i32::from(LAST_LINE));
+        self.line = l as u16;
+        self.follow();
+    }
+
+    /// Handle one key. `running` says whether the PLC is in RUN now.
+    pub fn key(&mut self, key: Key, program: &mut Program, running: bool) -> Option<Request> {
+        self.message = None;
+        match self.mode {
+            Mode::Browse => self.command_or_page_key(key, program, running),
+            Mode::Prefix(p) => {
+                self.mode = Mode::Browse;
+                self.prefix_key(p, key, program, running)
+            }
+            Mode::Goto { value, digits } => {
+                self.goto_key(key, value, digits);
+                None
+            }
+            Mode::Edit { pending, digit } => self.edit_key(key, pending, digit, program, running),
+        }
+    }
+
+    fn command_or_page_key(
+        &mut self,
+        key: Key,
+        program: &mut Program,
+        running: bool,
+    ) -> Option<Request> {
+        match key {
+            Key::A => self.run_stop(program, running),
+            Key::B => {
+                self.page = self.page.next();
+                None
+            }
+            Key::C => {
+                self.mode = Mode::Prefix(Prefix::Save);
+                None
+            }
+            Key::D => {
+                self.mode = Mode::Prefix(Prefix::Load);
+                None
+            }
+            Key::Star => {
+                self.mode = Mode::Prefix(Prefix::Line);
+                None
+            }
+            Key::Hash => {
+                self.mode = Mode::Goto {
+                    value: 0,
+                    digits: 0,
+                };
+                None
+            }
+            Key::Digit(d) => {
+                match self.page {
+                    Page::Listing => self.browse_digit(d, program, running),
+                    Page::FaultLog => match d {
+                        2 => self.log_index.set(self.log_index.get().saturating_sub(1)),
+                        8 => self
+                            .log_index
+                            .set(self.log_index.get().saturating_add(1).min(31)),
+                        _ => {}
+                    },
+                    Page::Run => {}
+                }
+                None
+            }
+        }
+    }
+
+    fn run_stop(&mut self, program: &Program, running: bool) -> Option<Request> {
+        if running {
+            return Some(Request::Stop);
+        }
+        match verify(program) {
+            Ok(()) => Some(Request::Run { slot: self.slot() }),
+            Err(e) => {
+                self.goto_line(e.line);
+                self.set_message(format_args!("{:03}:{}", e.line, e.kind.short()));
+                None
+            }
+        }
+    }
+
+    fn refuse_while_running(&mut self, running: bool) -> bool {
+        if running {
+            self.set_message(format_args!("STOP FIRST (A)"));
+        }
+        running
+    }
+
+    fn prefix_key(
+        &mut self,
+        p: Prefix,
+        key: Key,
+        program: &mut Program,
+        running: bool,
+    ) -> Option<Request> {
+        let Key::Digit(d) = key else {
+            self.set_message(format_args!("CANCELLED"));
+            return None;
+        };
+        match p {
+            Prefix::Save if (1..=SLOTS).contains(&d) => Some(Request::Save(d)),
+            Prefix::Load if (1..=SLOTS).contains(&d) => {
+                if self.refuse_while_running(running) {
+                    return None;
+                }
+                Some(Request::Load(d))
+            }
+            Prefix::Load if d == 0 => {
+                if self.refuse_while_running(running) {
+                    return None;
+                }
+                *program = Program::default();
+                self.slot = None;
+                self.modified = false;
+                self.goto_line(0);
+                self.set_message(format_args!("NEW PROGRAM"));
+                Some(Request::New)
+            }
+            Prefix::Line if self.page == Page::FaultLog && d == 0 => {
+                self.log_index.set(0);
+                Some(Request::ClearFaultLog)
+            }
+            Prefix::Line if self.page == Page::FaultLog => {
+                self.set_message(format_args!("CANCELLED"));
+                None
+            }
+            Prefix::Line => {
+                self.line_op(d, program, running);
+                None
+            }
+            _ => {
+                self.set_message(format_args!("CANCELLED"));
+                None
+            }
+        }
+    }
+
+    fn line_op(&mut self, d: u8, program: &mut Program, running: bool) {
+        self.page = Page::Listing;
+        match d {
+            5 => match verify(program) {
+                Ok(()) => self.set_message(format_args!("PROGRAM OK")),
+                Err(e) => {
+                    self.goto_line(e.line);
+                    self.set_message(format_args!("{:03}:{}", e.line, e.kind.short()));
+                }
+            },
+            1 | 3 | 0 if self.refuse_while_running(running) => {}
+            1 => self.insert_line(program),
+            3 => self.delete_line(program),
+            0 => {
+                if let Some(l) = program.lines.get_mut(usize::from(self.line)) {
+                    if l.take().is_some() {
+                        self.modified = true;
+                    }
+                }
+                self.field = Field::Mnemonic;
+            }
+            _ => self.set_message(format_args!("CANCELLED")),
+        }
+    }
+
+    /// Last line of the cursor line's section.
+    fn section_end(&self) -> usize {
+        if self.line < PLC_FIRST_LINE {
+            usize::from(PLC_FIRST_LINE) - 1
+        } else {
+            LINES - 1
+        }
+    }
+
+    fn insert_line(&mut self, program: &mut Program) {
+        let at = usize::from(self.line);
+        let end = self.section_end();
+        if program.lines.get(end).is_some_and(|l| l.is_some()) {
+            self.set_message(format_args!("SECTION FULL"));
+            return;
+        }
+        if let Some(s) = program.lines.get_mut(at..=end) {
+            s.rotate_right(1);
+            if let Some(first) = s.first_mut() {
+                *first = None;
+            }
+        }
+        self.field = Field::Mnemonic;
+        self.modified = true;
+    }
+
+    fn delete_line(&mut self, program: &mut Program) {
+        let at = usize::from(self.line);
+        let end = self.section_end();
+        if let Some(s) = program.lines.get_mut(at..=end) {
+            s.rotate_left(1);
+            if let Some(last) = s.last_mut() {
+                *last = None;
+            }
+        }
+        self.field = Field::Mnemonic;
+        self.modified = true;
+    }
+
+    fn goto_key(&mut self, key: Key, value: u16, digits: u8) {
+        match key {
+            Key::Digit(d) => {
+                let value = value * 10 + u16::from(d);
+                if digits + 1 >= 3 {
+                    self.mode = Mode::Browse;
+                    self.goto_line(value);
+                } else {
+                    self.mode = Mode::Goto {
+                        value,
+                        digits: digits + 1,
+                    };
+                }
+            }
+            Key::Hash if digits > 0 => {
+                self.mode = Mode::Browse;
+                self.goto_line(value);
+            }
+            _ => {
+                self.mode = Mode::Browse;
+                self.set_message(format_args!("CANCELLED"));
+            }
+        }
+    }
+
+    fn browse_digit(&mut self, d: u8, program: &Program, running: bool) {
+        let current = program.get(self.line);
+        match d {
+            2 => self.move_lines(-1),
+            8 => self.move_lines(1),
+            1 => self.move_lines(-10),
+            7 => self.move_lines(10),
+            3 => self.move_lines(-100),
+            9 => self.move_lines(100),
+            0 => {
+                // Next used line, round the program.
+                let start = usize::from(self.line) + 1;
+                let next = (0..LINES)
+                    .map(|k| (start + k) % LINES)
+                    .find(|&n| program.lines.get(n).is_some_and(|l| l.is_some()));
+                match next {
+                    Some(n) => self.goto_line(n as u16),
+                    None => self.set_message(format_args!("PROGRAM EMPTY")),
+                }
+            }
+            4 => {
+                self.field = match self.field {
+                    Field::Constant => Field::Operand,
+                    _ => Field::Mnemonic,
+                }
+            }
+            6 => {
+                let next = match self.field {
+                    Field::Mnemonic => Field::Operand,
+                    _ => Field::Constant,
+                };
+                if field_available(current, next) {
+                    self.field = next;
+                }
+            }
+            5 if !self.refuse_while_running(running) => {
+                self.mode = Mode::Edit {
+                    pending: current.copied(),
+                    digit: 0,
+                };
+            }
+            _ => {}
+        }
+        // Moving to a shorter line pulls the cursor back to a field that exists there.
+        let here = program.get(self.line);
+        while !field_available(here, self.field) {
+            self.field = match self.field {
+                Field::Constant => Field::Operand,
+                _ => Field::Mnemonic,
+            };
+        }
+    }
+
+    fn commit(&mut self, pending: Option<Instruction>, program: &mut Program) {
+        if let Some(l) = program.lines.get_mut(usize::from(self.line)) {
+            if *l != pending {
+                *l = pending;
+                self.modified = true;
+            }
+        }
+        self.mode = Mode::Browse;
+        if !field_available(pending.as_ref(), self.field) {
+            self.field = Field::Mnemonic;
+        }
+    }
+
+    fn edit_key(
+        &mut self,
+        key: Key,
+        pending: Option<Instruction>,
+        digit: u8,
+        program: &mut Program,
+        running: bool,
+    ) -> Option<Request> {
+        let section = section_of(self.line);
+        let d = match key {
+            Key::Star => {
+                self.mode = Mode::Browse;
+                if !field_available(program.get(self.line), self.field) {
+                    self.field = Field::Mnemonic;
+                }
+                self.set_message(format_args!("CANCELLED"));
+                return None;
+            }
+            Key::Digit(d) => d,
+            _ => {
+                self.commit(pending, program);
+                return self.command_or_page_key(key, program, running);
+            }
+        };
+        let mut pending = pending;
+        let mut digit = digit;
+        match (self.field, d) {
+            (_, 5) => {
+                self.commit(pending, program);
+                return None;
+            }
+            (Field::Mnemonic, 2 | 8 | 1 | 7) => {
+                let delta = match d {
+                    2 => -1,
+                    8 => 1,
+                    1 => -10,
+                    _ => 10,
+                };
+                pending = choice::step_mnemonic(pending, section, delta);
+            }
+            (Field::Mnemonic, 6) if field_available(pending.as_ref(), Field::Operand) => {
+                self.field = Field::Operand;
+            }
+            (Field::Operand, 4) => self.field = Field::Mnemonic,
+            (Field::Operand, 6) if field_available(pending.as_ref(), Field::Constant) => {
+                self.field = Field::Constant;
+                digit = 0;
+            }
+            (Field::Operand, 2 | 8 | 1 | 7 | 3 | 9) => {
+                if let Some(i) = pending {
+                    pending = Some(match d {
+                        2 => choice::step_operand(i, section, -1),
+                        8 => choice::step_operand(i, section, 1),
+                        1 => choice::step_operand(i, section, -10),
+                        7 => choice::step_operand(i, section, 10),
+                        3 => choice::step_operand_class(i, section, false),
+                        _ => choice::step_operand_class(i, section, true),
+                    });
+                }
+            }
+            (Field::Constant, 4) if digit == 0 => self.field = Field::Operand,
+            (Field::Constant, 4) => digit -= 1,
+            (Field::Constant, 6) => digit = (digit + 1).min(3),
+            (Field::Constant, 2 | 8) => {
+                if let Some(i) = pending {
+                    pending = Some(choice::step_digit(i, section, digit, d == 8));
+                }
+            }
+            _ => {}
+        }
+        self.mode = Mode::Edit { pending, digit };
+        None
+    }
+
+    /// Draw the current page.
+    pub fn render(&self, view: &View<'_>, out: &mut Screen) {
+        *out = Screen::new(self.cols, self.rows);
+        match self.page {
+            Page::Listing => {
+                self.render_listing(view, out);
+                if self.rows > 1 {
+                    let mut s = pages::Line::new();
+                    pages::status_text(self, view, &mut s);
+                    out.put(self.rows - 1, 0, &s);
+                }
+            }
+            Page::Run => pages::run_page(self, view, out),
+            Page::FaultLog => pages::fault_log_page(self, view, out),
+        }
+    }
+
+    fn render_listing(&self, view: &View<'_>, out: &mut Screen) {
+        let wide = self.cols >= 20;
+        let n = self.listing_rows();
+        for r in 0..n {
+            let line = self.top + r;
+            if usize::from(line) >= LINES {
+                break;
+            }
+            let instr = match self.mode {
+                Mode::Edit { pending, .. } if line == self.line => pending,
+                _ => view.program.get(line).copied(),
+            };
+            let row = r as u8;
+            let cols = pages::ListingCols::new(wide);
+            if wide && line == self.line {
+                out.put(row, 0, ">");
+            }
+            out.put_fmt(row, cols.number, format_args!("{line:03}"));
+            if let Some(i) = instr {
+                out.put(row, cols.mnemonic, i.mnemonic.text());
+                if let Some(op) = i.operand {
+                    out.put(
+                        row,
+                        cols.operand,
+                        &shared_protocol::program::operand_text(&op),
+                    );
+                    if op.is_k() {
+                        out.put_fmt(row, cols.constant, format_args!("{:04}", i.constant));
+                    }
+                }
+            }
+            if line == self.line {
+                let (col, blink) = match self.mode {
+                    Mode::Edit { digit, .. } => {
+                        let c = cols.of(self.field)
+                            + if self.field == Field::Constant {
+                                digit
+                            } else {
+                                0
+                            };
+                        (c, false)
+                    }
+                    _ => (cols.of(self.field), true),
+                };
+                out.cursor = Some((row, col));
+                out.blink = blink;
+            }
+        }
+    }
+}
+
+fn storage_short(e: StorageError) -> &'static str {
+    match e {
+        StorageError::NoSuchSlot(_) => "NO SUCH SLOT",
+        StorageError::Empty(_) => "EMPTY",
+        StorageError::Damaged(_) => "DAMAGED",
+        StorageError::TooBig => "TOO BIG",
+        StorageError::VerifyFailed => "VERIFY ERR",
+        StorageError::Eeprom(_) => "EEPROM ERR",
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,389 @@
+//! Drawing: listing columns, the status row, the run page and the fault log page.
+
+use super::{Editor, Field, Mode, Page, Prefix, Screen, View, MAX_COLS};
+use core::fmt::Write;
+use shared_protocol::link::{fault_name, fault_text};
+
+/// One row of text, long enough for any row before clipping.
+pub(super) type Line = heapless::String<64>;
+
+/// How long each status-row item stays before the next one rotates in.
+const ROTATE_MS: u32 = 2000;
+
+/// Column of each listing field: `>NNN MNEM OPR CCCC` on 20 columns, `NNN MNE OPR CCCC`
+/// on 16 (every mnemonic has at most 3 characters, so nothing is lost).
+#[derive(Clone, Copy)]
+pub(super) struct ListingCols {
+    pub number: u8,
+    pub mnemonic: u8,
+    pub operand: u8,
+    pub constant: u8,
+}
+
+impl ListingCols {
+    pub fn new(wide: bool) -> ListingCols {
+        if wide {
+            ListingCols {
+                number: 1,
+                mnemonic: 5,
+                operand: 10,
+                constant: 14,
+            }
+        } else {
+            ListingCols {
+                number: 0,
+                mnemonic: 4,
+                operand: 8,
+                constant: 12,
+            }
+        }
+    }
+
+    pub fn of(self, f: Field) -> u8 {
+        match f {
+            Field::Mnemonic => self.mnemonic,
+            Field::Operand => self.operand,
+            Field::Constant => self.constant,
+        }
+    }
+}
+
+fn push(s: &mut Line, args: core::fmt::Arguments<'_>) {
+    // Overlong text is clipped at the display edge anyway.
+    let _ = s.write_fmt(args);
+}
+
+/// Tenths as `12.3` (sign dropped: the direction is shown separately).
+struct Tenths(i16);
+
+impl core::fmt::Display for Tenths {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let v = self.0.unsigned_abs();
+        let mut s: heapless::String<8> = heapless::String::new();
+        write!(s, "{}.{}", v / 10, v % 10)?;
+        f.pad(&s)
+    }
+}
+
+/// A field value, or `-` when no `LCD` instruction filled it.
+struct FieldValue(Option<i16>);
+
+impl core::fmt::Display for FieldValue {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let mut s: heapless::String<8> = heapless::String::new();
+        match self.0 {
+            Some(v) => write!(s, "{v}")?,
+            None => s.push('-').map_err(|_| core::fmt::Error)?,
+        }
+        f.pad(&s)
+    }
+}
+
+fn fault_line(code: u8, s: &mut Line) {
+    push(s, format_args!("F{} {}", code, fault_text(code)));
+}
+
+fn warning_line(view: &View<'_>, s: &mut Line) -> bool {
+    let Some(w) = view.run.warning else {
+        return false;
+    };
+    match w.line {
+        Some(l) => push(s, format_args!("W:{} @ {:03}", w.text, l)),
+        None => push(s, format_args!("W:{}", w.text)),
+    }
+    true
+}
+
+/// The prompt of a pending command or edit, or the transient message.
+fn prompt(ed: &Editor, s: &mut Line) -> bool {
+    let narrow = ed.cols < 20;
+    if let Some(m) = &ed.message {
+        push(s, format_args!("{m}"));
+        return true;
+    }
+    let text = match ed.mode {
+        Mode::Browse => return false,
+        Mode::Prefix(Prefix::Save) if narrow => "SAVE SLOT 1-4?",
+        Mode::Prefix(Prefix::Save) => "SAVE TO SLOT 1-4?",
+        Mode::Prefix(Prefix::Load) if narrow => "LOAD 1-4 0=NEW",
+        Mode::Prefix(Prefix::Load) => "LOAD SLOT 1-4 0=NEW",
+        Mode::Prefix(Prefix::Line) if ed.page == Page::FaultLog => "0=CLEAR FAULT LOG",
+        Mode::Prefix(Prefix::Line) if narrow => "1IN 3DL 0CL 5CHK",
+        Mode::Prefix(Prefix::Line) => "1INS 3DEL 0CLR 5CHK",
+        Mode::Goto { value, digits } => {
+            push(s, format_args!("GOTO LINE "));
+            if digits > 0 {
+                push(
+                    s,
+                    format_args!("{:0width$}", value, width = usize::from(digits)),
+                );
+            }
+            for _ in digits..3 {
+                push(s, format_args!("_"));
+            }
+            return true;
+        }
+        Mode::Edit { .. } => match ed.field {
+            Field::Mnemonic if narrow => "2/8 SEL 5OK *ESC",
+            Field::Mnemonic => "2/8 SELECT 5OK *ESC",
+            Field::Operand if narrow => "2/8 1/7 3/9 5OK",
+            Field::Operand => "2/8 1/7 3/9 5OK *ESC",
+            Field::Constant if narrow => "2/8 DIG 4/6 5OK",
+            Field::Constant => "2/8 DIGIT 4/6 5OK",
+        },
+    };
+    push(s, format_args!("{text}"));
+    true
+}
+
+/// The help hints of a page, most important first.
+fn hint(ed: &Editor, view: &View<'_>, n: usize, s: &mut Line) -> usize {
+    let narrow = ed.cols < 20;
+    let running = view.run.running;
+    let first = match (running, narrow) {
+        (false, false) => "A=RUN C=SAVE D=LOAD",
+        (true, false) => "A=STOP C=SAVE D=LOAD",
+        (false, true) => "A RUN C SV D LD",
+        (true, true) => "A STOP C SV D LD",
+    };
+    let second = if narrow {
+        "D0 NEW B PAGE"
+    } else {
+        "D0=NEW B=NEXT PAGE"
+    };
+    let page: &[&str] = match (ed.page, narrow) {
+        (Page::Listing, false) => &["5=EDIT #=GOTO *=LINE", "1/7:10 3/9:100 0:NXT"],
+        (Page::Listing, true) => &["5EDIT #GOTO *LINE", "1/7 3/9 0 JUMP"],
+        (Page::FaultLog, false) => &["2/8 MORE *0=CLEAR"],
+        (Page::FaultLog, true) => &["2/8 MORE *0 CLR"],
+        (Page::Run, _) => &[],
+    };
+    let count = 2 + page.len();
+    let text = match n % count {
+        0 => first,
+        1 => second,
+        k => page.get(k - 2).copied().unwrap_or(first),
+    };
+    push(s, format_args!("{text}"));
+    count
+}
+
+/// The status row: prompt or message first; otherwise faults and warnings alternating
+/// with the main hint, or the hints in turn.
+pub(super) fn status_text(ed: &Editor, view: &View<'_>, s: &mut Line) {
+    if prompt(ed, s) {
+        return;
+    }
+    let tick = (view.now_ms / ROTATE_MS) as usize;
+    let fault = view.run.fault;
+    let alerts = usize::from(fault.is_some()) + usize::from(view.run.warning.is_some());
+    if alerts == 0 {
+        let mut scratch = Line::new();
+        let count = hint(ed, view, 0, &mut scratch);
+        hint(ed, view, tick % count, s);
+        return;
+    }
+    // Alerts, then the main hint (so RUN/STOP/save/load stay discoverable).
+    let k = tick % (alerts + 1);
+    match (k, fault) {
+        (0, Some(code)) => fault_line(code, s),
+        (k, _) if k < alerts => {
+            warning_line(view, s);
+        }
+        _ => {
+            hint(ed, view, 0, s);
+        }
+    }
+}
+
+fn pad_row(out: &mut Screen, row: u8, s: &str) {
+    let blank = [b' '; MAX_COLS];
+    out.put(row, 0, core::str::from_utf8(&blank).unwrap_or(""));
+    out.put(row, 0, s);
+}
+
+/// PLC state, link, drive state, frequency and direction.
+fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
+    let r = &view.run;
+    let plc = if r.running { "RUN" } else { "STOP" };
+    if !r.link_up {
+        push(s, format_args!("{plc:<4} LINK LOST"));
+        return;
+    }
+    let dir = if r.reverse { 'R' } else { 'F' };
+    if narrow {
+        push(
+            s,
+            format_args!(
+                "{plc:<4}{:<5}{:>5}{dir}",
+                r.drive_state.text(),
+                Tenths(r.freq_dhz)
+            ),
+        );
+    } else {
+        push(
+            s,
+            format_args!(
+                "{plc:<4} {:<5} {:>5}Hz {dir}",
+                r.drive_state.text(),
+                Tenths(r.freq_dhz)
+            ),
+        );
+    }
+}
+
+fn fields_row(view: &View<'_>, first: usize, narrow: bool, s: &mut Line) {
+    let a = view.run.lcd.get(first).copied().flatten();
+    let b = view.run.lcd.get(first + 1).copied().flatten();
+    let (na, nb) = (first + 1, first + 2);
+    if narrow {
+        push(
+            s,
+            format_args!("{na}={:<6}{nb}={:<6}", FieldValue(a), FieldValue(b)),
+        );
+    } else {
+        push(
+            s,
+            format_args!("{na}:{:>6}   {nb}:{:>6}", FieldValue(a), FieldValue(b)),
+        );
+    }
+}
+
+/// Run page: status, the 4 `LCD` fields, and the status row (faults, warnings, hints).
+pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
+    let narrow = ed.cols < 20;
+    let mut s = Line::new();
+    run_status(view, narrow, &mut s);
+    pad_row(out, 0, &s);
+    let last = ed.rows - 1;
+    if ed.rows >= 4 {
+        for (row, first) in [(1u8, 0usize), (2, 2)] {
+            let mut s = Line::new();
+            fields_row(view, first, narrow, &mut s);
+            pad_row(out, row, &s);
+        }
+    } else if ed.rows >= 3 {
+        let mut s = Line::new();
+        fields_row(view, 0, narrow, &mut s);
+        pad_row(out, 1, &s);
+    }
+    if last == 0 {
+        return;
+    }
+    let mut s = Line::new();
+    if ed.rows >= 3 || prompt(ed, &mut s) {
+        if ed.rows >= 3 {
+            status_text(ed, view, &mut s);
+        }
+        pad_row(out, last, &s);
+        return;
+    }
+    // Two rows: the second rotates through the fields, alerts and the main hint.
+    let fields_34 = view.run.lcd.iter().skip(2).any(|v| v.is_some());
+    let mut items: heapless::Vec<u8, 5> = heapless::Vec::new();
+    let _ = items.push(0);
+    if fields_34 {
+        let _ = items.push(1);
+    }
+    if view.run.fault.is_some() {
+        let _ = items.push(2);
+    }
+    if view.run.warning.is_some() {
+        let _ = items.push(3);
+    }
+    let _ = items.push(4);
+    let tick = (view.now_ms / ROTATE_MS) as usize;
+    match items.get(tick % items.len()).copied().unwrap_or(4) {
+        0 => fields_row(view, 0, true, &mut s),
+        1 => fields_row(view, 2, true, &mut s),
+        2 => fault_line(view.run.fault.unwrap_or(0), &mut s),
+        3 => {
+            warning_line(view, &mut s);
+        }
+        _ => {
+            hint(ed, view, 0, &mut s);
+        }
+    }
+    pad_row(out, last, &s);
+}
+
+/// Fault log page: one entry (newest first), scrolled with 2/8.
+pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
+    let narrow = ed.cols < 20;
+    let n = view.fault_log.len();
+    let last = ed.rows - 1;
+    let index = usize::from(ed.log_index.get()).min(n.saturating_sub(1));
+    ed.log_index.set(index as u8);
+    let entry = view.fault_log.get(index);
+    let mut head = Line::new();
+    let mut text = Line::new();
+    let mut time = Line::new();
+    match entry {
+        None => push(&mut head, format_args!("FAULT LOG EMPTY")),
+        Some(e) => {
+            if narrow {
+                push(
+                    &mut head,
+                    format_args!(
+                        "{:02}/{:02} F{} {}",
+                        index + 1,
+                        n,
+                        e.code,
+                        fault_name(e.code)
+                    ),
+                );
+            } else {
+                push(
+                    &mut head,
+                    format_args!(
+                        "LOG {:02}/{:02} F{} {}",
+                        index + 1,
+                        n,
+                        e.code,
+                        fault_name(e.code)
+                    ),
+                );
+            }
+            push(&mut text, format_args!("{}", fault_text(e.code)));
+            let t = e.uptime_s;
+            push(
+                &mut time,
+                format_args!(
+                    "PWR {} UP {}:{:02}:{:02}",
+                    e.power_cycle,
+                    t / 3600,
+                    (t / 60) % 60,
+                    t % 60
+                ),
+            );
+        }
+    }
+    pad_row(out, 0, &head);
+    let mut status = Line::new();
+    if ed.rows >= 4 {
+        pad_row(out, 1, &text);
+        pad_row(out, 2, &time);
+        status_text(ed, view, &mut status);
+        pad_row(out, last, &status);
+        return;
+    }
+    if last == 0 {
+        return;
+    }
+    if prompt(ed, &mut status) || entry.is_none() {
+        if status.is_empty() {
+            status_text(ed, view, &mut status);
+        }
+        pad_row(out, last, &status);
+        return;
+    }
+    let tick = (view.now_ms / ROTATE_MS) as usize;
+    match tick % 3 {
+        0 => pad_row(out, last, &text),
+        1 => pad_row(out, last, &time),
+        _ => {
+            hint(ed, view, 0, &mut status);
+            pad_row(out, last, &status);
+        }
+    }
+}

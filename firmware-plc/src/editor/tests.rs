@@ -1,0 +1,348 @@
+use super::*;
+use crate::storage::{OtherCopy, SlotCopy};
+use shared_protocol::program::{mnemonics_for, verify_line, Mnemonic, Operand};
+
+fn press(ed: &mut Editor, p: &mut Program, running: bool, keys: &str) -> Vec<Request> {
+    keys.chars()
+        .filter_map(|c| ed.key(Key::from_char(c).unwrap(), p, running))
+        .collect()
+}
+
+fn draw(ed: &Editor, p: &Program, run: RunView<'_>, log: &[FaultEntry], now_ms: u32) -> Screen {
+    let mut s = ed.screen();
+    ed.render(
+        &View {
+            program: p,
+            run,
+            fault_log: log,
+            now_ms,
+        },
+        &mut s,
+    );
+    s
+}
+
+fn ins(m: Mnemonic, op: Option<Operand>, c: u16) -> Instruction {
+    Instruction {
+        mnemonic: m,
+        operand: op,
+        constant: c,
+    }
+}
+
+#[test]
+fn empty_listing_with_cursor_and_help() {
+    let ed = Editor::new(20, 4);
+    let p = Program::default();
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(0), ">000                ");
+    assert_eq!(s.row(1), " 001                ");
+    assert_eq!(s.row(3).trim_end(), "A=RUN C=SAVE D=LOAD");
+    assert_eq!(s.cursor, Some((0, 5)));
+    assert!(s.blink);
+    // The hints rotate: new and the page key come next.
+    let s = draw(&ed, &p, RunView::default(), &[], 2000);
+    assert_eq!(s.row(3).trim_end(), "D0=NEW B=NEXT PAGE");
+}
+
+#[test]
+fn enter_a_line_with_only_valid_choices() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    assert!(press(&mut ed, &mut p, false, "#150").is_empty());
+    assert_eq!(ed.line(), 150);
+    press(&mut ed, &mut p, false, "58");
+    assert!(ed.editing());
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(0), ">150 LD   D00       ");
+    assert!(!s.blink, "steady cursor while editing");
+    assert_eq!(p.lines[150], None, "not written before leaving the field");
+    // To the operand, next area (O), then next area (B), then B05.
+    press(&mut ed, &mut p, false, "69988888");
+    press(&mut ed, &mut p, false, "25");
+    assert_eq!(
+        p.lines[150],
+        Some(ins(Mnemonic::Ld, Some(Operand::B(4)), 0))
+    );
+    assert!(ed.modified());
+    // K operand: constant field appears, digits step within range.
+    press(&mut ed, &mut p, false, "8");
+    assert_eq!(ed.line(), 151);
+    press(&mut ed, &mut p, false, "5");
+    // DIV is in the PLC section; its K constant must be at least 1.
+    for _ in 0..mnemonics_for(Section::Plc)
+        .position(|m| m == Mnemonic::Div)
+        .unwrap()
+        + 1
+    {
+        press(&mut ed, &mut p, false, "8");
+    }
+    // Operand K00 first; 9 jumps between the areas K and Q.
+    press(&mut ed, &mut p, false, "6999");
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert!(s.row(1).starts_with(">151 DIV  "), "{s:?}");
+    press(&mut ed, &mut p, false, "5");
+    let i = p.lines[151].unwrap();
+    assert_eq!(verify_line(151, &i), Ok(()));
+}
+
+#[test]
+fn drive_lines_offer_drive_mnemonics_only() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    press(&mut ed, &mut p, false, "5");
+    let mut seen = Vec::new();
+    loop {
+        press(&mut ed, &mut p, false, "8");
+        let s = draw(&ed, &p, RunView::default(), &[], 0);
+        let m = s.row(0)[5..9].trim().to_string();
+        if m.is_empty() {
+            break;
+        }
+        seen.push(m);
+    }
+    let expect: Vec<String> = mnemonics_for(Section::Drive)
+        .map(|m| m.text().to_string())
+        .collect();
+    assert_eq!(seen, expect);
+    assert!(seen.contains(&"PWF".to_string()) && !seen.contains(&"LET".to_string()));
+}
+
+#[test]
+fn fast_scrolling_and_next_used_line() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    press(&mut ed, &mut p, false, "999999999");
+    assert_eq!(ed.line(), 900);
+    press(&mut ed, &mut p, false, "7777777777");
+    assert_eq!(ed.line(), 999);
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(&s.row(2)[..4], ">999", "last line at the bottom: {s:?}");
+    press(&mut ed, &mut p, false, "31");
+    assert_eq!(ed.line(), 889);
+    p.lines[20] = Some(ins(Mnemonic::Sn1, None, 0));
+    p.lines[300] = Some(ins(Mnemonic::Lcd, None, 0));
+    press(&mut ed, &mut p, false, "0");
+    assert_eq!(ed.line(), 20, "wraps round");
+    press(&mut ed, &mut p, false, "0");
+    assert_eq!(ed.line(), 300);
+    press(&mut ed, &mut p, false, "#42#");
+    assert_eq!(ed.line(), 42);
+}
+
+#[test]
+fn insert_and_delete_stay_inside_the_section() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[148] = Some(ins(Mnemonic::Sn1, None, 0));
+    p.lines[150] = Some(ins(Mnemonic::Lcd, None, 0));
+    press(&mut ed, &mut p, false, "#100*1");
+    assert_eq!(p.lines[149], Some(ins(Mnemonic::Sn1, None, 0)));
+    assert_eq!(p.lines[150], Some(ins(Mnemonic::Lcd, None, 0)));
+    press(&mut ed, &mut p, false, "*1");
+    assert_eq!(ed.message(), Some("SECTION FULL"));
+    assert_eq!(p.lines[149], Some(ins(Mnemonic::Sn1, None, 0)));
+    press(&mut ed, &mut p, false, "*3*3");
+    assert_eq!(p.lines[147], Some(ins(Mnemonic::Sn1, None, 0)));
+    assert_eq!(p.lines[149], None);
+    assert_eq!(p.lines[150], Some(ins(Mnemonic::Lcd, None, 0)));
+    press(&mut ed, &mut p, false, "#147*0");
+    assert_eq!(p.lines[147], None);
+}
+
+#[test]
+fn run_verifies_first_and_shows_the_error_with_its_line() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    // A drive mnemonic in the PLC section (only possible from outside the editor).
+    p.lines[163] = Some(ins(Mnemonic::Sn1, None, 0));
+    assert!(press(&mut ed, &mut p, false, "A").is_empty());
+    assert_eq!(ed.line(), 163);
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(3).trim_end(), "163:wrong section");
+    p.lines[163] = Some(ins(Mnemonic::Lcd, None, 0));
+    assert_eq!(
+        press(&mut ed, &mut p, false, "A"),
+        vec![Request::Run { slot: None }]
+    );
+    assert_eq!(press(&mut ed, &mut p, true, "A"), vec![Request::Stop]);
+}
+
+#[test]
+fn save_load_new_are_two_keys_on_every_page() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[150] = Some(ins(Mnemonic::Lcd, None, 0));
+    for page_keys in ["", "B", "B"] {
+        press(&mut ed, &mut p, false, page_keys);
+        assert_eq!(press(&mut ed, &mut p, false, "C2"), vec![Request::Save(2)]);
+        assert_eq!(press(&mut ed, &mut p, false, "D3"), vec![Request::Load(3)]);
+        assert_eq!(press(&mut ed, &mut p, true, "D1"), vec![]);
+        assert_eq!(ed.message(), Some("STOP FIRST (A)"));
+    }
+    ed.notify(Notice::Saved { slot: 2 });
+    assert_eq!(ed.slot(), Some(2));
+    assert_eq!(
+        press(&mut ed, &mut p, false, "A"),
+        vec![Request::Run { slot: Some(2) }]
+    );
+    assert_eq!(press(&mut ed, &mut p, false, "D0"), vec![Request::New]);
+    assert_eq!(p, Program::default());
+    // Prompt shown while the second key is awaited.
+    press(&mut ed, &mut p, false, "D");
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(3).trim_end(), "LOAD SLOT 1-4 0=NEW");
+    press(&mut ed, &mut p, false, "B");
+    assert_eq!(ed.message(), Some("CANCELLED"));
+}
+
+#[test]
+fn editing_refused_while_running() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    press(&mut ed, &mut p, true, "58");
+    assert!(!ed.editing());
+    assert_eq!(p, Program::default());
+}
+
+#[test]
+fn star_cancels_an_edit() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[0] = Some(ins(Mnemonic::Sn2, None, 0));
+    press(&mut ed, &mut p, false, "588*");
+    assert_eq!(p.lines[0], Some(ins(Mnemonic::Sn2, None, 0)));
+    assert!(!ed.modified());
+}
+
+#[test]
+fn narrow_lcd_shows_the_same_listing() {
+    let mut ed = Editor::new(16, 2);
+    let mut p = Program::default();
+    p.lines[5] = Some(ins(Mnemonic::Pi, Some(Operand::K(2)), 1000));
+    press(&mut ed, &mut p, false, "#005");
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(0), "005 PI  K02 1000");
+    assert_eq!(s.row(1).trim_end(), "A RUN C SV D LD");
+    press(&mut ed, &mut p, false, "66");
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.cursor, Some((0, 12)));
+}
+
+#[test]
+fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
+    let mut ed = Editor::new(20, 4);
+    let p = Program::default();
+    ed.show_page(Page::Run);
+    let run = RunView {
+        running: true,
+        link_up: true,
+        drive_state: DriveState::Run,
+        freq_dhz: 423,
+        reverse: true,
+        fault: None,
+        lcd: [Some(812), Some(-32768), None, None],
+        warning: None,
+    };
+    let s = draw(&ed, &p, run, &[], 0);
+    assert_eq!(s.row(0), "RUN  RUN    42.3Hz R");
+    assert_eq!(s.row(1), "1:   812   2:-32768 ");
+    assert_eq!(s.row(2), "3:     -   4:     - ");
+    assert_eq!(s.row(3).trim_end(), "A=STOP C=SAVE D=LOAD");
+    assert_eq!(s.cursor, None);
+    let faulted = RunView {
+        running: false,
+        drive_state: DriveState::Fault,
+        fault: Some(2),
+        warning: Some(Warning {
+            text: "DIV0",
+            line: Some(163),
+        }),
+        ..run
+    };
+    let rows: Vec<String> = (0..3)
+        .map(|k| {
+            draw(&ed, &p, faulted, &[], k * 2000)
+                .row(3)
+                .trim_end()
+                .to_string()
+        })
+        .collect();
+    assert_eq!(
+        rows,
+        ["F2 overcurrent (HW)", "W:DIV0 @ 163", "A=RUN C=SAVE D=LOAD"]
+    );
+    let lost = RunView {
+        link_up: false,
+        ..run
+    };
+    assert_eq!(
+        draw(&ed, &p, lost, &[], 0).row(0).trim_end(),
+        "RUN  LINK LOST"
+    );
+    // The fault also shows on the listing page.
+    ed.show_page(Page::Listing);
+    assert_eq!(
+        draw(&ed, &p, faulted, &[], 0).row(3).trim_end(),
+        "F2 overcurrent (HW)"
+    );
+}
+
+#[test]
+fn fault_log_page_newest_first_with_time() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    let log = [
+        FaultEntry {
+            code: 4,
+            power_cycle: 12,
+            uptime_s: 3 * 3600 + 25 * 60 + 7,
+        },
+        FaultEntry {
+            code: 1,
+            power_cycle: 11,
+            uptime_s: 59,
+        },
+    ];
+    press(&mut ed, &mut p, false, "BB");
+    assert_eq!(ed.page(), Page::FaultLog);
+    let s = draw(&ed, &p, RunView::default(), &log, 0);
+    assert_eq!(s.row(0).trim_end(), "LOG 01/02 F4 UV");
+    assert_eq!(s.row(1).trim_end(), "undervoltage");
+    assert_eq!(s.row(2).trim_end(), "PWR 12 UP 3:25:07");
+    press(&mut ed, &mut p, false, "888");
+    let s = draw(&ed, &p, RunView::default(), &log, 0);
+    assert_eq!(s.row(0).trim_end(), "LOG 02/02 F1 OC");
+    press(&mut ed, &mut p, false, "2");
+    let s = draw(&ed, &p, RunView::default(), &log, 0);
+    assert_eq!(s.row(0).trim_end(), "LOG 01/02 F4 UV");
+    assert_eq!(
+        press(&mut ed, &mut p, false, "*0"),
+        vec![Request::ClearFaultLog]
+    );
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(0).trim_end(), "FAULT LOG EMPTY");
+}
+
+#[test]
+fn bad_copy_on_load_is_shown() {
+    let mut ed = Editor::new(20, 4);
+    let p = Program::default();
+    ed.notify(Notice::Loaded(LoadReport {
+        slot: 2,
+        used: SlotCopy::B,
+        generation: 4,
+        other: OtherCopy::Bad(crate::storage::CopyError::Crc),
+    }));
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(3), "S2:COPY A BAD,USED B");
+    let mut narrow = Editor::new(16, 2);
+    narrow.notify(Notice::Loaded(LoadReport {
+        slot: 2,
+        used: SlotCopy::A,
+        generation: 4,
+        other: OtherCopy::Bad(crate::storage::CopyError::Crc),
+    }));
+    let s = draw(&narrow, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(1), "S2 B BAD,USED A ");
+}
