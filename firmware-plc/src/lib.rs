@@ -13,3 +13,4 @@
 pub mod vm;
 pub mod link;
 pub mod storage;
+pub mod editor;
