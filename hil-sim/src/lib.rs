@@ -1,3 +1,38 @@
 //! hil-sim: runs the firmware cores against a simulated plant in virtual time.
+//!
+//! * [`plant`]: DC link, inverter, induction motor, sensors, comparators.
+//! * [`mcu`]: the two MCUs (the firmware's cores behind one seam per peripheral).
+//! * [`sim`]: the virtual-time scheduler joining them with the UART wires.
+//! * [`scenario`]: scenario files; [`record`]: the CSV; [`plot`]: the PNG;
+//!   [`run`]: one whole run as the CLI does it.
+//!
+//! Decisions and model equations: `hil-sim/docs/`.
 
+pub mod mcu;
 pub mod plant;
+pub mod plot;
+pub mod record;
+pub mod run;
+pub mod scenario;
+pub mod sim;
+
+use std::path::Path;
+
+/// Size of the EEPROM image `asm -o` writes.
+pub const IMAGE_BYTES: usize = firmware_plc::storage::EEPROM_BYTES;
+
+/// The exact EEPROM bytes the PLC would store for `program` (slot 1, RUN at power-up).
+pub fn image_bytes(program: &shared_protocol::program::Program) -> anyhow::Result<Vec<u8>> {
+    let image = firmware_plc::storage::image::program_image(
+        program,
+        &firmware_plc::storage::image::ImageOptions::default(),
+    )
+    .map_err(|e| anyhow::anyhow!("cannot build the EEPROM image: {e:?}"))?;
+    Ok(image.to_vec())
+}
+
+/// `hil-sim panel`: the interactive front panel.
+pub fn panel_command(program: Option<&Path>) -> anyhow::Result<()> {
+    let _ = program;
+    anyhow::bail!("the front panel is not available in this build yet")
+}

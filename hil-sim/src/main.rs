@@ -1,1 +1,203 @@
-fn main() {}
+//! `hil-sim` command line (hil-sim.md "Commands"). Everything it does lives in the library.
+
+use std::fs::File;
+use std::io::{BufWriter, IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use hil_sim::record::CsvWriter;
+use hil_sim::run::{load_program, run};
+use hil_sim::scenario::Scenario;
+use hil_sim::sim::RunOptions;
+
+#[derive(Parser)]
+#[command(
+    name = "hil-sim",
+    version,
+    about = "Co-simulates the PLC and drive firmware cores with an induction-motor rig"
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a program on the simulated rig.
+    Run {
+        /// The program (.plc text or an EEPROM image).
+        program: PathBuf,
+        /// Scenario file (TOML); without it all inputs stay 0.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Simulated seconds (default: the scenario's duration_s, else 10).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Write the record as CSV.
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Write a PNG plot.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// CSV sampling period, ms.
+        #[arg(long, default_value_t = 1.0)]
+        sample_ms: f64,
+        /// Seed of the link's bit errors.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+    /// Assemble a program: print errors, or write the EEPROM image with -o.
+    Asm {
+        program: PathBuf,
+        #[arg(short = 'o', long = "output")]
+        output: Option<PathBuf>,
+    },
+    /// Print a program (.plc or EEPROM image) in canonical text.
+    Disasm { program: PathBuf },
+    /// Interactive virtual front panel (LCD + keypad) in the terminal.
+    Panel { program: Option<PathBuf> },
+}
+
+fn main() -> ExitCode {
+    match real_main() {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("hil-sim: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn real_main() -> Result<()> {
+    match Cli::parse().cmd {
+        Cmd::Run {
+            program,
+            scenario,
+            duration,
+            csv,
+            plot,
+            sample_ms,
+            seed,
+        } => cmd_run(
+            &program,
+            scenario.as_deref(),
+            duration,
+            csv.as_deref(),
+            plot.as_deref(),
+            sample_ms,
+            seed,
+        ),
+        Cmd::Asm { program, output } => cmd_asm(&program, output.as_deref()),
+        Cmd::Disasm { program } => cmd_disasm(&program),
+        Cmd::Panel { program } => hil_sim::panel_command(program.as_deref()),
+    }
+}
+
+fn cmd_run(
+    program: &Path,
+    scenario: Option<&Path>,
+    duration: Option<f64>,
+    csv: Option<&Path>,
+    plot: Option<&Path>,
+    sample_ms: f64,
+    seed: u64,
+) -> Result<()> {
+    // Everything is checked before anything is simulated.
+    let prog = load_program(program)?;
+    let scen = match scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::default(),
+    };
+    let duration_s = scen.duration_s(duration);
+    if !(duration_s.is_finite() && duration_s > 0.0) {
+        anyhow::bail!("--duration must be a positive number of seconds, got {duration_s}");
+    }
+    if !(sample_ms.is_finite() && sample_ms > 0.0) {
+        anyhow::bail!("--sample-ms must be a positive number, got {sample_ms}");
+    }
+    let opts = RunOptions {
+        seed,
+        sample_ns: ((sample_ms * 1e6).round() as u64).max(1),
+    };
+    let mut writer = match csv {
+        Some(p) => Some(
+            CsvWriter::new(BufWriter::new(
+                File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+            ))
+            .with_context(|| format!("cannot write {}", p.display()))?,
+        ),
+        None => None,
+    };
+    let mut csv_err = None;
+    let tty = std::io::stderr().is_terminal();
+    let report = run(
+        &prog,
+        scen,
+        duration_s,
+        opts,
+        plot.is_some(),
+        |s| {
+            if let Some(w) = writer.as_mut() {
+                if let Err(e) = w.write(s) {
+                    csv_err.get_or_insert(e);
+                }
+            }
+        },
+        |t| {
+            if tty {
+                eprint!("\r{t:8.1} / {duration_s:.1} s simulated");
+                let _ = std::io::stderr().flush();
+            }
+        },
+    )?;
+    if tty {
+        eprintln!();
+    }
+    if let Some(e) = csv_err {
+        return Err(e).context("writing the CSV");
+    }
+    if let Some(w) = writer {
+        w.finish().context("writing the CSV")?;
+    }
+    if let Some(p) = plot {
+        let title = format!("{} ({duration_s} s)", program.display());
+        hil_sim::plot::plot(p, &report.samples, &title)?;
+    }
+    print!("{}", report.summary());
+    Ok(())
+}
+
+fn cmd_asm(program: &Path, output: Option<&Path>) -> Result<()> {
+    let p = load_program(program)?;
+    match output {
+        Some(out) => {
+            let image = hil_sim::image_bytes(&p)?;
+            std::fs::write(out, image)
+                .with_context(|| format!("cannot write {}", out.display()))?;
+            println!(
+                "{}: {} lines, EEPROM image ({} bytes) written to {}",
+                program.display(),
+                p.lines.iter().flatten().count(),
+                hil_sim::IMAGE_BYTES,
+                out.display()
+            );
+        }
+        None => println!(
+            "{}: ok, {} lines",
+            program.display(),
+            p.lines.iter().flatten().count()
+        ),
+    }
+    Ok(())
+}
+
+fn cmd_disasm(program: &Path) -> Result<()> {
+    let p = load_program(program)?;
+    let mut text = String::new();
+    shared_protocol::program::disassemble(&p, &mut text)
+        .map_err(|_| anyhow::anyhow!("cannot format the program"))?;
+    print!("{text}");
+    Ok(())
+}

@@ -140,7 +140,7 @@ mod tests {
         let mut float_ns = 0;
         for tau in (0..period).step_by(10) {
             match switching_conn(leg, tau, period, dead) {
-                Conn::Frac(f) if f == 1.0 => high_ns += 10,
+                Conn::Frac(1.0) => high_ns += 10,
                 Conn::Float => float_ns += 10,
                 _ => {}
             }

@@ -25,6 +25,26 @@ pub const MAX_STEP_NS: u64 = 25_000;
 /// conducting and the stator is treated as open.
 pub const OPEN_CIRCUIT_A: f64 = 0.02;
 
+/// Motor terminal driven by inverter leg k (legs = the drive's phases 1, 2, 3).
+///
+/// The source generates phase 2 at +120° and phase 3 at +240° (program.md section 4, the
+/// motor example), i.e. the sequence 1-3-2. The rig's motor is wired 1→U, 2→W, 3→V so
+/// that this sequence, the drive's "forward", turns the shaft forward (positive speed).
+/// Currents, sensors and comparators are all on the inverter side (legs).
+pub const WIRING: [usize; 3] = [0, 2, 1];
+
+fn legs_to_motor(leg: [f64; 3]) -> [f64; 3] {
+    let mut m = [0.0; 3];
+    for (k, v) in leg.into_iter().enumerate() {
+        m[WIRING[k]] = v;
+    }
+    m
+}
+
+fn motor_to_legs(m: [f64; 3]) -> [f64; 3] {
+    WIRING.map(|w| m[w])
+}
+
 /// Every parameter of the rig (defaults: `docs/rig.md`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigParams {
@@ -93,6 +113,8 @@ pub struct Plant {
     hw_break: Option<BreakCause>,
     /// A break that fired and was not yet collected by [`Plant::take_break`].
     break_event: Option<BreakCause>,
+    /// Comparator outputs after the last step: [overcurrent, overvoltage].
+    comparator_levels: [bool; 2],
     /// Mechanical angle, rad (for plots and tests of reversal).
     angle_rad: f64,
     brake_energy_j: f64,
@@ -112,6 +134,7 @@ impl Plant {
             tau_ns: 0,
             hw_break: None,
             break_event: None,
+            comparator_levels: [false; 2],
             angle_rad: 0.0,
             brake_energy_j: 0.0,
         }
@@ -151,6 +174,11 @@ impl Plant {
         self.break_event.take()
     }
 
+    /// Comparator outputs now: [overcurrent, overvoltage].
+    pub fn comparator_levels(&self) -> [bool; 2] {
+        self.comparator_levels
+    }
+
     pub fn hw_break(&self) -> Option<BreakCause> {
         self.hw_break
     }
@@ -171,7 +199,7 @@ impl Plant {
     pub fn outputs(&self) -> PlantOutputs {
         let m = &self.params.motor;
         let (i_s, psi_s) = self.stator(&self.x);
-        let i_abc = motor::inverse_clarke(i_s);
+        let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
         PlantOutputs {
             i_abc_a: i_abc,
             u_dc_v: self.x[UDC],
@@ -256,7 +284,7 @@ impl Plant {
         let h = dt_ns as f64 * 1e-9;
         let all_float = conns.iter().all(|c| matches!(c, Conn::Float));
         let (i_s, _) = self.stator(&self.x);
-        let i_abc = motor::inverse_clarke(i_s);
+        let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
         if all_float {
             if !self.open && i_abc.iter().all(|i| i.abs() < OPEN_CIRCUIT_A) {
                 self.open = true;
@@ -293,17 +321,19 @@ impl Plant {
             let u = 0.5 * (x0[UDC] + self.x[UDC]);
             self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
         }
-        if self.hw_break.is_none() && self.cmd.any_driven() {
-            let o = self.outputs();
-            if let Some(cause) = self
-                .params
-                .comparators
-                .check(o.i_abc_a[0], o.i_abc_a[1], o.u_dc_v)
-            {
+        let o = self.outputs();
+        let levels = self
+            .params
+            .comparators
+            .levels(o.i_abc_a[0], o.i_abc_a[1], o.u_dc_v);
+        for (k, cause) in BreakCause::ALL.into_iter().enumerate() {
+            // The break input is edge-triggered: it latches on the comparator's rising edge.
+            if levels[k] && !self.comparator_levels[k] {
                 self.hw_break = Some(cause);
                 self.break_event = Some(cause);
             }
         }
+        self.comparator_levels = levels;
     }
 
     fn deriv(&self, x: &State, fracs: [f64; 3]) -> State {
@@ -324,12 +354,16 @@ impl Plant {
                 psi_r: [x[PRA], x[PRB]],
             };
             let c = f.currents(m);
-            let v_ab = motor::clarke([fracs[0] * udc, fracs[1] * udc, fracs[2] * udc]);
+            let v_ab = motor::clarke(legs_to_motor([
+                fracs[0] * udc,
+                fracs[1] * udc,
+                fracs[2] * udc,
+            ]));
             dx[PSA] = v_ab[0] - m.rs_ohm * c.i_s[0];
             dx[PSB] = v_ab[1] - m.rs_ohm * c.i_s[1];
             dx[PRA] = -m.rr_ohm * c.i_r[0] - wr * x[PRB];
             dx[PRB] = -m.rr_ohm * c.i_r[1] + wr * x[PRA];
-            let i_abc = motor::inverse_clarke(c.i_s);
+            let i_abc = motor_to_legs(motor::inverse_clarke(c.i_s));
             let i_dc = fracs[0] * i_abc[0] + fracs[1] * i_abc[1] + fracs[2] * i_abc[2];
             (motor::torque_nm(m, f.psi_s, c.i_s), i_dc)
         };

@@ -67,15 +67,17 @@ pub struct Comparators {
 }
 
 impl Comparators {
-    pub fn check(&self, i_a: f64, i_b: f64, u_dc: f64) -> Option<BreakCause> {
-        if i_a.abs() > self.oc_hw_a || i_b.abs() > self.oc_hw_a {
-            Some(BreakCause::Overcurrent)
-        } else if u_dc > self.ov_hw_v {
-            Some(BreakCause::Overvoltage)
-        } else {
-            None
-        }
+    /// Comparator outputs: [overcurrent, overvoltage].
+    pub fn levels(&self, i_a: f64, i_b: f64, u_dc: f64) -> [bool; 2] {
+        [
+            i_a.abs() > self.oc_hw_a || i_b.abs() > self.oc_hw_a,
+            u_dc > self.ov_hw_v,
+        ]
     }
+}
+
+impl BreakCause {
+    pub const ALL: [BreakCause; 2] = [BreakCause::Overcurrent, BreakCause::Overvoltage];
 }
 
 #[cfg(test)]
@@ -104,8 +106,8 @@ mod tests {
             oc_hw_a: 3.0,
             ov_hw_v: 40.0,
         };
-        assert_eq!(c.check(0.0, -3.1, 30.0), Some(BreakCause::Overcurrent));
-        assert_eq!(c.check(0.0, 0.0, 40.5), Some(BreakCause::Overvoltage));
-        assert_eq!(c.check(2.9, 2.9, 39.9), None);
+        assert_eq!(c.levels(0.0, -3.1, 30.0), [true, false]);
+        assert_eq!(c.levels(0.0, 0.0, 40.5), [false, true]);
+        assert_eq!(c.levels(2.9, 2.9, 39.9), [false, false]);
     }
 }

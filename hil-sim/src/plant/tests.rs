@@ -17,8 +17,9 @@ fn stiff_rig() -> RigParams {
     }
 }
 
+/// Sine PWM as the drive generates it (phase k at +k·120°: forward).
 fn sine_command(theta: f64, m: f64) -> GateCommand {
-    let leg = |k: f64| Leg::Duty(0.5 + 0.5 * m * (theta - k * 2.0 * PI / 3.0).sin());
+    let leg = |k: f64| Leg::Duty(0.5 + 0.5 * m * (theta + k * 2.0 * PI / 3.0).sin());
     GateCommand {
         legs: [leg(0.0), leg(1.0), leg(2.0)],
         dead_time_ns: 0,

@@ -1,0 +1,68 @@
+//! The two MCUs as the simulator drives them.
+//!
+//! Each trait is the seam between the simulated hardware and the firmware's sans-IO
+//! application: the simulator plays the peripherals (timer interrupt with its ADC sample,
+//! 1 ms system tick, UART bytes, break input, GPIO, keypad, LCD, EEPROM) and calls the
+//! same core code the firmware images run. The implementations in [`drive_board`] and
+//! [`plc_board`] are the host counterparts of the boards' `main.rs`.
+
+pub mod drive_board;
+pub mod lcd;
+pub mod plc_board;
+
+use firmware_drive::{AdcSample, DriveStatus, HwBreak, PwmCommand, PwmTiming};
+use shared_protocol::units::Micros;
+
+pub use drive_board::DriveBoard;
+pub use lcd::Lcd;
+pub use plc_board::PlcBoard;
+
+/// The drive MCU.
+pub trait DriveMcu {
+    /// TIM1 update interrupt: the ADC conversion of this period in, the timer registers out.
+    fn pwm_isr(&mut self, adc: &AdcSample) -> PwmCommand;
+    /// The 1 ms system tick (drive section, state machine, link timers).
+    fn tick_1ms(&mut self, now: Micros);
+    /// Break input: a comparator fired (`active`) or fell back below its threshold.
+    fn break_input(&mut self, cause: HwBreak, active: bool);
+    /// Bytes the UART received.
+    fn uart_rx(&mut self, bytes: &[u8], now: Micros);
+    /// The UART can take a frame: the next one to send (length, 0 = none).
+    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize;
+    /// TIM1 setup the firmware programs now.
+    fn pwm_timing(&self) -> PwmTiming;
+    /// The timer's kernel clock.
+    fn timer_clock_hz(&self) -> u32;
+    fn status(&self) -> DriveStatus;
+}
+
+/// The PLC's inputs as its pins present them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PlcPins {
+    /// D00..D07, bit n = Dn.
+    pub digital: u8,
+    /// A00..A03, 10-bit counts.
+    pub analog: [u16; 4],
+}
+
+/// The PLC MCU.
+pub trait PlcMcu {
+    /// The 1 ms system tick (link timers, keypad debouncing, LCD refresh).
+    fn tick_1ms(&mut self, now: Micros);
+    /// One PLC scan with the pins as they are now.
+    fn scan(&mut self, pins: &PlcPins, now: Micros);
+    /// A keypad key went down or up.
+    fn key(&mut self, key: char, down: bool, now: Micros);
+    fn uart_rx(&mut self, bytes: &[u8], now: Micros);
+    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize;
+    /// Output pins O00..O05, bit n = On.
+    fn outputs(&self) -> u8;
+    /// The PLC's copy of Qn.
+    fn q(&self, n: u8) -> i16;
+    /// The run screen's 4 value fields.
+    fn lcd_fields(&self) -> [Option<i16>; 4];
+    /// The LCD as the user sees it.
+    fn lcd(&self) -> &Lcd;
+    /// The user program is running.
+    fn running(&self) -> bool;
+}

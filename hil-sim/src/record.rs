@@ -1,0 +1,153 @@
+//! The CSV record (hil-sim.md "CSV columns"): the listed columns first, in that order.
+//!
+//! Numbers are written with a fixed number of decimals so that two runs give the same
+//! bytes and the file stays small.
+
+use std::io::{self, Write};
+
+use crate::sim::Sample;
+
+/// The header row.
+pub fn header() -> String {
+    let mut cols: Vec<String> = [
+        "t_s",
+        "f_cmd_hz",
+        "dir",
+        "m",
+        "pwm_on",
+        "fault",
+        "u_dc_v",
+        "i_a_a",
+        "i_b_a",
+        "i_c_a",
+        "speed_rpm",
+        "torque_nm",
+        "brake",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    cols.extend((0..8).map(|n| format!("D{n:02}")));
+    cols.extend((0..6).map(|n| format!("O{n:02}")));
+    cols.extend((0..8).map(|n| format!("Q{n:02}")));
+    cols.extend((0..4).map(|n| format!("lcd{n}")));
+    cols.join(",")
+}
+
+/// One data row.
+pub fn row(s: &Sample) -> String {
+    let mut r = String::with_capacity(160);
+    use std::fmt::Write as _;
+    let _ = write!(
+        r,
+        "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+        num(s.t_ns as f64 * 1e-9, 6),
+        num(s.f_cmd_hz, 1),
+        s.dir,
+        num(s.m, 3),
+        u8::from(s.pwm_on),
+        s.fault,
+        num(s.u_dc_v, 3),
+        num(s.i_abc_a[0], 4),
+        num(s.i_abc_a[1], 4),
+        num(s.i_abc_a[2], 4),
+        num(s.speed_rpm, 2),
+        num(s.torque_nm, 5),
+        u8::from(s.brake),
+    );
+    for n in 0..8 {
+        let _ = write!(r, ",{}", (s.digital_in >> n) & 1);
+    }
+    for n in 0..6 {
+        let _ = write!(r, ",{}", (s.digital_out >> n) & 1);
+    }
+    for q in s.q {
+        let _ = write!(r, ",{q}");
+    }
+    for f in s.lcd {
+        match f {
+            Some(v) => {
+                let _ = write!(r, ",{v}");
+            }
+            None => r.push(','),
+        }
+    }
+    r
+}
+
+/// Fixed decimals; a value that rounds to zero is written without a sign.
+fn num(x: f64, decimals: usize) -> String {
+    let s = format!("{x:.decimals$}");
+    match s.strip_prefix('-') {
+        Some(rest) if rest.bytes().all(|b| b == b'0' || b == b'.') => rest.to_string(),
+        _ => s,
+    }
+}
+
+/// Streams rows to a writer.
+pub struct CsvWriter<W: Write> {
+    w: W,
+}
+
+impl<W: Write> CsvWriter<W> {
+    pub fn new(mut w: W) -> io::Result<Self> {
+        writeln!(w, "{}", header())?;
+        Ok(CsvWriter { w })
+    }
+
+    pub fn write(&mut self, s: &Sample) -> io::Result<()> {
+        writeln!(self.w, "{}", row(s))
+    }
+
+    pub fn finish(mut self) -> io::Result<W> {
+        self.w.flush()?;
+        Ok(self.w)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn header_has_the_spec_columns_first() {
+        let h = header();
+        assert!(h.starts_with(
+            "t_s,f_cmd_hz,dir,m,pwm_on,fault,u_dc_v,i_a_a,i_b_a,i_c_a,speed_rpm,torque_nm,brake,D00,"
+        ));
+        assert!(h.contains(",D07,O00,"));
+        assert!(h.contains(",O05,Q00,"));
+        assert!(h.ends_with(",Q07,lcd0,lcd1,lcd2,lcd3"));
+    }
+
+    #[test]
+    fn row_has_as_many_fields_as_the_header() {
+        let s = Sample {
+            t_ns: 1_500_000,
+            f_cmd_hz: 12.3,
+            dir: -1,
+            m: 0.5,
+            pwm_on: true,
+            fault: 0,
+            u_dc_v: 30.0,
+            i_abc_a: [0.1, -0.05, -0.05],
+            speed_rpm: 100.0,
+            torque_nm: 0.01,
+            brake: false,
+            digital_in: 0b1000_0001,
+            digital_out: 0b10,
+            q: [1, 2, 3, 4, 5, 6, 7, 8],
+            lcd: [Some(500), None, None, None],
+        };
+        let r = row(&s);
+        assert_eq!(r.split(',').count(), header().split(',').count());
+        assert!(r.starts_with("0.001500,12.3,-1,0.500,1,0,30.000,"));
+        assert!(r.ends_with(",1,2,3,4,5,6,7,8,500,,,"));
+    }
+
+    #[test]
+    fn negative_zero_has_no_sign() {
+        assert_eq!(num(-0.00001, 4), "0.0000");
+        assert_eq!(num(-0.5, 1), "-0.5");
+    }
+}

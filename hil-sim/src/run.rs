@@ -1,0 +1,142 @@
+//! One whole run as `hil-sim run` does it: load and check the inputs, simulate, report.
+
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use anyhow::{bail, Context, Result};
+use firmware_plc::storage::image::{is_image, program_from_image};
+use shared_protocol::program::{assemble, Program};
+
+use crate::mcu::{Lcd, PlcMcu};
+use crate::scenario::Scenario;
+use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
+
+/// Reads a program: `.plc` text, or a whole-EEPROM image (32 KiB, as `asm -o` writes).
+/// Errors name the file, text line and column.
+pub fn load_program(path: &Path) -> Result<Program> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    if is_image(&bytes) {
+        return program_from_image(&bytes)
+            .map_err(|e| anyhow::anyhow!("{}: not a valid EEPROM image: {e:?}", path.display()));
+    }
+    let Ok(text) = String::from_utf8(bytes) else {
+        bail!(
+            "{}: neither .plc text (not UTF-8) nor a 32768-byte EEPROM image",
+            path.display()
+        );
+    };
+    parse_program(&text, &path.display().to_string())
+}
+
+/// Assembles `.plc` text; `name` prefixes the error (`name:line:col: message`).
+pub fn parse_program(text: &str, name: &str) -> Result<Program> {
+    assemble(text).map_err(|e| anyhow::anyhow!("{name}:{e}"))
+}
+
+/// What a run produced.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    pub samples: Vec<Sample>,
+    pub faults: Vec<FaultRecord>,
+    pub lcd: Lcd,
+    pub sim_s: f64,
+    pub wall: Duration,
+    pub drive_state: &'static str,
+    pub plc_running: bool,
+    pub final_speed_rpm: f64,
+    pub final_f_hz: f64,
+}
+
+/// Fault name for a code.
+pub fn fault_name(code: u8) -> &'static str {
+    shared_protocol::link::message::fault_name(code)
+}
+
+impl RunReport {
+    /// The summary printed at the end of `run`.
+    pub fn summary(&self) -> String {
+        let wall = self.wall.as_secs_f64();
+        let mut s = String::new();
+        s.push_str(&format!(
+            "simulated {:.3} s in {:.3} s wall ({:.1}x real time)\n",
+            self.sim_s,
+            wall,
+            if wall > 0.0 { self.sim_s / wall } else { 0.0 }
+        ));
+        s.push_str(&format!(
+            "final state: PLC {}, drive {}, f = {:.1} Hz, speed = {:.0} rpm\n",
+            if self.plc_running { "RUN" } else { "STOP" },
+            self.drive_state,
+            self.final_f_hz,
+            self.final_speed_rpm
+        ));
+        if self.faults.is_empty() {
+            s.push_str("faults: none\n");
+        } else {
+            s.push_str("faults:\n");
+            for f in &self.faults {
+                s.push_str(&format!(
+                    "  {:.3} s  {} {}\n",
+                    f.t_ns as f64 * 1e-9,
+                    f.code,
+                    fault_name(f.code)
+                ));
+            }
+        }
+        s.push_str("LCD:\n");
+        s.push_str(&self.lcd.framed());
+        s.push('\n');
+        s
+    }
+}
+
+/// Simulates `program` under `scenario` for `duration_s`. `keep_samples` keeps every
+/// sample in the report (for CSV and plot); `progress` is called every simulated 0.1 s.
+pub fn run(
+    program: &Program,
+    scenario: Scenario,
+    duration_s: f64,
+    opts: RunOptions,
+    keep_samples: bool,
+    mut on_sample: impl FnMut(&Sample),
+    mut progress: impl FnMut(f64),
+) -> Result<RunReport> {
+    if !(duration_s.is_finite() && duration_s > 0.0) {
+        bail!("the duration must be a positive number of seconds, got {duration_s}");
+    }
+    let start = Instant::now();
+    let mut sim = Simulation::new(program, scenario, opts)?;
+    let end_ns = (duration_s * 1e9).round() as u64;
+    let mut samples = Vec::new();
+    let chunk_ns = 100_000_000;
+    let mut t = 0;
+    while t < end_ns {
+        t = (t + chunk_ns).min(end_ns);
+        sim.run_until(t, |s| {
+            on_sample(s);
+            if keep_samples {
+                samples.push(s.clone());
+            }
+        });
+        progress(t as f64 * 1e-9);
+    }
+    let st = firmware_drive_status(&sim);
+    let o = sim.plant().outputs();
+    Ok(RunReport {
+        samples,
+        faults: sim.faults().to_vec(),
+        lcd: sim.plc().lcd().clone(),
+        sim_s: sim.now_ns() as f64 * 1e-9,
+        wall: start.elapsed(),
+        drive_state: st.0,
+        plc_running: sim.plc().running(),
+        final_speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
+        final_f_hz: st.1,
+    })
+}
+
+fn firmware_drive_status(sim: &Simulation) -> (&'static str, f64) {
+    use crate::mcu::DriveMcu;
+    let s = sim.drive().status();
+    (s.state.name(), f64::from(s.f_applied.0) / 10.0)
+}

@@ -1,0 +1,486 @@
+//! Scenario files (hil-sim.md "Scenario file"): rig overrides, link settings and timed
+//! events. Parsing is strict: an unknown key, a wrong type or an out-of-range value is an
+//! error that names the key, so a typo never silently simulates something else.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use serde::Deserialize;
+
+use crate::plant::{PwmMode, RigParams};
+
+/// Duration when neither `--duration` nor the scenario gives one.
+pub const DEFAULT_DURATION_S: f64 = 10.0;
+/// How long `press` holds an input when the event has no `hold_s`.
+pub const DEFAULT_HOLD_S: f64 = 0.1;
+/// Spacing of the keys of a `keys` event.
+pub const KEY_SPACING_S: f64 = 0.1;
+/// How long a key is held down.
+pub const KEY_HOLD_S: f64 = 0.05;
+
+/// A scenario file as written.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioFile {
+    pub duration_s: Option<f64>,
+    #[serde(default)]
+    pub plant: PlantKeys,
+    #[serde(default)]
+    pub link: LinkKeys,
+    #[serde(default, rename = "event")]
+    pub events: Vec<EventKeys>,
+}
+
+/// `[plant]`: every key optional; absent keys keep the default rig.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlantKeys {
+    pub dc_link_v: Option<f64>,
+    pub load_torque_nm: Option<f64>,
+    pub inertia_kgm2: Option<f64>,
+    pub oc_hw_a: Option<f64>,
+    pub ov_hw_v: Option<f64>,
+    pub dc_capacitor_uf: Option<f64>,
+    pub brake_resistor_ohm: Option<f64>,
+    pub scan_time_ms: Option<f64>,
+    pub pwm_mode: Option<PwmMode>,
+    // Additions (hil-sim docs): the rest of the rig.
+    pub supply_r_ohm: Option<f64>,
+    pub locked_rotor: Option<bool>,
+    pub friction_nms: Option<f64>,
+    pub rs_ohm: Option<f64>,
+    pub rr_ohm: Option<f64>,
+    pub lls_h: Option<f64>,
+    pub llr_h: Option<f64>,
+    pub lm_h: Option<f64>,
+}
+
+/// `[link]`.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LinkKeys {
+    pub baud: Option<u32>,
+    pub bit_error_rate: Option<f64>,
+    pub cut_at_s: Option<f64>,
+}
+
+/// One `[[event]]` as written.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EventKeys {
+    pub at_s: f64,
+    pub set: Option<BTreeMap<String, i64>>,
+    pub press: Option<String>,
+    pub hold_s: Option<f64>,
+    pub keys: Option<String>,
+    // Plant parameters changed at run time.
+    pub dc_link_v: Option<f64>,
+    pub load_torque_nm: Option<f64>,
+    pub inertia_kgm2: Option<f64>,
+    pub oc_hw_a: Option<f64>,
+    pub ov_hw_v: Option<f64>,
+    pub brake_resistor_ohm: Option<f64>,
+    pub locked_rotor: Option<bool>,
+}
+
+/// An input the scenario can set.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Input {
+    /// D00..D07.
+    Digital(u8),
+    /// A00..A03, 10-bit counts.
+    Analog(u8),
+    /// The drive's auxiliary channel (`COM`), 10-bit counts.
+    Aux,
+}
+
+impl Input {
+    pub fn parse(name: &str) -> Option<Input> {
+        let upper = name.to_ascii_uppercase();
+        if upper == "AUX" {
+            return Some(Input::Aux);
+        }
+        let (area, digits) = upper.split_at_checked(1)?;
+        if digits.len() != 2 || !digits.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        let n: u8 = digits.parse().ok()?;
+        match area {
+            "D" if n < 8 => Some(Input::Digital(n)),
+            "A" if n < 4 => Some(Input::Analog(n)),
+            _ => None,
+        }
+    }
+
+    fn max(self) -> i64 {
+        match self {
+            Input::Digital(_) => 1,
+            Input::Analog(_) | Input::Aux => 1023,
+        }
+    }
+}
+
+/// A plant parameter changed at run time.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PlantChange {
+    DcLinkV(f64),
+    LoadTorqueNm(f64),
+    InertiaKgm2(f64),
+    OcHwA(f64),
+    OvHwV(f64),
+    BrakeResistorOhm(f64),
+    LockedRotor(bool),
+}
+
+impl PlantChange {
+    pub fn apply(&self, rig: &mut RigParams) {
+        match *self {
+            PlantChange::DcLinkV(v) => rig.supply_v = v,
+            PlantChange::LoadTorqueNm(v) => rig.motor.load_torque_nm = v,
+            PlantChange::InertiaKgm2(v) => rig.motor.inertia_kgm2 = v,
+            PlantChange::OcHwA(v) => rig.comparators.oc_hw_a = v,
+            PlantChange::OvHwV(v) => rig.comparators.ov_hw_v = v,
+            PlantChange::BrakeResistorOhm(v) => rig.brake_resistor_ohm = v,
+            PlantChange::LockedRotor(v) => rig.motor.locked_rotor = v,
+        }
+    }
+}
+
+/// What happens at one instant (events are expanded: a press becomes a set and a release,
+/// a key string becomes key-downs and key-ups).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Action {
+    Set(Input, u16),
+    KeyDown(char),
+    KeyUp(char),
+    Plant(PlantChange),
+}
+
+/// A scheduled action in virtual time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TimedAction {
+    pub at_ns: u64,
+    pub action: Action,
+}
+
+/// A validated scenario, ready to simulate.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    pub duration_s: Option<f64>,
+    pub rig: RigParams,
+    pub scan_time_ns: u64,
+    pub baud: u32,
+    pub bit_error_rate: f64,
+    /// When the UART wires are cut (never: `u64::MAX`).
+    pub cut_at_ns: u64,
+    /// Sorted by time; equal times keep file order.
+    pub actions: Vec<TimedAction>,
+    /// The scenario types keypad keys (then RUN is left to the keys).
+    pub has_keys: bool,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Scenario {
+            duration_s: None,
+            rig: RigParams::default(),
+            scan_time_ns: 1_000_000,
+            baud: 115_200,
+            bit_error_rate: 0.0,
+            cut_at_ns: u64::MAX,
+            actions: Vec::new(),
+            has_keys: false,
+        }
+    }
+}
+
+/// Keys of the 4 x 4 keypad (panel.md).
+pub const KEYPAD_KEYS: &str = "0123456789ABCD*#";
+
+fn secs_to_ns(s: f64) -> u64 {
+    (s * 1e9).round() as u64
+}
+
+fn positive(name: &str, v: Option<f64>) -> Result<Option<f64>> {
+    match v {
+        Some(x) if !(x.is_finite() && x > 0.0) => {
+            bail!("{name} must be a positive number, got {x}")
+        }
+        _ => Ok(v),
+    }
+}
+
+fn non_negative(name: &str, v: Option<f64>) -> Result<Option<f64>> {
+    match v {
+        Some(x) if !(x.is_finite() && x >= 0.0) => bail!("{name} must be >= 0, got {x}"),
+        _ => Ok(v),
+    }
+}
+
+impl Scenario {
+    pub fn load(path: &Path) -> Result<Scenario> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read scenario {}", path.display()))?;
+        Scenario::parse(&text).with_context(|| format!("invalid scenario {}", path.display()))
+    }
+
+    pub fn parse(text: &str) -> Result<Scenario> {
+        let file: ScenarioFile = toml::from_str(text)?;
+        Scenario::from_file(file)
+    }
+
+    pub fn from_file(f: ScenarioFile) -> Result<Scenario> {
+        let mut s = Scenario {
+            duration_s: positive("duration_s", f.duration_s)?,
+            ..Scenario::default()
+        };
+        let p = &f.plant;
+        let rig = &mut s.rig;
+        if let Some(v) = non_negative("plant.dc_link_v", p.dc_link_v)? {
+            rig.supply_v = v;
+        }
+        if let Some(v) = non_negative("plant.load_torque_nm", p.load_torque_nm)? {
+            rig.motor.load_torque_nm = v;
+        }
+        if let Some(v) = positive("plant.inertia_kgm2", p.inertia_kgm2)? {
+            rig.motor.inertia_kgm2 = v;
+        }
+        if let Some(v) = positive("plant.oc_hw_a", p.oc_hw_a)? {
+            rig.comparators.oc_hw_a = v;
+        }
+        if let Some(v) = positive("plant.ov_hw_v", p.ov_hw_v)? {
+            rig.comparators.ov_hw_v = v;
+        }
+        if let Some(v) = positive("plant.dc_capacitor_uf", p.dc_capacitor_uf)? {
+            rig.dc_capacitor_f = v * 1e-6;
+        }
+        if let Some(v) = positive("plant.brake_resistor_ohm", p.brake_resistor_ohm)? {
+            rig.brake_resistor_ohm = v;
+        }
+        if let Some(v) = positive("plant.supply_r_ohm", p.supply_r_ohm)? {
+            rig.supply_r_ohm = v;
+        }
+        if let Some(v) = non_negative("plant.friction_nms", p.friction_nms)? {
+            rig.motor.friction_nms = v;
+        }
+        for (name, val, slot) in [
+            ("plant.rs_ohm", p.rs_ohm, &mut rig.motor.rs_ohm),
+            ("plant.rr_ohm", p.rr_ohm, &mut rig.motor.rr_ohm),
+            ("plant.lls_h", p.lls_h, &mut rig.motor.lls_h),
+            ("plant.llr_h", p.llr_h, &mut rig.motor.llr_h),
+            ("plant.lm_h", p.lm_h, &mut rig.motor.lm_h),
+        ] {
+            if let Some(v) = positive(name, val)? {
+                *slot = v;
+            }
+        }
+        if let Some(v) = p.locked_rotor {
+            rig.motor.locked_rotor = v;
+        }
+        if let Some(m) = p.pwm_mode {
+            rig.pwm_mode = m;
+        }
+        if let Some(v) = positive("plant.scan_time_ms", p.scan_time_ms)? {
+            if v > 1000.0 {
+                bail!("plant.scan_time_ms must be at most 1000, got {v}");
+            }
+            s.scan_time_ns = secs_to_ns(v * 1e-3).max(1);
+        }
+        let l = &f.link;
+        if let Some(b) = l.baud {
+            if !(1200..=10_000_000).contains(&b) {
+                bail!("link.baud must be 1200..10000000, got {b}");
+            }
+            s.baud = b;
+        }
+        if let Some(r) = l.bit_error_rate {
+            if !(0.0..=0.5).contains(&r) {
+                bail!("link.bit_error_rate must be 0..0.5, got {r}");
+            }
+            s.bit_error_rate = r;
+        }
+        if let Some(c) = non_negative("link.cut_at_s", l.cut_at_s)? {
+            s.cut_at_ns = if c >= 1e9 { u64::MAX } else { secs_to_ns(c) };
+        }
+        for (n, e) in f.events.iter().enumerate() {
+            s.add_event(e)
+                .with_context(|| format!("event {} (at_s = {})", n + 1, e.at_s))?;
+        }
+        s.actions.sort_by_key(|a| a.at_ns);
+        Ok(s)
+    }
+
+    fn push(&mut self, at_s: f64, action: Action) {
+        self.actions.push(TimedAction {
+            at_ns: secs_to_ns(at_s),
+            action,
+        });
+    }
+
+    fn add_event(&mut self, e: &EventKeys) -> Result<()> {
+        if !(e.at_s.is_finite() && e.at_s >= 0.0) {
+            bail!("at_s must be >= 0");
+        }
+        let mut any = false;
+        if let Some(set) = &e.set {
+            for (name, &v) in set {
+                let input = Input::parse(name).with_context(|| {
+                    format!("set: unknown input {name:?} (D00-D07, A00-A03, AUX)")
+                })?;
+                if !(0..=input.max()).contains(&v) {
+                    bail!("set: {name} = {v} out of range 0..{}", input.max());
+                }
+                self.push(e.at_s, Action::Set(input, v as u16));
+                any = true;
+            }
+        }
+        if let Some(name) = &e.press {
+            let Some(input @ Input::Digital(_)) = Input::parse(name) else {
+                bail!("press: {name:?} is not a digital input (D00-D07)");
+            };
+            let hold = e.hold_s.unwrap_or(DEFAULT_HOLD_S);
+            if !(hold.is_finite() && hold > 0.0) {
+                bail!("hold_s must be > 0");
+            }
+            self.push(e.at_s, Action::Set(input, 1));
+            self.push(e.at_s + hold, Action::Set(input, 0));
+            any = true;
+        } else if e.hold_s.is_some() {
+            bail!("hold_s without press");
+        }
+        if let Some(keys) = &e.keys {
+            for (i, c) in keys.chars().filter(|c| !c.is_whitespace()).enumerate() {
+                let k = c.to_ascii_uppercase();
+                if !KEYPAD_KEYS.contains(k) {
+                    bail!("keys: {c:?} is not a keypad key ({KEYPAD_KEYS})");
+                }
+                let t = e.at_s + i as f64 * KEY_SPACING_S;
+                self.push(t, Action::KeyDown(k));
+                self.push(t + KEY_HOLD_S, Action::KeyUp(k));
+                self.has_keys = true;
+            }
+            any = true;
+        }
+        let changes = [
+            non_negative("dc_link_v", e.dc_link_v)?.map(PlantChange::DcLinkV),
+            non_negative("load_torque_nm", e.load_torque_nm)?.map(PlantChange::LoadTorqueNm),
+            positive("inertia_kgm2", e.inertia_kgm2)?.map(PlantChange::InertiaKgm2),
+            positive("oc_hw_a", e.oc_hw_a)?.map(PlantChange::OcHwA),
+            positive("ov_hw_v", e.ov_hw_v)?.map(PlantChange::OvHwV),
+            positive("brake_resistor_ohm", e.brake_resistor_ohm)?
+                .map(PlantChange::BrakeResistorOhm),
+            e.locked_rotor.map(PlantChange::LockedRotor),
+        ];
+        for c in changes.into_iter().flatten() {
+            self.push(e.at_s, Action::Plant(c));
+            any = true;
+        }
+        if !any {
+            bail!("the event does nothing (give set, press, keys or a plant parameter)");
+        }
+        Ok(())
+    }
+
+    /// The run length: `--duration`, else the scenario's, else [`DEFAULT_DURATION_S`].
+    pub fn duration_s(&self, cli: Option<f64>) -> f64 {
+        cli.or(self.duration_s).unwrap_or(DEFAULT_DURATION_S)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SPEC_EXAMPLE: &str = r#"
+duration_s = 20.0
+
+[plant]
+dc_link_v = 30.0
+load_torque_nm = 0.0
+inertia_kgm2 = 0.0005
+oc_hw_a = 3.0
+ov_hw_v = 40.0
+dc_capacitor_uf = 1000.0
+brake_resistor_ohm = 10.0
+scan_time_ms = 1.0
+pwm_mode = "averaged"
+
+[link]
+baud = 115200
+bit_error_rate = 0.0
+cut_at_s = 1e9
+
+[[event]]
+at_s = 0.0
+set = { A00 = 500, A01 = 800 }
+
+[[event]]
+at_s = 1.0
+press = "D00"
+hold_s = 0.2
+
+[[event]]
+at_s = 2.0
+set = { D03 = 1 }
+
+[[event]]
+at_s = 5.0
+keys = "A"
+
+[[event]]
+at_s = 6.0
+load_torque_nm = 0.05
+"#;
+
+    #[test]
+    fn the_spec_example_parses() {
+        let s = Scenario::parse(SPEC_EXAMPLE).unwrap();
+        assert_eq!(s.duration_s, Some(20.0));
+        assert_eq!(s.cut_at_ns, u64::MAX);
+        assert!(s.has_keys);
+        let at = |t: f64| -> Vec<&Action> {
+            s.actions
+                .iter()
+                .filter(|a| a.at_ns == secs_to_ns(t))
+                .map(|a| &a.action)
+                .collect()
+        };
+        assert_eq!(
+            at(0.0),
+            vec![
+                &Action::Set(Input::Analog(0), 500),
+                &Action::Set(Input::Analog(1), 800)
+            ]
+        );
+        assert_eq!(at(1.0), vec![&Action::Set(Input::Digital(0), 1)]);
+        assert_eq!(at(1.2), vec![&Action::Set(Input::Digital(0), 0)]);
+        assert_eq!(at(5.0), vec![&Action::KeyDown('A')]);
+        assert_eq!(
+            at(6.0),
+            vec![&Action::Plant(PlantChange::LoadTorqueNm(0.05))]
+        );
+        assert!(s.actions.windows(2).all(|w| w[0].at_ns <= w[1].at_ns));
+    }
+
+    #[test]
+    fn mistakes_are_named() {
+        let err = |t: &str| format!("{:#}", Scenario::parse(t).unwrap_err());
+        assert!(err("[plant]\ndc_link = 3").contains("dc_link"));
+        assert!(err("[[event]]\nat_s = 1\nset = { D09 = 1 }").contains("D09"));
+        assert!(err("[[event]]\nat_s = 1\nset = { A00 = 2000 }").contains("out of range"));
+        assert!(err("[[event]]\nat_s = 1\npress = \"A00\"").contains("digital"));
+        assert!(err("[[event]]\nat_s = 1\nkeys = \"X\"").contains("keypad"));
+        assert!(err("[plant]\npwm_mode = \"fast\"").contains("pwm_mode"));
+        assert!(err("[[event]]\nat_s = 1").contains("does nothing"));
+        assert!(err("duration_s = -1").contains("duration_s"));
+    }
+
+    #[test]
+    fn duration_precedence() {
+        let s = Scenario::parse("duration_s = 3.0").unwrap();
+        assert_eq!(s.duration_s(Some(1.0)), 1.0);
+        assert_eq!(s.duration_s(None), 3.0);
+        assert_eq!(Scenario::default().duration_s(None), DEFAULT_DURATION_S);
+    }
+}

@@ -1,0 +1,466 @@
+//! Virtual-time co-simulation: the plant, both MCUs, the UART wires and the scenario,
+//! scheduled in integer nanoseconds.
+//!
+//! Sources of events, each with its own next time: the drive's PWM period (from the timer
+//! setup the firmware programs, exact to the timer tick, no drift), the drive's and the
+//! PLC's 1 ms ticks, the PLC scan, bytes arriving on either UART wire, a UART becoming
+//! free, scenario actions, the wire cut, and CSV samples. The plant is advanced to each
+//! event's time before the event is handled. Events at the same time run in a fixed
+//! order (scenario, cut, UART receive, PWM, drive tick, PLC tick, scan, UART transmit,
+//! sample), so a run is a pure function of its inputs and the seed.
+
+use anyhow::{Context, Result};
+use firmware_drive::{AdcSample, HwBreak, PwmCommand};
+use firmware_plc::storage::image::{program_image, ImageOptions};
+use firmware_plc::storage::MemEeprom;
+use shared_protocol::link::channel::{Channel, Impairments};
+use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
+use shared_protocol::program::Program;
+use shared_protocol::units::Micros;
+
+use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins};
+use crate::plant::{BreakCause, GateCommand, Leg, Plant, PlantOutputs};
+use crate::scenario::{Action, Input, Scenario};
+
+const MS_NS: u64 = 1_000_000;
+
+/// One row of the record (hil-sim.md "CSV columns").
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    pub t_ns: u64,
+    pub f_cmd_hz: f64,
+    pub dir: i8,
+    pub m: f64,
+    pub pwm_on: bool,
+    pub fault: u8,
+    pub u_dc_v: f64,
+    pub i_abc_a: [f64; 3],
+    pub speed_rpm: f64,
+    pub torque_nm: f64,
+    pub brake: bool,
+    pub digital_in: u8,
+    pub digital_out: u8,
+    pub q: [i16; 8],
+    pub lcd: [Option<i16>; 4],
+}
+
+/// A drive fault as it was latched.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaultRecord {
+    pub t_ns: u64,
+    pub code: u8,
+}
+
+/// Settings of one run besides the scenario.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunOptions {
+    pub seed: u64,
+    pub sample_ns: u64,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            seed: 1,
+            sample_ns: MS_NS,
+        }
+    }
+}
+
+/// The whole rig in virtual time.
+pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
+    now_ns: u64,
+    plant: Plant,
+    plant_ns: u64,
+    drive: D,
+    plc: P,
+    scenario: Scenario,
+    next_action: usize,
+    pins: PlcPins,
+    aux_counts: u16,
+    /// PLC TX -> drive RX.
+    to_drive: Channel,
+    /// Drive TX -> PLC RX.
+    to_plc: Channel,
+    cut: bool,
+    /// Wake-ups when a busy UART becomes free: [PLC, drive].
+    tx_wake_ns: [Option<u64>; 2],
+    // PWM timer.
+    pwm_epoch_ns: u64,
+    pwm_k: u64,
+    pwm_key: (u16, u16),
+    next_pwm_ns: u64,
+    pending_gate: GateCommand,
+    last_cmd: PwmCommand,
+    break_active: [bool; 2],
+    next_drive_tick_ns: u64,
+    next_plc_tick_ns: u64,
+    next_scan_ns: u64,
+    next_sample_ns: u64,
+    sample_ns: u64,
+    faults: Vec<FaultRecord>,
+    last_fault: u8,
+}
+
+impl Simulation<DriveBoard, PlcBoard> {
+    /// The default boards with `program` in the PLC's EEPROM (slot 1, RUN at power-up
+    /// unless the scenario types keys).
+    pub fn new(program: &Program, scenario: Scenario, opts: RunOptions) -> Result<Self> {
+        let image = program_image(
+            program,
+            &ImageOptions {
+                slot: 1,
+                run_at_power_up: !scenario.has_keys,
+            },
+        )
+        .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))
+        .context("EEPROM image")?;
+        let link = LinkConfig::at_baud(scenario.baud);
+        let drive = DriveBoard::new(link);
+        let plc = PlcBoard::new(MemEeprom::from_image(&image), link);
+        Ok(Simulation::with_boards(drive, plc, scenario, opts))
+    }
+}
+
+fn timer_period_ns(epoch: u64, k: u64, ticks: u64, f_tim: u32) -> u64 {
+    let f = u128::from(f_tim.max(1));
+    epoch + ((u128::from(k) * u128::from(ticks) * 1_000_000_000) / f) as u64
+}
+
+impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
+    pub fn with_boards(drive: D, plc: P, scenario: Scenario, opts: RunOptions) -> Self {
+        let imp = Impairments {
+            bit_error_rate: scenario.bit_error_rate,
+            ..Impairments::default()
+        };
+        let seed = opts.seed;
+        let to_drive = Channel::new(scenario.baud, imp, seed);
+        let to_plc = Channel::new(scenario.baud, imp, seed.wrapping_mul(31).wrapping_add(17));
+        let timing = drive.pwm_timing();
+        Simulation {
+            now_ns: 0,
+            plant: Plant::new(scenario.rig),
+            plant_ns: 0,
+            drive,
+            plc,
+            next_action: 0,
+            pins: PlcPins::default(),
+            aux_counts: 0,
+            to_drive,
+            to_plc,
+            cut: false,
+            tx_wake_ns: [None; 2],
+            pwm_epoch_ns: 0,
+            pwm_k: 0,
+            pwm_key: (timing.arr, timing.psc),
+            next_pwm_ns: 0,
+            pending_gate: GateCommand::OFF,
+            last_cmd: PwmCommand {
+                enable: false,
+                duty: [0; 3],
+                period_counts: timing.arr,
+                brake: false,
+            },
+            break_active: [false; 2],
+            next_drive_tick_ns: MS_NS,
+            next_plc_tick_ns: MS_NS,
+            next_scan_ns: 0,
+            next_sample_ns: 0,
+            sample_ns: opts.sample_ns.max(1),
+            faults: Vec::new(),
+            last_fault: 0,
+            scenario,
+        }
+    }
+
+    pub fn now_ns(&self) -> u64 {
+        self.now_ns
+    }
+
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    pub fn drive(&self) -> &D {
+        &self.drive
+    }
+
+    pub fn plc(&self) -> &P {
+        &self.plc
+    }
+
+    pub fn pins(&self) -> PlcPins {
+        self.pins
+    }
+
+    /// Faults in the order they latched.
+    pub fn faults(&self) -> &[FaultRecord] {
+        &self.faults
+    }
+
+    /// Runs until `end_ns` (inclusive), calling `on_sample` at every sample time.
+    pub fn run_until(&mut self, end_ns: u64, mut on_sample: impl FnMut(&Sample)) {
+        loop {
+            let t = self.next_event_ns();
+            if t > end_ns {
+                break;
+            }
+            self.advance_plant(t);
+            self.now_ns = t;
+            self.handle_events(t, &mut on_sample);
+        }
+        self.advance_plant(end_ns);
+        self.now_ns = self.now_ns.max(end_ns);
+    }
+
+    fn advance_plant(&mut self, t: u64) {
+        if t > self.plant_ns {
+            self.plant.advance(t - self.plant_ns);
+            self.plant_ns = t;
+        }
+    }
+
+    fn next_event_ns(&self) -> u64 {
+        let mut t = self
+            .next_pwm_ns
+            .min(self.next_drive_tick_ns)
+            .min(self.next_plc_tick_ns)
+            .min(self.next_scan_ns)
+            .min(self.next_sample_ns);
+        if let Some(a) = self.scenario.actions.get(self.next_action) {
+            t = t.min(a.at_ns);
+        }
+        if !self.cut {
+            t = t.min(self.scenario.cut_at_ns);
+        }
+        for c in [&self.to_drive, &self.to_plc] {
+            if let Some(a) = c.next_arrival() {
+                t = t.min(a.0.saturating_mul(1000));
+            }
+        }
+        for w in self.tx_wake_ns.into_iter().flatten() {
+            t = t.min(w);
+        }
+        t
+    }
+
+    fn handle_events(&mut self, t: u64, on_sample: &mut impl FnMut(&Sample)) {
+        let now = Micros(t / 1000);
+        while let Some(a) = self.scenario.actions.get(self.next_action) {
+            if a.at_ns > t {
+                break;
+            }
+            let action = a.action.clone();
+            self.next_action += 1;
+            self.apply(&action, now);
+        }
+        if !self.cut && t >= self.scenario.cut_at_ns {
+            self.cut = true;
+            self.to_drive.set_cut(true);
+            self.to_plc.set_cut(true);
+        }
+        let mut plc_link = false;
+        let mut drive_link = false;
+        let mut buf = [0u8; 64];
+        loop {
+            let n = self.to_drive.receive(now, &mut buf);
+            if n == 0 {
+                break;
+            }
+            self.drive.uart_rx(buf.get(..n).unwrap_or(&[]), now);
+            drive_link = true;
+        }
+        loop {
+            let n = self.to_plc.receive(now, &mut buf);
+            if n == 0 {
+                break;
+            }
+            self.plc.uart_rx(buf.get(..n).unwrap_or(&[]), now);
+            plc_link = true;
+        }
+        if t >= self.next_pwm_ns {
+            self.pwm_event(t);
+        }
+        if t >= self.next_drive_tick_ns {
+            self.drive.tick_1ms(now);
+            self.next_drive_tick_ns += MS_NS;
+            drive_link = true;
+            let f = self.drive.status().fault.map_or(0, |f| f.code());
+            if f != 0 && f != self.last_fault {
+                self.faults.push(FaultRecord { t_ns: t, code: f });
+            }
+            self.last_fault = f;
+        }
+        if t >= self.next_plc_tick_ns {
+            self.plc.tick_1ms(now);
+            self.next_plc_tick_ns += MS_NS;
+            plc_link = true;
+        }
+        if t >= self.next_scan_ns {
+            self.plc.scan(&self.pins, now);
+            self.next_scan_ns += self.scenario.scan_time_ns;
+            plc_link = true;
+        }
+        for side in 0..2 {
+            if self.tx_wake_ns[side].is_some_and(|w| w <= t) {
+                self.tx_wake_ns[side] = None;
+                if side == 0 {
+                    plc_link = true;
+                } else {
+                    drive_link = true;
+                }
+            }
+        }
+        if plc_link {
+            self.transmit(0, now);
+        }
+        if drive_link {
+            self.transmit(1, now);
+        }
+        if t >= self.next_sample_ns {
+            let s = self.sample(t);
+            on_sample(&s);
+            self.next_sample_ns += self.sample_ns;
+        }
+    }
+
+    /// Lets side 0 (PLC) or 1 (drive) hand a frame to its UART if the line is free.
+    fn transmit(&mut self, side: usize, now: Micros) {
+        let mut out = [0u8; MAX_WIRE_FRAME];
+        let (chan, n) = if side == 0 {
+            if !self.to_drive.is_idle(now) {
+                self.tx_wake_ns[0] = Some(self.to_drive.free_at().0 * 1000);
+                return;
+            }
+            (&mut self.to_drive, self.plc.uart_tx(now, &mut out))
+        } else {
+            if !self.to_plc.is_idle(now) {
+                self.tx_wake_ns[1] = Some(self.to_plc.free_at().0 * 1000);
+                return;
+            }
+            (&mut self.to_plc, self.drive.uart_tx(now, &mut out))
+        };
+        if n > 0 {
+            chan.send(out.get(..n).unwrap_or(&[]), now);
+            self.tx_wake_ns[side] = Some(chan.free_at().0 * 1000);
+        }
+    }
+
+    fn apply(&mut self, action: &Action, now: Micros) {
+        match *action {
+            Action::Set(Input::Digital(n), v) => {
+                if v != 0 {
+                    self.pins.digital |= 1 << n;
+                } else {
+                    self.pins.digital &= !(1 << n);
+                }
+            }
+            Action::Set(Input::Analog(n), v) => {
+                if let Some(a) = self.pins.analog.get_mut(usize::from(n)) {
+                    *a = v;
+                }
+            }
+            // 10-bit value on the drive's 12-bit converter.
+            Action::Set(Input::Aux, v) => self.aux_counts = (v << 2).min(4095),
+            Action::KeyDown(k) => self.plc.key(k, true, now),
+            Action::KeyUp(k) => self.plc.key(k, false, now),
+            Action::Plant(c) => c.apply(self.plant.params_mut()),
+        }
+    }
+
+    fn pwm_event(&mut self, t: u64) {
+        // Break input first: the hardware has already opened the switches.
+        if let Some(c) = self.plant.take_break() {
+            let k = cause_index(c);
+            self.break_active[k] = true;
+            self.drive.break_input(hw_break(c), true);
+        }
+        let levels = self.plant.comparator_levels();
+        for c in BreakCause::ALL {
+            let k = cause_index(c);
+            if self.break_active[k] && !levels[k] {
+                self.break_active[k] = false;
+                self.drive.break_input(hw_break(c), false);
+            }
+        }
+        let timing = self.drive.pwm_timing();
+        let f_tim = self.drive.timer_clock_hz();
+        let key = (timing.arr, timing.psc);
+        if key != self.pwm_key {
+            // The firmware reprograms TIM1: the new period starts now.
+            self.pwm_key = key;
+            self.pwm_epoch_ns = t;
+            self.pwm_k = 0;
+        }
+        let ticks = 2 * u64::from(timing.arr.max(1)) * (u64::from(timing.psc) + 1);
+        self.pwm_k += 1;
+        self.next_pwm_ns = timer_period_ns(self.pwm_epoch_ns, self.pwm_k, ticks, f_tim);
+        let period_ns = self.next_pwm_ns - t;
+        // The duties written in the last interrupt were preloaded: they start now.
+        self.plant.start_period(period_ns, self.pending_gate);
+        let s = self.plant.adc_sample();
+        let adc = AdcSample {
+            i_a: s.i_a_counts,
+            i_b: s.i_b_counts,
+            u_dc: s.u_dc_counts,
+            aux: self.aux_counts,
+        };
+        let cmd = self.drive.pwm_isr(&adc);
+        self.plant.set_brake(cmd.brake);
+        let dead_ns =
+            (u64::from(timing.dead_time_counts) * 1_000_000_000).div_ceil(u64::from(f_tim.max(1)));
+        let gate = if cmd.enable {
+            let n = f64::from(cmd.period_counts.max(1));
+            GateCommand {
+                legs: cmd.duty.map(|d| Leg::Duty(f64::from(d) / n)),
+                dead_time_ns: dead_ns,
+            }
+        } else {
+            // Clearing MOE acts at once, not at the next update.
+            self.plant.set_command(GateCommand::OFF);
+            GateCommand::OFF
+        };
+        self.pending_gate = gate;
+        self.last_cmd = cmd;
+    }
+
+    fn sample(&self, t: u64) -> Sample {
+        let o: PlantOutputs = self.plant.outputs();
+        let st = self.drive.status();
+        let mut q = [0i16; 8];
+        for (n, v) in q.iter_mut().enumerate() {
+            *v = self.plc.q(n as u8);
+        }
+        Sample {
+            t_ns: t,
+            f_cmd_hz: f64::from(st.f_applied.0) / 10.0,
+            dir: if st.reverse { -1 } else { 1 },
+            m: f64::from(st.modulation_permille) / 1000.0,
+            pwm_on: self.last_cmd.enable && !o.hw_break,
+            fault: st.fault.map_or(0, |f| f.code()),
+            u_dc_v: o.u_dc_v,
+            i_abc_a: o.i_abc_a,
+            speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
+            torque_nm: o.torque_nm,
+            brake: o.brake_on,
+            digital_in: self.pins.digital,
+            digital_out: self.plc.outputs(),
+            q,
+            lcd: self.plc.lcd_fields(),
+        }
+    }
+}
+
+fn cause_index(c: BreakCause) -> usize {
+    match c {
+        BreakCause::Overcurrent => 0,
+        BreakCause::Overvoltage => 1,
+    }
+}
+
+fn hw_break(c: BreakCause) -> HwBreak {
+    match c {
+        BreakCause::Overcurrent => HwBreak::Overcurrent,
+        BreakCause::Overvoltage => HwBreak::Overvoltage,
+    }
+}
