@@ -8,58 +8,14 @@ use firmware_drive::drive::DriveWarning;
 use firmware_drive::vm::VmWarning;
 use firmware_drive::{DriveCommand, DriveEvent, DriveState};
 
-const PI_RAMP: &str = "
-000 PWF K00 9800
-001 LD  K01 0000
-002 LD  K02 2000
-003 LD  Q00
-004 LD  K03 0500
-005 PI  K04 1000
-006 WR  Q00
-007 WR  PW1
-";
-
-const THREE_PHASE_SINE: &str = "
-000 PWF K00 1500
-001 LD  K01 0500
-002 LD  K02 0500
-003 LD  K03 0000
-004 SN1
-005 LD  K04 1200
-006 SN2
-007 LD  K05 2400
-008 SN3
-";
-
-/// Lines 000-025 of the full motor program, with the project's `frv K20 0200`.
-const MOTOR: &str = "
-000 PWF Q00
-001 LD  K00 0000
-002 LD  K01 2333
-003 LD  Q01
-004 LD  Q02
-005 PI  K02 1000
-006 WR  Q01
-007 Rs= K03 0195
-008 Uc= K04 0030
-009 Iz= K05 0050
-010 =dU
-011 fmn K06 0050
-012 fjm K07 0500
-013 fmx K08 0700
-014 U>  K09 0035
-015 U<  K10 0025
-016 I>  K11 0200
-017 LD  Q01
-018 LD  Q01
-019 LD  K12 0000
-020 SN1
-021 LD  K13 1200
-022 SN2
-023 LD  K14 2400
-024 SN3
-025 frv K20 0200
-";
+// The project's copies of the source's examples (shared-protocol/programs, program.md 5).
+const PI_RAMP: &str = include_str!("../../shared-protocol/programs/pi_ramp.plc");
+const THREE_PHASE_SINE: &str = include_str!("../../shared-protocol/programs/three_phase_sine.plc");
+/// The full motor program; the drive takes lines 000-025 (with `frv K20 0200`).
+const MOTOR: &str = include_str!("../../shared-protocol/programs/motor.plc");
+const DIRECT_PWM: &str = include_str!("../../shared-protocol/programs/direct_pwm.plc");
+const IR_BOOST: &str = include_str!("../../shared-protocol/programs/ir_boost.plc");
+const PROTECTIONS: &str = include_str!("../../shared-protocol/programs/protections.plc");
 
 #[test]
 fn pi_ramp_is_a_first_order_lag_from_0_to_500_on_pw1() {
@@ -285,4 +241,49 @@ fn motor_reversal_happens_at_the_turning_point_below_frv() {
     assert!(rig.core.status().reverse);
     rig.run_ms(10_000);
     assert!((phase_order(&mut rig) + 120.0).abs() < 2.0);
+}
+
+#[test]
+fn direct_pwm_outputs_the_q00_duty_on_pw1() {
+    let mut rig = Rig::new(DIRECT_PWM);
+    rig.cmd(DriveCommand::SetQ {
+        addr: 0,
+        value: 250,
+    });
+    rig.cmd(DriveCommand::Run);
+    rig.step_ms(|_| {});
+    let arr = rig.core.pwm_timing().arr;
+    // 170 MHz / (2 * 5620 Hz) = 15125 counts.
+    assert_eq!(arr, 15125);
+    let mut seen = 0;
+    rig.step_ms(|c| {
+        assert!(c.enable);
+        assert_eq!(c.duty, [3781, 0, 0]); // 25.0 % of 15125, rounded
+        seen += 1;
+    });
+    assert!(seen >= 5);
+}
+
+#[test]
+fn ir_boost_computes_du() {
+    let rig = Rig::new(IR_BOOST);
+    // round(1023 * 1.95 * 0.6 / 15) = round(79.79) = 80, applied when loaded.
+    assert_eq!(rig.core.vm().settings().du, 80);
+}
+
+#[test]
+fn protections_brake_above_30_v_and_trip_above_1_a() {
+    let mut rig = Rig::new(PROTECTIONS);
+    rig.sample.u_dc = 2800; // 30.8 V
+    let mut brake = false;
+    rig.step_ms(|c| brake |= c.brake);
+    assert!(brake, "chopper on above U> even in IDLE");
+    rig.sample.u_dc = 2700; // 29.7 V: inside the 1 V hysteresis
+    rig.step_ms(|c| assert!(c.brake));
+    rig.sample.u_dc = 2600; // 28.6 V
+    rig.step_ms(|c| assert!(!c.brake));
+    rig.cmd(DriveCommand::Run);
+    rig.sample.i_a = 2048 + 206; // 1.005 A
+    rig.step_ms(|c| assert!(!c.enable));
+    assert_eq!(rig.core.fault(), Some(firmware_drive::FaultCode::Oc));
 }
