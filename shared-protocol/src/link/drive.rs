@@ -207,7 +207,7 @@ impl DriveLink {
         }
         self.ack_owed = true;
         // Room for the largest message's events, so nothing applied is ever lost.
-        let room = self.events.capacity() - self.events.len() >= MAX_Q_PER_FRAME + 1;
+        let room = self.events.capacity() - self.events.len() > MAX_Q_PER_FRAME;
         if self.rx.classify(f.seq) != Arrival::New || !room {
             self.stats.duplicates = self.stats.duplicates.saturating_add(1);
             return;
@@ -282,7 +282,7 @@ impl DriveLink {
         let end = start + data.len();
         if !d.active
             || usize::from(first_line) != d.next_line
-            || data.len() % LINE_BYTES != 0
+            || !data.len().is_multiple_of(LINE_BYTES)
             || end > SECTION_BYTES
         {
             d.broken = true;

@@ -1,0 +1,167 @@
+//! Link benchmark: end-to-end latency of a Q write (PLC endpoint -> drive endpoint) on a
+//! clean byte-timed wire, wire bandwidth use at the default heartbeat/status rates, and
+//! the codec's CPU cost on the host.
+//!
+//! `cargo bench -p shared-protocol --bench link_latency`
+
+use std::time::Instant;
+
+use shared_protocol::link::channel::Impairments;
+use shared_protocol::link::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
+use shared_protocol::link::pair::LinkPair;
+use shared_protocol::link::{DriveEvent, DriveState, DriveStatus, LinkConfig, PlcMsg, QValue};
+use shared_protocol::units::Micros;
+
+fn connected(baud: u32) -> LinkPair {
+    let mut p = LinkPair::new(LinkConfig::at_baud(baud), Impairments::default(), 1);
+    p.drive.set_status(DriveStatus {
+        state: DriveState::Run,
+        freq_dhz: 500,
+        udc_dv: 300,
+        imax_ca: 150,
+        com: 512,
+        ..Default::default()
+    });
+    p.run_until(Micros(20_000), |_| {});
+    assert!(p.plc.is_up() && p.drive.is_up());
+    while p.drive.poll_event().is_some() {}
+    while p.plc.poll_event().is_some() {}
+    p
+}
+
+/// Q writes at pseudo-random phases against the heartbeat and status traffic, one per
+/// simulated PLC scan burst; returns sorted latencies in microseconds.
+fn latencies(baud: u32, writes_per_scan: u8, samples: usize) -> Vec<u64> {
+    let mut p = connected(baud);
+    let mut x: u64 = 12345;
+    let mut out = Vec::with_capacity(samples);
+    for k in 0..samples {
+        x = x
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let issue = Micros(p.now.0 + 2_000 + (x >> 33) % 15_000);
+        p.run_until(issue, |_| {});
+        while p.drive.poll_event().is_some() {}
+        let value = (k % 30_000) as i16;
+        for a in 0..writes_per_scan {
+            p.plc.write_q(a, value).unwrap();
+        }
+        p.service();
+        let last = writes_per_scan - 1;
+        let limit = Micros(issue.0 + 100_000);
+        let mut done = None;
+        while p.now < limit && done.is_none() {
+            p.step(limit);
+            while let Some(e) = p.drive.poll_event() {
+                if e == (DriveEvent::QWrite { addr: last, value }) {
+                    done = Some(p.now);
+                }
+            }
+        }
+        out.push(done.expect("applied").0 - issue.0);
+    }
+    out.sort_unstable();
+    out
+}
+
+fn report(name: &str, v: &[u64]) {
+    let mean = v.iter().sum::<u64>() as f64 / v.len() as f64;
+    let pct = |q: f64| v[((v.len() - 1) as f64 * q) as usize];
+    println!(
+        "{name:<44} n={:<5} min {:>5} us  mean {:>7.1} us  p50 {:>5} us  p99 {:>5} us  max {:>5} us",
+        v.len(),
+        v[0],
+        mean,
+        pct(0.5),
+        pct(0.99),
+        v[v.len() - 1]
+    );
+}
+
+/// Bytes per second each way over `secs` of simulated RUN; `q_every_ms` adds a Q write
+/// at that period (0 = none).
+fn bandwidth(baud: u32, secs: u64, q_every_ms: u64) -> (f64, f64) {
+    let mut p = connected(baud);
+    let start_d = p.to_drive.stats().busy_ns;
+    let start_p = p.to_plc.stats().busy_ns;
+    let t0 = p.now;
+    let mut next_q = t0;
+    let mut v = 0i16;
+    let end = Micros(t0.0 + secs * 1_000_000);
+    while p.now < end {
+        if q_every_ms > 0 && p.now >= next_q {
+            v = v.wrapping_add(1);
+            p.plc.write_q(0, v).unwrap();
+            next_q = Micros(next_q.0 + q_every_ms * 1000);
+        }
+        p.step(Micros(next_q.0.min(end.0).max(p.now.0 + 1)));
+        while p.drive.poll_event().is_some() {}
+    }
+    let span_ns = (p.now.0 - t0.0) as f64 * 1000.0;
+    (
+        (p.to_drive.stats().busy_ns - start_d) as f64 / span_ns * 100.0,
+        (p.to_plc.stats().busy_ns - start_p) as f64 / span_ns * 100.0,
+    )
+}
+
+fn main() {
+    println!("== Q write latency, PLC write_q -> drive QWrite event, clean byte-timed wire ==");
+    report("115200 baud, 1 Q per scan", &latencies(115_200, 1, 5_000));
+    report(
+        "115200 baud, 4 Q in one scan (last applied)",
+        &latencies(115_200, 4, 2_000),
+    );
+    report("1 Mbaud, 1 Q per scan", &latencies(1_000_000, 1, 5_000));
+
+    println!("\n== wire use (% of capacity, 8N1) in RUN at default rates ==");
+    for (baud, q) in [
+        (115_200, 0),
+        (115_200, 10),
+        (115_200, 1),
+        (1_000_000, 0),
+        (1_000_000, 1),
+    ] {
+        let (down, up) = bandwidth(baud, 20, q);
+        let what = if q == 0 {
+            "heartbeat + status only".to_string()
+        } else {
+            format!("+ a Q write every {q} ms")
+        };
+        println!("{baud:>7} baud, {what:<28} PLC->drive {down:5.1} %  drive->PLC {up:5.1} %");
+    }
+
+    println!("\n== codec cost on this host (not the MCU) ==");
+    let mut w = heapless::Vec::new();
+    w.push(QValue {
+        addr: 1,
+        value: 1234,
+    })
+    .unwrap();
+    let f = Frame {
+        seq: 1,
+        ack: 2,
+        msg: PlcMsg::QWrite(w),
+    };
+    let mut buf = [0u8; MAX_WIRE_FRAME];
+    let n = encode_frame(&f, false, &mut buf).unwrap();
+    let iters = 1_000_000u32;
+    let t = Instant::now();
+    let mut total = 0usize;
+    for _ in 0..iters {
+        total += encode_frame(std::hint::black_box(&f), false, &mut buf).unwrap();
+    }
+    let enc = t.elapsed().as_nanos() as f64 / f64::from(iters);
+    let mut r = FrameReader::new();
+    let t = Instant::now();
+    let mut ok = 0u32;
+    for _ in 0..iters {
+        for &b in std::hint::black_box(&buf[..n]) {
+            if let Some(Ok(_)) = r.push::<PlcMsg>(b) {
+                ok += 1;
+            }
+        }
+    }
+    let dec = t.elapsed().as_nanos() as f64 / f64::from(iters);
+    assert_eq!(ok, iters);
+    println!("Q-write frame: {n} wire bytes; encode {enc:.0} ns, decode {dec:.0} ns per frame ({total} bytes)");
+}
