@@ -14,3 +14,4 @@ pub mod vm;
 pub mod link;
 pub mod storage;
 pub mod editor;
+pub mod debounce;
