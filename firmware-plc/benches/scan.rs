@@ -12,35 +12,8 @@ use firmware_plc::vm::{PlcVm, ScanInputs, ScanOutputs};
 use shared_protocol::program::{assemble, Program};
 use shared_protocol::units::Millis;
 
-/// The source's full motor program, PLC lines only (26 instructions).
-const MOTOR_PLC: &str = "
-150 LD  D00
-151 LET B00
-152 I/O B01
-153 LDC B01
-154 LD  K15 0000
-155 WR  Q02
-156 LD  B01
-157 LD  A01
-158 LCD
-159 WR  Q02
-160 LD  D01
-161 LET B02
-162 I/O B03
-163 LD  B03
-164 REV
-165 LD  D01
-166 RES B01
-167 IMP K16 0070
-168 NOT
-169 LET B04
-170 SET B01
-171 LD  A00
-172 MUL K17 0010
-173 LCD
-174 LDC B06
-175 WR  Q00
-";
+/// The source's full motor program (26 PLC instructions; the drive lines are not run).
+const MOTOR: &str = include_str!("../../shared-protocol/programs/motor.plc");
 
 fn bench(name: &str, program: &Program, scans: u32) {
     let executed = plc_instructions(program);
@@ -85,6 +58,6 @@ fn main() {
     bench("mixed, 850 lines", &mixed_program(), 20_000);
     bench("timers only, 850 lines", &timer_program(), 20_000);
     bench("empty program", &Program::default(), 20_000);
-    let motor = assemble(MOTOR_PLC).expect("motor program assembles");
+    let motor = assemble(MOTOR).expect("motor program assembles");
     bench("motor example, 26 lines", &motor, 200_000);
 }

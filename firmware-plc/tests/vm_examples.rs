@@ -6,14 +6,7 @@ mod vm_support;
 use vm_support::Rig;
 
 /// Source: "RS flip-flop with output on O01": D00 sets, D01 resets.
-const RS_FLIP_FLOP: &str = "
-150 LD  D00
-151 SET B03
-152 LD  D01
-153 RES B03
-154 LD  B03
-155 WR  O01
-";
+const RS_FLIP_FLOP: &str = include_str!("../../shared-protocol/programs/rs_flipflop.plc");
 
 #[test]
 fn rs_flip_flop() {
@@ -34,13 +27,7 @@ fn rs_flip_flop() {
 }
 
 /// Source: "T flip-flop: first press on, second press off".
-const T_FLIP_FLOP: &str = "
-150 LD  D00
-151 LET B00
-152 I/O B01
-153 LD  B01
-154 WR  O00
-";
+const T_FLIP_FLOP: &str = include_str!("../../shared-protocol/programs/t_flipflop.plc");
 
 #[test]
 fn t_flip_flop() {
@@ -71,16 +58,7 @@ fn t_flip_flop_button_held_at_run_start_does_not_toggle() {
 }
 
 /// Source: "O01 = (D00 & D01) | (D02 & D03)".
-const AND_OR: &str = "
-150 LD  D00
-151 LD  D01
-152 AND
-153 LD  D02
-154 LD  D03
-155 AND
-156 OR
-157 WR  O01
-";
+const AND_OR: &str = include_str!("../../shared-protocol/programs/and_or.plc");
 
 #[test]
 fn and_or_expression_all_inputs() {
@@ -95,15 +73,7 @@ fn and_or_expression_all_inputs() {
 }
 
 /// Source: "counts up on the falling edge of D00; at 100 it resets and stops counting".
-const COUNTER_TO_100: &str = "
-150 LDC D00
-151 LET B00
-152 LD  B01
-153 CTU Q05
-154 LD  Q05
-155 EQ  K05 0100
-156 SET B01
-";
+const COUNTER_TO_100: &str = include_str!("../../shared-protocol/programs/counter100.plc");
 
 #[test]
 fn counter_to_100_with_let() {
@@ -135,11 +105,7 @@ fn counter_to_100_with_let() {
 }
 
 /// Source: "on-delay of 10 s".
-const ON_DELAY_10S: &str = "
-150 LD  D00
-151 TON K01 0100
-152 WR  O04
-";
+const ON_DELAY_10S: &str = include_str!("../../shared-protocol/programs/on_delay_10s.plc");
 
 #[test]
 fn on_delay_10_s() {
@@ -170,28 +136,26 @@ fn on_delay_10_s() {
     assert!(r.scan_at(t1 + 20_500).output(4));
 }
 
-/// Source: "loads A01, adds 10 and divides by three" (the prose says "multiplies", the
-/// listing divides; the listing is the program). `LCD` added to observe P.
-const ARITHMETIC: &str = "
-150 LD  A01
-151 ADD K03 0010
-152 DIV K04 0003
-153 LCD
-";
+/// Source: "loads A01, adds 10 and multiplies by three" (the project copy follows the
+/// prose: MUL; the listing's DIV is covered by `div_*` tests). `LCD` shows P.
+const ARITHMETIC: &str = include_str!("../../shared-protocol/programs/arithmetic.plc");
 
 #[test]
 fn arithmetic() {
     let mut r = Rig::new(ARITHMETIC);
     for a in [0u16, 1, 2, 5, 500, 1023] {
         r.inputs.analog[1] = a;
-        let expect = (i16::try_from(a).unwrap() + 10) / 3;
+        let expect = (i16::try_from(a).unwrap() + 10) * 3;
         assert_eq!(r.step(10).lcd[0], Some(expect), "A01 = {a}");
         assert_eq!(r.out.warning, None);
     }
 }
 
-/// Source: "shows A02 and the counted Q02 on the LCD".
-const LCD: &str = "
+/// Source: "shows A02 and the counted Q02 on the LCD" (project copy: an explicit reset bit).
+const LCD: &str = include_str!("../../shared-protocol/programs/lcd.plc");
+
+/// The source's own LCD listing: only the edge is on the stack before `CTU`.
+const LCD_SOURCE_LISTING: &str = "
 150 LD  A02
 151 LCD
 152 LD  D00
@@ -201,13 +165,11 @@ const LCD: &str = "
 156 LCD
 ";
 
-#[test]
-fn lcd_shows_a02_and_counter() {
-    let mut r = Rig::new(LCD);
+fn check_lcd_counts_presses(text: &str) {
+    let mut r = Rig::new(text);
     r.inputs.analog[2] = 321;
     assert_eq!(r.step(10).lcd, [Some(321), Some(0), None, None]);
-    // One bit loaded before CTU: it is the count input (docs/vm.md), so the rising
-    // edges of D00 are counted, once per press.
+    // Rising edges of D00 are counted, once per press.
     for i in 1..=3 {
         r.d(0, true);
         assert_eq!(r.step(10).lcd[1], Some(i), "press {i}");
@@ -219,15 +181,19 @@ fn lcd_shows_a02_and_counter() {
     assert_eq!(r.step(10).lcd, [Some(1000), Some(3), None, None]);
 }
 
+#[test]
+fn lcd_shows_a02_and_counter() {
+    check_lcd_counts_presses(LCD);
+}
+
+#[test]
+fn lcd_source_listing_counts_with_the_lone_bit_rule() {
+    // One bit loaded before CTU: it is the count input (docs/vm.md).
+    check_lcd_counts_presses(LCD_SOURCE_LISTING);
+}
+
 /// Source REV example: D01 requests reverse, D02 forward, B00 holds the request.
-const REV_BUTTONS: &str = "
-150 LD  D01
-151 SET B00
-152 LD  D02
-153 RES B00
-154 LD  B00
-155 REV
-";
+const REV_BUTTONS: &str = include_str!("../../shared-protocol/programs/rev_buttons.plc");
 
 #[test]
 fn rev_buttons_send_only_changes() {
@@ -248,11 +214,8 @@ fn rev_buttons_send_only_changes() {
 }
 
 /// Source WR example: "only when D00 = 1 is K00 written to Q01 and sent to the drive".
-const CONDITIONAL_WRITE: &str = "
-150 LD  D00
-151 LD  K00 0100
-152 WR  Q01
-";
+const CONDITIONAL_WRITE: &str =
+    include_str!("../../shared-protocol/programs/conditional_write.plc");
 
 #[test]
 fn conditional_write_sends_q() {
@@ -267,16 +230,7 @@ fn conditional_write_sends_q() {
 }
 
 /// Source's measurement examples: COM shown raw, as volts (VLT) and as amps (AMP).
-const COM_VLT_AMP: &str = "
-151 LD  COM
-152 LCD
-153 LD  COM
-154 LD  VLT
-155 LCD
-156 LD  COM
-157 LD  AMP
-158 LCD
-";
+const COM_VLT_AMP: &str = include_str!("../../shared-protocol/programs/com_monitor.plc");
 
 #[test]
 fn com_vlt_amp() {

@@ -160,6 +160,18 @@ proptest! {
     }
 
     #[test]
+    fn never_panics_on_shared_protocol_valid_programs(
+        prog in shared_protocol::program::testing::program(600),
+        t0 in any::<u32>(),
+        scans in scans(),
+    ) {
+        prop_assert!(verify(&prog).is_ok());
+        for out in run(&prog, t0, &scans) {
+            prop_assert_eq!(out.outputs & !0x3F, 0);
+        }
+    }
+
+    #[test]
     fn verified_programs_report_only_what_they_contain(
         prog in program(150, valid_instruction()),
         t0 in any::<u32>(),
