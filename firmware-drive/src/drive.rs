@@ -242,6 +242,11 @@ impl DriveCore {
         &self.vm
     }
 
+    /// The modulator (read-only: angle and parameters, for benches and hil-sim probes).
+    pub fn modulator(&self) -> &Modulator {
+        &self.modulator
+    }
+
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
     pub fn pwm_timing(&self) -> PwmTiming {
         self.timing

@@ -1,0 +1,115 @@
+//! Cortex-M4 instruction count of `DriveCore::pwm_period` (the PWM interrupt's core part)
+//! and of `tick_1ms`, for `../shared/tools/m4count.py`. No peripheral is initialised; the
+//! HAL is linked only for its vector table.
+//!
+//! ```text
+//! cargo build --release --target thumbv7em-none-eabihf --bin m4bench -p firmware-drive
+//! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/release/m4bench
+//! ```
+//! Sections (m4count prints the instructions between `bench_mark(k)` and the next mark):
+//! 1 = 1000 x pwm_period, motor program running (outputs on, OC/UV/brake checks active);
+//! 3 = 1000 x pwm_period with the outputs off (IDLE); 5 = 10 x tick_1ms of the motor
+//! program (lines 000-025). A mark 0x10 after section 1 confirms the outputs were on.
+#![cfg_attr(target_os = "none", no_std, no_main)]
+
+#[cfg(target_os = "none")]
+mod target {
+    use core::hint::black_box;
+
+    use defmt_rtt as _;
+    use embassy_stm32 as _;
+    use panic_probe as _;
+
+    use firmware_drive::{AdcSample, DriveCommand, DriveConfig, DriveCore, ResetCause};
+    use shared_protocol::program::assemble_into;
+    use shared_protocol::program::Program;
+    use static_cell::StaticCell;
+
+    pub const CALLS: u32 = 1000;
+
+    const MOTOR: &str = "000 PWF Q00\n001 LD K00 0000\n002 LD K01 2333\n003 LD Q01\n\
+        004 LD Q02\n005 PI K02 1000\n006 WR Q01\n007 Rs= K03 0195\n008 Uc= K04 0030\n\
+        009 Iz= K05 0050\n010 =dU\n011 fmn K06 0050\n012 fjm K07 0500\n013 fmx K08 0700\n\
+        014 U> K09 0035\n015 U< K10 0025\n016 I> K11 0200\n017 LD Q01\n018 LD Q01\n\
+        019 LD K12 0000\n020 SN1\n021 LD K13 1200\n022 SN2\n023 LD K14 2400\n024 SN3\n\
+        025 frv K20 0200\n";
+
+    #[no_mangle]
+    #[inline(never)]
+    pub extern "C" fn bench_mark(id: u32) {
+        black_box(id);
+    }
+
+    static PROGRAM: StaticCell<Program> = StaticCell::new();
+    static CORE: StaticCell<DriveCore> = StaticCell::new();
+
+    #[cortex_m_rt::entry]
+    fn main() -> ! {
+        let program = PROGRAM.init(Program::default());
+        let _ = assemble_into(MOTOR, program);
+        let core = CORE.init(DriveCore::new(DriveConfig::default(), ResetCause::PowerOn));
+        core.tick_1ms(&mut |_| {});
+        let _ = core.load_program(&program.drive_section());
+        let _ = core.command(DriveCommand::SetQ {
+            addr: 0,
+            value: 16000,
+        });
+        let _ = core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 400,
+        });
+        let _ = core.command(DriveCommand::SetQ {
+            addr: 2,
+            value: 400,
+        });
+        let _ = core.command(DriveCommand::Run);
+        // 0.4 s: the 2.333 s lag has passed fmn (5 Hz), the outputs are on.
+        for _ in 0..400 {
+            core.tick_1ms(&mut |_| {});
+        }
+        let s = AdcSample {
+            i_a: 2100,
+            i_b: 2000,
+            u_dc: 2730,
+            aux: 1234,
+        };
+        let mut acc = 0u32;
+        let mut enabled = 0u32;
+        bench_mark(1);
+        for _ in 0..CALLS {
+            let c = core.pwm_period(black_box(&s));
+            acc = acc.wrapping_add(u32::from(c.duty[0]));
+            enabled += u32::from(c.enable);
+        }
+        bench_mark(2);
+        black_box(acc);
+        // Section 0x10 = every call had the outputs on (0x11 = not: the figure is void).
+        bench_mark(if enabled == CALLS { 0x10 } else { 0x11 });
+        let _ = core.command(DriveCommand::Stop);
+        core.tick_1ms(&mut |_| {});
+        bench_mark(3);
+        for _ in 0..CALLS {
+            let c = core.pwm_period(black_box(&s));
+            acc = acc.wrapping_add(u32::from(c.duty[0]));
+        }
+        bench_mark(4);
+        let _ = core.command(DriveCommand::Run);
+        bench_mark(5);
+        for _ in 0..10 {
+            core.tick_1ms(&mut |e| {
+                black_box(e);
+            });
+        }
+        bench_mark(6);
+        black_box(acc);
+        bench_mark(0xFFFF_FFFF);
+        loop {
+            cortex_m::asm::nop();
+        }
+    }
+}
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!("m4bench is a target binary: see its doc comment for the m4count.py command");
+}
