@@ -16,10 +16,7 @@
 //! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 (injected) | POT |
 //! | brake chopper gate | PB5 | GPIO out, active high | free pin |
 //! | link TX / RX | PB3 / PB4 | USART2 (AF7), DMA1 CH1 / CH2 | VCP TX / RX |
-//! | status LED | PC6 | GPIO out | LED |
-
-// Issue 8 binds the remaining groups; until then some fields are only reserved.
-#![allow(dead_code)]
+//! | heartbeat LED (toggles while the watchdog is fed) | PC6 | GPIO out | LED |
 
 use embassy_stm32::{peripherals as p, Peri, Peripherals};
 

@@ -11,13 +11,9 @@
 //! | analog A00, A01, A02, A03 | PA0, PA1, PB0, PC1 | ADC1_IN1, IN2, IN15, IN7 | Arduino A0, A1, A3, A4 |
 //! | keypad rows R0..R3 (driven low one at a time) | PA6, PA7, PB6, PB7 | GPIO out, open drain | morpho |
 //! | keypad columns C0..C3 | PC2, PC3, PC4, PC5 | GPIO in, pull-up | morpho |
-//! | I2C SCL / SDA (24C256 at 0x50, PCF8574 LCD at 0x27) | PB8 / PB9 | I2C1 (AF4), DMA1 CH4 / CH5 | Arduino D15 / D14 |
+//! | I2C SCL / SDA (24C256 at 0x50, PCF8574 LCD at 0x27) | PB8 / PB9 | I2C1 (AF4) | Arduino D15 / D14 |
 //! | link TX / RX | PA9 / PA10 | USART1 (AF7), DMA1 CH1 / CH2 | Arduino D8 / D2 |
-//! | ADC DMA | - | DMA1 CH3 | - |
-//! | run LED | PA5 | GPIO out | LD2 |
-
-// Issue 8 binds the remaining groups; until then some fields are only reserved.
-#![allow(dead_code)]
+//! | heartbeat LED (toggles while the watchdog is fed) | PA5 | GPIO out | LD2 |
 
 use embassy_stm32::{peripherals as p, Peri, Peripherals};
 
@@ -46,7 +42,6 @@ pub struct Outputs {
 /// The four analog inputs A00..A03 on ADC1.
 pub struct Analog {
     pub adc: Peri<'static, p::ADC1>,
-    pub dma: Peri<'static, p::DMA1_CH3>,
     pub a00: Peri<'static, p::PA0>,
     pub a01: Peri<'static, p::PA1>,
     pub a02: Peri<'static, p::PB0>,
@@ -70,8 +65,6 @@ pub struct Bus {
     pub i2c: Peri<'static, p::I2C1>,
     pub scl: Peri<'static, p::PB8>,
     pub sda: Peri<'static, p::PB9>,
-    pub tx_dma: Peri<'static, p::DMA1_CH4>,
-    pub rx_dma: Peri<'static, p::DMA1_CH5>,
 }
 
 /// The drive link USART with its DMA channels.
@@ -123,7 +116,6 @@ pub fn split(p: Peripherals) -> Board {
         },
         analog: Analog {
             adc: p.ADC1,
-            dma: p.DMA1_CH3,
             a00: p.PA0,
             a01: p.PA1,
             a02: p.PB0,
@@ -143,8 +135,6 @@ pub fn split(p: Peripherals) -> Board {
             i2c: p.I2C1,
             scl: p.PB8,
             sda: p.PB9,
-            tx_dma: p.DMA1_CH4,
-            rx_dma: p.DMA1_CH5,
         },
         link: Link {
             usart: p.USART1,

@@ -89,7 +89,8 @@ pub async fn start(spawner: Spawner) {
     );
 
     let port = link::open(board.link);
-    spawner.spawn(supervisor::run(board.misc.iwdg).expect("spawn supervisor"));
+    spawner
+        .spawn(supervisor::run(board.misc.iwdg, board.misc.led.into()).expect("spawn supervisor"));
     spawner.spawn(link::run(port).expect("spawn link"));
     spawner.spawn(control::run().expect("spawn control"));
 }

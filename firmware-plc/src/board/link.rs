@@ -26,7 +26,7 @@ bind_interrupts!(struct Irqs {
 });
 
 /// Opened link halves.
-#[allow(dead_code)] // TX is used once the link endpoint is bound (issue 8)
+#[allow(dead_code)] // TX carries the endpoint's frames once the application is bound (issue 8)
 pub struct LinkPort {
     pub tx: UartTx<'static, Async>,
     pub rx: RingBufferedUartRx<'static>,

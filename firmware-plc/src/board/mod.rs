@@ -1,10 +1,19 @@
-//! PLC board layer: brings up the STM32G431 and binds the peripherals; no PLC logic.
+//! PLC board layer: brings up the STM32G431 and binds the peripherals to the
+//! `firmware_plc` core; no PLC logic lives here.
 
+pub mod analog;
+pub mod app;
 pub mod clocks;
+#[cfg(feature = "dwt-cycles")]
+pub mod cycles;
+pub mod eeprom;
+pub mod i2c_bus;
+pub mod inputs;
+pub mod keypad;
+pub mod lcd;
 pub mod link;
 pub mod outputs;
 pub mod reset_cause;
-pub mod scan;
 pub mod supervisor;
 
 use embassy_executor::Spawner;
@@ -25,11 +34,35 @@ pub async fn start(spawner: Spawner) {
         clocks::SYSCLK_HZ / 1_000_000,
         cause
     );
+    #[cfg(feature = "dwt-cycles")]
+    cycles::enable();
     let board = pins::split(p);
+    // Outputs off before anything else can take time.
     let outputs = outputs::DigitalOutputs::new(board.outputs);
+    let bus = i2c_bus::open(board.bus);
+    let lcd = match lcd::Lcd::new(bus) {
+        Ok(l) => Some(l),
+        Err(e) => {
+            defmt::warn!(
+                "lcd: no answer at {=u8:#x} ({}), running without it",
+                lcd::ADDRESS,
+                e
+            );
+            None
+        }
+    };
+    let io = app::PlcIo {
+        inputs: inputs::DigitalInputs::new(board.inputs),
+        outputs,
+        analog: analog::AnalogInputs::new(board.analog),
+        keypad: keypad::KeypadScanner::new(board.keypad),
+        lcd,
+        eeprom: eeprom::I2cEeprom::new(bus),
+    };
     let port = link::open(board.link);
 
-    spawner.spawn(supervisor::run(board.misc.iwdg).expect("spawn supervisor"));
+    spawner
+        .spawn(supervisor::run(board.misc.iwdg, board.misc.led.into()).expect("spawn supervisor"));
     spawner.spawn(link::run(port).expect("spawn link"));
-    spawner.spawn(scan::run(outputs).expect("spawn scan"));
+    spawner.spawn(app::run(io).expect("spawn app"));
 }
