@@ -200,9 +200,10 @@ fn rev_buttons_send_only_changes() {
     let mut r = Rig::new(REV_BUTTONS);
     assert_eq!(
         r.step(10).rev_request,
-        None,
-        "forward at RUN: nothing to send"
+        Some(false),
+        "first REV syncs the drive"
     );
+    assert_eq!(r.step(10).rev_request, None);
     let (down, up) = r.press(1, 10);
     assert_eq!(down.rev_request, Some(true));
     assert_eq!(up.rev_request, None);

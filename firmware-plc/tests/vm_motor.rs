@@ -34,7 +34,7 @@ fn nothing_starts_on_the_first_scan_or_later_without_start() {
         "LET B04 must not see an edge on the first scan"
     );
     assert_eq!(r.vm.q(2), 0);
-    assert_eq!(out.rev_request, None);
+    assert_eq!(out.rev_request, Some(false), "first scan syncs forward");
     for _ in 0..2000 {
         let out = r.step(SCAN);
         assert!(!running(&r));

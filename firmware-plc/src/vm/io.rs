@@ -63,8 +63,8 @@ pub struct ScanOutputs {
     /// Bit n set = Qn was written by `WR`/`WRC` in this scan (even with an unchanged
     /// value); the value to send is [`crate::vm::PlcVm::q`]`(n)`, the newest write wins.
     pub q_dirty: u64,
-    /// New direction request for the drive (`true` = reverse), only when it differs from
-    /// the last one reported since RUN started (which begins as forward).
+    /// Direction request for the drive (`true` = reverse): on the first scan that executes
+    /// a `REV` after RUN starts, then only when it differs from the last one reported.
     pub rev_request: Option<bool>,
     /// An `ACK` saw a rising edge: acknowledge the drive's latched faults.
     pub ack_request: bool,

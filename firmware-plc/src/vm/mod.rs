@@ -91,10 +91,11 @@ pub struct PlcVm {
     /// Per PLC line: when its timer started.
     since: [Millis; PLC_LINES],
     first_scan: bool,
-    /// Direction most recently set by a `REV` in this RUN (`true` = reverse).
-    rev_state: bool,
-    /// Direction last reported in [`ScanOutputs::rev_request`] (forward at RUN start).
-    rev_reported: bool,
+    /// Direction set by the last `REV` executed in this RUN (`true` = reverse).
+    rev_state: Option<bool>,
+    /// Direction last reported in [`ScanOutputs::rev_request`]; `None` at RUN start, so
+    /// the first `REV` always reports (the drive may hold an earlier RUN's direction).
+    rev_reported: Option<bool>,
 }
 
 impl Default for PlcVm {
@@ -115,13 +116,13 @@ impl PlcVm {
             flags: [0; PLC_LINES],
             since: [Millis(0); PLC_LINES],
             first_scan: true,
-            rev_state: false,
-            rev_reported: false,
+            rev_state: None,
+            rev_reported: None,
         }
     }
 
     /// RUN starts: clears B, Q, the output image and every line's timer/edge state, and
-    /// arms the first-scan rule. The direction request starts as forward.
+    /// arms the first-scan rule. The first `REV` executed after it reports its direction.
     pub fn start(&mut self, now: Millis) {
         *self = Self::new();
         self.since = [now; PLC_LINES];
@@ -194,12 +195,12 @@ impl PlcVm {
                         lcd_used += 1;
                     }
                 }
-                Effect::Rev(reverse) => self.rev_state = reverse,
+                Effect::Rev(reverse) => self.rev_state = Some(reverse),
             }
         }
-        if self.rev_state != self.rev_reported {
+        if self.rev_state.is_some() && self.rev_state != self.rev_reported {
             self.rev_reported = self.rev_state;
-            out.rev_request = Some(self.rev_state);
+            out.rev_request = self.rev_state;
         }
         out.outputs = self.mem.o & OUTPUT_MASK;
         self.first_scan = false;

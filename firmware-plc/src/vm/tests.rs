@@ -699,14 +699,15 @@ fn lcd_fills_four_fields_and_ignores_a_fifth() {
 }
 
 #[test]
-fn rev_sends_only_changes_starting_from_forward() {
+fn rev_reports_first_request_then_only_changes() {
     let lines = vec![l(M::Ld, X::D(0)), n(M::Rev)];
     let mut r = Rig::new(&lines);
     assert_eq!(
         r.scan().rev_request,
-        None,
-        "forward is the starting request"
+        Some(false),
+        "the first REV after RUN syncs the drive"
     );
+    assert_eq!(r.scan().rev_request, None);
     r.d(0, true);
     assert_eq!(r.scan().rev_request, Some(true));
     assert_eq!(r.scan().rev_request, None);
@@ -716,16 +717,25 @@ fn rev_sends_only_changes_starting_from_forward() {
 }
 
 #[test]
-fn rev_on_first_scan_sends_reverse() {
+fn rev_reports_again_after_a_new_run() {
     let lines = vec![l(M::Ldc, X::B(0)), n(M::Rev)];
     let mut r = Rig::new(&lines);
     assert_eq!(r.scan().rev_request, Some(true));
+    assert_eq!(r.scan().rev_request, None);
     r.vm.start(Millis(5));
-    assert_eq!(
-        r.scan().rev_request,
-        Some(true),
-        "a new RUN starts from forward"
-    );
+    assert_eq!(r.scan().rev_request, Some(true), "a new RUN reports again");
+}
+
+#[test]
+fn rev_last_in_scan_wins_and_no_rev_reports_nothing() {
+    // Two REV lines disagreeing in one scan: the last one is the request.
+    let lines = vec![l(M::Ldc, X::B(0)), n(M::Rev), l(M::Ld, X::B(0)), n(M::Rev)];
+    let mut r = Rig::new(&lines);
+    assert_eq!(r.scan().rev_request, Some(false));
+    assert_eq!(r.scan().rev_request, None);
+    // A REV that is not reached (empty program) reports nothing.
+    let mut r = Rig::new(&[l(M::Ld, X::D(0))]);
+    assert_eq!(r.scan().rev_request, None);
 }
 
 #[test]
