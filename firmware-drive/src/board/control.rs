@@ -21,6 +21,8 @@ pub async fn run() {
         ticker.next().await;
         let causes = hw_protection::active();
         let mut events: Vec<DriveEvent, EVENTS_PER_TICK> = Vec::new();
+        #[cfg(feature = "dwt-cycles")]
+        let start = super::cycles::now();
         shared::with(|s| {
             for (cause, present) in causes {
                 if !present {
@@ -31,6 +33,8 @@ pub async fn run() {
                 let _ = events.push(e);
             });
         });
+        #[cfg(feature = "dwt-cycles")]
+        super::cycles::record_tick(start);
         if causes.iter().all(|(_, present)| !present) {
             power_stage::rearm_break_irq();
         }
