@@ -9,6 +9,7 @@
 //! Decisions and model equations: `hil-sim/docs/`.
 
 pub mod mcu;
+pub mod panel;
 pub mod plant;
 pub mod plot;
 pub mod record;

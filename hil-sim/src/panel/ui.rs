@@ -1,0 +1,208 @@
+//! Drawing the panel: LCD, keypad with its key map, and the rig beside them.
+
+use super::app::PanelApp;
+use super::keys::{ANALOG_KEYS, DIGITAL_KEYS};
+use firmware_plc::editor::{Key, Screen};
+use ratatui::layout::{Constraint, Layout, Rect};
+use ratatui::style::{Color, Modifier, Style};
+use ratatui::text::{Line, Span};
+use ratatui::widgets::{Block, Paragraph};
+use ratatui::Frame;
+use shared_protocol::link::fault_text;
+
+const LCD_BG: Color = Color::Rgb(150, 190, 70);
+const LCD_FG: Color = Color::Rgb(20, 30, 10);
+/// Half period of the blinking cursor.
+const BLINK_MS: u64 = 400;
+
+/// Key map lines shown under the keypad (the PC key in brackets where it differs).
+const KEYMAP: [&str; 9] = [
+    "2/8 up/down   4/6 field   5 edit/ok",
+    "1/7 -+10 lines 3/9 -+100  0 next used",
+    "A RUN/STOP   B next page",
+    "C n save slot n   D n load, D 0 new",
+    "# nnn go to line  * cancel edit",
+    "*1 insert *3 delete *0 clear *5 check",
+    "editing: 2/8 value, 1/7 -+10,",
+    "  3/9 operand area, 4/6 field/digit",
+    "PC: arrows=2/4/6/8 Enter=5 PgUp/Dn=1/7",
+];
+
+fn lcd_lines(s: &Screen, blink_on: bool) -> Vec<Line<'static>> {
+    let base = Style::default().fg(LCD_FG).bg(LCD_BG);
+    (0..s.rows())
+        .map(|r| {
+            let text = s.row(r);
+            let spans: Vec<Span<'static>> = text
+                .chars()
+                .enumerate()
+                .map(|(c, ch)| {
+                    let at_cursor = s.cursor == Some((r, c as u8));
+                    let style = match (at_cursor, s.blink) {
+                        (true, true) if blink_on => base.add_modifier(Modifier::REVERSED),
+                        (true, false) => base.add_modifier(Modifier::UNDERLINED),
+                        _ => base,
+                    };
+                    Span::styled(ch.to_string(), style)
+                })
+                .collect();
+            Line::from(spans)
+        })
+        .collect()
+}
+
+fn keypad_lines(last: Option<Key>) -> Vec<Line<'static>> {
+    Key::ALL
+        .chunks(4)
+        .map(|row| {
+            let spans: Vec<Span<'static>> = row
+                .iter()
+                .map(|k| {
+                    let style = if Some(*k) == last {
+                        Style::default().add_modifier(Modifier::REVERSED | Modifier::BOLD)
+                    } else if matches!(k, Key::Digit(_)) {
+                        Style::default().add_modifier(Modifier::BOLD)
+                    } else {
+                        Style::default()
+                            .fg(Color::Yellow)
+                            .add_modifier(Modifier::BOLD)
+                    };
+                    Span::styled(format!(" [{}] ", k.to_char()), style)
+                })
+                .collect();
+            Line::from(spans)
+        })
+        .collect()
+}
+
+fn on_off(on: bool) -> Span<'static> {
+    if on {
+        Span::styled("1", Style::default().fg(Color::Black).bg(Color::Green))
+    } else {
+        Span::styled("0", Style::default().fg(Color::DarkGray))
+    }
+}
+
+fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
+    let s = app.status();
+    let mut v = Vec::new();
+    v.push(Line::from(format!("t = {:.1} s", s.t_s)));
+    if !s.simulated {
+        v.push(Line::from(Span::styled(
+            "editor only: no simulated rig",
+            Style::default().fg(Color::Yellow),
+        )));
+    }
+    v.push(Line::from(format!(
+        "PLC {}   drive {}",
+        if s.plc_running { "RUN" } else { "STOP" },
+        s.drive_state
+    )));
+    v.push(Line::from(format!(
+        "f {:6.1} Hz {}   speed {:7.0} rpm",
+        s.f_hz,
+        if s.reverse { "REV" } else { "FWD" },
+        s.speed_rpm
+    )));
+    v.push(Line::from(format!(
+        "Udc {:5.1} V   Imax {:5.2} A   brake {}",
+        s.u_dc_v,
+        s.i_max_a,
+        if s.brake { "ON" } else { "off" }
+    )));
+    let fault = if s.fault == 0 {
+        Span::raw("fault: none")
+    } else {
+        Span::styled(
+            format!("fault: F{} {}", s.fault, fault_text(s.fault)),
+            Style::default().fg(Color::Red).add_modifier(Modifier::BOLD),
+        )
+    };
+    v.push(Line::from(fault));
+    v.push(Line::from(""));
+    let mut d = vec![Span::raw("D00-07 ")];
+    for n in 0..8 {
+        d.push(on_off(s.digital_in & (1 << n) != 0));
+        d.push(Span::raw(" "));
+    }
+    v.push(Line::from(d));
+    let keys: String = DIGITAL_KEYS.iter().map(|c| format!("{c} ")).collect();
+    v.push(Line::from(Span::styled(
+        format!("  keys {keys}"),
+        Style::default().fg(Color::DarkGray),
+    )));
+    v.push(Line::from(Span::styled(
+        "  (q toggles D00, Q pushes it 0.2 s; F1-F8 toggle)",
+        Style::default().fg(Color::DarkGray),
+    )));
+    let mut o = vec![Span::raw("O00-05 ")];
+    for n in 0..6 {
+        o.push(on_off(s.digital_out & (1 << n) != 0));
+        o.push(Span::raw(" "));
+    }
+    v.push(Line::from(o));
+    v.push(Line::from(""));
+    for (n, (down, up)) in ANALOG_KEYS.iter().enumerate() {
+        v.push(Line::from(vec![
+            Span::raw(format!("A{n:02} {:4}  ", s.analog[n])),
+            Span::styled(
+                format!(
+                    "{down}/{up} -/+32, {}/{} -/+128",
+                    down.to_ascii_uppercase(),
+                    up.to_ascii_uppercase()
+                ),
+                Style::default().fg(Color::DarkGray),
+            ),
+        ]));
+    }
+    v
+}
+
+/// Draw the whole panel.
+pub fn draw(frame: &mut Frame<'_>, app: &PanelApp) {
+    let area = frame.area();
+    let [main, footer] = Layout::vertical([Constraint::Min(10), Constraint::Length(1)]).areas(area);
+    let [left, right] =
+        Layout::horizontal([Constraint::Length(42), Constraint::Min(30)]).areas(main);
+    let lcd = app.lcd();
+    let lcd_h = u16::from(lcd.rows()) + 2;
+    let [lcd_area, pad_area, map_area] = Layout::vertical([
+        Constraint::Length(lcd_h),
+        Constraint::Length(6),
+        Constraint::Min(3),
+    ])
+    .areas(left);
+    let lcd_w = u16::from(lcd.cols()) + 2;
+    let lcd_rect = Rect {
+        width: lcd_w.min(lcd_area.width),
+        ..lcd_area
+    };
+    let blink_on = (app.blink_ms / BLINK_MS).is_multiple_of(2);
+    frame.render_widget(
+        Paragraph::new(lcd_lines(&lcd, blink_on)).block(Block::bordered().title("LCD")),
+        lcd_rect,
+    );
+    frame.render_widget(
+        Paragraph::new(keypad_lines(app.last_key)).block(Block::bordered().title("Keypad")),
+        Rect {
+            width: 26.min(pad_area.width),
+            ..pad_area
+        },
+    );
+    let map: Vec<Line<'static>> = KEYMAP.iter().map(|l| Line::from(*l)).collect();
+    frame.render_widget(
+        Paragraph::new(map).block(Block::bordered().title("Key map")),
+        map_area,
+    );
+    frame.render_widget(
+        Paragraph::new(rig_lines(app)).block(Block::bordered().title("Rig")),
+        right,
+    );
+    frame.render_widget(
+        Paragraph::new(Line::from(Span::styled(
+            " Esc quits | keypad: 0-9 a b c d * # | inputs: q..i, F1-F8 | pots: z/x n/m j/k o/p",
+            Style::default().fg(Color::DarkGray),
+        ))),
+        footer,
+    );
+}
