@@ -10,6 +10,7 @@
     )
 )]
 
+pub mod app;
 pub mod vm;
 pub mod link;
 pub mod storage;

@@ -175,7 +175,8 @@ impl DriveMsg {
     }
 }
 
-/// Name of a drive fault code (drive.md table), for the LCD and the fault log.
+/// Name of a drive fault code (drive.md table; 8 is the drive core's boot self-test
+/// extension), for the LCD and the fault log.
 pub const fn fault_name(code: u8) -> &'static str {
     match code {
         0 => "none",
@@ -186,6 +187,7 @@ pub const fn fault_name(code: u8) -> &'static str {
         5 => "LINK",
         6 => "PROG",
         7 => "WDG",
+        8 => "BOOT",
         _ => "?",
     }
 }
@@ -201,6 +203,7 @@ pub const fn fault_text(code: u8) -> &'static str {
         5 => "link lost",
         6 => "program rejected",
         7 => "watchdog reset",
+        8 => "self-test failed",
         _ => "unknown fault",
     }
 }

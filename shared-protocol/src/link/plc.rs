@@ -186,6 +186,12 @@ impl PlcLink {
         self.queue_q(QValue { addr, value })
     }
 
+    /// Forget the Q values written so far (RUN starts with Q cleared): after a
+    /// reconnection only the values written since are resent.
+    pub fn forget_q(&mut self) {
+        self.q_shadow = [None; Q_COUNT];
+    }
+
     /// Coalesce with a write to the same Q still waiting in the run of Q writes at the end
     /// of the queue: the old entry goes, the new one is appended, so the surviving writes
     /// keep the order in which they were issued.

@@ -1,0 +1,232 @@
+//! [`DriveApp`]: the drive MCU's application, the link endpoint joined to the drive core.
+//! The board layer (and hil-sim) calls it; it owns no hardware and no clock.
+//!
+//! | when | call |
+//! | --- | --- |
+//! | UART bytes received (DMA/idle-line interrupt) | [`DriveApp::on_rx`] |
+//! | UART transmitter free, and at least every 1 ms | [`DriveApp::poll_tx`] |
+//! | every 1 ms | [`DriveApp::tick_1ms`] |
+//! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`] |
+//! | TIM1 break input fired / released | [`DriveApp::hardware_break`] |
+//!
+//! What it adds to the two parts:
+//! * Commands from the PLC are applied to the core as soon as their frame is received
+//!   (`on_rx`), not at the next tick: that is what the link's latency budget counts.
+//! * Link lost: the core trips `LINK` when in RUN, and is told STOP either way (the PLC
+//!   is gone as far as the drive knows): PWM off, the drive section stops, so that the
+//!   frequency command falls and a later ACK is possible. Nothing restarts by itself:
+//!   after the reconnection the PLC must ACK and send RUN again.
+//! * A download is verified by the link (CRC, decode, `verify_drive`) and then handed to
+//!   [`DriveCore::load_program`]; a reject trips `PROG`.
+//! * Every fault the core latches is reported to the PLC (reliably, with the drive's
+//!   millisecond clock); the status frame is refreshed from the core every tick.
+
+use shared_protocol::link::drive::{DriveEvent as LinkEvent, DriveLink, DriveLinkState};
+use shared_protocol::link::{DriveState as WireState, DriveStatus as WireStatus, LinkConfig};
+use shared_protocol::units::Micros;
+
+use crate::config::{DriveConfig, ResetCause};
+use crate::drive::{CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, PwmCommand};
+use crate::measure::AdcSample;
+use crate::protection::{FaultCode, HwBreak};
+use crate::state::DriveState;
+use crate::timing::PwmTiming;
+
+/// Fault reports waiting for room in the link's queue.
+const UNREPORTED: usize = 8;
+
+/// What the application reports to the board (for logging over defmt, a debug LED, or
+/// hil-sim's trace). Nothing needs to be done with them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum AppEvent {
+    /// From the core (state changes, faults, warnings, reversals).
+    Core(DriveEvent),
+    /// From the link (connection, commands as received, downloads).
+    Link(LinkEvent),
+    /// The core refused a command from the PLC (e.g. RUN while a fault is latched); the
+    /// PLC sees the outcome in the status.
+    Refused {
+        command: DriveCommand,
+        error: CommandError,
+    },
+    /// The core refused a section the link had accepted (cannot happen while both use
+    /// the same verifier; kept so that it would be seen).
+    LoadFailed,
+}
+
+const APP_EVENTS: usize = 32;
+
+/// The drive application.
+pub struct DriveApp {
+    core: DriveCore,
+    link: DriveLink,
+    unreported: heapless::Deque<u8, UNREPORTED>,
+    events: heapless::Deque<AppEvent, APP_EVENTS>,
+}
+
+impl DriveApp {
+    pub fn new(core: DriveConfig, reset_cause: ResetCause, link: LinkConfig) -> Self {
+        DriveApp {
+            core: DriveCore::new(core, reset_cause),
+            link: DriveLink::new(link),
+            unreported: heapless::Deque::new(),
+            events: heapless::Deque::new(),
+        }
+    }
+
+    pub fn core(&self) -> &DriveCore {
+        &self.core
+    }
+
+    pub fn link(&self) -> &DriveLink {
+        &self.link
+    }
+
+    pub fn link_state(&self) -> DriveLinkState {
+        self.link.state()
+    }
+
+    /// The core's full status (more than the link's status frame carries).
+    pub fn status(&self) -> DriveStatus {
+        self.core.status()
+    }
+
+    /// What TIM1 must be programmed with now.
+    pub fn pwm_timing(&self) -> PwmTiming {
+        self.core.pwm_timing()
+    }
+
+    /// Oldest event not yet taken (the queue keeps the newest 32).
+    pub fn poll_event(&mut self) -> Option<AppEvent> {
+        self.events.pop_front()
+    }
+
+    fn push(&mut self, e: AppEvent) {
+        if self.events.is_full() {
+            self.events.pop_front();
+        }
+        let _ = self.events.push_back(e);
+    }
+
+    /// Bytes from the UART: commands are applied to the core at once.
+    pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
+        self.link.receive(bytes, now);
+        self.apply_link_events();
+    }
+
+    /// The next frame for the UART (0 = nothing now); `out` must hold
+    /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes.
+    pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        let n = self.link.poll_transmit(now, out);
+        // A link loss is detected by the timers poll_transmit runs.
+        self.apply_link_events();
+        n
+    }
+
+    /// The 1 ms tick: link supervision, the core's state machine and drive section,
+    /// fault reports and the status frame.
+    pub fn tick_1ms(&mut self, now: Micros) {
+        self.link.tick(now);
+        self.apply_link_events();
+        let mut faults: heapless::Vec<u8, 16> = heapless::Vec::new();
+        let mut core_events: heapless::Vec<DriveEvent, 20> = heapless::Vec::new();
+        self.core.tick_1ms(&mut |e| {
+            if let DriveEvent::Fault(f) = e {
+                let _ = faults.push(f.code());
+            }
+            let _ = core_events.push(e);
+        });
+        for e in core_events {
+            self.push(AppEvent::Core(e));
+        }
+        for code in faults {
+            if self.unreported.push_back(code).is_err() {
+                // Keep the newest reports.
+                self.unreported.pop_front();
+                let _ = self.unreported.push_back(code);
+            }
+        }
+        let ms = now.millis().0;
+        while let Some(&code) = self.unreported.front() {
+            if !self.link.report_fault(code, ms) {
+                break;
+            }
+            self.unreported.pop_front();
+        }
+        self.link.set_status(wire_status(&self.core.status()));
+    }
+
+    /// The PWM interrupt: measurements, trips, duties.
+    #[inline]
+    pub fn pwm_period(&mut self, adc: &AdcSample) -> PwmCommand {
+        self.core.pwm_period(adc)
+    }
+
+    /// The TIM1 break input (hardware overcurrent/overvoltage comparators).
+    pub fn hardware_break(&mut self, cause: HwBreak, active: bool) {
+        if active {
+            self.core.hardware_break(cause);
+        } else {
+            self.core.hardware_break_released(cause);
+        }
+    }
+
+    fn command(&mut self, command: DriveCommand) {
+        if let Err(error) = self.core.command(command) {
+            self.push(AppEvent::Refused { command, error });
+        }
+    }
+
+    fn apply_link_events(&mut self) {
+        while let Some(e) = self.link.poll_event() {
+            self.push(AppEvent::Link(e));
+            match e {
+                LinkEvent::Connected | LinkEvent::VersionMismatch { .. } => {}
+                LinkEvent::LinkLost => {
+                    if self.core.state() == DriveState::Run {
+                        self.core.trip(FaultCode::Link);
+                    }
+                    self.command(DriveCommand::Stop);
+                }
+                LinkEvent::QWrite { addr, value } => {
+                    self.command(DriveCommand::SetQ { addr, value })
+                }
+                LinkEvent::Run => self.command(DriveCommand::Run),
+                LinkEvent::Stop => self.command(DriveCommand::Stop),
+                LinkEvent::Direction { reverse } => {
+                    self.command(DriveCommand::Direction { reverse })
+                }
+                LinkEvent::AckFault => self.command(DriveCommand::Ack),
+                LinkEvent::ProgramAccepted => {
+                    let loaded = self
+                        .link
+                        .take_program()
+                        .map(|p| self.core.load_program(&p).is_ok());
+                    if loaded != Some(true) {
+                        self.push(AppEvent::LoadFailed);
+                    }
+                }
+                LinkEvent::ProgramRejected { .. } => self.core.trip(FaultCode::Prog),
+            }
+        }
+    }
+}
+
+/// The link's status frame from the core's status.
+pub fn wire_status(s: &DriveStatus) -> WireStatus {
+    WireStatus {
+        state: match s.state {
+            DriveState::Boot => WireState::Boot,
+            DriveState::Idle => WireState::Idle,
+            DriveState::Run => WireState::Run,
+            DriveState::Fault => WireState::Fault,
+        },
+        fault: s.fault.map_or(0, |f| f.code()),
+        freq_dhz: s.f_applied.0,
+        reverse: s.reverse,
+        udc_dv: s.u_dc.0,
+        imax_ca: s.i_peak.0,
+        com: s.com,
+    }
+}

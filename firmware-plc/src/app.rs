@@ -1,0 +1,424 @@
+//! [`PlcApp`]: the PLC MCU's application: the program, the VM, the link to the drive, the
+//! keypad editor and the EEPROM storage, joined. The board layer (and hil-sim) calls it;
+//! it owns no hardware and no clock (time is an argument everywhere).
+//!
+//! | when | call |
+//! | --- | --- |
+//! | power-up | [`PlcApp::new`] (loads the slot last run; starts RUN when it was running) |
+//! | each scan (inputs sampled at its start) | [`PlcApp::scan`] → output image |
+//! | UART bytes received | [`PlcApp::on_rx`] |
+//! | UART transmitter free, and at least every 1 ms | [`PlcApp::poll_tx`] |
+//! | a key pressed | [`PlcApp::key`] |
+//! | LCD refresh (e.g. every 100 ms) | [`PlcApp::render`] |
+//!
+//! RUN (key `A`, [`PlcApp::run`], or power-up): verify the whole program (an error shows
+//! its line and nothing starts), wait for the link, download the drive section, wait for
+//! the drive's acceptance, then send RUN to the drive and start the VM in the same call.
+//! A reject shows the drive's line and reason. STOP: the VM stops, the outputs go off and
+//! the drive is told STOP (PWM off).
+//!
+//! Faults: every fault the drive reports is logged in the EEPROM (newest 32, with the
+//! power-cycle count and the time since power-up) and shown on the run screen with its
+//! text. Nothing restarts by itself: after a trip (including `LINK` after a cut link) the
+//! drive stays in FAULT until an `ACK` (program instruction) and a new RUN from the user.
+//! A lost link does not stop the PLC's own scan (its outputs may matter on their own);
+//! the run screen shows the link state.
+
+use shared_protocol::link::plc::{PlcEvent, PlcLink, PlcLinkState};
+use shared_protocol::link::{
+    fault_text, DownloadResult, DriveState, DriveStatus, LinkConfig, RejectReason,
+};
+use shared_protocol::program::{verify, Program};
+use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros};
+
+use crate::editor::{Editor, Key, Notice, Page, Request, RunView, Screen, View, Warning};
+use crate::storage::{Eeprom, FaultEntry, Storage, FAULT_LOG_ENTRIES};
+use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
+
+/// Where RUN stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum RunState {
+    Stopped,
+    /// RUN requested, program verified: waiting for the link to come up.
+    WaitLink,
+    /// The drive section is being sent; waiting for the drive's answer.
+    Downloading,
+    /// Both run.
+    Running,
+}
+
+/// Everything the run screen shows (also for hil-sim's summary and tests).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RunStatus {
+    pub run: RunState,
+    pub link: PlcLinkState,
+    /// The drive's newest status, `None` while the link is down.
+    pub drive: Option<DriveStatus>,
+    /// The newest fault reported by the drive in this power cycle: code and text.
+    pub newest_fault: Option<(u8, &'static str)>,
+    /// The 4 `LCD` fields of the last scan.
+    pub lcd: [Option<i16>; 4],
+    /// The newest run-time warning (`DIV0 @ line`), kept until the next RUN.
+    pub warning: Option<vm::Warning>,
+}
+
+/// The PLC application.
+pub struct PlcApp<E: Eeprom> {
+    program: Program,
+    vm: PlcVm,
+    link: PlcLink,
+    storage: Storage<E>,
+    editor: Editor,
+    run: RunState,
+    /// The slot RUN was started from (for the boot record).
+    run_slot: Option<u8>,
+    out: ScanOutputs,
+    newest_fault: Option<u8>,
+    warning: Option<vm::Warning>,
+    /// The stored fault log, newest first (read at power-up, kept up to date).
+    fault_log: heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
+}
+
+impl<E: Eeprom> PlcApp<E> {
+    /// Power-up with the EEPROM in `eeprom` and an LCD of `cols` x `rows` (20x4 or 16x2).
+    pub fn new(eeprom: E, link: LinkConfig, cols: u8, rows: u8, now: Micros) -> Self {
+        let mut app = PlcApp {
+            program: Program::default(),
+            vm: PlcVm::new(),
+            link: PlcLink::new(link),
+            storage: Storage::new(eeprom),
+            editor: Editor::new(cols, rows),
+            run: RunState::Stopped,
+            run_slot: None,
+            out: ScanOutputs::default(),
+            newest_fault: None,
+            warning: None,
+            fault_log: heapless::Vec::new(),
+        };
+        let mut run_now = false;
+        match app.storage.power_up(&mut app.program) {
+            Ok(p) => {
+                match p.loaded {
+                    Some(Ok(report)) => {
+                        app.editor.notify(Notice::Loaded(report));
+                        app.run_slot = Some(report.slot);
+                    }
+                    Some(Err(error)) => app.editor.notify(Notice::LoadFailed { slot: 0, error }),
+                    None => {}
+                }
+                run_now = p.run;
+            }
+            Err(_) => app.editor.notify(Notice::Text("EEPROM ERROR")),
+        }
+        app.reload_fault_log();
+        if run_now {
+            let slot = app.run_slot;
+            app.run(slot, now);
+        }
+        app
+    }
+
+    pub fn program(&self) -> &Program {
+        &self.program
+    }
+
+    /// The program, for loading it from elsewhere (e.g. hil-sim from a text file) while
+    /// stopped. Changing it while running has no effect on the drive until the next RUN.
+    pub fn program_mut(&mut self) -> &mut Program {
+        &mut self.program
+    }
+
+    pub fn vm(&self) -> &PlcVm {
+        &self.vm
+    }
+
+    pub fn link(&self) -> &PlcLink {
+        &self.link
+    }
+
+    pub fn editor(&self) -> &Editor {
+        &self.editor
+    }
+
+    pub fn storage(&mut self) -> &mut Storage<E> {
+        &mut self.storage
+    }
+
+    pub fn run_state(&self) -> RunState {
+        self.run
+    }
+
+    /// The PLC's copy of Qn.
+    pub fn q(&self, n: u8) -> i16 {
+        self.vm.q(n)
+    }
+
+    /// The output image O00-O05 (0 when not running).
+    pub fn outputs(&self) -> u8 {
+        self.out.outputs
+    }
+
+    /// The stored fault log, newest first.
+    pub fn fault_log(&self) -> &[FaultEntry] {
+        &self.fault_log
+    }
+
+    pub fn status(&self) -> RunStatus {
+        RunStatus {
+            run: self.run,
+            link: self.link.state(),
+            drive: self.drive_status(),
+            newest_fault: self.newest_fault.map(|c| (c, fault_text(c))),
+            lcd: self.out.lcd,
+            warning: self.warning,
+        }
+    }
+
+    fn drive_status(&self) -> Option<DriveStatus> {
+        if !self.link.is_up() {
+            return None;
+        }
+        self.link.last_status().map(|(s, _)| s)
+    }
+
+    /// Start RUN (the editor's `A` key does this through [`PlcApp::key`]). `slot` is the
+    /// slot the program came from, recorded so that it runs again at power-up.
+    pub fn run(&mut self, slot: Option<u8>, now: Micros) {
+        if let Err(e) = verify(&self.program) {
+            self.editor.notify(Notice::RunRefused {
+                line: Some(e.line),
+                reason: e.kind.short(),
+            });
+            self.run = RunState::Stopped;
+            return;
+        }
+        if self.run == RunState::Running {
+            // A new RUN while running: stop both first, then start over.
+            let _ = self.link.stop();
+        }
+        self.run_slot = slot.or(self.run_slot);
+        self.out = ScanOutputs::default();
+        self.warning = None;
+        self.run = RunState::WaitLink;
+        self.editor.show_page(Page::Run);
+        self.advance_run(now);
+    }
+
+    /// STOP: the VM stops, the outputs go off, the drive is told to stop.
+    pub fn stop(&mut self) {
+        let _ = self.link.stop();
+        self.run = RunState::Stopped;
+        self.out = ScanOutputs::default();
+        if self.storage.set_run_state(self.run_slot, false).is_err() {
+            self.editor.notify(Notice::Text("EEPROM ERROR"));
+        }
+    }
+
+    fn advance_run(&mut self, now: Micros) {
+        if self.run == RunState::WaitLink
+            && self.link.is_up()
+            && self
+                .link
+                .start_download(&self.program.drive_section())
+                .is_ok()
+        {
+            self.run = RunState::Downloading;
+        }
+        let _ = now;
+    }
+
+    fn start_both(&mut self, now: Micros) {
+        if self.link.run().is_err() {
+            // The link went down between the answer and now: try again from the start.
+            self.run = RunState::WaitLink;
+            return;
+        }
+        self.vm.start(now.millis());
+        self.link.forget_q();
+        self.run = RunState::Running;
+        if self.storage.set_run_state(self.run_slot, true).is_err() {
+            self.editor.notify(Notice::Text("EEPROM ERROR"));
+        }
+    }
+
+    /// One scan with the inputs sampled at its start; returns the outputs to write.
+    /// Does nothing (outputs off) unless RUN is on.
+    pub fn scan(&mut self, digital: u8, analog: [u16; 4], now: Micros) -> ScanOutputs {
+        if self.run != RunState::Running {
+            self.out = ScanOutputs::default();
+            return self.out;
+        }
+        let inputs = ScanInputs {
+            digital,
+            analog,
+            drive: self.drive_view(),
+        };
+        let mut out = ScanOutputs::default();
+        self.vm.scan(&self.program, &inputs, now.millis(), &mut out);
+        for n in out.dirty_q() {
+            // Refused only when 96 commands wait: the newest value is kept for the next
+            // reconnection anyway.
+            let _ = self.link.write_q(n, self.vm.q(n));
+        }
+        if let Some(rev) = out.rev_request {
+            let _ = self.link.set_direction(rev);
+        }
+        if out.ack_request {
+            let _ = self.link.ack_fault();
+        }
+        if out.warning.is_some() {
+            self.warning = out.warning;
+        }
+        self.out = out;
+        out
+    }
+
+    fn drive_view(&self) -> DriveView {
+        match self.drive_status() {
+            Some(s) => DriveView {
+                com: s.com,
+                frq: Decihertz(s.freq_dhz),
+                udc: Decivolts(s.udc_dv),
+                imx: CentiAmps(s.imax_ca),
+                flt: s.fault,
+                dir_reverse: s.reverse,
+                ready: s.state == DriveState::Run && s.fault == 0,
+                fault_latched: s.fault != 0,
+            },
+            None => DriveView::default(),
+        }
+    }
+
+    /// Bytes from the UART.
+    pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
+        self.link.receive(bytes, now);
+        self.service(now);
+    }
+
+    /// The next frame for the UART (0 = nothing now); `out` must hold
+    /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes. Also runs the link's timers and
+    /// the RUN sequence: call it at least every millisecond.
+    pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        self.service(now);
+        let n = self.link.poll_transmit(now, out);
+        self.service(now);
+        n
+    }
+
+    fn service(&mut self, now: Micros) {
+        while let Some(e) = self.link.poll_event() {
+            match e {
+                PlcEvent::Connected => {}
+                PlcEvent::LinkLost { .. } => {
+                    if self.run == RunState::Downloading {
+                        self.run = RunState::WaitLink;
+                    }
+                }
+                PlcEvent::VersionMismatch { .. } => {
+                    self.editor.notify(Notice::Text("DRIVE VERSION DIFF"));
+                }
+                PlcEvent::Download(DownloadResult::Accepted) => {
+                    if self.run == RunState::Downloading {
+                        self.start_both(now);
+                    }
+                }
+                PlcEvent::Download(DownloadResult::Rejected { line, reason }) => {
+                    if self.run == RunState::Downloading {
+                        self.run = RunState::Stopped;
+                    }
+                    self.editor.notify(Notice::RunRefused {
+                        line: match reason {
+                            RejectReason::Verify(_) | RejectReason::Decode => Some(line),
+                            RejectReason::Crc | RejectReason::Incomplete => None,
+                        },
+                        reason: reason.short(),
+                    });
+                }
+                PlcEvent::DriveFault { code, .. } => {
+                    self.newest_fault = Some(code);
+                    // The PLC's clock, not the drive's: the log's timestamps must be
+                    // comparable across drive reboots.
+                    match self.storage.log_fault(code, now.0 / 1000) {
+                        Ok(_) => self.reload_fault_log(),
+                        Err(_) => self.editor.notify(Notice::Text("FAULT LOG ERROR")),
+                    }
+                }
+            }
+        }
+        self.advance_run(now);
+    }
+
+    fn reload_fault_log(&mut self) {
+        let mut log = heapless::Vec::new();
+        if self.storage.fault_log(&mut log).is_ok() {
+            self.fault_log = log;
+        }
+    }
+
+    /// A key of the keypad.
+    pub fn key(&mut self, key: Key, now: Micros) {
+        let running = self.run != RunState::Stopped;
+        let Some(req) = self.editor.key(key, &mut self.program, running) else {
+            return;
+        };
+        match req {
+            Request::Save(slot) => {
+                let notice = match self.storage.save(slot, &self.program) {
+                    Ok(_) => Notice::Saved { slot },
+                    Err(error) => Notice::SaveFailed { slot, error },
+                };
+                self.editor.notify(notice);
+            }
+            Request::Load(slot) => {
+                let notice = match self.storage.load(slot, &mut self.program) {
+                    Ok(r) => Notice::Loaded(r),
+                    Err(error) => Notice::LoadFailed { slot, error },
+                };
+                self.editor.notify(notice);
+            }
+            Request::Run { slot } => self.run(slot, now),
+            Request::Stop => self.stop(),
+            Request::New => {}
+            Request::ClearFaultLog => {
+                match self.storage.clear_fault_log() {
+                    Ok(()) => self.editor.notify(Notice::Text("FAULT LOG CLEARED")),
+                    Err(_) => self.editor.notify(Notice::Text("EEPROM ERROR")),
+                }
+                self.newest_fault = None;
+                self.reload_fault_log();
+            }
+        }
+    }
+
+    /// Draw the current page (listing, run screen or fault log) for the LCD.
+    pub fn render(&self, now: Micros, screen: &mut Screen) {
+        let warning = self.warning.map(|w| match w {
+            vm::Warning::Div0 { line } => Warning {
+                text: "DIV0",
+                line: Some(line),
+            },
+        });
+        let drive = self.drive_status();
+        let run = RunView {
+            running: self.run == RunState::Running,
+            link_up: self.link.is_up(),
+            drive_state: drive.map_or(DriveState::Boot, |s| s.state),
+            freq_dhz: drive.map_or(0, |s| s.freq_dhz),
+            reverse: drive.is_some_and(|s| s.reverse),
+            fault: drive
+                .map(|s| s.fault)
+                .filter(|&f| f != 0)
+                .or(self.newest_fault.filter(|_| drive.is_none())),
+            lcd: self.out.lcd,
+            warning,
+        };
+        let view = View {
+            program: &self.program,
+            run,
+            fault_log: &self.fault_log,
+            now_ms: now.millis().0,
+        };
+        self.editor.render(&view, screen);
+    }
+}

@@ -1,0 +1,256 @@
+//! The two applications (PlcApp, DriveApp) joined by the byte-timed in-memory UART, as
+//! the boards join them: RUN handshake/download/start, Q writes reaching the drive core,
+//! a cut link tripping LINK and showing on the PLC, no automatic restart after a fault.
+
+use firmware_drive::app::DriveApp;
+use firmware_drive::{AdcSample, DriveConfig, DriveState as CoreState, FaultCode, ResetCause};
+use firmware_plc::app::{PlcApp, RunState};
+use firmware_plc::editor::{Key, Screen};
+use firmware_plc::storage::MemEeprom;
+use shared_protocol::link::channel::{Channel, Impairments};
+use shared_protocol::link::{LinkConfig, PlcLinkState, MAX_WIRE_FRAME};
+use shared_protocol::program::{assemble, Instruction, Mnemonic, Operand};
+use shared_protocol::units::Micros;
+
+const PROGRAM: &str = "
+000 fmn K00 0010      ; f stays 0: PWM off, nothing else needed from the plant
+001 LD  Q00
+002 WR  Q01
+150 LD  D00
+151 LD  A00
+152 WR  Q00           ; Q00 = A00 while D00
+153 LD  D01
+154 ACK
+155 LD  A00
+156 LCD
+";
+
+struct Rig {
+    plc: PlcApp<MemEeprom>,
+    drive: DriveApp,
+    to_drive: Channel,
+    to_plc: Channel,
+    now: Micros,
+    digital: u8,
+    analog: [u16; 4],
+    next_ms: u64,
+}
+
+impl Rig {
+    fn new(program: &str) -> Rig {
+        let cfg = LinkConfig::default();
+        let mut plc = PlcApp::new(MemEeprom::new(), cfg, 20, 4, Micros(0));
+        *plc.program_mut() = assemble(program).unwrap();
+        Rig {
+            plc,
+            drive: DriveApp::new(DriveConfig::default(), ResetCause::PowerOn, cfg),
+            to_drive: Channel::new(cfg.baud, Impairments::default(), 1),
+            to_plc: Channel::new(cfg.baud, Impairments::default(), 2),
+            now: Micros(0),
+            digital: 0,
+            analog: [0; 4],
+            next_ms: 0,
+        }
+    }
+
+    /// Advance by 10 us steps: UART bytes, transmit when idle, 1 ms scan + tick, and a
+    /// PWM period every 100 us (the ADC reads zero current, 30 V).
+    fn run_for(&mut self, us: u64) {
+        let end = self.now.0 + us;
+        let mut buf = [0u8; 64];
+        let mut out = [0u8; MAX_WIRE_FRAME];
+        let adc = AdcSample {
+            u_dc: 2800,
+            ..AdcSample::default()
+        };
+        while self.now.0 < end {
+            self.now = Micros(self.now.0 + 10);
+            let now = self.now;
+            let n = self.to_drive.receive(now, &mut buf);
+            if n > 0 {
+                self.drive.on_rx(&buf[..n], now);
+            }
+            let n = self.to_plc.receive(now, &mut buf);
+            if n > 0 {
+                self.plc.on_rx(&buf[..n], now);
+            }
+            if now.0.is_multiple_of(100) {
+                self.drive.pwm_period(&adc);
+            }
+            if now.0 >= self.next_ms * 1000 {
+                self.next_ms += 1;
+                self.plc.scan(self.digital, self.analog, now);
+                self.drive.tick_1ms(now);
+            }
+            if self.to_drive.is_idle(now) {
+                let n = self.plc.poll_tx(now, &mut out);
+                if n > 0 {
+                    self.to_drive.send(&out[..n], now);
+                }
+            }
+            if self.to_plc.is_idle(now) {
+                let n = self.drive.poll_tx(now, &mut out);
+                if n > 0 {
+                    self.to_plc.send(&out[..n], now);
+                }
+            }
+        }
+    }
+
+    fn cut(&mut self, cut: bool) {
+        self.to_drive.set_cut(cut);
+        self.to_plc.set_cut(cut);
+    }
+
+    fn screen(&self) -> String {
+        let mut s = Screen::new(20, 4);
+        self.plc.render(self.now, &mut s);
+        (0..4).map(|r| s.row(r).to_string() + "\n").collect()
+    }
+}
+
+fn running_rig() -> Rig {
+    let mut r = Rig::new(PROGRAM);
+    r.run_for(20_000);
+    assert_eq!(r.plc.link().state(), PlcLinkState::Up);
+    r.plc.run(None, r.now);
+    r.run_for(100_000);
+    assert_eq!(r.plc.run_state(), RunState::Running);
+    assert_eq!(r.drive.core().state(), CoreState::Run);
+    r
+}
+
+#[test]
+fn run_verifies_downloads_and_starts_both() {
+    let mut r = Rig::new(PROGRAM);
+    // RUN before the link is up: waits for it, then downloads.
+    r.plc.run(None, Micros(0));
+    assert_eq!(r.plc.run_state(), RunState::WaitLink);
+    r.run_for(5_000);
+    assert_eq!(r.plc.run_state(), RunState::Downloading);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+    let mut started = None;
+    for _ in 0..200 {
+        r.run_for(1_000);
+        if r.plc.run_state() == RunState::Running {
+            started = Some(r.now);
+            break;
+        }
+    }
+    let started = started.expect("RUN completes");
+    assert!(
+        started.0 < 120_000,
+        "download + start took {} us",
+        started.0
+    );
+    r.run_for(5_000);
+    assert_eq!(r.drive.core().state(), CoreState::Run);
+    assert!(r.drive.status().program_loaded);
+    let st = r.plc.status();
+    assert_eq!(
+        st.drive.map(|d| d.state),
+        Some(shared_protocol::link::DriveState::Run)
+    );
+    assert!(r.screen().contains("RUN"), "{}", r.screen());
+}
+
+#[test]
+fn an_invalid_program_never_runs() {
+    let mut r = Rig::new(PROGRAM);
+    // A PLC operand in the drive section (the keypad cannot enter it, a corrupt image could).
+    r.plc.program_mut().lines[0] = Some(Instruction {
+        mnemonic: Mnemonic::Ld,
+        operand: Some(Operand::D(0)),
+        constant: 0,
+    });
+    r.run_for(20_000);
+    r.plc.run(None, r.now);
+    r.run_for(50_000);
+    assert_eq!(r.plc.run_state(), RunState::Stopped);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+    assert!(r.screen().contains("000:"), "{}", r.screen());
+}
+
+#[test]
+fn q_write_in_a_scan_reaches_the_drive_core_within_2ms() {
+    let mut r = running_rig();
+    r.analog[0] = 321;
+    r.digital = 1;
+    // The scan that writes Q00 runs at the next ms boundary.
+    let scan_at = r.next_ms * 1000;
+    let mut applied = None;
+    while r.now.0 < scan_at + 10_000 {
+        r.run_for(10);
+        if applied.is_none() && r.drive.core().vm().q(0) == 321 {
+            applied = Some(r.now.0);
+        }
+    }
+    let latency = applied.expect("applied") - scan_at;
+    eprintln!("scan -> drive core Q00: {latency} us");
+    assert!(latency <= 2_000, "latency {latency} us");
+    assert_eq!(r.plc.q(0), 321);
+    // The drive section copies it (drive's own WR) every 1 ms.
+    assert_eq!(r.drive.core().vm().q(1), 321);
+}
+
+#[test]
+fn cut_link_trips_link_on_the_drive_and_shows_on_the_plc_without_restart() {
+    let mut r = running_rig();
+    let cut = r.now;
+    r.cut(true);
+    let mut drive_tripped = None;
+    let mut plc_saw = None;
+    while r.now.0 < cut.0 + 150_000 {
+        r.run_for(100);
+        if drive_tripped.is_none() && r.drive.core().fault() == Some(FaultCode::Link) {
+            drive_tripped = Some(r.now.0 - cut.0);
+        }
+        if plc_saw.is_none() && r.plc.status().link != PlcLinkState::Up {
+            plc_saw = Some(r.now.0 - cut.0);
+        }
+    }
+    let tripped = drive_tripped.expect("drive trips LINK");
+    assert!(
+        (40_000..=52_000).contains(&tripped),
+        "LINK after {tripped} us"
+    );
+    assert!(plc_saw.expect("PLC shows it") <= 100_000);
+    assert_eq!(r.drive.core().state(), CoreState::Fault);
+    eprintln!("link cut:\n{}", r.screen());
+
+    // Wires back: the link comes up again, the fault reaches the PLC's log and screen,
+    // and the drive stays in FAULT.
+    r.cut(false);
+    r.run_for(1_000_000);
+    assert_eq!(r.plc.link().state(), PlcLinkState::Up);
+    assert_eq!(r.drive.core().state(), CoreState::Fault);
+    assert_eq!(r.plc.status().newest_fault, Some((5, "link lost")));
+    assert_eq!(r.plc.fault_log().first().map(|e| e.code), Some(5));
+    eprintln!("after reconnection:\n{}", r.screen());
+    assert!(r.screen().to_uppercase().contains("LINK"), "{}", r.screen());
+
+    // ACK (D01 rising): the fault clears to IDLE, not RUN.
+    r.digital = 0b10;
+    r.run_for(20_000);
+    r.digital = 0;
+    r.run_for(500_000);
+    assert_eq!(r.drive.core().fault(), None);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+    // Only a new RUN starts it again.
+    r.plc.key(Key::A, r.now); // running -> STOP
+    r.run_for(10_000);
+    assert_eq!(r.plc.run_state(), RunState::Stopped);
+    r.plc.key(Key::A, r.now); // RUN
+    r.run_for(150_000);
+    assert_eq!(r.plc.run_state(), RunState::Running);
+    assert_eq!(r.drive.core().state(), CoreState::Run);
+}
+
+#[test]
+fn stop_turns_the_drive_off() {
+    let mut r = running_rig();
+    r.plc.stop();
+    r.run_for(10_000);
+    assert_eq!(r.plc.run_state(), RunState::Stopped);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+}
