@@ -263,3 +263,19 @@ proptest! {
         prop_assert_eq!(p, q);
     }
 }
+
+#[test]
+fn motor_program_save_costs_eight_page_writes() {
+    let text = include_str!("../../shared-protocol/programs/motor.plc");
+    let p = shared_protocol::program::assemble(text).unwrap();
+    assert_eq!(
+        firmware_plc::storage::slot::payload_size(&p),
+        (2 * 3 + 52 * 4, 52),
+        "two runs of 26 lines (docs/eeprom-image.md)"
+    );
+    let mut s = Storage::new(MemEeprom::new());
+    s.save(1, &p).unwrap();
+    // 230 bytes per copy = 4 pages, two copies: 8 page writes, at most 40 ms on a 24C256.
+    assert_eq!(s.eeprom().pages_written(), 8);
+    assert_eq!(s.eeprom().bytes_written(), 2 * 230);
+}
