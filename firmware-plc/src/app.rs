@@ -25,6 +25,7 @@
 //! the run screen shows the link state.
 
 use shared_protocol::link::plc::{PlcEvent, PlcLink, PlcLinkState};
+use shared_protocol::link::Q_COUNT;
 use shared_protocol::link::{
     fault_text, DownloadResult, DriveState, DriveStatus, LinkConfig, RejectReason,
 };
@@ -78,7 +79,16 @@ pub struct PlcApp<E: Eeprom> {
     warning: Option<vm::Warning>,
     /// The stored fault log, newest first (read at power-up, kept up to date).
     fault_log: heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
+    /// Per Q: the value last handed to the link in this RUN and when.
+    q_sent: [Option<(i16, Micros)>; Q_COUNT],
 }
+
+/// A `WR` of an unchanged Q value is passed to the link at most this often (a changed
+/// value goes at once). A program that writes a Q in every 1 ms scan would otherwise keep
+/// the 115200-baud link saturated with identical values, and the changes that matter
+/// would queue behind them. The refresh still restores the PLC's value within 10 ms if
+/// the drive section overwrote its copy with its own `WR`.
+pub const Q_REFRESH_US: u64 = 10_000;
 
 impl<E: Eeprom> PlcApp<E> {
     /// Power-up with the EEPROM in `eeprom` and an LCD of `cols` x `rows` (20x4 or 16x2).
@@ -95,6 +105,7 @@ impl<E: Eeprom> PlcApp<E> {
             newest_fault: None,
             warning: None,
             fault_log: heapless::Vec::new(),
+            q_sent: [None; Q_COUNT],
         };
         let mut run_now = false;
         match app.storage.power_up(&mut app.program) {
@@ -236,6 +247,7 @@ impl<E: Eeprom> PlcApp<E> {
         }
         self.vm.start(now.millis());
         self.link.forget_q();
+        self.q_sent = [None; Q_COUNT];
         self.run = RunState::Running;
         if self.storage.set_run_state(self.run_slot, true).is_err() {
             self.editor.notify(Notice::Text("EEPROM ERROR"));
@@ -257,9 +269,18 @@ impl<E: Eeprom> PlcApp<E> {
         let mut out = ScanOutputs::default();
         self.vm.scan(&self.program, &inputs, now.millis(), &mut out);
         for n in out.dirty_q() {
-            // Refused only when 96 commands wait: the newest value is kept for the next
-            // reconnection anyway.
-            let _ = self.link.write_q(n, self.vm.q(n));
+            let value = self.vm.q(n);
+            let Some(sent) = self.q_sent.get_mut(usize::from(n)) else {
+                continue;
+            };
+            let fresh = matches!(*sent, Some((v, t)) if v == value && now.0.saturating_sub(t.0) < Q_REFRESH_US);
+            if fresh {
+                continue;
+            }
+            // Refused only when 96 commands wait: the link keeps the newest value for the
+            // next reconnection anyway.
+            let _ = self.link.write_q(n, value);
+            *sent = Some((value, now));
         }
         if let Some(rev) = out.rev_request {
             let _ = self.link.set_direction(rev);

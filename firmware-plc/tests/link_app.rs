@@ -254,3 +254,73 @@ fn stop_turns_the_drive_off() {
     assert_eq!(r.plc.run_state(), RunState::Stopped);
     assert_eq!(r.drive.core().state(), CoreState::Idle);
 }
+
+#[test]
+fn div0_warning_shows_on_the_run_screen() {
+    let mut r = Rig::new(&format!("{PROGRAM}157 LD K00 0005\n158 DIV Q05\n"));
+    r.run_for(20_000);
+    r.plc.run(None, r.now);
+    r.run_for(100_000);
+    assert_eq!(r.plc.run_state(), RunState::Running);
+    assert_eq!(
+        r.plc.status().warning,
+        Some(firmware_plc::vm::Warning::Div0 { line: 158 })
+    );
+    let screen = r.screen();
+    assert!(screen.contains("DIV0") && screen.contains("158"), "{screen}");
+}
+
+#[test]
+fn the_slot_last_run_runs_again_at_power_up() {
+    let mut r = Rig::new(PROGRAM);
+    let program = r.plc.program().clone();
+    r.plc.storage().save(2, &program).unwrap();
+    r.run_for(20_000);
+    r.plc.run(Some(2), r.now);
+    r.run_for(100_000);
+    assert_eq!(r.plc.run_state(), RunState::Running);
+
+    // Power cycle of both boards with the same EEPROM.
+    let image = r.plc.storage().eeprom().image().to_vec();
+    let cfg = LinkConfig::default();
+    let mut r2 = Rig::new(PROGRAM);
+    r2.plc = PlcApp::new(MemEeprom::from_image(&image), cfg, 20, 4, Micros(0));
+    assert_eq!(r2.plc.program(), &program);
+    assert_eq!(r2.plc.run_state(), RunState::WaitLink);
+    r2.run_for(150_000);
+    assert_eq!(r2.plc.run_state(), RunState::Running);
+    assert_eq!(r2.drive.core().state(), CoreState::Run);
+
+    // STOP is remembered too: the next power-up does not run.
+    r2.plc.stop();
+    let image = r2.plc.storage().eeprom().image().to_vec();
+    let p3 = PlcApp::new(MemEeprom::from_image(&image), cfg, 20, 4, Micros(0));
+    assert_eq!(p3.run_state(), RunState::Stopped);
+}
+
+#[test]
+fn run_and_q_writes_on_a_noisy_link() {
+    let mut r = Rig::new(PROGRAM);
+    let imp = Impairments {
+        bit_error_rate: 1e-4,
+        byte_drop: 1e-4,
+        frame_drop: 1e-3,
+        ..Default::default()
+    };
+    r.to_drive.set_impairments(imp);
+    r.to_plc.set_impairments(imp);
+    r.run_for(50_000);
+    r.plc.run(None, r.now);
+    r.run_for(300_000);
+    assert_eq!(r.plc.run_state(), RunState::Running);
+    r.digital = 1;
+    // Every scan writes Q00 (D00 stays on): at 115200 the PLC-to-drive direction is
+    // saturated, so a lost frame costs a retransmission timeout plus the window.
+    for v in (0..1024).step_by(37) {
+        r.analog[0] = v;
+        r.run_for(100_000);
+        assert_eq!(r.drive.core().vm().q(0), v as i16);
+    }
+    assert_eq!(r.drive.core().state(), CoreState::Run);
+    assert!(r.plc.link().stats().frames_bad + r.drive.link().stats().frames_bad > 0);
+}
