@@ -101,6 +101,15 @@ fn op() -> impl Strategy<Value = Op> {
     ]
 }
 
+/// The sine of `program()` with its protections, running at `f` from the start.
+fn running_sine(f: i16) -> Vec<Op> {
+    vec![
+        Op::Cmd(DriveCommand::SetQ { addr: 1, value: f }),
+        Op::Cmd(DriveCommand::Run),
+        Op::Tick,
+    ]
+}
+
 fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError> {
     let cfg = DriveConfig::default();
     let min = cfg.min_pulse_counts;
@@ -148,8 +157,9 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                         prop_assert!(!c.enable);
                         prop_assert!(core.fault().is_some());
                     }
-                    let udc_v = f64::from(s.u_dc) * 45.0 / 4095.0;
-                    if settings.u_min_volts > 0 && udc_v < f64::from(settings.u_min_volts) {
+                    // 4095 counts / 45 V = 91 counts per volt exactly.
+                    let uv_limit = 91 * u32::from(settings.u_min_volts);
+                    if settings.u_min_volts > 0 && u32::from(s.u_dc) < uv_limit {
                         prop_assert!(!c.enable);
                     }
                 }
@@ -204,6 +214,22 @@ proptest! {
         ops in prop::collection::vec(op(), 1..300),
     ) {
         check_sequence(first, ops)?;
+    }
+
+    /// Same, starting with the outputs on (sine at 5..100 Hz with U<, I> set), so that most
+    /// trips happen while switching.
+    #[test]
+    fn trips_while_switching_turn_the_outputs_off_in_the_same_period(
+        f in 50i16..1000,
+        ops in prop::collection::vec(op(), 1..200),
+    ) {
+        let text = "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n004 LD K01 1200\n005 SN2\n\
+            006 LD K02 2400\n007 SN3\n008 U< K03 0025\n009 I> K04 0300\n010 U> K05 0038\n\
+            011 fmn K06 0050\n012 frv K07 0200\n";
+        let first = shared_protocol::program::assemble(text).unwrap().drive_section();
+        let mut all = running_sine(f);
+        all.extend(ops);
+        check_sequence(first, all)?;
     }
 
     /// Complementary outputs of one leg with dead time, tick by tick over several
