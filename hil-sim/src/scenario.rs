@@ -176,8 +176,9 @@ pub struct Scenario {
     pub cut_at_ns: u64,
     /// Sorted by time; equal times keep file order.
     pub actions: Vec<TimedAction>,
-    /// The scenario types keypad keys (then RUN is left to the keys).
-    pub has_keys: bool,
+    /// The scenario types the RUN key (`A`, firmware-plc/docs/keymap.md): then RUN is
+    /// left to the keys instead of starting at power-up.
+    pub keys_start_run: bool,
 }
 
 impl Default for Scenario {
@@ -190,10 +191,13 @@ impl Default for Scenario {
             bit_error_rate: 0.0,
             cut_at_ns: u64::MAX,
             actions: Vec::new(),
-            has_keys: false,
+            keys_start_run: false,
         }
     }
 }
+
+/// The keypad's RUN / STOP key.
+pub const RUN_KEY: char = 'A';
 
 /// Keys of the 4 x 4 keypad (panel.md).
 pub const KEYPAD_KEYS: &str = "0123456789ABCD*#";
@@ -358,7 +362,9 @@ impl Scenario {
                 let t = e.at_s + i as f64 * KEY_SPACING_S;
                 self.push(t, Action::KeyDown(k));
                 self.push(t + KEY_HOLD_S, Action::KeyUp(k));
-                self.has_keys = true;
+                if k == RUN_KEY {
+                    self.keys_start_run = true;
+                }
             }
             any = true;
         }
@@ -438,7 +444,12 @@ load_torque_nm = 0.05
         let s = Scenario::parse(SPEC_EXAMPLE).unwrap();
         assert_eq!(s.duration_s, Some(20.0));
         assert_eq!(s.cut_at_ns, u64::MAX);
-        assert!(s.has_keys);
+        assert!(s.keys_start_run);
+        assert!(
+            !Scenario::parse("[[event]]\nat_s = 1\nkeys = \"B\"")
+                .unwrap()
+                .keys_start_run
+        );
         let at = |t: f64| -> Vec<&Action> {
             s.actions
                 .iter()

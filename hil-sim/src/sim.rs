@@ -104,13 +104,13 @@ pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
 
 impl Simulation<DriveBoard, PlcBoard> {
     /// The default boards with `program` in the PLC's EEPROM (slot 1, RUN at power-up
-    /// unless the scenario types keys).
+    /// unless the scenario types the RUN key).
     pub fn new(program: &Program, scenario: Scenario, opts: RunOptions) -> Result<Self> {
         let image = program_image(
             program,
             &ImageOptions {
                 slot: 1,
-                run_at_power_up: !scenario.has_keys,
+                run_at_power_up: !scenario.keys_start_run,
             },
         )
         .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))

@@ -5,10 +5,11 @@
 //! power-up, RUN starts: verify, download the drive section, wait for the drive to accept
 //! it, RUN both.
 
+use firmware_plc::editor::{Editor, Key, Notice, Page, Request, RunView, View, Warning};
 use firmware_plc::link::{PlcEvent, PlcLink};
-use firmware_plc::storage::{MemEeprom, Storage};
+use firmware_plc::storage::{FaultEntry, MemEeprom, OtherCopy, Storage, FAULT_LOG_ENTRIES};
 use firmware_plc::vm::{DriveView, PlcVm, ScanInputs, ScanOutputs};
-use shared_protocol::link::message::{fault_name, DownloadResult, DriveState};
+use shared_protocol::link::message::{DownloadResult, DriveState};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::program::{verify, Program};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Millis};
@@ -35,10 +36,14 @@ pub struct PlcBoard {
     run: RunState,
     out: ScanOutputs,
     lcd: Lcd,
+    editor: Editor,
     /// Newest drive fault reported over the link.
     last_fault: Option<u8>,
-    /// A message for the status line (verifier error, download reject...).
-    message: Option<String>,
+    /// Slot the running program came from (for the boot record).
+    run_slot: Option<u8>,
+    /// A `DIV0` warning of the last scan: the line.
+    div0_line: Option<u16>,
+    now_ms: u32,
 }
 
 impl PlcBoard {
@@ -46,11 +51,26 @@ impl PlcBoard {
     pub fn new(eeprom: MemEeprom, link_cfg: LinkConfig) -> Self {
         let mut storage = Storage::new(eeprom);
         let mut program = Program::default();
-        let mut message = None;
+        let mut editor = Editor::new(20, 4);
+        let mut run_slot = None;
         let run_at_power_up = match storage.power_up(&mut program) {
-            Ok(p) => p.run,
-            Err(e) => {
-                message = Some(format!("EEPROM {e:?}"));
+            Ok(p) => {
+                match p.loaded {
+                    Some(Ok(report)) => {
+                        run_slot = Some(report.slot);
+                        // A clean load needs no message (it would hide the fault line
+                        // until the first key); a damaged copy must be reported.
+                        if matches!(report.other, OtherCopy::Bad(_)) {
+                            editor.notify(Notice::Loaded(report));
+                        }
+                    }
+                    Some(Err(error)) => editor.notify(Notice::LoadFailed { slot: 0, error }),
+                    None => {}
+                }
+                p.run
+            }
+            Err(_) => {
+                editor.notify(Notice::Text("EEPROM ERROR"));
                 false
             }
         };
@@ -62,10 +82,14 @@ impl PlcBoard {
             run: RunState::Stopped,
             out: ScanOutputs::default(),
             lcd: Lcd::default(),
+            editor,
             last_fault: None,
-            message,
+            run_slot,
+            div0_line: None,
+            now_ms: 0,
         };
         if run_at_power_up {
+            b.editor.show_page(Page::Run);
             b.start_run();
         }
         b.render();
@@ -88,14 +112,61 @@ impl PlcBoard {
         &mut self.storage
     }
 
+    pub fn editor(&self) -> &Editor {
+        &self.editor
+    }
+
     /// RUN: verify first; nothing starts with an invalid program.
     pub fn start_run(&mut self) {
         if let Err(e) = verify(&self.program) {
-            self.message = Some(format!("ERR {e}"));
+            self.editor.notify(Notice::RunRefused {
+                line: Some(e.line),
+                reason: e.kind.short(),
+            });
             self.run = RunState::Stopped;
             return;
         }
+        self.div0_line = None;
         self.run = RunState::Starting;
+    }
+
+    fn stop_run(&mut self) {
+        if self.run == RunState::Running {
+            let _ = self.link.stop();
+        }
+        self.run = RunState::Stopped;
+    }
+
+    fn handle(&mut self, r: Request) {
+        match r {
+            Request::Save(slot) => {
+                let n = match self.storage.save(slot, &self.program) {
+                    Ok(_) => Notice::Saved { slot },
+                    Err(error) => Notice::SaveFailed { slot, error },
+                };
+                self.editor.notify(n);
+            }
+            Request::Load(slot) => {
+                let n = match self.storage.load(slot, &mut self.program) {
+                    Ok(report) => Notice::Loaded(report),
+                    Err(error) => Notice::LoadFailed { slot, error },
+                };
+                self.editor.notify(n);
+            }
+            Request::Run { slot } => {
+                self.run_slot = slot;
+                let _ = self.storage.set_run_state(slot, true);
+                self.start_run();
+            }
+            Request::Stop => {
+                let _ = self.storage.set_run_state(None, false);
+                self.stop_run();
+            }
+            Request::New => self.run_slot = None,
+            Request::ClearFaultLog => {
+                let _ = self.storage.clear_fault_log();
+            }
+        }
     }
 
     fn drive_view(&self) -> DriveView {
@@ -123,8 +194,8 @@ impl PlcBoard {
                         self.run = RunState::Starting;
                     }
                 }
-                PlcEvent::VersionMismatch { drive_version } => {
-                    self.message = Some(format!("DRIVE VERSION {drive_version}"));
+                PlcEvent::VersionMismatch { .. } => {
+                    self.editor.notify(Notice::Text("DRIVE VERSION?"));
                 }
                 PlcEvent::Download(DownloadResult::Accepted) => {
                     if self.run == RunState::Downloading && self.link.run().is_ok() {
@@ -133,7 +204,10 @@ impl PlcBoard {
                     }
                 }
                 PlcEvent::Download(DownloadResult::Rejected { line, reason }) => {
-                    self.message = Some(format!("DRV {line:03} {}", reason.short()));
+                    self.editor.notify(Notice::RunRefused {
+                        line: Some(line),
+                        reason: reason.short(),
+                    });
                     self.run = RunState::Stopped;
                 }
                 PlcEvent::DriveFault {
@@ -156,45 +230,41 @@ impl PlcBoard {
         }
     }
 
-    /// The run screen (the PLC application's own screen replaces this once it exists).
+    /// Draws the LCD with the firmware's editor (run screen, listing, fault log).
     fn render(&mut self) {
-        let field = |v: Option<i16>| v.map_or(String::new(), |v| v.to_string());
-        let f = self.out.lcd;
-        self.lcd
-            .set_row(0, &format!("{:<10}{:<10}", field(f[0]), field(f[1])));
-        self.lcd
-            .set_row(1, &format!("{:<10}{:<10}", field(f[2]), field(f[3])));
-        let run = match self.run {
-            RunState::Stopped => "STOP",
-            RunState::Starting | RunState::Downloading => "LOAD",
-            RunState::Running => "RUN",
+        let mut log: heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES> = heapless::Vec::new();
+        let _ = self.storage.fault_log(&mut log);
+        let status = self.link.last_status().filter(|_| self.link.is_up());
+        let div0 = self.div0_line.map(|line| Warning {
+            text: "DIV0",
+            line: Some(line),
+        });
+        let view = View {
+            program: &self.program,
+            run: RunView {
+                running: self.run == RunState::Running,
+                link_up: self.link.is_up(),
+                drive_state: status.map_or(DriveState::Boot, |(s, _)| s.state),
+                freq_dhz: status.map_or(0, |(s, _)| s.freq_dhz),
+                reverse: status.is_some_and(|(s, _)| s.reverse),
+                fault: self.last_fault,
+                lcd: self.out.lcd,
+                warning: div0,
+            },
+            fault_log: &log,
+            now_ms: self.now_ms,
         };
-        let link = if self.link.is_up() { "LNK" } else { "---" };
-        let (drv, f_dhz) = match self.link.last_status() {
-            Some((s, _)) if self.link.is_up() => (s.state.text(), s.freq_dhz),
-            _ => ("?", 0),
-        };
-        self.lcd.set_row(
-            2,
-            &format!(
-                "{run:<4} {link} {drv:<5}{:>3}.{}",
-                f_dhz / 10,
-                (f_dhz % 10).abs()
-            ),
-        );
-        let status = if let Some(m) = &self.message {
-            m.clone()
-        } else if let Some(code) = self.last_fault {
-            format!("F{code} {}", fault_name(code))
-        } else {
-            String::new()
-        };
-        self.lcd.set_row(3, &status);
+        let mut screen = self.editor.screen();
+        self.editor.render(&view, &mut screen);
+        for r in 0..screen.rows() {
+            self.lcd.set_row(usize::from(r), screen.row(r));
+        }
     }
 }
 
 impl PlcMcu for PlcBoard {
     fn tick_1ms(&mut self, now: Micros) {
+        self.now_ms = (now.0 / 1000) as u32;
         self.link.tick(now);
         self.service_link(now);
         if now.0 % 100_000 < 1000 {
@@ -228,11 +298,24 @@ impl PlcMcu for PlcBoard {
         if out.ack_request {
             let _ = self.link.ack_fault();
         }
+        if let Some(firmware_plc::vm::Warning::Div0 { line }) = out.warning {
+            self.div0_line = Some(line);
+        }
         self.out = out;
     }
 
-    fn key(&mut self, _key: char, _down: bool, _now: Micros) {
-        // The keypad editor belongs to the PLC application; without it keys do nothing.
+    fn key(&mut self, key: char, down: bool, _now: Micros) {
+        if !down {
+            return;
+        }
+        let Some(k) = Key::from_char(key) else {
+            return;
+        };
+        let running = self.run != RunState::Stopped;
+        if let Some(r) = self.editor.key(k, &mut self.program, running) {
+            self.handle(r);
+        }
+        self.render();
     }
 
     fn uart_rx(&mut self, bytes: &[u8], now: Micros) {

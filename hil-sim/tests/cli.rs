@@ -1,0 +1,139 @@
+//! The command line as users script it (hil-sim.md "Commands").
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_hil-sim"))
+}
+
+fn repo(p: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(p)
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("hil-sim-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name)
+}
+
+#[test]
+fn run_writes_csv_and_plot_and_prints_a_summary() {
+    let csv = tmp("motor.csv");
+    let png = tmp("motor.png");
+    let out = bin()
+        .arg("run")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .arg("--scenario")
+        .arg(repo("hil-sim/scenarios/motor.toml"))
+        .args(["--duration", "2", "--sample-ms", "10"])
+        .arg("--csv")
+        .arg(&csv)
+        .arg("--plot")
+        .arg(&png)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("simulated 2.000 s"), "{stdout}");
+    assert!(stdout.contains("faults: none"), "{stdout}");
+    assert!(stdout.contains("|1:   500   2:  9800 |"), "{stdout}");
+    // No progress on stderr when it is not a terminal.
+    assert!(out.stderr.is_empty());
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(text.lines().count(), 1 + 201);
+    assert!(text.starts_with("t_s,f_cmd_hz,dir,m,pwm_on,fault,u_dc_v,"));
+    let png = std::fs::read(&png).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+}
+
+#[test]
+fn a_trip_still_exits_zero() {
+    let scen = tmp("locked.toml");
+    std::fs::write(
+        &scen,
+        "[plant]\nlocked_rotor = true\noc_hw_a = 1.0\n[[event]]\nat_s = 0\nset = { A01 = 500, A00 = 980 }\n[[event]]\nat_s = 0.1\npress = \"D00\"\n",
+    )
+    .unwrap();
+    let out = bin()
+        .arg("run")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .arg("--scenario")
+        .arg(&scen)
+        .args(["--duration", "2"])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert!(stdout.contains("2 OC_HW"), "{stdout}");
+}
+
+#[test]
+fn invalid_program_or_scenario_fails_before_simulating() {
+    let bad_prog = tmp("bad.plc");
+    std::fs::write(&bad_prog, "150 LD D09\n").unwrap();
+    let csv = tmp("never.csv");
+    let out = bin()
+        .arg("run")
+        .arg(&bad_prog)
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("bad.plc:1:"), "{err}");
+    assert!(err.contains("D09"), "{err}");
+    assert!(!csv.exists());
+
+    let bad_scen = tmp("bad.toml");
+    std::fs::write(&bad_scen, "[plant]\ndc_link = 30\n").unwrap();
+    let out = bin()
+        .arg("run")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .arg("--scenario")
+        .arg(&bad_scen)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(err.contains("dc_link"), "{err}");
+    assert!(out.stdout.is_empty());
+}
+
+#[test]
+fn asm_writes_the_eeprom_image_and_disasm_reads_it_back() {
+    let img = tmp("motor.bin");
+    let out = bin()
+        .arg("asm")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .arg("-o")
+        .arg(&img)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(std::fs::metadata(&img).unwrap().len(), 32768);
+    let from_text = bin()
+        .arg("disasm")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .output()
+        .unwrap();
+    let from_image = bin().arg("disasm").arg(&img).output().unwrap();
+    assert!(from_text.status.success() && from_image.status.success());
+    assert_eq!(from_text.stdout, from_image.stdout);
+    let text = String::from_utf8(from_text.stdout).unwrap();
+    assert!(text.contains("025 FRV K20 0200"), "{text}");
+
+    let bad = tmp("bad2.plc");
+    std::fs::write(&bad, "000 LD D00\n").unwrap();
+    let out = bin().arg("asm").arg(&bad).output().unwrap();
+    assert!(!out.status.success());
+}

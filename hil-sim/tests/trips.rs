@@ -1,0 +1,118 @@
+//! Protections on the default rig with the full motor program: each trip latches its
+//! fault code (drive.md), turns the PWM off, and stays latched.
+
+mod common;
+use common::*;
+use hil_sim::mcu::PlcMcu;
+use hil_sim::run::{parse_program, RunReport};
+use hil_sim::scenario::Scenario;
+use hil_sim::sim::{RunOptions, Simulation};
+
+const START_50HZ: &str = r#"
+[[event]]
+at_s = 0.0
+set = { A00 = 980, A01 = 500 }
+
+[[event]]
+at_s = 0.2
+press = "D00"
+"#;
+
+/// The single latched fault, its time, and the checks every trip shares.
+fn single_trip(r: &RunReport, code: u8) -> f64 {
+    assert_eq!(
+        r.faults.iter().map(|f| f.code).collect::<Vec<_>>(),
+        vec![code],
+        "faults {:?}",
+        r.faults
+    );
+    let t_trip = r.faults[0].t_ns as f64 * 1e-9;
+    let s = &r.samples;
+    // Latched until the end, PWM off, and (after the diodes have freewheeled) no current.
+    let after: Vec<_> = s.iter().filter(|x| t_s(x) >= t_trip + 0.002).collect();
+    assert!(!after.is_empty());
+    assert!(after
+        .iter()
+        .all(|x| x.fault == code && !x.pwm_on && x.f_cmd_hz == 0.0));
+    assert!(after
+        .iter()
+        .filter(|x| t_s(x) >= t_trip + 0.05)
+        .all(|x| x.i_abc_a.iter().all(|i| i.abs() < 0.05)));
+    t_trip
+}
+
+#[test]
+fn locked_rotor_trips_software_overcurrent() {
+    let scen = format!("[plant]\nlocked_rotor = true\n{START_50HZ}");
+    let r = run_text(MOTOR_PLC, &scen, 4.0);
+    let t = single_trip(&r, 1);
+    // Before the trip the sensed current reached I> = 2 A, and the comparator (3 A)
+    // never fired.
+    let before: Vec<_> = r.samples.iter().filter(|x| t_s(x) < t).cloned().collect();
+    let peak = peak_current(&before);
+    assert!(peak > 1.8 && peak < 2.2, "peak before trip {peak}");
+}
+
+#[test]
+fn hardware_comparator_below_the_software_limit_trips_oc_hw() {
+    let scen = format!("[plant]\nlocked_rotor = true\noc_hw_a = 1.2\n{START_50HZ}");
+    let r = run_text(MOTOR_PLC, &scen, 3.0);
+    let t = single_trip(&r, 2);
+    let before: Vec<_> = r.samples.iter().filter(|x| t_s(x) < t).cloned().collect();
+    assert!(peak_current(&before) < 1.3);
+}
+
+#[test]
+fn supply_drop_trips_undervoltage() {
+    // Run at 50 Hz with a load, then the supply falls to 20 V: the DC link sags below
+    // U< = 25 V while the PWM is on.
+    let scen = format!(
+        "[plant]\nload_torque_nm = 0.03\n{START_50HZ}\n[[event]]\nat_s = 6.0\ndc_link_v = 20.0\n"
+    );
+    let r = run_text(MOTOR_PLC, &scen, 7.0);
+    let t = single_trip(&r, 4);
+    assert!(t > 6.0 && t < 6.5, "UV at {t}");
+    let x = at(&r.samples, t - 0.001);
+    assert!(x.u_dc_v < 25.5, "{x:?}");
+}
+
+#[test]
+fn cut_link_trips_link_within_the_timeout() {
+    let scen = format!("[link]\ncut_at_s = 5.0\n{START_50HZ}");
+    let r = run_text(MOTOR_PLC, &scen, 6.0);
+    let t = single_trip(&r, 5);
+    // 50 ms without a valid frame; the last frame before the cut was at most one
+    // heartbeat (8 ms) earlier.
+    assert!(t > 5.0 + 0.040 && t <= 5.0 + 0.052, "LINK at {t}");
+    // The PLC notices the lost link on its LCD.
+    assert!(r.lcd.framed().contains("LINK LOST"), "{}", r.lcd.framed());
+}
+
+#[test]
+fn bit_errors_on_the_link_do_not_disturb_the_motor() {
+    let scen = format!("[link]\nbit_error_rate = 1e-4\n{START_50HZ}");
+    let r = run_text(MOTOR_PLC, &scen, 5.0);
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
+    let x = at(&r.samples, 4.9);
+    assert!(
+        (x.f_cmd_hz - 50.0 * (1.0 - f64::exp(-4.7 / 2.333))).abs() < 0.5,
+        "{x:?}"
+    );
+}
+
+#[test]
+fn the_plc_lcd_shows_the_drive_fault() {
+    let p = parse_program(MOTOR_PLC, "motor.plc").unwrap();
+    let scen = Scenario::parse(&format!("[plant]\nlocked_rotor = true\n{START_50HZ}")).unwrap();
+    let mut sim = Simulation::new(&p, scen, RunOptions::default()).unwrap();
+    let mut seen = Vec::new();
+    for k in 1..=40 {
+        sim.run_until(k * 100_000_000, |_| {});
+        seen.push(sim.plc().lcd().row(3));
+    }
+    assert!(
+        seen.iter().any(|r| r.starts_with("F1 ")),
+        "status rows: {seen:#?}"
+    );
+    assert!(sim.plc().lcd().row(0).contains("FAULT"));
+}
