@@ -267,7 +267,10 @@ fn div0_warning_shows_on_the_run_screen() {
         Some(firmware_plc::vm::Warning::Div0 { line: 158 })
     );
     let screen = r.screen();
-    assert!(screen.contains("DIV0") && screen.contains("158"), "{screen}");
+    assert!(
+        screen.contains("DIV0") && screen.contains("158"),
+        "{screen}"
+    );
 }
 
 #[test]
@@ -323,4 +326,24 @@ fn run_and_q_writes_on_a_noisy_link() {
     }
     assert_eq!(r.drive.core().state(), CoreState::Run);
     assert!(r.plc.link().stats().frames_bad + r.drive.link().stats().frames_bad > 0);
+}
+
+#[test]
+fn memory_footprint() {
+    use std::mem::size_of;
+    let sizes = [
+        ("PlcLink", size_of::<shared_protocol::link::PlcLink>()),
+        ("DriveLink", size_of::<shared_protocol::link::DriveLink>()),
+        (
+            "PlcApp<MemEeprom> without the EEPROM model",
+            size_of::<PlcApp<MemEeprom>>() - size_of::<MemEeprom>(),
+        ),
+        ("DriveApp", size_of::<DriveApp>()),
+    ];
+    for (name, bytes) in sizes {
+        eprintln!("{name}: {bytes} bytes");
+    }
+    // The drive's static RAM budget is 16 KiB, the PLC's 24 KiB (CI checks the images).
+    assert!(size_of::<DriveApp>() < 8 * 1024);
+    assert!(size_of::<PlcApp<MemEeprom>>() - size_of::<MemEeprom>() < 16 * 1024);
 }
