@@ -827,7 +827,7 @@ mod tests {
         let t1 = core.pwm_timing();
         assert_eq!(t1.arr, 8673); // 170 MHz / (2 * 9800)
         let step1 = core.modulator.params().step;
-        let f1 = f64::from(step1) / 4294967296.0 * f64::from(t1.pwm_millihertz) / 1000.0;
+        let f1 = step1 as f64 / 2f64.powi(64) * f64::from(t1.pwm_millihertz) / 1000.0;
         assert!((f1 - 50.0).abs() < 1e-3, "{f1}");
         let p = section(&SINE.replace("PWF K00 9800", "PWF K00 9800\n013 PR0"));
         core.load_program(&p).unwrap();

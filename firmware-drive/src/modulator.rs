@@ -4,7 +4,9 @@
 //! (modulation index, phase step) is computed by the 1 ms tick and handed over in
 //! [`ModulatorParams`].
 //!
-//! duty_k = N/2 + N/2 * m * sin(theta + phi_k), theta += step every period (32-bit turn).
+//! duty_k = N/2 + N/2 * m * sin(theta + phi_k), theta += step every period. theta is a
+//! 64-bit accumulator (2^64 = one turn) so that the frequency is exact to 1e-12 at any f;
+//! its upper 32 bits are the angle.
 //! With min-max injection, the common-mode offset -(max v + min v)/2 is added to all three
 //! legs (equivalent to third-harmonic injection, line-to-line voltages unchanged), which
 //! keeps duties inside 0..N up to m = 2/sqrt(3) = 1.1547.
@@ -32,8 +34,8 @@ pub enum LegMode {
 /// Set by the 1 ms tick; read by every PWM period.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ModulatorParams {
-    /// Phase advance per PWM period (2^32 = one turn).
-    pub step: u32,
+    /// Phase advance per PWM period (2^64 = one turn).
+    pub step: u64,
     /// Modulation index, Q16 (already limited to m_max).
     pub m_q16: u32,
     /// Phase offsets of the three sine phases (2^32 = one turn).
@@ -45,7 +47,7 @@ pub struct ModulatorParams {
 
 #[derive(Debug, Clone)]
 pub struct Modulator {
-    theta: u32,
+    theta: u64,
     p: ModulatorParams,
     min_pulse_counts: u16,
     min_max_injection: bool,
@@ -78,9 +80,9 @@ impl Modulator {
         &self.p
     }
 
-    /// Angle of the accumulator (phase 1 without its offset).
+    /// Angle of the accumulator (phase 1 without its offset), 2^32 = one turn.
     pub fn theta(&self) -> u32 {
-        self.theta
+        (self.theta >> 32) as u32
     }
 
     /// Restart the sine at angle 0 (outputs were off).
@@ -95,10 +97,11 @@ impl Modulator {
         let nn = i64::from(n);
         // Half the period times m, Q16 counts: the sine's amplitude in counts.
         let half_amp_q16 = (u64::from(n) * u64::from(p.m_q16)) >> 1;
+        let angle = (self.theta >> 32) as u32;
         let mut v = [0i64; 3];
         for k in 0..3 {
             if let (Some(slot), Some(phi)) = (v.get_mut(k), p.phi.get(k)) {
-                let s = sin_q15(self.theta.wrapping_add(*phi));
+                let s = sin_q15(angle.wrapping_add(*phi));
                 *slot = (half_amp_q16 as i64 * i64::from(s)) >> 15;
             }
         }
@@ -147,7 +150,7 @@ mod tests {
     use super::*;
     use crate::sine::phase_of_decidegrees;
 
-    fn three_phase(m_q16: u32, step: u32) -> ModulatorParams {
+    fn three_phase(m_q16: u32, step: u64) -> ModulatorParams {
         ModulatorParams {
             step,
             m_q16,
@@ -175,7 +178,7 @@ mod tests {
     fn sine_duty_spans_the_period_at_m_one() {
         let mut m = Modulator::new(4, false);
         // 1/400 of a turn per period.
-        m.set_params(three_phase(M_ONE_Q16, (1u64 << 32).div_ceil(400) as u32));
+        m.set_params(three_phase(M_ONE_Q16, u64::MAX / 400 + 1));
         let (mut lo, mut hi) = (u16::MAX, 0);
         let mut sum = 0u64;
         for _ in 0..400 {
@@ -222,10 +225,7 @@ mod tests {
     #[test]
     fn min_max_injection_keeps_duties_in_range_up_to_1_1547() {
         let mut m = Modulator::new(0, true);
-        m.set_params(three_phase(
-            M_MAX_MIN_MAX_Q16,
-            (1u64 << 32).div_ceil(997) as u32,
-        ));
+        m.set_params(three_phase(M_MAX_MIN_MAX_Q16, u64::MAX / 997 + 1));
         let n = 5000u16;
         let mut worst_line = 0f64;
         for _ in 0..997 {
@@ -244,7 +244,7 @@ mod tests {
     fn accumulator_advances_by_step_and_wraps() {
         let mut m = Modulator::new(4, false);
         m.set_params(ModulatorParams {
-            step: 0x8000_0000,
+            step: 1 << 63,
             ..three_phase(0, 0)
         });
         m.step(100);

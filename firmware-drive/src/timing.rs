@@ -25,9 +25,8 @@ pub struct PwmTiming {
     pub dtg: u8,
     /// The switching frequency the timer really produces, mHz.
     pub pwm_millihertz: u32,
-    /// Phase-accumulator step per PWM period for 0.1 Hz output, Q16 (so the step for f
-    /// is `f * step / 65536`).
-    pub(crate) phase_step_per_decihertz_q16: u64,
+    /// Phase-accumulator step per PWM period for 0.1 Hz output (2^64 = one turn).
+    pub(crate) phase_step_per_decihertz: u128,
 }
 
 impl PwmTiming {
@@ -52,9 +51,9 @@ impl PwmTiming {
         let arr = ((total + psc1 / 2) / psc1).clamp(1, ARR_MAX);
         let ticks_per_period = 2 * arr * psc1;
         let pwm_millihertz = ((f_tim * 1000 + ticks_per_period / 2) / ticks_per_period) as u32;
-        // step(0.1 Hz) = 0.1 * T_pwm * 2^32 = ticks * 2^32 / (10 * f_tim); kept in Q16.
-        let phase_step_per_decihertz_q16 =
-            ((u128::from(ticks_per_period) << 48) / (10 * u128::from(f_tim))) as u64;
+        // step(0.1 Hz) = 0.1 * T_pwm * 2^64 = ticks * 2^64 / (10 * f_tim).
+        let phase_step_per_decihertz =
+            (u128::from(ticks_per_period) << 64) / (10 * u128::from(f_tim));
         let dead_ns = u64::from(dead_time_ns.max(min_dead_time_ns));
         let dead_counts = (dead_ns * f_tim).div_ceil(1_000_000_000);
         let (dtg, realised) = encode_dtg(dead_counts);
@@ -64,17 +63,17 @@ impl PwmTiming {
             dead_time_counts: realised,
             dtg,
             pwm_millihertz,
-            phase_step_per_decihertz_q16,
+            phase_step_per_decihertz,
         }
     }
 
-    /// Phase-accumulator step per PWM period for an output frequency in 0.1 Hz (negative
-    /// is treated as 0). Capped just below half a turn per period (Nyquist): above it the
-    /// output would alias to a lower frequency.
-    pub fn phase_step(&self, f_decihertz: i16) -> u32 {
-        let f = u64::from(f_decihertz.max(0) as u16);
-        let step = (f * self.phase_step_per_decihertz_q16) >> 16;
-        step.min(0x7FFF_FFFF) as u32
+    /// Phase-accumulator step per PWM period (2^64 = one turn) for an output frequency in
+    /// 0.1 Hz (negative is treated as 0). Capped just below half a turn per period
+    /// (Nyquist): above it the output would alias to a lower frequency.
+    pub fn phase_step(&self, f_decihertz: i16) -> u64 {
+        let f = u128::from(f_decihertz.max(0) as u16);
+        let step = f.saturating_mul(self.phase_step_per_decihertz);
+        step.min(u128::from(u64::MAX >> 1)) as u64
     }
 }
 
@@ -156,7 +155,7 @@ mod tests {
         let t = PwmTiming::compute(170_000_000, 16_000, 1, 1000, 500);
         let f_pwm = 170e6 / (2.0 * t.arr as f64);
         let step = t.phase_step(500) as f64;
-        let f_out = step / 4294967296.0 * f_pwm;
-        assert!((f_out - 50.0).abs() < 50.0 * 1e-6, "{f_out}");
+        let f_out = step / 2f64.powi(64) * f_pwm;
+        assert!((f_out - 50.0).abs() < 50.0 * 1e-12, "{f_out}");
     }
 }
