@@ -6,9 +6,10 @@
 //! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/release/m4bench
 //! ```
 //!
-//! Sections (each [`SCANS`] scans): 1 = mixed 850-line program, 2 = 850 lines of timers,
-//! 3 = empty program (loop overhead); section 0 is set-up between them. Divide by
-//! [`SCANS`] for one scan.
+//! Sections (each [`SCANS`] scans of a full 850-line PLC section): 1 = mixed program,
+//! 2 = timers only, 3 = empty program (loop overhead), 4.. = one instruction kind on
+//! every line (see `KINDS`). Section 0 is set-up between them. Divide by [`SCANS`] for
+//! one scan, and by 850 for one executed instruction.
 //! On the host this binary is a stub.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -26,8 +27,20 @@ mod target {
 
     use firmware_plc::vm::sample::{mixed_program, timer_program};
     use firmware_plc::vm::{PlcVm, ScanInputs, ScanOutputs};
-    use shared_protocol::program::Program;
+    use shared_protocol::program::{Instruction, Mnemonic as M, Operand as X, Program};
     use shared_protocol::units::Millis;
+
+    /// Sections 4..: `LD D`, `AND`, `LD A`, `ADD K`, `WR B`, `TON K`, `LCD`, `LET B`.
+    const KINDS: [(M, Option<X>, u16); 8] = [
+        (M::Ld, Some(X::D(1)), 0),
+        (M::And, None, 0),
+        (M::Ld, Some(X::A(1)), 0),
+        (M::Add, Some(X::K(1)), 5),
+        (M::Wr, Some(X::B(3)), 0),
+        (M::Ton, Some(X::K(1)), 5),
+        (M::Lcd, None, 0),
+        (M::Let, Some(X::B(4)), 0),
+    ];
 
     #[no_mangle]
     #[inline(never)]
@@ -46,22 +59,38 @@ mod target {
         }
     }
 
+    fn program(id: u32) -> Program {
+        match id {
+            1 => mixed_program(),
+            2 => timer_program(),
+            3 => Program::default(),
+            _ => {
+                let mut p = Program::default();
+                if let Some(&(mnemonic, operand, constant)) = KINDS.get(id as usize - 4) {
+                    for line in p.lines.iter_mut().skip(150) {
+                        *line = Some(Instruction {
+                            mnemonic,
+                            operand,
+                            constant,
+                        });
+                    }
+                }
+                p
+            }
+        }
+    }
+
     #[cortex_m_rt::entry]
     fn main() -> ! {
         let mut vm = PlcVm::new();
         let mut out = ScanOutputs::default();
-        for id in 1..=3 {
-            let program = match id {
-                1 => mixed_program(),
-                2 => timer_program(),
-                _ => Program::default(),
-            };
+        for id in 1..=3 + KINDS.len() as u32 {
+            let program = program(id);
             vm.start(Millis(0));
             // Scans outside the section first: the first scan takes the first-scan paths.
             scans(&mut vm, &program, &mut out, 0);
             bench_mark(id);
             scans(&mut vm, &program, &mut out, 1000);
-            // Section 0 is set-up, not reported in docs/vm.md.
             bench_mark(0);
         }
         bench_mark(0xFFFF_FFFF);

@@ -175,27 +175,10 @@ impl PlcVm {
             .lines
             .get(usize::from(PLC_FIRST_LINE)..)
             .unwrap_or(&[]);
-        let lines = plc
-            .iter()
-            .zip(self.flags.iter_mut().zip(self.since.iter_mut()));
-        for (line, (ins, (flags, since))) in (PLC_FIRST_LINE..).zip(lines) {
-            let Some(ins) = ins else { continue };
-            let st = LineState { flags, since };
-            let ctx = Step {
-                mem: &mut self.mem,
-                regs: &mut regs,
-                env: &env,
-                out,
-            };
-            match ctx.exec(ins, line, st) {
-                Effect::None => {}
-                Effect::Lcd(v) => {
-                    if let Some(field) = out.lcd.get_mut(lcd_used) {
-                        *field = Some(v);
-                        lcd_used += 1;
-                    }
-                }
-                Effect::Rev(reverse) => self.rev_state = Some(reverse),
+        // A plain index loop keeps S, P and the line pointer in registers on the M4.
+        for (idx, slot) in plc.iter().enumerate() {
+            if let Some(ins) = slot {
+                self.exec(&mut regs, &env, out, &mut lcd_used, ins, idx);
             }
         }
         if self.rev_state.is_some() && self.rev_state != self.rev_reported {
@@ -207,30 +190,20 @@ impl PlcVm {
     }
 }
 
-/// What an instruction asks of the scan loop beyond memory and registers.
-enum Effect {
-    None,
-    Lcd(i16),
-    Rev(bool),
-}
-
-/// One instruction's view of the machine.
-struct Step<'a> {
-    mem: &'a mut Memory,
-    regs: &'a mut Regs,
-    env: &'a Env<'a>,
-    out: &'a mut ScanOutputs,
-}
-
-impl Step<'_> {
-    fn exec(self, ins: &Instruction, line: u16, st: LineState<'_>) -> Effect {
+impl PlcVm {
+    /// Executes one instruction of PLC line `PLC_FIRST_LINE + idx`.
+    #[inline(always)]
+    fn exec(
+        &mut self,
+        regs: &mut Regs,
+        env: &Env<'_>,
+        out: &mut ScanOutputs,
+        lcd_used: &mut usize,
+        ins: &Instruction,
+        idx: usize,
+    ) {
         use Mnemonic as M;
-        let Step {
-            mem,
-            regs,
-            env,
-            out,
-        } = self;
+        let mem = &mut self.mem;
         let x = ins.operand;
         let k = ins.constant;
         match ins.mnemonic {
@@ -325,7 +298,11 @@ impl Step<'_> {
                 }
             }
             M::Ton | M::Tof | M::Imp => {
-                if let Some(v) = x.and_then(|op| read_int(mem, env, op, k)) {
+                let v = x.and_then(|op| read_int(mem, env, op, k));
+                if let (Some(v), Some(flags), Some(since)) =
+                    (v, self.flags.get_mut(idx), self.since.get_mut(idx))
+                {
+                    let st = LineState { flags, since };
                     let preset = timer::preset_ms(v);
                     let input = regs.top();
                     regs.set_top(match ins.mnemonic {
@@ -343,17 +320,25 @@ impl Step<'_> {
                         M::Sub => arith::sub(p, v),
                         M::Mul => arith::mul(p, v),
                         _ => arith::div(p, v).unwrap_or_else(|| {
+                            let line = PLC_FIRST_LINE.saturating_add(idx as u16);
                             out.warning.get_or_insert(Warning::Div0 { line });
                             0
                         }),
                     };
                 }
             }
-            M::Lcd => return Effect::Lcd(regs.p),
-            M::Rev => return Effect::Rev(regs.top()),
+            M::Lcd => {
+                if let Some(field) = out.lcd.get_mut(*lcd_used) {
+                    *field = Some(regs.p);
+                    *lcd_used += 1;
+                }
+            }
+            M::Rev => self.rev_state = Some(regs.top()),
             M::Ack => {
-                if timer::rising_edge(st.flags, regs.top(), env.first_scan) {
-                    out.ack_request = true;
+                if let Some(flags) = self.flags.get_mut(idx) {
+                    if timer::rising_edge(flags, regs.top(), env.first_scan) {
+                        out.ack_request = true;
+                    }
                 }
             }
             // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
@@ -378,7 +363,6 @@ impl Step<'_> {
             | M::Fmx
             | M::Frv => {}
         }
-        Effect::None
     }
 }
 
