@@ -835,6 +835,44 @@ mod tests {
     }
 
     #[test]
+    fn without_fmn_ack_needs_standstill() {
+        let mut core = running(500);
+        let p = section(&SINE.replace("009 fmn K04 0050\n", ""));
+        core.load_program(&p).unwrap();
+        // A download clears the drive's Q copy.
+        assert_eq!(core.vm().q(1), 0);
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 500,
+        })
+        .unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        events(&mut core);
+        core.trip(FaultCode::Link);
+        events(&mut core);
+        assert_eq!(
+            core.command(DriveCommand::Ack),
+            Err(CommandError::FrequencyNotBelowFmn)
+        );
+        core.command(DriveCommand::SetQ { addr: 1, value: 0 })
+            .unwrap();
+        events(&mut core);
+        core.command(DriveCommand::Ack).unwrap();
+    }
+
+    #[test]
+    fn a_full_event_queue_reports_the_loss() {
+        let mut core = running(500);
+        for _ in 0..(EVENT_QUEUE + 5) {
+            core.command(DriveCommand::Stop).unwrap();
+            core.command(DriveCommand::Run).unwrap();
+        }
+        let ev = events(&mut core);
+        assert_eq!(ev.len(), EVENT_QUEUE + 1);
+        assert!(matches!(ev.last(), Some(DriveEvent::EventsLost(n)) if *n > 0));
+    }
+
+    #[test]
     fn status_scales_measurements() {
         let mut core = running(500);
         core.pwm_period(&AdcSample {
