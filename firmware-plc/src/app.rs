@@ -119,6 +119,8 @@ impl<E: Eeprom> PlcApp<E> {
                     None => {}
                 }
                 run_now = p.run;
+                // A restarted PLC must not reuse the session the drive still knows.
+                app.link.seed_session(p.power_cycle as u8);
             }
             Err(_) => app.editor.notify(Notice::Text("EEPROM ERROR")),
         }

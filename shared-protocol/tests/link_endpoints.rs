@@ -410,3 +410,119 @@ fn works_at_1_mbaud() {
     });
     assert!(t.unwrap().0 - t0.0 < 500);
 }
+
+/// Run until `limit`, collecting both sides' events with their times.
+type Timed<E> = Vec<(u64, E)>;
+
+fn collect(p: &mut LinkPair, limit: Micros) -> (Timed<DriveEvent>, Timed<PlcEvent>) {
+    let (mut d, mut u) = (Vec::new(), Vec::new());
+    p.run_until(limit, |p| {
+        while let Some(e) = p.drive.poll_event() {
+            d.push((p.now.0, e));
+        }
+        while let Some(e) = p.plc.poll_event() {
+            u.push((p.now.0, e));
+        }
+    });
+    (d, u)
+}
+
+fn restart_plc(seed: Option<u8>) -> (Vec<(u64, DriveEvent)>, u64) {
+    let mut p = connected_pair(115_200);
+    for v in 0..5 {
+        p.plc.write_q(1, v).unwrap();
+    }
+    p.plc.run().unwrap();
+    let end = Micros(p.now.0 + 20_000);
+    p.run_until(end, |_| {});
+    drive_events(&mut p);
+    // The PLC reboots; the drive keeps running.
+    let t0 = p.now;
+    p.plc = PlcLink::new(LinkConfig::default());
+    if let Some(s) = seed {
+        p.plc.seed_session(s);
+    }
+    let mut applied_at = None;
+    let mut events = Vec::new();
+    while p.now.0 < t0.0 + 1_000_000 && applied_at.is_none() {
+        p.step(Micros(t0.0 + 1_000_000));
+        if p.plc.is_up() {
+            let _ = p.plc.write_q(2, 42);
+        }
+        while let Some(e) = p.drive.poll_event() {
+            if e == (DriveEvent::QWrite { addr: 2, value: 42 }) {
+                applied_at = Some(p.now.0 - t0.0);
+            }
+            events.push((p.now.0 - t0.0, e));
+        }
+    }
+    (events, applied_at.expect("the new PLC's write is applied"))
+}
+
+#[test]
+fn plc_restart_reusing_the_session_is_a_link_loss_for_the_drive() {
+    // Same session number as before the restart: commands had flowed in that session,
+    // so its Hello cannot be a retry.
+    let (events, applied) = restart_plc(None);
+    assert_eq!(events[0].1, DriveEvent::LinkLost);
+    assert_eq!(events[1].1, DriveEvent::Connected);
+    assert!(applied <= 20_000, "applied after {applied} us");
+}
+
+#[test]
+fn plc_restart_with_a_new_session_is_a_link_loss_for_the_drive() {
+    let (events, applied) = restart_plc(Some(77));
+    assert_eq!(events[0].1, DriveEvent::LinkLost);
+    assert_eq!(events[1].1, DriveEvent::Connected);
+    assert!(applied <= 20_000, "applied after {applied} us");
+}
+
+#[test]
+fn one_way_cut_drive_to_plc_restarts_the_session_on_both_sides() {
+    let mut p = connected_pair(115_200);
+    p.to_plc.set_cut(true);
+    let t0 = p.now;
+    let (d, u) = collect(&mut p, Micros(t0.0 + 70_000));
+    assert!(u
+        .iter()
+        .any(|(_, e)| matches!(e, PlcEvent::LinkLost { .. })));
+    p.to_plc.set_cut(false);
+    let (d2, u2) = collect(&mut p, Micros(t0.0 + 200_000));
+    let drive: Vec<_> = d.iter().chain(&d2).map(|(_, e)| *e).collect();
+    assert_eq!(
+        drive,
+        vec![DriveEvent::LinkLost, DriveEvent::Connected],
+        "{drive:?}"
+    );
+    assert!(u2.iter().any(|(_, e)| *e == PlcEvent::Connected));
+    assert!(p.plc.is_up() && p.drive.is_up());
+}
+
+#[test]
+fn a_sequence_disagreement_is_detected_and_healed() {
+    // The drive has sent reports (its numbering is ahead) but received no command; then
+    // the PLC restarts reusing the session number: the drive takes its Hello for a retry.
+    let mut p = connected_pair(115_200);
+    for k in 0..3 {
+        assert!(p.drive.report_fault(1, k));
+    }
+    let end = Micros(p.now.0 + 30_000);
+    p.run_until(end, |_| {});
+    p.plc = PlcLink::new(LinkConfig::default());
+    let t0 = p.now;
+    let end = Micros(t0.0 + 30_000);
+    p.run_until(end, |_| {});
+    assert!(p.plc.is_up());
+    assert!(p.drive.report_fault(4, 99));
+    let mut got = None;
+    p.run_until(Micros(t0.0 + 600_000), |p| {
+        while let Some(e) = p.plc.poll_event() {
+            if let PlcEvent::DriveFault { code: 4, .. } = e {
+                got.get_or_insert(p.now.0 - t0.0);
+            }
+        }
+    });
+    let got = got.expect("the report arrives after the PLC resynchronised");
+    assert!(got <= 400_000, "after {got} us");
+    assert!(p.plc.stats().link_losses >= 1);
+}

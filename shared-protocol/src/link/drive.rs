@@ -13,7 +13,7 @@ use super::message::{
     PROTOCOL_VERSION,
 };
 use super::plc::section_crc;
-use super::reliable::{Arrival, RxSeq, TxWindow};
+use super::reliable::{Arrival, RxSeq, StallDetector, TxWindow, STALL_TIMEOUTS};
 use super::LinkStats;
 use crate::program::{decode_slot, verify_drive, DriveSection, DRIVE_LINES, LINE_BYTES};
 use crate::units::Micros;
@@ -86,6 +86,9 @@ pub struct DriveLink {
     reader: FrameReader,
     tx: TxWindow<DriveMsg, DRIVE_WINDOW>,
     rx: RxSeq,
+    stall: StallDetector,
+    /// A reliable message was applied in this session.
+    session_used: bool,
     pending: heapless::Deque<DriveMsg, PENDING>,
     events: heapless::Deque<DriveEvent, EVENTS>,
     last_rx: Micros,
@@ -107,6 +110,8 @@ impl DriveLink {
             reader: FrameReader::new(),
             tx: TxWindow::new(),
             rx: RxSeq::default(),
+            stall: StallDetector::default(),
+            session_used: false,
             pending: heapless::Deque::new(),
             events: heapless::Deque::new(),
             last_rx: Micros(0),
@@ -208,10 +213,22 @@ impl DriveLink {
         self.ack_owed = true;
         // Room for the largest message's events, so nothing applied is ever lost.
         let room = self.events.capacity() - self.events.len() > MAX_Q_PER_FRAME;
-        if self.rx.classify(f.seq) != Arrival::New || !room {
+        if self.rx.classify(f.seq) != Arrival::New {
             self.stats.duplicates = self.stats.duplicates.saturating_add(1);
+            let rto = self.cfg.rto_us();
+            if self
+                .stall
+                .ignored(now, 2 * rto, STALL_TIMEOUTS * self.cfg.drive_timeout_us)
+            {
+                self.lose();
+            }
             return;
         }
+        if !room {
+            return;
+        }
+        self.stall.progress();
+        self.session_used = true;
         self.rx.advance();
         match f.msg {
             PlcMsg::QWrite(writes) => {
@@ -252,11 +269,20 @@ impl DriveLink {
             }
             return;
         }
-        if self.state == DriveLinkState::Up && self.session == Some(session) {
-            // The PLC did not get our reply yet: answer again, keep the session.
+        if self.state == DriveLinkState::Up && self.session == Some(session) && !self.session_used {
+            // The PLC did not get our reply yet: answer again, keep the session. (Once a
+            // command has arrived in this session, the PLC has had its reply, and a UART
+            // keeps order: the same session's Hello now means a PLC that restarted.)
             return;
         }
+        if self.state == DriveLinkState::Up {
+            // The PLC started over: it has dropped what it had not seen acknowledged
+            // (possibly a STOP), so for the drive this is a lost link too.
+            self.lose();
+        }
         self.session = Some(session);
+        self.session_used = false;
+        self.stall.progress();
         self.state = DriveLinkState::Up;
         self.last_rx = now;
         self.rx.reset();
@@ -360,12 +386,16 @@ impl DriveLink {
         if self.state == DriveLinkState::Up
             && now.0.saturating_sub(self.last_rx.0) > self.cfg.drive_timeout_us
         {
-            self.state = DriveLinkState::Down;
-            self.session = None;
-            self.download.active = false;
-            self.stats.link_losses = self.stats.link_losses.saturating_add(1);
-            self.push_event(DriveEvent::LinkLost);
+            self.lose();
         }
+    }
+
+    fn lose(&mut self) {
+        self.state = DriveLinkState::Down;
+        self.session = None;
+        self.download.active = false;
+        self.stats.link_losses = self.stats.link_losses.saturating_add(1);
+        self.push_event(DriveEvent::LinkLost);
     }
 
     /// The next frame to send, written to `out`; returns its length, 0 when there is

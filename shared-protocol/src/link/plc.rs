@@ -10,7 +10,7 @@ use super::message::{
     DownloadResult, DriveMsg, DriveStatus, PlcMsg, QValue, CHUNK_BYTES, MAX_Q_PER_FRAME,
     PROTOCOL_VERSION,
 };
-use super::reliable::{Arrival, RxSeq, TxWindow};
+use super::reliable::{Arrival, RxSeq, StallDetector, TxWindow, STALL_TIMEOUTS};
 use super::{LinkStats, Q_COUNT};
 use crate::program::{encode_slot, DriveSection, DRIVE_LINES, LINE_BYTES};
 use crate::units::Micros;
@@ -93,6 +93,7 @@ pub struct PlcLink {
     reader: FrameReader,
     tx: TxWindow<PlcMsg, PLC_WINDOW>,
     rx: RxSeq,
+    stall: StallDetector,
     pending: heapless::Vec<Pending, PENDING>,
     q_shadow: [Option<i16>; Q_COUNT],
     direction: Option<bool>,
@@ -112,11 +113,12 @@ impl PlcLink {
         PlcLink {
             cfg,
             state: PlcLinkState::Connecting,
-            session: 0,
+            session: 1,
             last_hello: None,
             reader: FrameReader::new(),
             tx: TxWindow::new(),
             rx: RxSeq::default(),
+            stall: StallDetector::default(),
             pending: heapless::Vec::new(),
             q_shadow: [None; Q_COUNT],
             direction: None,
@@ -134,6 +136,17 @@ impl PlcLink {
 
     pub fn config(&self) -> &LinkConfig {
         &self.cfg
+    }
+
+    /// Start session numbering from `seed` (e.g. the power-cycle count), so that a PLC
+    /// that restarts while the drive is still up does not reuse the session the drive
+    /// knows. (If it does, the drive still sees a restart once commands have flowed in
+    /// that session, and otherwise a sequence disagreement is caught by the stall
+    /// detectors within the link timeout.) Only before the first handshake.
+    pub fn seed_session(&mut self, seed: u8) {
+        if self.state == PlcLinkState::Connecting && self.last_hello.is_none() {
+            self.session = seed;
+        }
     }
 
     pub fn state(&self) -> PlcLinkState {
@@ -314,10 +327,21 @@ impl PlcLink {
         let reliable = f.msg.is_reliable();
         if reliable {
             self.ack_owed = true;
-            if self.rx.classify(f.seq) != Arrival::New || self.events.is_full() {
+            if self.rx.classify(f.seq) != Arrival::New {
                 self.stats.duplicates = self.stats.duplicates.saturating_add(1);
+                let rto = self.cfg.rto_us();
+                if self
+                    .stall
+                    .ignored(now, 2 * rto, STALL_TIMEOUTS * self.cfg.plc_timeout_us)
+                {
+                    self.lose();
+                }
                 return;
             }
+            if self.events.is_full() {
+                return;
+            }
+            self.stall.progress();
             self.rx.advance();
         }
         match f.msg {
@@ -348,6 +372,7 @@ impl PlcLink {
         self.state = PlcLinkState::Up;
         self.last_rx = now;
         self.rx.reset();
+        self.stall.progress();
         self.ack_owed = false;
         for _ in self.tx.reset() {}
         self.pending.clear();
@@ -375,6 +400,8 @@ impl PlcLink {
         self.pending.clear();
         self.download_active = false;
         self.state = PlcLinkState::Connecting;
+        // A new session for the next handshake (its retries keep this number).
+        self.session = self.session.wrapping_add(1);
         self.last_hello = None;
         self.status = None;
         self.stats.link_losses = self.stats.link_losses.saturating_add(1);
@@ -412,9 +439,6 @@ impl PlcLink {
                     .is_none_or(|t| now.0.saturating_sub(t.0) >= period);
                 if !due {
                     return 0;
-                }
-                if self.state == PlcLinkState::Connecting {
-                    self.session = self.session.wrapping_add(1);
                 }
                 self.last_hello = Some(now);
                 let msg = PlcMsg::Hello {

@@ -206,3 +206,58 @@ mod tests {
         }
     }
 }
+
+/// A stall must last this many link timeouts to count: on a very noisy wire, legit
+/// retransmission rounds can fail several times in a row; a real desync goes on forever.
+pub const STALL_TIMEOUTS: u64 = 4;
+
+/// Detects a receiver that keeps getting reliable messages it cannot apply: the two ends
+/// disagree on the numbering (e.g. the PLC restarted and reused a session number). Legit
+/// duplicates (a lost acknowledgement) stop after one retransmission round; a desync goes
+/// on forever, once per retransmission timeout.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StallDetector {
+    since: Option<Micros>,
+    last: Micros,
+}
+
+impl StallDetector {
+    /// A message was applied: the numbering agrees.
+    pub fn progress(&mut self) {
+        self.since = None;
+    }
+
+    /// A message was ignored. Returns true when ignored messages have kept coming, each
+    /// within `gap_us` of the previous one, for longer than `limit_us`.
+    pub fn ignored(&mut self, now: Micros, gap_us: u64, limit_us: u64) -> bool {
+        let start = match self.since {
+            Some(s) if now.0.saturating_sub(self.last.0) <= gap_us => s,
+            _ => now,
+        };
+        self.since = Some(start);
+        self.last = now;
+        now.0.saturating_sub(start.0) > limit_us
+    }
+}
+
+#[cfg(test)]
+mod stall_tests {
+    use super::*;
+
+    #[test]
+    fn only_a_persistent_stream_of_ignored_messages_is_a_stall() {
+        let mut s = StallDetector::default();
+        // Legit: a round of duplicates, then quiet, then another round much later.
+        for t in [0, 100, 200, 1_000_000, 1_000_100] {
+            assert!(!s.ignored(Micros(t), 30_000, 50_000));
+        }
+        // Desync: one every 14 ms for longer than 50 ms.
+        let mut hit = false;
+        for k in 0..6u64 {
+            hit = s.ignored(Micros(2_000_000 + k * 14_000), 30_000, 50_000);
+        }
+        assert!(hit);
+        s.progress();
+        assert!(!s.ignored(Micros(2_100_000), 30_000, 50_000));
+    }
+}
