@@ -329,6 +329,13 @@ impl<E: Eeprom> PlcApp<E> {
         n
     }
 
+    /// Link timers and the RUN sequence without transmitting (`poll_tx` does this too):
+    /// for a board whose transmit path is driven only by UART interrupts.
+    pub fn tick(&mut self, now: Micros) {
+        self.link.tick(now);
+        self.service(now);
+    }
+
     fn service(&mut self, now: Micros) {
         while let Some(e) = self.link.poll_event() {
             match e {
