@@ -29,7 +29,7 @@ use shared_protocol::link::Q_COUNT;
 use shared_protocol::link::{
     fault_text, DownloadResult, DriveState, DriveStatus, LinkConfig, RejectReason,
 };
-use shared_protocol::program::{verify, Program};
+use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros};
 
 use crate::editor::{Editor, Key, Notice, Page, Request, RunView, Screen, View, Warning};
@@ -79,16 +79,24 @@ pub struct PlcApp<E: Eeprom> {
     warning: Option<vm::Warning>,
     /// The stored fault log, newest first (read at power-up, kept up to date).
     fault_log: heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
-    /// Per Q: the value last handed to the link in this RUN and when.
-    q_sent: [Option<(i16, Micros)>; Q_COUNT],
+    /// Per Q: the value last handed to the link in this RUN.
+    q_sent: [Option<i16>; Q_COUNT],
+    /// Bit n: the drive section writes Qn itself (`WR Qn`), so every PLC write of Qn
+    /// must reach the drive even when the value is unchanged.
+    drive_writes_q: u64,
 }
 
-/// A `WR` of an unchanged Q value is passed to the link at most this often (a changed
-/// value goes at once). A program that writes a Q in every 1 ms scan would otherwise keep
-/// the 115200-baud link saturated with identical values, and the changes that matter
-/// would queue behind them. The refresh still restores the PLC's value within 10 ms if
-/// the drive section overwrote its copy with its own `WR`.
-pub const Q_REFRESH_US: u64 = 10_000;
+/// The Q variables the drive section writes with its own `WR` (bit n = Qn).
+pub fn drive_written_q(program: &Program) -> u64 {
+    program
+        .section(Section::Drive)
+        .filter(|(_, i)| i.mnemonic == Mnemonic::Wr)
+        .filter_map(|(_, i)| match i.operand {
+            Some(Operand::Q(n)) if usize::from(n) < Q_COUNT => Some(1u64 << n),
+            _ => None,
+        })
+        .fold(0, |a, b| a | b)
+}
 
 impl<E: Eeprom> PlcApp<E> {
     /// Power-up with the EEPROM in `eeprom` and an LCD of `cols` x `rows` (20x4 or 16x2).
@@ -106,6 +114,7 @@ impl<E: Eeprom> PlcApp<E> {
             warning: None,
             fault_log: heapless::Vec::new(),
             q_sent: [None; Q_COUNT],
+            drive_writes_q: 0,
         };
         let mut run_now = false;
         match app.storage.power_up(&mut app.program) {
@@ -250,6 +259,7 @@ impl<E: Eeprom> PlcApp<E> {
         self.vm.start(now.millis());
         self.link.forget_q();
         self.q_sent = [None; Q_COUNT];
+        self.drive_writes_q = drive_written_q(&self.program);
         self.run = RunState::Running;
         if self.storage.set_run_state(self.run_slot, true).is_err() {
             self.editor.notify(Notice::Text("EEPROM ERROR"));
@@ -275,14 +285,17 @@ impl<E: Eeprom> PlcApp<E> {
             let Some(sent) = self.q_sent.get_mut(usize::from(n)) else {
                 continue;
             };
-            let fresh = matches!(*sent, Some((v, t)) if v == value && now.0.saturating_sub(t.0) < Q_REFRESH_US);
-            if fresh {
+            // An unchanged value is not sent again unless the drive section may have
+            // overwritten its copy: the drive's copy equals the PLC's last write either
+            // way, and the wire stays free for the changes (latency budget).
+            let drive_writes = self.drive_writes_q & (1u64 << n) != 0;
+            if *sent == Some(value) && !drive_writes {
                 continue;
             }
             // Refused only when 96 commands wait: the link keeps the newest value for the
             // next reconnection anyway.
             let _ = self.link.write_q(n, value);
-            *sent = Some((value, now));
+            *sent = Some(value);
         }
         if let Some(rev) = out.rev_request {
             let _ = self.link.set_direction(rev);
@@ -450,5 +463,22 @@ impl<E: Eeprom> PlcApp<E> {
             now_ms: now.millis().0,
         };
         self.editor.render(&view, screen);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shared_protocol::program::assemble;
+
+    #[test]
+    fn finds_the_q_the_drive_section_writes() {
+        let motor = include_str!("../../shared-protocol/programs/motor.plc");
+        let p = assemble(motor).unwrap();
+        // The motor program's drive section writes only Q01 (the PI output); the PLC
+        // writes Q00 and Q02.
+        assert_eq!(drive_written_q(&p), 1 << 1);
+        let p = assemble("000 LD K00 0001\n001 WR Q63\n002 WR PW1\n").unwrap();
+        assert_eq!(drive_written_q(&p), 1 << 63);
     }
 }
