@@ -52,6 +52,15 @@ pub enum Warning {
     Div0 { line: u16 },
 }
 
+impl core::fmt::Display for Warning {
+    /// The LCD status-line text, e.g. `DIV0 @ 151`.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Warning::Div0 { line } => write!(f, "DIV0 @ {line:03}"),
+        }
+    }
+}
+
 /// Everything one scan produces. [`crate::vm::PlcVm::scan`] overwrites all of it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -81,5 +90,24 @@ impl ScanOutputs {
     /// Output On as the scan left it.
     pub fn output(&self, n: u8) -> bool {
         n < OUTPUTS && self.outputs & (1 << n) != 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn warning_text_names_the_line() {
+        assert_eq!(Warning::Div0 { line: 151 }.to_string(), "DIV0 @ 151");
+    }
+
+    #[test]
+    fn dirty_q_lists_written_addresses() {
+        let out = ScanOutputs {
+            q_dirty: (1 << 0) | (1 << 2) | (1 << 63),
+            ..ScanOutputs::default()
+        };
+        assert_eq!(out.dirty_q().collect::<Vec<_>>(), vec![0, 2, 63]);
     }
 }

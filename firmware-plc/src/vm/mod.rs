@@ -32,6 +32,7 @@ pub const Q_COUNT: usize = 64;
 const ADC_MAX: u16 = 1023;
 
 /// The PLC's data memory: what RUN clears and the program reads and writes.
+#[derive(Clone)]
 struct Memory {
     b: [bool; B_COUNT],
     q: [i16; Q_COUNT],
@@ -83,7 +84,9 @@ struct Env<'a> {
 }
 
 /// The PLC VM: data memory, per-line timer/edge state, the first-scan flag and the last
-/// direction request. About 4.6 KiB, all inline (no allocation).
+/// direction request. About 4.6 KiB, all inline (no allocation). `Clone` gives a
+/// snapshot (e.g. for hil-sim).
+#[derive(Clone)]
 pub struct PlcVm {
     mem: Memory,
     /// Per PLC line (index = line - 150): timer/edge flags, see `timer`.
