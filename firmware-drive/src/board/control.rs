@@ -1,7 +1,9 @@
-//! The 1 ms task: the core's millisecond tick (drive section, state machine), the release of
-//! hardware trips, and the defmt log of the core's events.
+//! The 1 ms task: the application's millisecond tick (link supervision, drive section, state
+//! machine, status), the release of hardware trips, and the defmt log of the application's
+//! events.
 
 use embassy_time::{Duration, Ticker};
+use firmware_drive::app::AppEvent;
 use firmware_drive::drive::DriveEvent;
 use heapless::Vec;
 
@@ -10,28 +12,35 @@ use super::{hw_protection, power_stage, shared, supervisor};
 /// Period of the drive-section task.
 pub const PERIOD: Duration = Duration::from_millis(1);
 
-/// Events kept from one tick for logging (the core's own queue holds 16 and reports loss).
-const EVENTS_PER_TICK: usize = firmware_drive::drive::EVENT_QUEUE + 1;
+/// Events taken per tick for logging (the application keeps the newest 32; the link task
+/// leaves its events for this task).
+const EVENTS_PER_TICK: usize = 32;
 
-/// Ticks the core every millisecond.
+/// Ticks the application every millisecond.
 #[embassy_executor::task]
 pub async fn run() {
     let mut ticker = Ticker::every(PERIOD);
     loop {
         ticker.next().await;
         let causes = hw_protection::active();
-        let mut events: Vec<DriveEvent, EVENTS_PER_TICK> = Vec::new();
+        let mut events: Vec<AppEvent, EVENTS_PER_TICK> = Vec::new();
         #[cfg(feature = "dwt-cycles")]
         let start = super::cycles::now();
         shared::with(|s| {
             for (cause, present) in causes {
                 if !present {
-                    s.core.hardware_break_released(cause);
+                    s.app.hardware_break(cause, false);
                 }
             }
-            s.core.tick_1ms(&mut |e| {
-                let _ = events.push(e);
-            });
+            s.app.tick_1ms(shared::now());
+            while !events.is_full() {
+                match s.app.poll_event() {
+                    Some(e) => {
+                        let _ = events.push(e);
+                    }
+                    None => break,
+                }
+            }
         });
         #[cfg(feature = "dwt-cycles")]
         super::cycles::record_tick(start);
@@ -40,9 +49,18 @@ pub async fn run() {
         }
         for e in events {
             match e {
-                DriveEvent::Fault(code) => defmt::error!("drive: fault {}", code),
-                DriveEvent::EventsLost(n) => defmt::warn!("drive: {} events lost", n),
-                other => defmt::info!("drive: {}", other),
+                AppEvent::Core(DriveEvent::Fault(code)) => defmt::error!("drive: fault {}", code),
+                AppEvent::Core(DriveEvent::EventsLost(n)) => {
+                    defmt::warn!("drive: {} events lost", n)
+                }
+                AppEvent::Core(other) => defmt::info!("drive: {}", other),
+                AppEvent::Link(l) => defmt::info!("link: {}", l),
+                AppEvent::Refused { command, error } => {
+                    defmt::warn!("drive: {} refused: {}", command, error)
+                }
+                AppEvent::LoadFailed => {
+                    defmt::error!("drive: verified section refused by the core")
+                }
             }
         }
         #[cfg(feature = "dwt-cycles")]

@@ -9,15 +9,15 @@ use embassy_stm32::{bind_interrupts, dma, peripherals};
 use embassy_time::{with_timeout, Duration};
 use static_cell::StaticCell;
 
-use super::supervisor;
+use shared_protocol::link::MAX_WIRE_FRAME;
+
+use super::{shared, supervisor};
 use crate::pins::Link;
 
-/// Default link baud rate (link.md: 115200 by default, must also work at 1 Mbaud).
-pub const BAUD: u32 = 115_200;
 /// RX ring size: 22 ms of line time at 115200 baud, far more than one task period.
 const RX_RING_BYTES: usize = 256;
-/// Longest wait for bytes before the task reports alive anyway.
-const IDLE_POLL: Duration = Duration::from_millis(5);
+/// Longest wait for bytes: the endpoint's transmit queue needs a poll every millisecond.
+const POLL: Duration = Duration::from_millis(1);
 
 bind_interrupts!(struct Irqs {
     USART2 => usart::InterruptHandler<peripherals::USART2>;
@@ -26,17 +26,16 @@ bind_interrupts!(struct Irqs {
 });
 
 /// Opened link halves.
-#[allow(dead_code)] // TX carries the endpoint's frames once the application is bound (issue 8)
 pub struct LinkPort {
     pub tx: UartTx<'static, Async>,
     pub rx: RingBufferedUartRx<'static>,
 }
 
-/// Opens the USART at [`BAUD`] 8N1.
-pub fn open(l: Link) -> LinkPort {
+/// Opens the USART 8N1 at the link configuration's baud rate (115200 by default).
+pub fn open(l: Link, baud: u32) -> LinkPort {
     static RX_RING: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
     let mut config = Config::default();
-    config.baudrate = BAUD;
+    config.baudrate = baud;
     config.data_bits = DataBits::DataBits8;
     config.parity = Parity::ParityNone;
     config.stop_bits = StopBits::STOP1;
@@ -51,22 +50,31 @@ pub fn open(l: Link) -> LinkPort {
     }
 }
 
-/// Moves bytes between the USART and the link endpoint.
+/// Moves bytes between the USART and the application's link endpoint: received bytes go in
+/// as they arrive (commands reach the core at once), and the endpoint is polled for frames
+/// at least every millisecond. Link events are logged by the control task.
 #[embassy_executor::task]
 pub async fn run(mut port: LinkPort) {
-    let mut buf = [0u8; 64];
-    let mut received: u32 = 0;
+    let mut rx_buf = [0u8; 64];
+    let mut frame = [0u8; MAX_WIRE_FRAME];
     loop {
         supervisor::alive(supervisor::TASK_LINK);
-        match with_timeout(IDLE_POLL, port.rx.read(&mut buf)).await {
+        match with_timeout(POLL, port.rx.read(&mut rx_buf)).await {
             Ok(Ok(n)) => {
-                received = received.wrapping_add(n as u32);
-                // Call site of the drive link endpoint (issue 8): feed `buf[..n]` to the
-                // decoder, send its replies through `port.tx`.
-                defmt::trace!("link: {} bytes ({} total)", n, received);
+                let bytes = rx_buf.get(..n).unwrap_or(&[]);
+                shared::with(|s| s.app.on_rx(bytes, shared::now()));
             }
             Ok(Err(e)) => defmt::warn!("link: rx error {}", e),
             Err(_timeout) => {}
+        }
+        loop {
+            let n = shared::with(|s| s.app.poll_tx(shared::now(), &mut frame)).unwrap_or(0);
+            let Some(bytes) = frame.get(..n).filter(|b| !b.is_empty()) else {
+                break;
+            };
+            if let Err(e) = port.tx.write(bytes).await {
+                defmt::warn!("link: tx error {}", e);
+            }
         }
     }
 }

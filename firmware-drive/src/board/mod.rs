@@ -1,5 +1,6 @@
 //! Drive board layer: brings up the STM32G431 and binds the peripherals to the
-//! `firmware_drive` core; no drive logic lives here.
+//! `firmware_drive` application ([`DriveApp`]: core + link endpoint); no drive logic lives
+//! here.
 //!
 //! Start-up order matters for safety: the power stage's pins go from reset (analog, the
 //! gate driver's pull-downs hold them off) straight to TIM1 with MOE = 0; the comparators
@@ -22,8 +23,9 @@ pub mod supervisor;
 
 use embassy_executor::Spawner;
 use embassy_stm32::gpio::{Level, Output, Speed};
+use firmware_drive::app::DriveApp;
 use firmware_drive::config::DriveConfig;
-use firmware_drive::drive::DriveCore;
+use shared_protocol::link::LinkConfig;
 use static_cell::StaticCell;
 
 use crate::pins;
@@ -55,8 +57,9 @@ pub async fn start(spawner: Spawner) {
         clocks::SYSCLK_HZ,
         "TIM1 clock differs from the core's"
     );
-    let core = DriveCore::new(cfg, cause);
-    let timing = core.pwm_timing();
+    let link_cfg = LinkConfig::default();
+    let app = DriveApp::new(cfg, cause, link_cfg);
+    let timing = app.pwm_timing();
     let min_dead_counts =
         power_stage::min_dead_time_counts(cfg.timer_clock_hz, cfg.min_dead_time_ns);
 
@@ -72,7 +75,7 @@ pub async fn start(spawner: Spawner) {
     PWM.init(power_stage::init(board.power, timing, min_dead_counts));
     let brake = Output::new(board.misc.brake, Level::Low, Speed::Low);
     shared::install(shared::Shared {
-        core,
+        app,
         brake,
         timing,
         min_dead_counts,
@@ -88,7 +91,7 @@ pub async fn start(spawner: Spawner) {
         timing.pwm_millihertz
     );
 
-    let port = link::open(board.link);
+    let port = link::open(board.link, link_cfg.baud);
     spawner
         .spawn(supervisor::run(board.misc.iwdg, board.misc.led.into()).expect("spawn supervisor"));
     spawner.spawn(link::run(port).expect("spawn link"));

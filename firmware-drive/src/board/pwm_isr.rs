@@ -27,11 +27,11 @@ fn TIM1_UP_TIM16() {
     let start = super::cycles::now();
     let sample = analog::read();
     let done = shared::with(|s| {
-        let cmd = s.core.pwm_period(&sample);
+        let cmd = s.app.pwm_period(&sample);
         if !cmd.enable {
             power_stage::outputs_off();
         }
-        let timing = s.core.pwm_timing();
+        let timing = s.app.pwm_timing();
         if timing != s.timing {
             power_stage::apply_timing(&timing, s.min_dead_counts);
             s.timing = timing;
@@ -64,15 +64,15 @@ fn TIM1_BRK_TIM15() {
         let mut any = false;
         for (cause, present) in causes {
             if present {
-                s.core.hardware_break(cause);
+                s.app.hardware_break(cause, true);
                 any = true;
             }
         }
         // The comparator may already be back below its threshold: blame overcurrent, the
         // faster and more dangerous cause.
         if !any {
-            s.core
-                .hardware_break(firmware_drive::protection::HwBreak::Overcurrent);
+            s.app
+                .hardware_break(firmware_drive::protection::HwBreak::Overcurrent, true);
         }
     });
 }

@@ -1,8 +1,8 @@
-//! The drive core, shared between the PWM interrupt and the tasks.
+//! The drive application, shared between the PWM interrupt and the tasks.
 //!
 //! Every access is one `critical_section` (interrupts masked): the PWM interrupt's section
 //! is the core's per-period function plus a few register writes; the 1 ms task's is one
-//! `tick_1ms`. A task holding the section delays the PWM interrupt at most by that long;
+//! `tick_1ms`, the link task's one `on_rx` or `poll_tx`. A task holding the section delays the PWM interrupt at most by that long;
 //! the compare registers are preloaded, so a late interrupt repeats the previous duties for
 //! one period instead of glitching. `dwt-cycles` measures both.
 
@@ -10,13 +10,16 @@ use core::cell::RefCell;
 
 use embassy_stm32::gpio::Output;
 use embassy_sync::blocking_mutex::CriticalSectionMutex;
-use firmware_drive::drive::DriveCore;
+use embassy_time::Instant;
+use firmware_drive::app::DriveApp;
 use firmware_drive::timing::PwmTiming;
+use shared_protocol::units::Micros;
+use static_cell::StaticCell;
 
 /// What the interrupt and the tasks share.
 pub struct Shared {
-    /// The sans-IO drive core (issue 8: replaced by the `DriveApp` glue once it exists).
-    pub core: DriveCore,
+    /// The drive application (core + link endpoint).
+    pub app: DriveApp,
     /// Brake chopper gate, written by the PWM interrupt.
     pub brake: Output<'static>,
     /// TIM1 timing currently programmed.
@@ -25,16 +28,25 @@ pub struct Shared {
     pub min_dead_counts: u32,
 }
 
-static SHARED: CriticalSectionMutex<RefCell<Option<Shared>>> =
+/// A reference, so that the static is `.bss` (an `Option<Shared>` initialised to `None`
+/// would keep a flash image of the whole application in `.data`).
+static SHARED: CriticalSectionMutex<RefCell<Option<&'static mut Shared>>> =
     CriticalSectionMutex::new(RefCell::new(None));
+
+/// The application's clock: microseconds since boot.
+pub fn now() -> Micros {
+    Micros(Instant::now().as_micros())
+}
 
 /// Installs the shared state (once, before TIM1's interrupt is unmasked).
 pub fn install(s: Shared) {
+    static MEMORY: StaticCell<Shared> = StaticCell::new();
+    let s: &'static mut Shared = MEMORY.init(s);
     SHARED.lock(|cell| *cell.borrow_mut() = Some(s));
 }
 
 /// Runs `f` on the shared state inside a critical section; `None` before [`install`].
 #[inline(always)]
 pub fn with<R>(f: impl FnOnce(&mut Shared) -> R) -> Option<R> {
-    SHARED.lock(|cell| cell.borrow_mut().as_mut().map(f))
+    SHARED.lock(|cell| cell.borrow_mut().as_mut().map(|s| f(s)))
 }

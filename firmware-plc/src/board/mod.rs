@@ -14,9 +14,11 @@ pub mod lcd;
 pub mod link;
 pub mod outputs;
 pub mod reset_cause;
+pub mod shared;
 pub mod supervisor;
 
 use embassy_executor::Spawner;
+use shared_protocol::link::LinkConfig;
 
 use crate::pins;
 
@@ -57,12 +59,16 @@ pub async fn start(spawner: Spawner) {
         analog: analog::AnalogInputs::new(board.analog),
         keypad: keypad::KeypadScanner::new(board.keypad),
         lcd,
-        eeprom: eeprom::I2cEeprom::new(bus),
     };
-    let port = link::open(board.link);
+    let link_cfg = LinkConfig::default();
+    let port = link::open(board.link, link_cfg.baud);
+    // Power-up of the application: loads the slot last run from the EEPROM (and starts RUN
+    // if it was running).
+    let app = shared::install(eeprom::I2cEeprom::new(bus), link_cfg);
+    defmt::info!("application up: {}", shared::with(app, |a| a.run_state()));
 
     spawner
         .spawn(supervisor::run(board.misc.iwdg, board.misc.led.into()).expect("spawn supervisor"));
-    spawner.spawn(link::run(port).expect("spawn link"));
-    spawner.spawn(app::run(io).expect("spawn app"));
+    spawner.spawn(link::run(port, app).expect("spawn link"));
+    spawner.spawn(app::run(io, app).expect("spawn app"));
 }

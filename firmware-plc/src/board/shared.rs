@@ -1,0 +1,55 @@
+//! The PLC application, shared by the application task and the link task.
+//!
+//! Both run in the thread-mode executor, so they never preempt each other: a thread-mode
+//! mutex (no interrupt masking) and a `RefCell` borrowed for one synchronous call suffice.
+
+use core::cell::RefCell;
+use core::mem::MaybeUninit;
+
+use embassy_sync::blocking_mutex::ThreadModeMutex;
+use embassy_time::Instant;
+use firmware_plc::app::PlcApp;
+use shared_protocol::link::LinkConfig;
+use shared_protocol::units::Micros;
+use static_cell::StaticCell;
+
+use super::eeprom::I2cEeprom;
+use super::lcd;
+
+/// The application as bound to this board.
+pub type App = PlcApp<I2cEeprom>;
+
+/// The shared application, handed to each task that needs it.
+pub type SharedApp = &'static ThreadModeMutex<RefCell<&'static mut App>>;
+
+/// Builds the application in static memory (`.bss`): power-up of the application, which
+/// loads the slot last run from the EEPROM (and starts RUN if it was running).
+///
+/// The application is about 15 KiB, half the RAM: `PlcApp::new` must write it straight
+/// into its static slot, never build it on the stack and move it (see `docs` in the
+/// README's decisions for the stack check).
+pub fn install(eeprom: I2cEeprom, link: LinkConfig) -> SharedApp {
+    static MEMORY: StaticCell<App> = StaticCell::new();
+    static SHARED: StaticCell<ThreadModeMutex<RefCell<&'static mut App>>> = StaticCell::new();
+    let app: &'static mut App = build(MEMORY.uninit(), eeprom, link);
+    SHARED.init(ThreadModeMutex::new(RefCell::new(app)))
+}
+
+#[inline(never)]
+fn build(
+    slot: &'static mut MaybeUninit<App>,
+    eeprom: I2cEeprom,
+    link: LinkConfig,
+) -> &'static mut App {
+    slot.write(PlcApp::new(eeprom, link, lcd::COLS, lcd::ROWS, now()))
+}
+
+/// Runs `f` on the application.
+pub fn with<R>(app: SharedApp, f: impl FnOnce(&mut App) -> R) -> R {
+    app.lock(|cell| f(&mut cell.borrow_mut()))
+}
+
+/// The application's clock: microseconds since boot.
+pub fn now() -> Micros {
+    Micros(Instant::now().as_micros())
+}
