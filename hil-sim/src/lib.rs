@@ -2,6 +2,7 @@
 //!
 //! * [`plant`]: DC link, inverter, induction motor, sensors, comparators.
 //! * [`mcu`]: the two MCUs (the firmware's cores behind one seam per peripheral).
+//! * [`panel`]: the interactive front panel (`hil-sim panel`).
 //! * [`sim`]: the virtual-time scheduler joining them with the UART wires.
 //! * [`scenario`]: scenario files; [`record`]: the CSV; [`plot`]: the PNG;
 //!   [`run`]: one whole run as the CLI does it.
@@ -34,6 +35,5 @@ pub fn image_bytes(program: &shared_protocol::program::Program) -> anyhow::Resul
 
 /// `hil-sim panel`: the interactive front panel.
 pub fn panel_command(program: Option<&Path>) -> anyhow::Result<()> {
-    let _ = program;
-    anyhow::bail!("the front panel is not available in this build yet")
+    panel::run(program)
 }

@@ -117,7 +117,7 @@ impl Simulation<DriveBoard, PlcBoard> {
         .context("EEPROM image")?;
         let link = LinkConfig::at_baud(scenario.baud);
         let drive = DriveBoard::new(link);
-        let plc = PlcBoard::new(MemEeprom::from_image(&image), link);
+        let plc = PlcBoard::new(MemEeprom::from_image(&image), link, Micros(0));
         Ok(Simulation::with_boards(drive, plc, scenario, opts))
     }
 }
@@ -324,22 +324,31 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         }
     }
 
-    /// Lets side 0 (PLC) or 1 (drive) hand a frame to its UART if the line is free.
+    /// Lets side 0 (PLC) or 1 (drive) hand a frame to its UART if the line is free. While
+    /// the line is busy the application is still polled (with no room for a frame) so
+    /// that its timers run, and woken again when the line is free.
     fn transmit(&mut self, side: usize, now: Micros) {
         let mut out = [0u8; MAX_WIRE_FRAME];
-        let (chan, n) = if side == 0 {
-            if !self.to_drive.is_idle(now) {
-                self.tx_wake_ns[0] = Some(self.to_drive.free_at().0 * 1000);
-                return;
-            }
-            (&mut self.to_drive, self.plc.uart_tx(now, &mut out))
+        let idle = if side == 0 {
+            self.to_drive.is_idle(now)
         } else {
-            if !self.to_plc.is_idle(now) {
-                self.tx_wake_ns[1] = Some(self.to_plc.free_at().0 * 1000);
-                return;
-            }
-            (&mut self.to_plc, self.drive.uart_tx(now, &mut out))
+            self.to_plc.is_idle(now)
         };
+        let room: &mut [u8] = if idle { &mut out } else { &mut [] };
+        let n = if side == 0 {
+            self.plc.uart_tx(now, room)
+        } else {
+            self.drive.uart_tx(now, room)
+        };
+        let chan = if side == 0 {
+            &mut self.to_drive
+        } else {
+            &mut self.to_plc
+        };
+        if !idle {
+            self.tx_wake_ns[side] = Some(chan.free_at().0 * 1000);
+            return;
+        }
         if n > 0 {
             chan.send(out.get(..n).unwrap_or(&[]), now);
             self.tx_wake_ns[side] = Some(chan.free_at().0 * 1000);
