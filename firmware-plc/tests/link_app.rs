@@ -347,3 +347,28 @@ fn memory_footprint() {
     assert!(size_of::<DriveApp>() < 8 * 1024);
     assert!(size_of::<PlcApp<MemEeprom>>() - size_of::<MemEeprom>() < 16 * 1024);
 }
+
+#[test]
+fn q_changes_reach_the_drive_core_within_2ms_every_time() {
+    let mut r = running_rig();
+    r.digital = 1;
+    let mut worst = 0;
+    for k in 0..150u64 {
+        // Let heartbeats and statuses fall at every phase.
+        r.run_for(1_000 + (k * 1_370) % 9_000);
+        let v = 100 + k as u16;
+        r.analog[0] = v;
+        let scan_at = r.next_ms * 1000;
+        let mut applied = None;
+        while r.now.0 < scan_at + 10_000 {
+            r.run_for(10);
+            if r.drive.core().vm().q(0) == v as i16 {
+                applied = Some(r.now.0 - scan_at);
+                break;
+            }
+        }
+        worst = worst.max(applied.expect("applied"));
+    }
+    eprintln!("worst scan -> drive core latency over 150 changes: {worst} us");
+    assert!(worst <= 2_000, "{worst} us");
+}

@@ -526,3 +526,31 @@ fn a_sequence_disagreement_is_detected_and_healed() {
     assert!(got <= 400_000, "after {got} us");
     assert!(p.plc.stats().link_losses >= 1);
 }
+
+#[test]
+fn heartbeats_use_the_quiet_windows_after_scans() {
+    let mut p = connected_pair(115_200);
+    let mut starts = Vec::new();
+    let mut sent = p.to_drive.stats().frames;
+    let mut next_scan = p.now.0;
+    while p.now.0 < 1_000_000 {
+        if p.now.0 >= next_scan {
+            p.plc.quiet_for(p.now, 950);
+            p.service();
+            next_scan += 1_000;
+        }
+        let f = p.to_drive.stats().frames;
+        if f != sent {
+            starts.push(p.now.0);
+            sent = f;
+        }
+        p.step(Micros(next_scan));
+    }
+    assert!(starts.len() > 100);
+    for w in starts.windows(2) {
+        assert!(w[1] - w[0] <= 10_000, "gap {}", w[1] - w[0]);
+    }
+    // Every heartbeat started at a scan (ms boundary), so it ended before the next one.
+    let offsets = starts.iter().filter(|t| *t % 1_000 != 0).count();
+    assert_eq!(offsets, 0);
+}

@@ -15,6 +15,11 @@ use super::{LinkStats, Q_COUNT};
 use crate::program::{encode_slot, DriveSection, DRIVE_LINES, LINE_BYTES};
 use crate::units::Micros;
 
+/// Wire bytes of a heartbeat frame.
+const HEARTBEAT_WIRE_BYTES: u64 = 9;
+/// How much earlier than `heartbeat_us` a heartbeat may go inside a quiet window.
+const HEARTBEAT_EARLY_US: u64 = 2_000;
+
 /// Unacknowledged reliable messages the PLC keeps in flight.
 pub const PLC_WINDOW: usize = 8;
 /// Commands waiting for a place in the window (all 64 Q plus the download and a few more).
@@ -102,6 +107,8 @@ pub struct PlcLink {
     download_active: bool,
     last_rx: Micros,
     last_tx: Micros,
+    /// Until then the caller issues no command (see [`PlcLink::quiet_for`]).
+    quiet_until: Option<Micros>,
     ack_owed: bool,
     events: heapless::Deque<PlcEvent, EVENTS>,
     status: Option<(DriveStatus, Micros)>,
@@ -127,6 +134,7 @@ impl PlcLink {
             download_active: false,
             last_rx: Micros(0),
             last_tx: Micros(0),
+            quiet_until: None,
             ack_owed: false,
             events: heapless::Deque::new(),
             status: None,
@@ -462,10 +470,23 @@ impl PlcLink {
                 Err(_) => 0,
             };
         }
-        if self.ack_owed || now.0.saturating_sub(self.last_tx.0) >= self.cfg.heartbeat_us {
+        let since = now.0.saturating_sub(self.last_tx.0);
+        let heartbeat_us = HEARTBEAT_WIRE_BYTES * self.cfg.byte_time_ns() / 1000;
+        let fits_quiet = self
+            .quiet_until
+            .is_some_and(|q| now.0.saturating_add(heartbeat_us) <= q.0);
+        let early = self.cfg.heartbeat_us.saturating_sub(HEARTBEAT_EARLY_US);
+        if self.ack_owed || since >= self.cfg.heartbeat_us || (fits_quiet && since >= early) {
             return self.send(0, PlcMsg::Heartbeat, false, now, out);
         }
         0
+    }
+
+    /// The caller promises no command for `quiet_us` from `now` (e.g. until its next
+    /// scan). A heartbeat that fits in that time is then sent early, so that it is never
+    /// on the wire when the next scan's Q writes want it: their latency stays one frame.
+    pub fn quiet_for(&mut self, now: Micros, quiet_us: u64) {
+        self.quiet_until = Some(Micros(now.0.saturating_add(quiet_us)));
     }
 
     fn send(&mut self, seq: u8, msg: PlcMsg, lead: bool, now: Micros, out: &mut [u8]) -> usize {
