@@ -554,3 +554,30 @@ fn heartbeats_use_the_quiet_windows_after_scans() {
     let offsets = starts.iter().filter(|t| *t % 1_000 != 0).count();
     assert_eq!(offsets, 0);
 }
+
+#[test]
+fn a_plc_with_another_version_ends_a_running_session() {
+    let mut p = connected_pair(115_200);
+    let hello = Frame {
+        seq: 0,
+        ack: 0,
+        msg: PlcMsg::Hello {
+            version: PROTOCOL_VERSION + 1,
+            session: 9,
+        },
+    };
+    let mut out = [0u8; MAX_WIRE_FRAME];
+    let n = encode_frame(&hello, true, &mut out).unwrap();
+    let now = p.now;
+    p.drive.receive(&out[..n], now);
+    assert_eq!(
+        drive_events(&mut p),
+        vec![
+            DriveEvent::LinkLost,
+            DriveEvent::VersionMismatch {
+                plc_version: PROTOCOL_VERSION + 1
+            }
+        ]
+    );
+    assert!(!p.drive.is_up());
+}

@@ -258,6 +258,10 @@ impl DriveLink {
     fn on_hello(&mut self, version: u16, session: u8, now: Micros) {
         self.hello_reply = Some(session);
         if version != PROTOCOL_VERSION {
+            if self.state == DriveLinkState::Up {
+                // A reflashed PLC: the old session is over (the core stops).
+                self.lose();
+            }
             let st = DriveLinkState::Incompatible {
                 plc_version: version,
             };
