@@ -10,6 +10,7 @@
 pub mod app;
 pub mod backend;
 pub mod keys;
+pub mod sim_backend;
 pub mod ui;
 
 use std::path::Path;
@@ -17,12 +18,12 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use firmware_plc::storage::image::{is_image, program_from_image};
-use firmware_plc::storage::MemEeprom;
 use ratatui::crossterm::event::{self, Event, KeyEventKind};
 use shared_protocol::program::{assemble, Program};
 
 pub use app::PanelApp;
 pub use backend::{Backend, EditorBackend, RigStatus};
+pub use sim_backend::{PanelPlc, SimBackend};
 
 /// Read a program from a `.plc` text or an EEPROM image.
 pub fn read_program(path: &Path) -> Result<Program> {
@@ -36,15 +37,15 @@ pub fn read_program(path: &Path) -> Result<Program> {
     assemble(&text).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))
 }
 
-/// The backend the panel runs: the co-simulation when available, else the editor alone.
-pub fn make_backend(program: Option<Program>) -> Box<dyn Backend> {
-    Box::new(EditorBackend::new(MemEeprom::new(), program))
+/// The backend the panel runs: the whole co-simulated rig.
+pub fn make_backend(program: Option<Program>) -> Result<Box<dyn Backend>> {
+    Ok(Box::new(SimBackend::new(program.as_ref())?))
 }
 
 /// Run the panel until Esc / Ctrl-C.
 pub fn run(program: Option<&Path>) -> Result<()> {
     let program = program.map(read_program).transpose()?;
-    let mut app = PanelApp::new(make_backend(program));
+    let mut app = PanelApp::new(make_backend(program)?);
     let mut terminal = ratatui::init();
     let result = event_loop(&mut terminal, &mut app);
     ratatui::restore();

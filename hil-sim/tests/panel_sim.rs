@@ -1,0 +1,88 @@
+//! The panel on the co-simulation: what a new user does (issue 7 "done when"): type a
+//! short program, run it, see it work; and run the motor example from its file.
+
+use hil_sim::panel::keys::{map_char, Input};
+use hil_sim::panel::{read_program, PanelApp, SimBackend};
+
+fn type_keys(app: &mut PanelApp, s: &str) {
+    for c in s.chars() {
+        app.input(map_char(c).unwrap());
+        app.advance(20);
+    }
+}
+
+fn lcd_text(app: &PanelApp) -> String {
+    app.lcd().to_string()
+}
+
+#[test]
+fn type_a_short_program_run_it_and_see_it_work() {
+    let mut app = PanelApp::new(Box::new(SimBackend::new(None).unwrap()));
+    app.advance(200);
+    // 150 LD D00 / 151 WR O00: the output follows the switch.
+    type_keys(&mut app, "#150585#151588865");
+    assert!(
+        lcd_text(&app).contains(">151 WR   O00"),
+        "{}",
+        lcd_text(&app)
+    );
+    type_keys(&mut app, "a");
+    app.advance(500);
+    let s = app.status();
+    assert!(s.plc_running, "RUN after A: {}", lcd_text(&app));
+    assert!(
+        lcd_text(&app).starts_with("RUN"),
+        "run page: {}",
+        lcd_text(&app)
+    );
+    assert_eq!(s.digital_out & 1, 0);
+    app.input(Input::Toggle(0));
+    app.advance(50);
+    assert_eq!(app.status().digital_out & 1, 1, "O00 follows D00");
+    app.input(Input::Toggle(0));
+    app.advance(50);
+    assert_eq!(app.status().digital_out & 1, 0);
+    // STOP.
+    type_keys(&mut app, "a");
+    app.advance(100);
+    assert!(!app.status().plc_running);
+}
+
+#[test]
+fn motor_example_runs_from_the_panel() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared-protocol/programs/motor.plc"
+    );
+    let p = read_program(std::path::Path::new(path)).unwrap();
+    let mut app = PanelApp::new(Box::new(SimBackend::new(Some(&p)).unwrap()));
+    app.advance(100);
+    assert!(
+        lcd_text(&app).contains("LOADED SLOT 1"),
+        "{}",
+        lcd_text(&app)
+    );
+    assert!(!app.status().plc_running, "waits for A");
+    // Pots: switching frequency A00 = 500 (x10 = 5000 Hz), speed A01 = 300 (30.0 Hz).
+    for _ in 0..500 / 128 {
+        app.input(Input::Analog(0, 128));
+    }
+    for _ in 0..300 / 32 {
+        app.input(Input::Analog(1, 32));
+    }
+    type_keys(&mut app, "a");
+    app.advance(500);
+    assert!(app.status().plc_running, "{}", lcd_text(&app));
+    // START (push button on D00).
+    app.input(Input::Pulse(0));
+    app.advance(6000);
+    let s = app.status();
+    assert_eq!(s.fault, 0, "{}", lcd_text(&app));
+    assert!(
+        s.f_hz > 15.0,
+        "frequency ramps toward the pot's 28.8 Hz: {s:?}"
+    );
+    assert!(s.speed_rpm > 300.0, "{s:?}");
+    let lcd = lcd_text(&app);
+    assert!(lcd.contains("1:   288"), "LCD field 1 = A01: {lcd}");
+}
