@@ -24,7 +24,7 @@
 //! A lost link does not stop the PLC's own scan (its outputs may matter on their own);
 //! the run screen shows the link state.
 
-use shared_protocol::link::plc::{PlcEvent, PlcLink, PlcLinkState};
+use shared_protocol::link::plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
 use shared_protocol::link::Q_COUNT;
 use shared_protocol::link::{
     fault_text, DownloadResult, DriveState, DriveStatus, LinkConfig, RejectReason,
@@ -248,6 +248,14 @@ impl<E: Eeprom> PlcApp<E> {
         if self.storage.set_run_state(self.run_slot, false).is_err() {
             self.editor.notify(Notice::Text("EEPROM ERROR"));
         }
+    }
+
+    /// Acknowledge the drive's latched fault from outside the program (a key or a panel
+    /// button; the program's own `ACK` instruction does the same). The drive accepts it
+    /// only when the cause is gone and the frequency command is below `fmn`; it then goes
+    /// to IDLE, and a new RUN is needed. Refused while the link is down.
+    pub fn ack_fault(&mut self) -> Result<(), CommandError> {
+        self.link.ack_fault()
     }
 
     fn advance_run(&mut self, now: Micros) {

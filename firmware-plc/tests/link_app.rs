@@ -372,3 +372,22 @@ fn q_changes_reach_the_drive_core_within_2ms_every_time() {
     eprintln!("worst scan -> drive core latency over 150 changes: {worst} us");
     assert!(worst <= 2_000, "{worst} us");
 }
+
+#[test]
+fn a_fault_is_acknowledged_from_the_panel_then_run_again() {
+    let mut r = running_rig();
+    r.cut(true);
+    r.run_for(100_000);
+    r.cut(false);
+    r.run_for(300_000);
+    assert_eq!(r.drive.core().fault(), Some(FaultCode::Link));
+    r.plc.ack_fault().unwrap();
+    r.run_for(20_000);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+    // Still no restart by itself.
+    r.run_for(500_000);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+    r.plc.run(None, r.now);
+    r.run_for(150_000);
+    assert_eq!(r.drive.core().state(), CoreState::Run);
+}
