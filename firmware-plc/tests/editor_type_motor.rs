@@ -7,6 +7,8 @@
 //! with `C1`, the editor is cleared with `D0`, loaded back with `D1`, and compared.
 
 use firmware_plc::editor::{Editor, Key, Notice, Request, RunView, Screen, View};
+use firmware_plc::storage::image::{program_image, ImageOptions};
+use firmware_plc::storage::layout::copy_addr;
 use firmware_plc::storage::{MemEeprom, Storage};
 use shared_protocol::program::{assemble, operand_text, parse_operand, Instruction, Program};
 
@@ -141,6 +143,15 @@ fn type_motor(cols: u8, rows: u8) -> usize {
     let typed_keys = panel.keys;
     panel.keys("C1");
     assert_eq!(panel.ed.slot(), Some(1));
+    // The slot holds byte for byte what `hil-sim asm -o` puts in an off-board image.
+    let image = program_image(&expected, &ImageOptions::default()).unwrap();
+    let a = usize::from(copy_addr(1, 0).unwrap());
+    let end = usize::from(copy_addr(2, 0).unwrap());
+    assert_eq!(
+        panel.storage.eeprom().image()[a..end],
+        image[a..end],
+        "slot 1 (copies A and B)"
+    );
     panel.keys("D0");
     assert_eq!(panel.program, Program::default());
     panel.keys("D1");
