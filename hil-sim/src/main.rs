@@ -121,6 +121,10 @@ fn cmd_run(
         seed,
         sample_ns: ((sample_ms * 1e6).round() as u64).max(1),
     };
+    if let Some(p) = plot {
+        // Fail now, not after a long run.
+        File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
+    }
     let mut writer = match csv {
         Some(p) => Some(
             CsvWriter::new(BufWriter::new(
