@@ -481,7 +481,8 @@ impl Editor {
                 if self.refuse_while_running(running) {
                     return None;
                 }
-                *program = Program::default();
+                // In place: a 6 KB temporary would not fit the MCU's stack budget.
+                program.lines.fill(None);
                 self.slot = None;
                 self.modified = false;
                 self.goto_line(0);

@@ -267,7 +267,7 @@ pub fn read_copy<E: Eeprom>(
     h: &CopyHeader,
     program: &mut Program,
 ) -> Result<(), CopyError> {
-    *program = Program::default();
+    program.lines.fill(None);
     let mut parser = PayloadParser::new();
     let r = stream_payload(e, addr, usize::from(h.payload_len), |chunk| {
         for &b in chunk {
@@ -279,7 +279,7 @@ pub fn read_copy<E: Eeprom>(
         }
     });
     if r.is_err() || !parser.finished_ok(h.lines) {
-        *program = Program::default();
+        program.lines.fill(None);
         return Err(r.err().unwrap_or(CopyError::Format));
     }
     Ok(())
