@@ -11,8 +11,8 @@
 )]
 
 pub mod app;
-pub mod vm;
+pub mod debounce;
+pub mod editor;
 pub mod link;
 pub mod storage;
-pub mod editor;
-pub mod debounce;
+pub mod vm;
