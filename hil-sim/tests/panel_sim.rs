@@ -86,3 +86,25 @@ fn motor_example_runs_from_the_panel() {
     let lcd = lcd_text(&app);
     assert!(lcd.contains("1:   288"), "LCD field 1 = A01: {lcd}");
 }
+
+#[test]
+fn bit_flip_in_the_eeprom_is_reported_on_the_lcd_at_power_up() {
+    use firmware_plc::storage::image::{program_image, ImageOptions};
+    use firmware_plc::storage::layout::copy_addr;
+    use firmware_plc::storage::MemEeprom;
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared-protocol/programs/motor.plc"
+    );
+    let p = read_program(std::path::Path::new(path)).unwrap();
+    let image = program_image(&p, &ImageOptions::default()).unwrap();
+    let mut eeprom = MemEeprom::from_image(&image);
+    eeprom.flip_bit(copy_addr(1, 0).unwrap() + 40, 2);
+    let mut app = PanelApp::new(Box::new(SimBackend::with_eeprom(eeprom)));
+    app.advance(10);
+    let lcd = lcd_text(&app);
+    assert!(lcd.contains("S1:COPY A BAD,USED B"), "{lcd}");
+    // The image asks for RUN at power-up: the program from copy B runs.
+    app.advance(500);
+    assert!(app.status().plc_running, "{}", lcd_text(&app));
+}

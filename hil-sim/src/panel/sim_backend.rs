@@ -113,6 +113,11 @@ impl SimBackend {
             }
             None => MemEeprom::new(),
         };
+        Ok(Self::with_eeprom(eeprom))
+    }
+
+    /// Power up the rig with `eeprom` in the PLC's socket.
+    pub fn with_eeprom(eeprom: MemEeprom) -> Self {
         let scenario = Scenario::default();
         let link = LinkConfig::at_baud(scenario.baud);
         let plc = PanelPlc::new(PlcBoard::new(eeprom, link, Micros(0)));
@@ -122,10 +127,10 @@ impl SimBackend {
             sample_ns: 20_000_000,
             ..RunOptions::default()
         };
-        Ok(SimBackend {
+        SimBackend {
             sim: Simulation::with_boards(drive, plc, scenario, opts),
             last: None,
-        })
+        }
     }
 
     pub fn simulation(&self) -> &Simulation<DriveBoard, PanelPlc> {
