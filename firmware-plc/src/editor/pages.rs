@@ -215,7 +215,7 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
         push(
             s,
             format_args!(
-                "{plc:<4}{:<5}{:>5}{dir}",
+                "{plc:<4}{:<5}{:>5} {dir}",
                 r.drive_state.text(),
                 Tenths(r.freq_dhz)
             ),

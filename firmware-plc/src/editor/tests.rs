@@ -346,3 +346,38 @@ fn bad_copy_on_load_is_shown() {
     let s = draw(&narrow, &p, RunView::default(), &[], 0);
     assert_eq!(s.row(1), "S2 B BAD,USED A ");
 }
+
+#[test]
+fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
+    let mut ed = Editor::new(16, 2);
+    let p = Program::default();
+    ed.show_page(Page::Run);
+    let run = RunView {
+        running: true,
+        link_up: true,
+        drive_state: DriveState::Run,
+        freq_dhz: 500,
+        reverse: false,
+        fault: Some(1),
+        lcd: [Some(12), Some(-5), Some(7), None],
+        warning: None,
+    };
+    let rows: Vec<String> = (0..5)
+        .map(|k| draw(&ed, &p, run, &[], k * 2000).to_string())
+        .collect();
+    assert_eq!(rows[0], "RUN RUN   50.0 F\n1=12    2=-5    ");
+    assert_eq!(rows[1].lines().nth(1), Some("3=7     4=-     "));
+    assert_eq!(rows[2].lines().nth(1), Some("F1 overcurrent  "));
+    assert_eq!(rows[3].lines().nth(1), Some("A STOP C SV D LD"));
+    assert_eq!(rows[4], rows[0]);
+    ed.show_page(Page::FaultLog);
+    let log = [FaultEntry {
+        code: 5,
+        power_cycle: 3,
+        uptime_s: 61,
+    }];
+    let s = draw(&ed, &p, run, &log, 0);
+    assert_eq!(s.row(0), "01/01 F5 LINK   ");
+    assert_eq!(s.row(1), "link lost       ");
+    assert_eq!(draw(&ed, &p, run, &log, 2000).row(1), "PWR 3 UP 0:01:01");
+}
