@@ -4,6 +4,7 @@
 //! * [`mcu`]: the two MCUs (the firmware's cores behind one seam per peripheral).
 //! * [`panel`]: the interactive front panel (`hil-sim panel`).
 //! * [`sim`]: the virtual-time scheduler joining them with the UART wires.
+//! * [`seams`]: one trait per simulated peripheral (what the scheduler needs of a model).
 //! * [`scenario`]: scenario files; [`record`]: the CSV; [`plot`]: the PNG;
 //!   [`run`]: one whole run as the CLI does it.
 //!
@@ -16,6 +17,7 @@ pub mod plot;
 pub mod record;
 pub mod run;
 pub mod scenario;
+pub mod seams;
 pub mod sim;
 
 use std::path::Path;

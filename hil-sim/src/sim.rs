@@ -21,6 +21,7 @@ use shared_protocol::units::Micros;
 use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins};
 use crate::plant::{BreakCause, GateCommand, Leg, Plant, PlantOutputs};
 use crate::scenario::{Action, Input, Scenario};
+use crate::seams::{Rig, UartWire};
 
 const MS_NS: u64 = 1_000_000;
 
@@ -68,9 +69,14 @@ impl Default for RunOptions {
 }
 
 /// The whole rig in virtual time.
-pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
+pub struct Simulation<
+    D: DriveMcu = DriveBoard,
+    P: PlcMcu = PlcBoard,
+    R: Rig = Plant,
+    W: UartWire = Channel,
+> {
     now_ns: u64,
-    plant: Plant,
+    plant: R,
     plant_ns: u64,
     drive: D,
     plc: P,
@@ -79,9 +85,9 @@ pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
     pins: PlcPins,
     aux_counts: u16,
     /// PLC TX -> drive RX.
-    to_drive: Channel,
+    to_drive: W,
     /// Drive TX -> PLC RX.
-    to_plc: Channel,
+    to_plc: W,
     cut: bool,
     /// Wake-ups when a busy UART becomes free: [PLC, drive].
     tx_wake_ns: [Option<u64>; 2],
@@ -127,7 +133,10 @@ fn timer_period_ns(epoch: u64, k: u64, ticks: u64, f_tim: u32) -> u64 {
     epoch + ((u128::from(k) * u128::from(ticks) * 1_000_000_000) / f) as u64
 }
 
-impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
+impl<D: DriveMcu, P: PlcMcu> Simulation<D, P, Plant, Channel> {
+    /// The given boards on the default models: [`Plant`] with the scenario's rig, and
+    /// [`Channel`] wires with its link settings (bit errors seeded from `opts.seed`, the
+    /// drive-to-PLC direction from a derived seed).
     pub fn with_boards(drive: D, plc: P, scenario: Scenario, opts: RunOptions) -> Self {
         let imp = Impairments {
             bit_error_rate: scenario.bit_error_rate,
@@ -136,10 +145,27 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         let seed = opts.seed;
         let to_drive = Channel::new(scenario.baud, imp, seed);
         let to_plc = Channel::new(scenario.baud, imp, seed.wrapping_mul(31).wrapping_add(17));
+        let plant = Plant::new(scenario.rig);
+        Simulation::with_parts(drive, plc, plant, to_drive, to_plc, scenario, opts)
+    }
+}
+
+impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
+    /// Any models behind the seams (`crate::seams`). `to_drive` carries the PLC's
+    /// transmissions, `to_plc` the drive's.
+    pub fn with_parts(
+        drive: D,
+        plc: P,
+        plant: R,
+        to_drive: W,
+        to_plc: W,
+        scenario: Scenario,
+        opts: RunOptions,
+    ) -> Self {
         let timing = drive.pwm_timing();
         Simulation {
             now_ns: 0,
-            plant: Plant::new(scenario.rig),
+            plant,
             plant_ns: 0,
             drive,
             plc,
@@ -177,7 +203,7 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         self.now_ns
     }
 
-    pub fn plant(&self) -> &Plant {
+    pub fn plant(&self) -> &R {
         &self.plant
     }
 
@@ -407,7 +433,7 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         let period_ns = self.next_pwm_ns - t;
         // The duties written in the last interrupt were preloaded: they start now.
         self.plant.start_period(period_ns, self.pending_gate);
-        let s = self.plant.adc_sample();
+        let s = self.plant.convert();
         let adc = AdcSample {
             i_a: s.i_a_counts,
             i_b: s.i_b_counts,
