@@ -64,6 +64,19 @@ pub struct RunStatus {
     pub warning: Option<vm::Warning>,
 }
 
+/// What must reach the LCD at once when it changes (link.md and panel.md: a lost link
+/// shown within 100 ms, faults without an `LCD` instruction). Boards redraw when this
+/// differs from its value at their last redraw, besides their periodic refresh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Alerts {
+    pub run: RunState,
+    pub link: PlcLinkState,
+    pub drive_state: Option<DriveState>,
+    pub drive_fault: Option<u8>,
+    pub newest_fault: Option<u8>,
+    pub warning: Option<vm::Warning>,
+}
+
 /// The PLC application.
 pub struct PlcApp<E: Eeprom> {
     program: Program,
@@ -206,6 +219,19 @@ impl<E: Eeprom> PlcApp<E> {
             drive: self.drive_status(),
             newest_fault: self.newest_fault.map(|c| (c, fault_text(c))),
             lcd: self.out.lcd,
+            warning: self.warning,
+        }
+    }
+
+    /// See [`Alerts`].
+    pub fn alerts(&self) -> Alerts {
+        let drive = self.drive_status();
+        Alerts {
+            run: self.run,
+            link: self.link.state(),
+            drive_state: drive.map(|d| d.state),
+            drive_fault: drive.map(|d| d.fault),
+            newest_fault: self.newest_fault,
             warning: self.warning,
         }
     }

@@ -13,8 +13,9 @@ pub struct LinkConfig {
     pub status_us: u64,
     /// The drive declares the link lost after this long without a valid frame (link.md: 50 ms).
     pub drive_timeout_us: u64,
-    /// The PLC declares the link lost after this long without a valid frame; with the
-    /// drive's 10 ms status it shows a loss well within the 100 ms link.md asks for.
+    /// The PLC declares the link lost after this long without a valid frame (4 status
+    /// periods); with a redraw on the change (`PlcApp::alerts`) the LCD shows it well
+    /// within the 100 ms link.md asks for, even with a slow I2C LCD.
     pub plc_timeout_us: u64,
     /// The PLC repeats `Hello` this often while connecting.
     pub hello_retry_us: u64,
@@ -37,7 +38,7 @@ impl LinkConfig {
             heartbeat_us: 8_000,
             status_us: 10_000,
             drive_timeout_us: 50_000,
-            plc_timeout_us: 50_000,
+            plc_timeout_us: 40_000,
             hello_retry_us: 20_000,
             incompatible_retry_us: 500_000,
         }
