@@ -279,3 +279,20 @@ fn motor_program_save_costs_eight_page_writes() {
     assert_eq!(s.eeprom().pages_written(), 8);
     assert_eq!(s.eeprom().bytes_written(), 2 * 230);
 }
+
+#[test]
+fn an_unsaved_program_is_never_replaced_by_an_older_one_at_power_up() {
+    let mut s = Storage::new(MemEeprom::new());
+    s.save(2, &old_program()).unwrap();
+    s.set_run_state(Some(2), true).unwrap();
+    // The user edits and runs without saving.
+    s.set_run_state(None, true).unwrap();
+    let mut s = Storage::new(s.into_eeprom());
+    let mut p = Program::default();
+    let up = s.power_up(&mut p).unwrap();
+    assert!(
+        !up.run,
+        "the running program was not stored: do not start slot 2"
+    );
+    assert_eq!(p, old_program(), "but slot 2 is loaded for editing");
+}

@@ -176,7 +176,12 @@ impl<E: Eeprom> Storage<E> {
 
     /// Record that `slot` was started (`running` = true) or that the user stopped
     /// (`running` = false, the slot stays the one loaded at power-up).
+    ///
+    /// RUN of a program that is in no slot (`slot` = `None`: edited since its last load
+    /// or save) clears the run-at-power-up flag: after a power cut the PLC must not start
+    /// an older program than the one that was running. The last slot is still loaded.
     pub fn set_run_state(&mut self, slot: Option<u8>, running: bool) -> Result<(), StorageError> {
+        let running = running && slot.is_some();
         let mut record = boot::read(&mut self.eeprom)?
             .map(|(r, _)| r)
             .unwrap_or_default();
