@@ -39,6 +39,7 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
     let mut keys = KeyMatrix::new(KEY_DEBOUNCE_SAMPLES);
     let mut screen = Screen::new(lcd::COLS, lcd::ROWS);
     let mut ticks: u32 = 0;
+    let mut run_state = shared::with(app, |a| a.run_state());
     let mut ticker = Ticker::every(PERIOD);
     loop {
         ticker.next().await;
@@ -49,18 +50,26 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
         let matrix = io.keypad.scan();
         let image = shared::with(app, |app| {
             let now = shared::now();
+            let mut key_down = false;
             keys.update(matrix, &mut |e| {
                 defmt::debug!("key {} {}", e.key, if e.down { "down" } else { "up" });
                 if e.down {
                     app.key(e.key, now);
+                    key_down = true;
                 }
             });
             let out = app.scan(digital, analog, now);
             if let Some(w) = out.warning {
                 defmt::warn!("scan: {}", w);
             }
-            if ticks.is_multiple_of(RENDER_PERIODS) {
+            // Redraw at once after a key, as hil-sim's board does.
+            if key_down || ticks.is_multiple_of(RENDER_PERIODS) {
                 app.render(now, &mut screen);
+            }
+            let state = app.run_state();
+            if state != run_state {
+                defmt::info!("plc: {} -> {}", run_state, state);
+                run_state = state;
             }
             out.outputs
         });
