@@ -67,7 +67,7 @@ fn keypad_lines(last: Option<Key>) -> Vec<Line<'static>> {
                             .fg(Color::Yellow)
                             .add_modifier(Modifier::BOLD)
                     };
-                    Span::styled(format!(" [{}] ", k.to_char()), style)
+                    Span::styled(format!("[{}]", k.to_char()), style)
                 })
                 .collect();
             Line::from(spans)
@@ -99,15 +99,17 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
         s.drive_state
     )));
     v.push(Line::from(format!(
-        "f {:6.1} Hz {}   speed {:7.0} rpm",
+        "f {:6.1} Hz {}  speed {:6.0} rpm",
         s.f_hz,
         if s.reverse { "REV" } else { "FWD" },
         s.speed_rpm
     )));
     v.push(Line::from(format!(
-        "Udc {:5.1} V   Imax {:5.2} A   brake {}",
-        s.u_dc_v,
-        s.i_max_a,
+        "Udc {:5.1} V  Imax {:5.2} A",
+        s.u_dc_v, s.i_max_a
+    )));
+    v.push(Line::from(format!(
+        "brake {}",
         if s.brake { "ON" } else { "off" }
     )));
     let fault = if s.fault == 0 {
@@ -132,7 +134,7 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
         Style::default().fg(Color::DarkGray),
     )));
     v.push(Line::from(Span::styled(
-        "  (q toggles D00, Q pushes it 0.2 s; F1-F8 toggle)",
+        "  q: toggle D00, Q: push 0.2 s",
         Style::default().fg(Color::DarkGray),
     )));
     let mut o = vec![Span::raw("O00-05 ")];
@@ -166,15 +168,14 @@ pub fn draw(frame: &mut Frame<'_>, app: &PanelApp) {
         Layout::horizontal([Constraint::Length(42), Constraint::Min(30)]).areas(main);
     let lcd = app.lcd();
     let lcd_h = u16::from(lcd.rows()) + 2;
-    let [lcd_area, pad_area, map_area] = Layout::vertical([
-        Constraint::Length(lcd_h),
-        Constraint::Length(6),
-        Constraint::Min(3),
-    ])
-    .areas(left);
+    let [top_area, map_area] =
+        Layout::vertical([Constraint::Length(lcd_h.max(6)), Constraint::Min(3)]).areas(left);
     let lcd_w = u16::from(lcd.cols()) + 2;
+    let [lcd_area, pad_area] =
+        Layout::horizontal([Constraint::Length(lcd_w + 1), Constraint::Min(14)]).areas(top_area);
     let lcd_rect = Rect {
         width: lcd_w.min(lcd_area.width),
+        height: lcd_h.min(lcd_area.height),
         ..lcd_area
     };
     let blink_on = (app.blink_ms / BLINK_MS).is_multiple_of(2);
@@ -185,7 +186,8 @@ pub fn draw(frame: &mut Frame<'_>, app: &PanelApp) {
     frame.render_widget(
         Paragraph::new(keypad_lines(app.last_key)).block(Block::bordered().title("Keypad")),
         Rect {
-            width: 26.min(pad_area.width),
+            width: 14.min(pad_area.width),
+            height: 6.min(pad_area.height),
             ..pad_area
         },
     );
@@ -200,7 +202,7 @@ pub fn draw(frame: &mut Frame<'_>, app: &PanelApp) {
     );
     frame.render_widget(
         Paragraph::new(Line::from(Span::styled(
-            " Esc quits | keypad: 0-9 a b c d * # | inputs: q..i, F1-F8 | pots: z/x n/m j/k o/p",
+            " Esc quits | keypad 0-9 a-d * # | inputs q..i F1-F8 | pots z/x n/m j/k o/p",
             Style::default().fg(Color::DarkGray),
         ))),
         footer,
