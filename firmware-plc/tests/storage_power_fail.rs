@@ -109,6 +109,7 @@ fn power_cut_at_every_byte_of_a_save_leaves_old_or_new() {
     let e = half.into_eeprom();
     let n2 = cut_everywhere(&e, 2, Some(&new_program()), &old_program());
     assert!(n0 > 0 && n1 > n0 && n2 > 0);
+    println!("power cut after every byte: {n0} + {n1} + {n2} cut points, all old-or-new");
 }
 
 #[test]
@@ -278,6 +279,14 @@ fn motor_program_save_costs_eight_page_writes() {
     // 230 bytes per copy = 4 pages, two copies: 8 page writes, at most 40 ms on a 24C256.
     assert_eq!(s.eeprom().pages_written(), 8);
     assert_eq!(s.eeprom().bytes_written(), 2 * 230);
+    // Overwriting it with another program, cut at every byte.
+    let n = cut_everywhere(s.eeprom(), 1, Some(&p), &old_program());
+    // And back.
+    let mut t = Storage::new(s.eeprom().clone());
+    t.save(1, &old_program()).unwrap();
+    let m = cut_everywhere(t.eeprom(), 1, Some(&old_program()), &p);
+    assert_eq!(m, 2 * 230);
+    println!("motor program: {n} + {m} cut points, all old-or-new");
 }
 
 #[test]
