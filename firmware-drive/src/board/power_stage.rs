@@ -115,9 +115,13 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
 /// off: a break clears MOE in hardware and it stays cleared until software sets it again.
 pub fn arm_break(comparators: &[usize]) {
     let t = pac::TIM1;
-    for &c in comparators {
-        t.af1().modify(|w| w.set_bkcmpe(c, true));
-    }
+    t.af1().modify(|w| {
+        // Only the comparators: the BKIN pin (reset default on) is not wired.
+        w.set_bkine(false);
+        for &c in comparators {
+            w.set_bkcmpe(c, true);
+        }
+    });
     t.bdtr().modify(|w| {
         w.set_bkp(0, Bkp::ACTIVE_HIGH);
         w.set_aoe(false);
@@ -156,10 +160,15 @@ pub fn write_duties(duty: [u16; 3]) {
     }
 }
 
-/// MOE on. The hardware refuses while the break input is active.
+/// MOE on, unless a break is pending: the hardware refuses MOE while the break input is
+/// active, and a break that has already ended must still reach the core (break interrupt)
+/// before the outputs may come back.
 #[inline(always)]
 pub fn outputs_on() {
-    pac::TIM1.bdtr().modify(|w| w.set_moe(true));
+    let t = pac::TIM1;
+    if !t.sr().read().bif(0) {
+        t.bdtr().modify(|w| w.set_moe(true));
+    }
 }
 
 /// MOE off: all six outputs to their inactive level after the dead time.
