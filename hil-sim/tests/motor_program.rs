@@ -106,3 +106,41 @@ fn full_motor_example_runs_as_the_source_describes() {
     let expect = f22 * f64::exp(-3.0 / TAU_S);
     assert!((f25 - expect).abs() < 0.6, "stop ramp: {f25} vs {expect}");
 }
+
+#[test]
+fn speed_follows_the_pot_with_the_2_333_s_lag() {
+    // Running at 30 Hz, the pot goes to 60 Hz at 10 s: the frequency moves toward the new
+    // setpoint as a first-order lag from where it was.
+    let scen = r#"
+[[event]]
+at_s = 0.0
+set = { A00 = 980, A01 = 300 }
+
+[[event]]
+at_s = 0.2
+press = "D00"
+
+[[event]]
+at_s = 10.0
+set = { A01 = 600 }
+"#;
+    let r = run_text(MOTOR_PLC, scen, 16.0);
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
+    let s = &r.samples;
+    let f0 = at(s, 10.0).f_cmd_hz;
+    assert!((f0 - 30.0).abs() < 0.5, "{f0}");
+    // The PLC reads the pot in the next scan; the lag starts from there.
+    let t0 = t_s(s.iter().find(|x| x.q[2] == 600).unwrap());
+    assert!((10.0..10.003).contains(&t0));
+    for k in [0.5, 1.0, 2.0] {
+        let expect = 60.0 + (f0 - 60.0) * f64::exp(-k);
+        let f = at(s, t0 + k * TAU_S).f_cmd_hz;
+        assert!(
+            (f - expect).abs() < 0.5,
+            "f({k} tau) = {f}, expected {expect}"
+        );
+    }
+    assert_eq!(at(s, 12.0).lcd[0], Some(600));
+    // 60 Hz is within fmx (70 Hz): the motor follows, above 1600 rpm.
+    assert!(at(s, 15.9).speed_rpm > 1600.0);
+}
