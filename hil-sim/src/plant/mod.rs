@@ -310,6 +310,16 @@ impl Plant {
         for i in 0..6 {
             self.x[i] = x0[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
         }
+        if all_float && !self.open {
+            // Freewheeling through the diodes against the DC link can only shrink the
+            // current. If the step made it grow, a phase has crossed zero and the diodes
+            // chatter around it: they have stopped conducting.
+            let (i_after, _) = self.stator(&self.x);
+            let grew = i_after[0].hypot(i_after[1]) > i_s[0].hypot(i_s[1]);
+            if grew && i_s[0].hypot(i_s[1]) < 10.0 * OPEN_CIRCUIT_A {
+                self.open = true;
+            }
+        }
         if self.open {
             let m = &self.params.motor;
             let k = m.lm_h / m.lr_h();

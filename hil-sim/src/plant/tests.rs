@@ -216,3 +216,15 @@ fn dead_time_loses_voltage_in_the_switching_model() {
     };
     assert!(run(3_000) < 0.97 * run(0));
 }
+
+#[test]
+fn freewheeling_current_dies_out_within_a_few_milliseconds() {
+    let mut plant = Plant::new(RigParams::default());
+    drive_sine(&mut plant, 50.0, 1.0, 1_000_000, 1_500_000_000, |_, _| {});
+    let before = plant.outputs();
+    assert!(before.i_abc_a.iter().any(|i| i.abs() > 0.3), "{before:?}");
+    plant.start_period(1_000_000, GateCommand::OFF);
+    plant.advance(5_000_000);
+    let o = plant.outputs();
+    assert_eq!(o.i_abc_a, [0.0; 3], "{o:?}");
+}
