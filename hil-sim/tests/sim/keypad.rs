@@ -1,8 +1,7 @@
 //! The keypad in a scenario: typing the RUN key starts the program (then it does not start
 //! at power-up), and the LCD shows what the firmware's editor draws.
 
-mod common;
-use common::*;
+use super::common::*;
 use hil_sim::mcu::PlcMcu;
 use hil_sim::run::parse_program;
 use hil_sim::scenario::Scenario;

@@ -1,7 +1,6 @@
 //! Every scenario shipped in `hil-sim/scenarios/` parses and does what its comment says.
 
-mod common;
-use common::*;
+use super::common::*;
 use hil_sim::run::{parse_program, run};
 use hil_sim::scenario::Scenario;
 use hil_sim::sim::RunOptions;

@@ -1,5 +1,4 @@
 //! Shared helpers of the scenario tests.
-#![allow(dead_code)]
 
 use hil_sim::run::{parse_program, run, RunReport};
 use hil_sim::scenario::Scenario;

@@ -1,7 +1,6 @@
 //! The source's full motor program (program.md section 5) on the default rig.
 
-mod common;
-use common::*;
+use super::common::*;
 
 /// pot A01 = 500 (50.0 Hz), A00 = 980 (9800 Hz PWM); START at 0.5 s; REV at 8 s;
 /// START/STOP again at 22 s.

@@ -1,8 +1,7 @@
 //! Protections on the default rig with the full motor program: each trip latches its
 //! fault code (drive.md), turns the PWM off, and stays latched.
 
-mod common;
-use common::*;
+use super::common::*;
 use hil_sim::mcu::PlcMcu;
 use hil_sim::run::{parse_program, RunReport};
 use hil_sim::scenario::Scenario;

@@ -1,7 +1,6 @@
 //! The brake chopper on a regenerative stop, and run-to-run determinism.
 
-mod common;
-use common::*;
+use super::common::*;
 use hil_sim::record::{header, row};
 
 /// A large inertia (6x the default) run up to 30 Hz, then stopped with START/STOP: the

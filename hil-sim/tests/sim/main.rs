@@ -1,0 +1,14 @@
+//! hil-sim's scenario and command-line tests, in one test binary (each integration test
+//! binary is a separate fat-LTO link in the release profile the README tests with).
+
+#![allow(dead_code)]
+
+mod common;
+
+mod brake_and_determinism;
+mod cli;
+mod keypad;
+mod link_latency;
+mod motor_program;
+mod shipped_scenarios;
+mod trips;
