@@ -197,6 +197,9 @@ pub struct Editor {
     mode: Mode,
     message: Option<Message>,
     log_index: core::cell::Cell<u8>,
+    /// When the current message was first drawn (ms): with a fault or warning present it
+    /// gives way to them after [`pages::MESSAGE_MS`], so a message never hides a fault.
+    message_drawn_at: core::cell::Cell<Option<u32>>,
     slot: Option<u8>,
     modified: bool,
 }
@@ -229,6 +232,7 @@ impl Editor {
             mode: Mode::Browse,
             message: None,
             log_index: core::cell::Cell::new(0),
+            message_drawn_at: core::cell::Cell::new(None),
             slot: None,
             modified: false,
         }
@@ -294,6 +298,7 @@ impl Editor {
             let _ = s.push(ch);
         }
         self.message = Some(s);
+        self.message_drawn_at.set(None);
     }
 
     /// Report the outcome of a request (or a power-up load).

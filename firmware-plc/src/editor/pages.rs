@@ -10,6 +10,10 @@ pub(super) type Line = heapless::String<64>;
 /// How long each status-row item stays before the next one rotates in.
 const ROTATE_MS: u32 = 2000;
 
+/// How long a transient message (saved, loaded, verifier error...) keeps the status row
+/// while a fault or warning is waiting to be shown. Without alerts it stays until a key.
+pub(super) const MESSAGE_MS: u32 = 3000;
+
 /// Column of each listing field: `>NNN MNEM OPR CCCC` on 20 columns, `NNN MNE OPR CCCC`
 /// on 16 (every mnemonic has at most 3 characters, so nothing is lost).
 #[derive(Clone, Copy)]
@@ -95,11 +99,17 @@ fn warning_line(view: &View<'_>, s: &mut Line) -> bool {
 }
 
 /// The prompt of a pending command or edit, or the transient message.
-fn prompt(ed: &Editor, s: &mut Line) -> bool {
+fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
     let narrow = ed.cols < 20;
     if let Some(m) = &ed.message {
-        push(s, format_args!("{m}"));
-        return true;
+        let now = view.now_ms;
+        let drawn = ed.message_drawn_at.get().unwrap_or(now);
+        ed.message_drawn_at.set(Some(drawn));
+        let alerts = view.run.fault.is_some() || view.run.warning.is_some();
+        if !alerts || now.wrapping_sub(drawn) < MESSAGE_MS {
+            push(s, format_args!("{m}"));
+            return true;
+        }
     }
     let text = match ed.mode {
         Mode::Browse => return false,
@@ -171,7 +181,7 @@ fn hint(ed: &Editor, view: &View<'_>, n: usize, s: &mut Line) -> usize {
 /// The status row: prompt or message first; otherwise faults and warnings alternating
 /// with the main hint, or the hints in turn.
 pub(super) fn status_text(ed: &Editor, view: &View<'_>, s: &mut Line) {
-    if prompt(ed, s) {
+    if prompt(ed, view, s) {
         return;
     }
     let tick = (view.now_ms / ROTATE_MS) as usize;
@@ -271,7 +281,7 @@ pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
         return;
     }
     let mut s = Line::new();
-    if ed.rows >= 3 || prompt(ed, &mut s) {
+    if ed.rows >= 3 || prompt(ed, view, &mut s) {
         if ed.rows >= 3 {
             status_text(ed, view, &mut s);
         }
@@ -370,7 +380,7 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     if last == 0 {
         return;
     }
-    if prompt(ed, &mut status) || entry.is_none() {
+    if prompt(ed, view, &mut status) || entry.is_none() {
         if status.is_empty() {
             status_text(ed, view, &mut status);
         }

@@ -381,3 +381,47 @@ fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
     assert_eq!(s.row(1), "link lost       ");
     assert_eq!(draw(&ed, &p, run, &log, 2000).row(1), "PWR 3 UP 0:01:01");
 }
+
+#[test]
+fn a_message_gives_way_to_a_fault_but_stays_without_one() {
+    let mut ed = Editor::new(20, 4);
+    let p = Program::default();
+    ed.notify(Notice::Text("LOADED SLOT 1"));
+    let quiet = RunView::default();
+    // Without alerts the message stays until a key.
+    assert_eq!(
+        draw(&ed, &p, quiet, &[], 0).row(3).trim_end(),
+        "LOADED SLOT 1"
+    );
+    assert_eq!(
+        draw(&ed, &p, quiet, &[], 60_000).row(3).trim_end(),
+        "LOADED SLOT 1"
+    );
+    // A fault appearing later: the message has been up for 60 s, so the fault shows now.
+    let faulted = RunView {
+        drive_state: DriveState::Fault,
+        fault: Some(1),
+        ..quiet
+    };
+    assert_eq!(
+        draw(&ed, &p, faulted, &[], 60_000).row(3).trim_end(),
+        "F1 overcurrent"
+    );
+    // A new message shows first, then yields to the fault after MESSAGE_MS.
+    ed.notify(Notice::Text("SAVED IN SLOT 2"));
+    let t0 = 61_000;
+    assert_eq!(
+        draw(&ed, &p, faulted, &[], t0).row(3).trim_end(),
+        "SAVED IN SLOT 2"
+    );
+    let later: Vec<String> = (0..3)
+        .map(|k| {
+            draw(&ed, &p, faulted, &[], t0 + pages::MESSAGE_MS + k * 2000)
+                .row(3)
+                .trim_end()
+                .to_string()
+        })
+        .collect();
+    assert!(later.iter().any(|r| r == "F1 overcurrent"), "{later:?}");
+    assert!(later.iter().all(|r| r != "SAVED IN SLOT 2"), "{later:?}");
+}
