@@ -36,10 +36,11 @@ fn TIM1_UP_TIM16() {
             power_stage::apply_timing(&timing, s.min_dead_counts);
             s.timing = timing;
         }
-        // The core clamps its duties to the period; clamp again against the ARR the timer
-        // really has so a compare can never exceed it.
-        let max = timing.arr;
-        power_stage::write_duties(cmd.duty.map(|d| d.min(max)));
+        // `ccr()` writes a 100 % duty as ARR + 1 (CCR = ARR would leave a one-count low
+        // pulse at the peak); clamp against the ARR the timer really has so a compare is
+        // never above ARR + 1.
+        let max = timing.arr.saturating_add(1);
+        power_stage::write_duties(cmd.ccr().map(|d| d.min(max)));
         if cmd.enable {
             power_stage::outputs_on();
         }
