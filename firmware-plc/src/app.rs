@@ -4,7 +4,7 @@
 //!
 //! | when | call |
 //! | --- | --- |
-//! | power-up | [`PlcApp::new`] (loads the slot last run; starts RUN when it was running) |
+//! | power-up | [`PlcApp::new`], or [`PlcApp::new_cold`] + [`PlcApp::power_up`] in place (loads the slot last run; starts RUN when it was running) |
 //! | each scan (inputs sampled at its start) | [`PlcApp::scan`] → output image |
 //! | UART bytes received | [`PlcApp::on_rx`] |
 //! | UART transmitter free, and at least every 1 ms | [`PlcApp::poll_tx`] |
@@ -117,9 +117,20 @@ pub fn drive_written_q(program: &Program) -> u64 {
 }
 
 impl<E: Eeprom> PlcApp<E> {
-    /// Power-up with the EEPROM in `eeprom` and an LCD of `cols` x `rows` (20x4 or 16x2).
+    /// Power-up with the EEPROM in `eeprom` and an LCD of `cols` x `rows` (20x4 or 16x2):
+    /// [`PlcApp::new_cold`] then [`PlcApp::power_up`]. Convenient on the host; the MCU
+    /// builds the application in its static slot and calls `power_up` there, because this
+    /// by-value constructor needs several copies of the ~15 KiB application on the stack.
     pub fn new(eeprom: E, link: LinkConfig, cols: u8, rows: u8, now: Micros) -> Self {
-        let mut app = PlcApp {
+        let mut app = Self::new_cold(eeprom, link, cols, rows);
+        app.power_up(now);
+        app
+    }
+
+    /// The application with nothing loaded and no EEPROM access yet (stopped, empty
+    /// program). Call [`PlcApp::power_up`] next.
+    pub fn new_cold(eeprom: E, link: LinkConfig, cols: u8, rows: u8) -> Self {
+        PlcApp {
             program: Program::default(),
             vm: PlcVm::new(),
             link: PlcLink::new(link),
@@ -134,7 +145,13 @@ impl<E: Eeprom> PlcApp<E> {
             q_sent: [None; Q_COUNT],
             drive_writes_q: 0,
             scan_period_us: 1_000,
-        };
+        }
+    }
+
+    /// Power-up: loads the slot last run from the EEPROM and the fault log, and starts RUN
+    /// when the boot record says the PLC was running. Call once, after `new_cold`.
+    pub fn power_up(&mut self, now: Micros) {
+        let app = self;
         let mut run_now = false;
         match app.storage.power_up(&mut app.program) {
             Ok(p) => {
@@ -157,7 +174,6 @@ impl<E: Eeprom> PlcApp<E> {
             let slot = app.run_slot;
             app.run(slot, now);
         }
-        app
     }
 
     /// The period at which the board calls [`PlcApp::scan`] (default 1 ms). The link
