@@ -475,7 +475,14 @@ impl Editor {
             return None;
         };
         match p {
-            Prefix::Save if (1..=SLOTS).contains(&d) => Some(Request::Save(d)),
+            Prefix::Save if (1..=SLOTS).contains(&d) => {
+                // A save blocks the EEPROM bus for up to ~0.6 s; while the drive runs that
+                // would starve the link past the drive's 50 ms LINK timeout.
+                if self.refuse_while_running(running) {
+                    return None;
+                }
+                Some(Request::Save(d))
+            }
             Prefix::Load if (1..=SLOTS).contains(&d) => {
                 if self.refuse_while_running(running) {
                     return None;

@@ -152,9 +152,9 @@ fn hint(ed: &Editor, view: &View<'_>, n: usize, s: &mut Line) -> usize {
     let running = view.run.running;
     let first = match (running, narrow) {
         (false, false) => "A=RUN C=SAVE D=LOAD",
-        (true, false) => "A=STOP C=SAVE D=LOAD",
+        (true, false) => "A=STOP B=NEXT PAGE",
         (false, true) => "A RUN C SV D LD",
-        (true, true) => "A STOP C SV D LD",
+        (true, true) => "A STOP B PAGE",
     };
     let second = if narrow {
         "D0 NEW B PAGE"

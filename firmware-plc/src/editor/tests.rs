@@ -248,7 +248,7 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
     assert_eq!(s.row(0), "RUN  RUN    42.3Hz R");
     assert_eq!(s.row(1), "1:   812   2:-32768 ");
     assert_eq!(s.row(2), "3:     -   4:     - ");
-    assert_eq!(s.row(3).trim_end(), "A=STOP C=SAVE D=LOAD");
+    assert_eq!(s.row(3).trim_end(), "A=STOP B=NEXT PAGE");
     assert_eq!(s.cursor, None);
     let faulted = RunView {
         running: false,
@@ -368,7 +368,7 @@ fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
     assert_eq!(rows[0], "RUN RUN   50.0 F\n1=12    2=-5    ");
     assert_eq!(rows[1].lines().nth(1), Some("3=7     4=-     "));
     assert_eq!(rows[2].lines().nth(1), Some("F1 overcurrent  "));
-    assert_eq!(rows[3].lines().nth(1), Some("A STOP C SV D LD"));
+    assert_eq!(rows[3].lines().nth(1), Some("A STOP B PAGE   "));
     assert_eq!(rows[4], rows[0]);
     ed.show_page(Page::FaultLog);
     let log = [FaultEntry {
@@ -424,4 +424,19 @@ fn a_message_gives_way_to_a_fault_but_stays_without_one() {
         .collect();
     assert!(later.iter().any(|r| r == "F1 overcurrent"), "{later:?}");
     assert!(later.iter().all(|r| r != "SAVED IN SLOT 2"), "{later:?}");
+}
+
+#[test]
+fn save_load_and_new_are_refused_while_running() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[150] = Some(ins(Mnemonic::Ld, Some(Operand::D(0)), 0));
+    let before = p.clone();
+    for keys in ["C1", "D2", "D0"] {
+        assert_eq!(press(&mut ed, &mut p, true, keys), vec![], "{keys}");
+        assert_eq!(ed.message(), Some("STOP FIRST (A)"), "{keys}");
+    }
+    assert_eq!(p, before);
+    // Stopped, the same keys work.
+    assert_eq!(press(&mut ed, &mut p, false, "C1"), vec![Request::Save(1)]);
 }
