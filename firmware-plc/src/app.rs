@@ -490,6 +490,13 @@ impl<E: Eeprom> PlcApp<E> {
             Request::Run { slot } => self.run(slot, now),
             Request::Stop => self.stop(),
             Request::New => {}
+            Request::AckFaults => {
+                let text = match self.ack_fault() {
+                    Ok(()) => "FAULT ACK SENT",
+                    Err(_) => "ACK: NO LINK",
+                };
+                self.editor.notify(Notice::Text(text));
+            }
             Request::ClearFaultLog => {
                 match self.storage.clear_fault_log() {
                     Ok(()) => self.editor.notify(Notice::Text("FAULT LOG CLEARED")),

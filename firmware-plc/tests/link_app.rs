@@ -391,3 +391,33 @@ fn a_fault_is_acknowledged_from_the_panel_then_run_again() {
     r.run_for(150_000);
     assert_eq!(r.drive.core().state(), CoreState::Run);
 }
+
+#[test]
+fn keypad_star_9_acknowledges_a_trip_and_a_run_is_still_needed() {
+    let mut r = running_rig();
+    r.cut(true);
+    r.run_for(100_000);
+    r.cut(false);
+    r.run_for(300_000);
+    assert_eq!(r.drive.core().fault(), Some(FaultCode::Link));
+    assert!(r.screen().contains("F5 "), "{}", r.screen());
+    // STOP the PLC (A), acknowledge on the keypad (* 9): the drive goes to IDLE.
+    r.plc.key(Key::A, r.now);
+    r.plc.key(Key::Star, r.now);
+    r.plc.key(Key::Digit(9), r.now);
+    assert!(r.screen().contains("FAULT ACK SENT"), "{}", r.screen());
+    r.run_for(20_000);
+    assert_eq!(r.drive.core().fault(), None);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+    r.run_for(500_000);
+    assert_eq!(
+        r.drive.core().state(),
+        CoreState::Idle,
+        "no restart by itself"
+    );
+    // RUN (A) starts both again.
+    r.plc.key(Key::A, r.now);
+    r.run_for(150_000);
+    assert_eq!(r.plc.run_state(), RunState::Running);
+    assert_eq!(r.drive.core().state(), CoreState::Run);
+}

@@ -47,6 +47,9 @@ pub enum Request {
     Stop,
     /// The editor has emptied the program (`D` `0`).
     New,
+    /// Acknowledge the drive's latched faults (`*` `9`, any page): the drive returns to
+    /// IDLE when the cause is gone; it never restarts by itself, a new RUN is needed.
+    AckFaults,
     /// Erase the stored fault log.
     ClearFaultLog,
 }
@@ -501,6 +504,7 @@ impl Editor {
                 self.set_message(format_args!("NEW PROGRAM"));
                 Some(Request::New)
             }
+            Prefix::Line if d == 9 => Some(Request::AckFaults),
             Prefix::Line if self.page == Page::FaultLog && d == 0 => {
                 self.log_index.set(0);
                 Some(Request::ClearFaultLog)

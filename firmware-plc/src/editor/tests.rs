@@ -440,3 +440,20 @@ fn save_load_and_new_are_refused_while_running() {
     // Stopped, the same keys work.
     assert_eq!(press(&mut ed, &mut p, false, "C1"), vec![Request::Save(1)]);
 }
+
+#[test]
+fn star_9_acknowledges_faults_on_every_page() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    for page in [Page::Listing, Page::Run, Page::FaultLog] {
+        ed.show_page(page);
+        for running in [false, true] {
+            assert_eq!(
+                press(&mut ed, &mut p, running, "*9"),
+                vec![Request::AckFaults],
+                "{page:?} running={running}"
+            );
+        }
+    }
+    assert_eq!(p, Program::default());
+}

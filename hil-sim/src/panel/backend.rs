@@ -134,6 +134,7 @@ impl EditorBackend {
                 let _ = self.storage.set_run_state(None, false);
             }
             Request::New => {}
+            Request::AckFaults => self.editor.notify(Notice::Text("ACK: NO DRIVE")),
             Request::ClearFaultLog => {
                 let _ = self.storage.clear_fault_log();
                 self.log.clear();
