@@ -123,7 +123,10 @@ impl Simulation<DriveBoard, PlcBoard> {
         .context("EEPROM image")?;
         let link = LinkConfig::at_baud(scenario.baud);
         let drive = DriveBoard::new(link);
-        let plc = PlcBoard::new(MemEeprom::from_image(&image), link, Micros(0));
+        let mut plc = PlcBoard::new(MemEeprom::from_image(&image), link, Micros(0));
+        // The link's quiet window after each scan lasts until the next scan.
+        plc.app_mut()
+            .set_scan_period_us((scenario.scan_time_ns / 1000).max(1));
         Ok(Simulation::with_boards(drive, plc, scenario, opts))
     }
 }

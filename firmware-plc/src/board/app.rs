@@ -40,6 +40,9 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
     let mut screen = Screen::new(lcd::COLS, lcd::ROWS);
     let mut ticks: u32 = 0;
     let mut run_state = shared::with(app, |a| a.run_state());
+    // A change of these (link lost, fault, warning) redraws at once: link.md wants a lost
+    // link on the LCD within 100 ms, the periodic refresh alone could take 100 ms more.
+    let mut drawn_alerts = None;
     let mut ticker = Ticker::every(PERIOD);
     loop {
         ticker.next().await;
@@ -62,9 +65,11 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
             if let Some(w) = out.warning {
                 defmt::warn!("scan: {}", w);
             }
-            // Redraw at once after a key, as hil-sim's board does.
-            if key_down || ticks.is_multiple_of(RENDER_PERIODS) {
+            // Redraw at once after a key or an alert change, as hil-sim's board does.
+            let alerts = app.alerts();
+            if key_down || ticks.is_multiple_of(RENDER_PERIODS) || drawn_alerts != Some(alerts) {
                 app.render(now, &mut screen);
+                drawn_alerts = Some(alerts);
             }
             let state = app.run_state();
             if state != run_state {

@@ -2,7 +2,7 @@
 //! editor, EEPROM storage) with a [`MemEeprom`] in the socket, called as the board's
 //! tasks call it. The LCD is refreshed every 100 ms, as on the board.
 
-use firmware_plc::app::{PlcApp, RunState, RunStatus};
+use firmware_plc::app::{Alerts, PlcApp, RunState, RunStatus};
 use firmware_plc::editor::{Editor, Key, Screen};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::LinkConfig;
@@ -22,6 +22,10 @@ pub struct PlcBoard {
     outputs: u8,
     lcd_fields: [Option<i16>; 4],
     last_render_us: Option<u64>,
+    /// `PlcApp::alerts()` at the last redraw: a change (link lost, fault, warning)
+    /// redraws at once, as the board does, so the LCD shows it within the 100 ms of
+    /// link.md instead of waiting for the periodic refresh.
+    drawn_alerts: Option<Alerts>,
 }
 
 impl PlcBoard {
@@ -35,6 +39,7 @@ impl PlcBoard {
             outputs: 0,
             lcd_fields: [None; 4],
             last_render_us: None,
+            drawn_alerts: None,
         };
         b.render(now);
         b
@@ -75,6 +80,7 @@ impl PlcBoard {
             self.lcd.set_row(usize::from(r), self.screen.row(r));
         }
         self.last_render_us = Some(now.0);
+        self.drawn_alerts = Some(self.app.alerts());
     }
 }
 
@@ -84,6 +90,7 @@ impl PlcMcu for PlcBoard {
         if self
             .last_render_us
             .is_none_or(|t| now.0.saturating_sub(t) >= LCD_REFRESH_US)
+            || self.drawn_alerts != Some(self.app.alerts())
         {
             self.render(now);
         }

@@ -117,3 +117,30 @@ fn the_plc_lcd_shows_the_drive_fault() {
     );
     assert!(sim.plc().lcd().row(0).contains("FAULT"));
 }
+
+/// link.md: the PLC shows a lost link on the LCD within 100 ms, whatever the phase of the
+/// cut against the LCD's 100 ms refresh.
+#[test]
+fn the_plc_lcd_shows_a_lost_link_within_100_ms() {
+    let p = parse_program(MOTOR_PLC, "motor.plc").unwrap();
+    for cut_ms in [3000u64, 3025, 3050, 3075] {
+        let scen = Scenario::parse(&format!(
+            "[link]\ncut_at_s = {}\n{START_50HZ}",
+            cut_ms as f64 / 1000.0
+        ))
+        .unwrap();
+        let mut sim = Simulation::new(&p, scen, RunOptions::default()).unwrap();
+        sim.run_until((cut_ms - 1) * 1_000_000, |_| {});
+        assert!(!sim.plc().lcd().row(0).contains("LINK LOST"));
+        let shown_at_ms = (cut_ms..cut_ms + 300).find(|&ms| {
+            sim.run_until(ms * 1_000_000, |_| {});
+            sim.plc().lcd().row(0).contains("LINK LOST")
+        });
+        let t = shown_at_ms.expect("LINK LOST never shown");
+        assert!(
+            t - cut_ms <= 100,
+            "cut at {cut_ms} ms: LINK LOST shown {} ms after the cut",
+            t - cut_ms
+        );
+    }
+}
