@@ -3,51 +3,12 @@
 
 use firmware_plc::vm::{DriveView, PlcVm, ScanInputs, ScanOutputs, Warning};
 use proptest::prelude::*;
+use shared_protocol::program::testing::any_instruction;
 use shared_protocol::program::{
     constant_range, mnemonics_for, operands_for, verify, Instruction, Mnemonic, Operand, Program,
     Section, PLC_FIRST_LINE,
 };
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Millis};
-
-fn any_operand() -> impl Strategy<Value = Operand> + Clone {
-    prop_oneof![
-        any::<u8>().prop_map(Operand::D),
-        any::<u8>().prop_map(Operand::O),
-        any::<u8>().prop_map(Operand::B),
-        any::<u8>().prop_map(Operand::A),
-        any::<u8>().prop_map(Operand::K),
-        any::<u8>().prop_map(Operand::Q),
-        prop::sample::select(vec![
-            Operand::Com,
-            Operand::Vlt,
-            Operand::Amp,
-            Operand::Pw1,
-            Operand::Pw3,
-            Operand::Pw5,
-            Operand::Frq,
-            Operand::Udc,
-            Operand::Imx,
-            Operand::Flt,
-            Operand::Dir,
-            Operand::Rdy,
-            Operand::Flb,
-        ]),
-    ]
-}
-
-/// Anything the model types can hold, valid or not.
-fn any_instruction() -> impl Strategy<Value = Instruction> + Clone {
-    (
-        prop::sample::select(Mnemonic::ALL.to_vec()),
-        prop::option::of(any_operand()),
-        any::<u16>(),
-    )
-        .prop_map(|(mnemonic, operand, constant)| Instruction {
-            mnemonic,
-            operand,
-            constant,
-        })
-}
 
 /// Every valid PLC (mnemonic, operand) pair, from the verifier's own tables.
 fn valid_pairs() -> Vec<(Mnemonic, Option<Operand>)> {

@@ -116,16 +116,16 @@ pub fn drive_section(max_lines: usize) -> impl Strategy<Value = DriveSection> {
 }
 
 /// Any operand the type can hold, including indices outside the areas (up to 127).
-pub fn any_operand() -> impl Strategy<Value = Operand> {
+pub fn any_operand() -> impl Strategy<Value = Operand> + Clone {
     (
         proptest::sample::select(OperandClass::ALL.to_vec()),
-        0u8..128,
+        any::<u8>(),
     )
         .prop_map(|(c, i)| c.operand_unchecked_range(i))
 }
 
 /// Any instruction the type can hold, mostly invalid: for "rejects, never panics" tests.
-pub fn any_instruction() -> impl Strategy<Value = Instruction> {
+pub fn any_instruction() -> impl Strategy<Value = Instruction> + Clone {
     (
         proptest::sample::select(Mnemonic::ALL.to_vec()),
         proptest::option::of(any_operand()),
