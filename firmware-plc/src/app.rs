@@ -151,28 +151,27 @@ impl<E: Eeprom> PlcApp<E> {
     /// Power-up: loads the slot last run from the EEPROM and the fault log, and starts RUN
     /// when the boot record says the PLC was running. Call once, after `new_cold`.
     pub fn power_up(&mut self, now: Micros) {
-        let app = self;
         let mut run_now = false;
-        match app.storage.power_up(&mut app.program) {
+        match self.storage.power_up(&mut self.program) {
             Ok(p) => {
                 match p.loaded {
                     Some(Ok(report)) => {
-                        app.editor.notify(Notice::Loaded(report));
-                        app.run_slot = Some(report.slot);
+                        self.editor.notify(Notice::Loaded(report));
+                        self.run_slot = Some(report.slot);
                     }
-                    Some(Err(error)) => app.editor.notify(Notice::LoadFailed { slot: 0, error }),
+                    Some(Err(error)) => self.editor.notify(Notice::LoadFailed { slot: 0, error }),
                     None => {}
                 }
                 run_now = p.run;
                 // A restarted PLC must not reuse the session the drive still knows.
-                app.link.seed_session(p.power_cycle as u8);
+                self.link.seed_session(p.power_cycle as u8);
             }
-            Err(_) => app.editor.notify(Notice::Text("EEPROM ERROR")),
+            Err(_) => self.editor.notify(Notice::Text("EEPROM ERROR")),
         }
-        app.reload_fault_log();
+        self.reload_fault_log();
         if run_now {
-            let slot = app.run_slot;
-            app.run(slot, now);
+            let slot = self.run_slot;
+            self.run(slot, now);
         }
     }
 
