@@ -1,0 +1,1 @@
+//! Devices on the boards' buses, modelled from their datasheets.
