@@ -27,6 +27,24 @@
 
 use crate::time::Cycles;
 
+pub mod adc;
+pub mod comp;
+pub mod dac;
+pub mod dbgmcu;
+pub mod dma;
+pub mod exti;
+pub mod flash;
+pub mod gpio;
+pub mod i2c;
+pub mod iwdg;
+pub mod opamp;
+pub mod pwr;
+pub mod rcc;
+pub mod syscfg;
+pub mod tim_adv;
+pub mod tim_gp;
+pub mod usart;
+
 /// One register write as the bus delivers it: the 32-bit register at `offset`, with the
 /// written bytes in place and `mask` covering them (a byte write to bits 8-15 of a register
 /// has `mask = 0x0000_ff00`, a word write `mask = !0`).
