@@ -15,7 +15,13 @@
 //!
 //! How it works, what it models and what it cannot catch: `docs/emulator.md`.
 
+pub mod cpu;
 pub mod devices;
+pub mod elf;
+pub mod log;
+pub mod mcu;
 pub mod names;
 pub mod periph;
+pub mod scs;
+pub mod soc;
 pub mod time;

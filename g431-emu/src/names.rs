@@ -123,6 +123,13 @@ fn register_name(ir: &ir::IR, block: &str, offset: u32) -> Option<String> {
     None
 }
 
+/// Bytes of a peripheral's register block (from its last register), rounded up to a word.
+pub fn block_bytes(name: &str) -> Option<u32> {
+    let regs = peripheral(name)?.registers.as_ref()?;
+    let len = block_len(regs.ir, regs.block);
+    (len > 0).then_some(len.div_ceil(4) * 4)
+}
+
 /// The peripheral whose register block holds `addr`, and the offset in it.
 pub fn locate(addr: u32) -> Option<(&'static Peripheral, u32)> {
     METADATA
@@ -156,6 +163,42 @@ pub fn describe(addr: u32) -> String {
     }
 }
 
+/// Byte offset of register `reg` (`"APB2ENR"`) and bit of field `field` (`"TIM1EN"`) in the
+/// RCC, from the metadata's register descriptions.
+fn rcc_bit(reg: &str, field: &str) -> Option<(u32, u32)> {
+    let rcc = peripheral("RCC")?.registers.as_ref()?;
+    let block = find_block(rcc.ir, rcc.block)?;
+    let item = block
+        .items
+        .iter()
+        .find(|i| i.name.eq_ignore_ascii_case(reg))?;
+    let ir::BlockItemInner::Register(r) = &item.inner else {
+        return None;
+    };
+    let fs_name = r.fieldset?;
+    let fs = rcc.ir.fieldsets.iter().find(|f| f.name == fs_name)?;
+    let f = fs
+        .fields
+        .iter()
+        .find(|f| f.name.eq_ignore_ascii_case(field))?;
+    match &f.bit_offset {
+        ir::BitOffset::Regular(o) => Some((item.byte_offset, o.offset)),
+        ir::BitOffset::Cursed(_) => None,
+    }
+}
+
+/// Where a peripheral's clock enable bit is: (RCC register offset, bit).
+pub fn rcc_enable(peripheral_name: &str) -> Option<(u32, u32)> {
+    let e = peripheral(peripheral_name)?.rcc.as_ref()?.enable.as_ref()?;
+    rcc_bit(e.register, e.field)
+}
+
+/// Where a peripheral's reset bit is: (RCC register offset, bit).
+pub fn rcc_reset(peripheral_name: &str) -> Option<(u32, u32)> {
+    let e = peripheral(peripheral_name)?.rcc.as_ref()?.reset.as_ref()?;
+    rcc_bit(e.register, e.field)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -179,6 +222,16 @@ mod tests {
         assert_eq!(dma_request("USART1", "RX"), Some(24));
         assert_eq!(dma_request("USART2", "TX"), Some(27));
         assert_eq!(base("DAC3"), Some(0x5000_1000));
+    }
+
+    #[test]
+    fn rcc_bits_come_from_the_metadata() {
+        // RM0440 7.4: APB2ENR (0x60) bit 11 TIM1EN; APB1ENR1 (0x58) bit 2 TIM4EN.
+        assert_eq!(rcc_enable("TIM1"), Some((0x60, 11)));
+        assert_eq!(rcc_reset("TIM1"), Some((0x40, 11)));
+        assert_eq!(rcc_enable("TIM4"), Some((0x58, 2)));
+        assert_eq!(rcc_enable("USART2"), Some((0x58, 17)));
+        assert_eq!(rcc_enable("GPIOB"), Some((0x4c, 1)));
     }
 
     #[test]

@@ -1,1 +1,435 @@
-//! (model in progress)
+//! RCC (RM0440 §7.4): oscillator and PLL ready flags that follow their enables after the
+//! datasheet's start-up times, SWS following SW, the clock-enable and reset registers (the
+//! SoC gates and resets the other models with them), and the reset flags in CSR.
+//!
+//! The clock tree itself is not modelled: the images must configure 170 MHz and every model
+//! assumes it (see `crate::time`). [`Rcc::sysclk_is_pll`] lets the SoC report an image that
+//! runs the PLL-dependent peripherals without switching to the PLL.
+
+use crate::periph::{Peripheral, Write};
+use crate::time::{Cycles, CYCLES_PER_US};
+
+/// HSI16 start-up time, maximum (DS12589 tsu(HSI16), rounded up).
+const HSI_STARTUP: Cycles = 4 * CYCLES_PER_US;
+/// PLL lock time, maximum (DS12589 tLOCK 40 µs).
+const PLL_LOCK: Cycles = 40 * CYCLES_PER_US;
+/// LSI start-up time, maximum (DS12589 tsu(LSI) 130 µs).
+const LSI_STARTUP: Cycles = 130 * CYCLES_PER_US;
+/// HSI48 start-up time, maximum (DS12589 tsu(HSI48) 6 µs).
+const HSI48_STARTUP: Cycles = 6 * CYCLES_PER_US;
+/// A system-clock switch takes effect after a few cycles of both clocks.
+const SWITCH: Cycles = 16;
+
+const CR: u32 = 0x00;
+const ICSCR: u32 = 0x04;
+const CFGR: u32 = 0x08;
+const PLLCFGR: u32 = 0x0C;
+const CIER: u32 = 0x18;
+const CIFR: u32 = 0x1C;
+const CICR: u32 = 0x20;
+const CSR: u32 = 0x94;
+const CRRCR: u32 = 0x98;
+
+/// Why the MCU last reset, as RCC_CSR reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResetKind {
+    /// Power-on (BOR) reset: BORRSTF and PINRSTF.
+    PowerOn,
+    /// Independent watchdog: IWDGRSTF and PINRSTF (every internal reset also drives NRST).
+    Watchdog,
+    /// AIRCR.SYSRESETREQ: SFTRSTF and PINRSTF.
+    Software,
+    /// The NRST pin (e.g. a probe's reset): PINRSTF.
+    Pin,
+}
+
+/// A pending ready-flag change.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Settle {
+    at: Cycles,
+    /// Bit of CR (or CSR for LSI) that becomes `value`.
+    reg: u32,
+    bit: u32,
+    value: bool,
+}
+
+/// The RCC.
+#[derive(Debug, Clone)]
+pub struct Rcc {
+    cr: u32,
+    icscr: u32,
+    cfgr: u32,
+    pllcfgr: u32,
+    cier: u32,
+    cifr: u32,
+    /// Every other register (RSTR, ENR, SMENR, CCIPR, BDCR, CRRCR, CCIPR2): plain storage,
+    /// indexed by offset / 4.
+    regs: [u32; 0xA0 / 4],
+    csr: u32,
+    settle: heapless_settle::Queue,
+    /// SWS catches up with SW at this cycle.
+    sws_at: Option<Cycles>,
+    /// Reset bits newly set by a write, for the SoC to reset those models.
+    resets_asserted: Vec<(u32, u32)>,
+}
+
+/// A tiny fixed queue without allocation in the hot path.
+mod heapless_settle {
+    use super::Settle;
+
+    #[derive(Debug, Clone, Default)]
+    pub struct Queue(Vec<Settle>);
+
+    impl Queue {
+        pub fn push(&mut self, s: Settle) {
+            // A newer request for the same bit replaces the older one.
+            self.0.retain(|o| !(o.reg == s.reg && o.bit == s.bit));
+            self.0.push(s);
+        }
+        pub fn next(&self) -> Option<super::Cycles> {
+            self.0.iter().map(|s| s.at).min()
+        }
+        pub fn take_due(&mut self, now: super::Cycles) -> Vec<Settle> {
+            let (due, rest): (Vec<_>, Vec<_>) = self.0.drain(..).partition(|s| s.at <= now);
+            self.0 = rest;
+            due
+        }
+        pub fn clear(&mut self) {
+            self.0.clear();
+        }
+    }
+}
+
+/// Reset values of the storage registers (RM0440 §7.4).
+fn storage_reset() -> [u32; 0xA0 / 4] {
+    let mut r = [0u32; 0xA0 / 4];
+    // AHB1ENR: FLASHEN.
+    r[0x48 / 4] = 0x0000_0100;
+    // APB1ENR1: RTCAPBEN.
+    r[0x58 / 4] = 0x0000_0400;
+    // AHB1SMENR..APB2SMENR: clocks stay on in Sleep mode.
+    r[0x68 / 4] = 0x0000_130F;
+    r[0x6C / 4] = 0x050F_667F;
+    r[0x70 / 4] = 0x0000_0101;
+    r[0x78 / 4] = 0xD2FE_CD3F;
+    r[0x7C / 4] = 0x0000_0103;
+    r[0x80 / 4] = 0x0437_F801;
+    r
+}
+
+impl Default for Rcc {
+    fn default() -> Self {
+        Rcc::new(ResetKind::PowerOn)
+    }
+}
+
+impl Rcc {
+    /// The RCC just after a reset of kind `why`.
+    pub fn new(why: ResetKind) -> Self {
+        let mut r = Rcc {
+            cr: 0,
+            icscr: 0,
+            cfgr: 0,
+            pllcfgr: 0,
+            cier: 0,
+            cifr: 0,
+            regs: storage_reset(),
+            csr: 0,
+            settle: heapless_settle::Queue::default(),
+            sws_at: None,
+            resets_asserted: Vec::new(),
+        };
+        r.reset_to(why);
+        r
+    }
+
+    fn reset_to(&mut self, why: ResetKind) {
+        // HSI16 on and ready, HSI selected (RM0440: CR reset 0x0000_0500, CFGR 0x0000_0005).
+        self.cr = 0x0000_0500;
+        self.icscr = 0x4000_0000;
+        self.cfgr = 0x0000_0005;
+        self.pllcfgr = 0x0000_1000;
+        self.cier = 0;
+        self.cifr = 0;
+        self.regs = storage_reset();
+        // CSR keeps the reset flags of earlier resets until RMVF (they live in the
+        // backup/always-on domain); LSI stops.
+        let keep = self.csr & 0xFE80_0000;
+        let flag = match why {
+            ResetKind::PowerOn => (1 << 27) | (1 << 26),
+            ResetKind::Watchdog => (1 << 29) | (1 << 26),
+            ResetKind::Software => (1 << 28) | (1 << 26),
+            ResetKind::Pin => 1 << 26,
+        };
+        self.csr = if why == ResetKind::PowerOn {
+            flag
+        } else {
+            keep | flag
+        };
+        self.settle.clear();
+        self.sws_at = None;
+        self.resets_asserted.clear();
+    }
+
+    /// A system reset of kind `why` (the RCC itself resets with everything else).
+    pub fn system_reset(&mut self, why: ResetKind) {
+        self.reset_to(why);
+    }
+
+    /// The clock-enable bit `bit` of register `offset` is set (see
+    /// `crate::names::rcc_enable`).
+    pub fn enabled(&self, offset: u32, bit: u32) -> bool {
+        self.regs
+            .get((offset / 4) as usize)
+            .is_some_and(|r| r & (1 << bit) != 0)
+    }
+
+    /// Reset bits that a write set since the last call: (register offset, bit). The SoC
+    /// resets those peripherals (they stay in reset while the bit is 1).
+    pub fn take_resets(&mut self) -> Vec<(u32, u32)> {
+        core::mem::take(&mut self.resets_asserted)
+    }
+
+    /// The system clock is the PLL (SWS = 3).
+    pub fn sysclk_is_pll(&self) -> bool {
+        (self.cfgr >> 2) & 3 == 3
+    }
+
+    /// The LSI oscillator runs (the IWDG starts it itself, RM0440 §42.3.2).
+    pub fn lsi_ready(&self) -> bool {
+        self.csr & 0b10 != 0
+    }
+
+    /// The register a settle applies to (CR, CSR or CRRCR).
+    fn reg(&self, reg: u32) -> u32 {
+        match reg {
+            CSR => self.csr,
+            CRRCR => self.regs.get((CRRCR / 4) as usize).copied().unwrap_or(0),
+            _ => self.cr,
+        }
+    }
+
+    fn reg_mut(&mut self, reg: u32) -> &mut u32 {
+        match reg {
+            CSR => &mut self.csr,
+            CRRCR => match self.regs.get_mut((CRRCR / 4) as usize) {
+                Some(r) => r,
+                None => &mut self.cr,
+            },
+            _ => &mut self.cr,
+        }
+    }
+
+    fn request(&mut self, now: Cycles, reg: u32, bit: u32, value: bool, delay: Cycles) {
+        let cur = self.reg(reg) & (1 << bit) != 0;
+        if cur == value {
+            // Already there; a pending opposite change is cancelled.
+            self.settle.push(Settle {
+                at: now,
+                reg,
+                bit,
+                value,
+            });
+            return;
+        }
+        self.settle.push(Settle {
+            at: now + delay,
+            reg,
+            bit,
+            value,
+        });
+    }
+}
+
+impl Peripheral for Rcc {
+    fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
+        Some(match offset {
+            CR => self.cr,
+            ICSCR => self.icscr,
+            CFGR => self.cfgr,
+            PLLCFGR => self.pllcfgr,
+            CIER => self.cier,
+            CIFR => self.cifr,
+            CICR => 0,
+            CSR => self.csr,
+            0x24 | 0x34 | 0x44 | 0x54 | 0x64 | 0x74 | 0x84 => return None,
+            o if o < 0xA0 => self.regs.get((o / 4) as usize).copied()?,
+            _ => return None,
+        })
+    }
+
+    fn write(&mut self, w: Write, now: Cycles) -> bool {
+        match w.offset {
+            CR => {
+                let old = self.cr;
+                // Writable: HSION(8) HSIKERON(9) HSEON(16) HSEBYP(18) CSSON(19) PLLON(24).
+                let writable = (1 << 8) | (1 << 9) | (1 << 16) | (1 << 18) | (1 << 19) | (1 << 24);
+                self.cr = (old & !writable) | (w.merge(old) & writable);
+                let cr = self.cr;
+                let on = |b: u32| cr & (1 << b) != 0;
+                // No crystal is fitted on either board: HSERDY only follows a bypass clock.
+                let (hsi, pll, hse) = (on(8), on(24), on(16) && on(18));
+                self.request(now, CR, 10, hsi, HSI_STARTUP);
+                self.request(now, CR, 25, pll, PLL_LOCK);
+                self.request(now, CR, 17, hse, HSI_STARTUP);
+            }
+            ICSCR => self.icscr = (self.icscr & 0xFF) | (w.merge(self.icscr) & 0x7F00_0000),
+            CFGR => {
+                let old = self.cfgr;
+                // SWS (bits 3:2) is read-only.
+                self.cfgr = (w.merge(old) & !0xC) | (old & 0xC);
+                if (self.cfgr & 3) != ((old >> 2) & 3) {
+                    self.sws_at = Some(now + SWITCH);
+                }
+            }
+            PLLCFGR => self.pllcfgr = w.merge(self.pllcfgr),
+            CIER => self.cier = w.merge(self.cier) & 0x7FF,
+            CICR => self.cifr = w.clear_w1(self.cifr),
+            CSR => {
+                let old = self.csr;
+                let v = w.merge(old);
+                // RMVF clears every reset flag.
+                let mut csr = (old & !1) | (v & 1);
+                if v & (1 << 23) != 0 {
+                    csr &= !0xFE00_0000;
+                }
+                self.csr = csr;
+                let lsion = csr & 1 != 0;
+                self.request(now, CSR, 1, lsion, LSI_STARTUP);
+            }
+            CRRCR => {
+                let Some(r) = self.regs.get_mut((CRRCR / 4) as usize) else {
+                    return false;
+                };
+                // HSI48ON is writable, HSI48RDY and HSI48CAL are read-only.
+                *r = (*r & !1) | (w.merge(*r) & 1);
+                let on = *r & 1 != 0;
+                self.request(now, CRRCR, 1, on, HSI48_STARTUP);
+            }
+            o if o < 0xA0 && !matches!(o, 0x24 | 0x34 | 0x44 | 0x54 | 0x64 | 0x74 | 0x84) => {
+                let Some(slot) = self.regs.get_mut((o / 4) as usize) else {
+                    return false;
+                };
+                let old = *slot;
+                *slot = w.merge(old);
+                let set = *slot & !old;
+                // RSTR registers: AHB1 0x28, AHB2 0x2C, AHB3 0x30, APB1 0x38/0x3C, APB2 0x40.
+                if matches!(o, 0x28 | 0x2C | 0x30 | 0x38 | 0x3C | 0x40) && set != 0 {
+                    for bit in 0..32 {
+                        if set & (1 << bit) != 0 {
+                            self.resets_asserted.push((o, bit));
+                        }
+                    }
+                }
+            }
+            _ => return false,
+        }
+        true
+    }
+
+    fn next_event(&self) -> Option<Cycles> {
+        match (self.settle.next(), self.sws_at) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    fn advance(&mut self, now: Cycles) {
+        for s in self.settle.take_due(now) {
+            let reg = self.reg_mut(s.reg);
+            if s.value {
+                *reg |= 1 << s.bit;
+            } else {
+                *reg &= !(1 << s.bit);
+            }
+        }
+        if self.sws_at.is_some_and(|t| t <= now) {
+            self.sws_at = None;
+            let sw = self.cfgr & 3;
+            self.cfgr = (self.cfgr & !0xC) | (sw << 2);
+        }
+    }
+
+    fn reset(&mut self) {
+        self.reset_to(ResetKind::Software);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settle(r: &mut Rcc, now: Cycles) {
+        r.advance(now);
+    }
+
+    #[test]
+    fn pll_ready_follows_pllon_after_the_lock_time() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        assert_eq!(r.read(CR, 0), Some(0x500), "HSI on and ready out of reset");
+        r.write(Write::word(CR, 0x500 | (1 << 24)), 1000);
+        settle(&mut r, 1000 + PLL_LOCK - 1);
+        assert_eq!(r.read(CR, 0).unwrap_or(0) & (1 << 25), 0, "not locked yet");
+        assert_eq!(r.next_event(), Some(1000 + PLL_LOCK));
+        settle(&mut r, 1000 + PLL_LOCK);
+        assert_ne!(r.read(CR, 0).unwrap_or(0) & (1 << 25), 0);
+        // PLLRDY is read-only.
+        r.write(Write::word(CR, 0x500 | (1 << 24) | (1 << 25)), 5);
+    }
+
+    #[test]
+    fn sws_follows_sw() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        r.write(Write::word(CFGR, 0x3), 100);
+        assert_eq!(r.read(CFGR, 100).unwrap_or(0) & 0xC, 0x4, "still HSI");
+        settle(&mut r, 100 + SWITCH);
+        assert_eq!(r.read(CFGR, 0).unwrap_or(0) & 0xC, 0xC);
+        assert!(r.sysclk_is_pll());
+    }
+
+    #[test]
+    fn lsi_ready_after_start_up_and_reset_flags() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        let csr = r.read(CSR, 0).unwrap_or(0);
+        assert_eq!(
+            csr & (3 << 26),
+            3 << 26,
+            "BORRSTF and PINRSTF after power-on"
+        );
+        r.write(Write::word(CSR, csr | 1), 0);
+        settle(&mut r, LSI_STARTUP - 1);
+        assert!(!r.lsi_ready());
+        settle(&mut r, LSI_STARTUP);
+        assert!(r.lsi_ready());
+        // RMVF clears the flags; a watchdog reset sets IWDGRSTF (and PINRSTF).
+        r.write(Write::word(CSR, 1 << 23), 0);
+        assert_eq!(r.read(CSR, 0).unwrap_or(0) & 0xFE00_0000, 0);
+        r.system_reset(ResetKind::Watchdog);
+        let csr = r.read(CSR, 0).unwrap_or(0);
+        assert_ne!(csr & (1 << 29), 0);
+        assert_eq!(csr & (1 << 27), 0);
+        assert!(!r.lsi_ready(), "LSI stops at reset");
+    }
+
+    #[test]
+    fn hsi48_ready_follows_its_enable() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        r.write(Write::word(CRRCR, 1), 0);
+        settle(&mut r, HSI48_STARTUP - 1);
+        assert_eq!(r.read(CRRCR, 0).unwrap_or(0) & 2, 0);
+        settle(&mut r, HSI48_STARTUP);
+        assert_eq!(r.read(CRRCR, 0).unwrap_or(0) & 2, 2);
+    }
+
+    #[test]
+    fn enable_bits_and_reset_requests() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        assert!(!r.enabled(0x60, 11));
+        r.write(Write::word(0x60, 1 << 11), 0);
+        assert!(r.enabled(0x60, 11));
+        r.write(Write::word(0x40, 1 << 11), 0);
+        r.write(Write::word(0x40, 0), 0);
+        assert_eq!(r.take_resets(), vec![(0x40, 11)]);
+        assert!(r.take_resets().is_empty());
+    }
+}

@@ -1,0 +1,1003 @@
+//! The system-on-chip around the CPU: memories, the bus that routes every access to the
+//! register model at that address, clock gating and resets through the RCC, event
+//! scheduling, interrupt lines into the NVIC, and the diagnostics a run reports
+//! (unmodelled registers, accesses to unclocked peripherals, stuck busy-waits).
+//!
+//! The SoC is the data of the Unicorn instance ([`crate::cpu`]): the memory-mapped I/O
+//! callbacks land in [`Soc::bus_read`] / [`Soc::bus_write`], and the CPU's run loop asks
+//! [`Soc::next_event`] how far it may run.
+
+use std::any::Any;
+use std::collections::BTreeMap;
+
+use crate::names;
+use crate::periph::gpio::{Drive, GpioPort, PinReader};
+use crate::periph::{
+    dbgmcu::Dbgmcu, exti::Exti, flash::Flash, iwdg::Iwdg, pwr::Pwr, rcc::Rcc, syscfg::Syscfg,
+};
+use crate::periph::{DmaRequests, IrqLines, Peripheral, Write};
+use crate::scs::Scs;
+use crate::time::{Cycles, CYCLES_PER_US};
+
+/// Flash: 128 KiB at 0x0800_0000.
+pub const FLASH_BASE: u32 = 0x0800_0000;
+pub const FLASH_BYTES: usize = 128 * 1024;
+/// SRAM1 + SRAM2 + CCM SRAM, contiguous at 0x2000_0000 on the G431 (32 KiB).
+pub const RAM_BASE: u32 = 0x2000_0000;
+pub const RAM_BYTES: usize = 32 * 1024;
+/// System memory (bootloader ROM, unique ID, flash size): 28 KiB+ at 0x1FFF_0000, mapped
+/// as a read-only page with the ID values the HAL reads.
+pub const SYSMEM_BASE: u32 = 0x1FFF_0000;
+pub const SYSMEM_BYTES: usize = 0x1_0000;
+
+/// A free-running counter read by a polling loop does not break its "nothing changes"
+/// streak, but caps how far the clock may jump (the loop may be waiting for a time).
+const COUNTER_POLL_JUMP: Cycles = 10 * CYCLES_PER_US;
+/// Identical reads of one register in a row before it counts as a polling loop.
+const POLL_STREAK: u32 = 3;
+
+/// A register model together with what it implements for the SoC.
+pub trait Model: Peripheral + Any {
+    fn as_any(&self) -> &dyn Any;
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+}
+
+impl<T: Peripheral + Any> Model for T {
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+}
+
+/// One mapped register model.
+pub struct Slot {
+    pub name: &'static str,
+    pub base: u32,
+    pub len: u32,
+    /// RCC enable bit (register offset, bit); `None` = always clocked.
+    pub enable: Option<(u32, u32)>,
+    /// RCC reset bit.
+    pub reset_bit: Option<(u32, u32)>,
+    pub model: Box<dyn Model>,
+    next: Option<Cycles>,
+    irqs: IrqLines,
+    dma: DmaRequests,
+}
+
+/// Something a run found that a test or a user should see.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Diagnostic {
+    /// A register no model implements, by name (first access only).
+    Unmodelled { what: String, write: bool },
+    /// An access to a peripheral whose RCC clock is off (reads 0, writes ignored, as on
+    /// the chip).
+    Unclocked { what: String, write: bool },
+    /// An access to an address where nothing is mapped.
+    Unmapped { addr: u32, write: bool },
+    /// A polling loop on a register that nothing will ever change.
+    StuckPoll { what: String, value: u32 },
+    /// An input pin read while nothing drives it and no pull is on.
+    FloatingInput { pin: String },
+}
+
+impl std::fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Diagnostic::Unmodelled { what, write } => {
+                let rw = if *write { "write to" } else { "read of" };
+                write!(f, "{rw} unmodelled register {what}")
+            }
+            Diagnostic::Unclocked { what, write } => {
+                let rw = if *write { "write to" } else { "read of" };
+                write!(f, "{rw} {what} while its clock is off")
+            }
+            Diagnostic::Unmapped { addr, write } => {
+                let rw = if *write { "write to" } else { "read of" };
+                write!(f, "{rw} unmapped address {addr:#010x}")
+            }
+            Diagnostic::StuckPoll { what, value } => write!(
+                f,
+                "busy-wait on {what} (reads {value:#010x}) that nothing will ever change"
+            ),
+            Diagnostic::FloatingInput { pin } => write!(f, "input {pin} read while floating"),
+        }
+    }
+}
+
+/// The board around the MCU: pin levels, analog voltages.
+pub trait Board: PinReader {
+    /// Output pins changed at `now`; `drives(port, pin)` is how the MCU drives each pin.
+    fn outputs_changed(&mut self, _now: Cycles, _drives: &dyn Fn(u8, u8) -> Drive) {}
+}
+
+/// A bare board: nothing connected.
+pub struct BareBoard;
+
+impl PinReader for BareBoard {
+    fn external(
+        &mut self,
+        _: u8,
+        _: u8,
+        _: Cycles,
+        _: &dyn Fn(u8, u8) -> Drive,
+    ) -> crate::periph::gpio::External {
+        crate::periph::gpio::External::Floating
+    }
+}
+
+impl Board for BareBoard {}
+
+/// Why the CPU must stop at the end of the current block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct StopRequest {
+    /// Interrupt state may have changed (an access raised a line, NVIC/priority write).
+    pub irq: bool,
+    /// AIRCR.SYSRESETREQ.
+    pub system_reset: bool,
+}
+
+/// Tracks a possible polling loop: identical reads of one register.
+#[derive(Debug, Clone, Copy, Default)]
+struct Poll {
+    addr: u32,
+    value: u32,
+    streak: u32,
+    /// A free-running counter was read in between.
+    counter: bool,
+}
+
+/// The SoC.
+pub struct Soc {
+    /// Cycle the CPU has reached (advanced by the CPU's block hook).
+    pub now: Cycles,
+    /// The CPU stops at the first block boundary at or after this cycle.
+    pub deadline: Cycles,
+    pub flash: Vec<u8>,
+    pub ram: Box<[u8]>,
+    pub sysmem: Vec<u8>,
+    slots: Vec<Slot>,
+    rcc: usize,
+    gpio: [usize; 7],
+    iwdg: usize,
+    dbgmcu: usize,
+    syscfg: usize,
+    exti: usize,
+    pub scs: Scs,
+    /// Active exception number (IPSR), kept by the CPU.
+    pub ipsr: u16,
+    pub board: Box<dyn Board>,
+    pub stop: StopRequest,
+    diagnostics: Vec<Diagnostic>,
+    seen: BTreeMap<(u32, bool, u8), ()>,
+    poll: Poll,
+    /// Instruction count of each decoded block start in flash (halfword index → count).
+    block_counts: Vec<u16>,
+    /// SysTick has been brought up to this cycle.
+    systick_checked: Cycles,
+}
+
+fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
+    let base = names::base(name).unwrap_or(0);
+    let len = names::block_bytes(name).unwrap_or(0x400);
+    Slot {
+        name,
+        base,
+        len,
+        enable: names::rcc_enable(name),
+        reset_bit: names::rcc_reset(name),
+        model,
+        next: None,
+        irqs: IrqLines::default(),
+        dma: DmaRequests::default(),
+    }
+}
+
+/// Unique-ID, flash-size and package words in system memory (RM0440 §48).
+fn sysmem_image() -> Vec<u8> {
+    let mut m = vec![0xFFu8; SYSMEM_BYTES];
+    let mut put = |addr: u32, v: u32| {
+        let o = (addr - SYSMEM_BASE) as usize;
+        if let Some(s) = m.get_mut(o..o + 4) {
+            s.copy_from_slice(&v.to_le_bytes());
+        }
+    };
+    put(0x1FFF_7590, 0x0031_0042); // UID (an arbitrary but fixed unit)
+    put(0x1FFF_7594, 0x3131_5004);
+    put(0x1FFF_7598, 0x3038_3338);
+    put(0x1FFF_75E0, 0xFFFF_0080); // flash size: 128 KiB
+    put(0x1FFF_7500, 0xFFFF_FFF4); // package
+    put(0x1FFF_75A8, 0x0554_0000 | 0x0000_05F0); // TS/VREFINT calibration words
+    m
+}
+
+impl Soc {
+    /// A G431 with every modelled peripheral at reset, `flash` loaded, on `board`.
+    pub fn new(flash: Vec<u8>, board: Box<dyn Board>) -> Self {
+        let mut slots: Vec<Slot> = Vec::new();
+        let mut add = |s: Slot| {
+            slots.push(s);
+            slots.len() - 1
+        };
+        let rcc = add(slot("RCC", Box::new(Rcc::default())));
+        add(slot("PWR", Box::new(Pwr::new())));
+        add(slot("FLASH", Box::new(Flash::default())));
+        let iwdg = add(slot("IWDG", Box::new(Iwdg::new())));
+        let syscfg = {
+            let mut s = slot("SYSCFG", Box::new(Syscfg::default()));
+            // SYSCFG proper is 0x00-0x2F; VREFBUF, COMP and OPAMP follow in the same page.
+            s.len = 0x30;
+            add(s)
+        };
+        let exti = add(slot("EXTI", Box::new(Exti::new())));
+        let gpio = [0u8, 1, 2, 3, 4, 5, 6].map(|k| {
+            let name = [
+                "GPIOA", "GPIOB", "GPIOC", "GPIOD", "GPIOE", "GPIOF", "GPIOG",
+            ][usize::from(k)];
+            add(slot(name, Box::new(GpioPort::new(k))))
+        });
+        let dbgmcu = {
+            let mut s = slot("DBGMCU", Box::new(Dbgmcu::default()));
+            s.enable = None;
+            add(s)
+        };
+        let mut soc = Soc {
+            now: 0,
+            deadline: 0,
+            flash,
+            ram: vec![0u8; RAM_BYTES].into_boxed_slice(),
+            sysmem: sysmem_image(),
+            slots,
+            rcc,
+            gpio,
+            iwdg,
+            dbgmcu,
+            syscfg,
+            exti,
+            scs: Scs::new(),
+            ipsr: 0,
+            board,
+            stop: StopRequest::default(),
+            diagnostics: Vec::new(),
+            seen: BTreeMap::new(),
+            poll: Poll::default(),
+            block_counts: vec![0; FLASH_BYTES / 2],
+            systick_checked: 0,
+        };
+        soc.flash.resize(FLASH_BYTES, 0xFF);
+        soc.sort_slots();
+        soc
+    }
+
+    fn sort_slots(&mut self) {
+        // Indices stored in fields refer to insertion order; keep that order and search
+        // linearly (a few dozen slots, most accesses hit the first matches).
+    }
+
+    /// Adds a register model at `name`'s base address (helpers' models: TIM1, USART...).
+    /// Returns its slot index.
+    pub fn add(&mut self, name: &'static str, model: Box<dyn Model>) -> usize {
+        self.slots.push(slot(name, model));
+        let k = self.slots.len() - 1;
+        self.refresh(k);
+        k
+    }
+
+    /// Adds a model at an explicit base/length (blocks the metadata places inside another
+    /// peripheral's page, e.g. COMP at SYSCFG+0x200), clocked with `clock_of`'s enable bit.
+    pub fn add_at(
+        &mut self,
+        name: &'static str,
+        base: u32,
+        len: u32,
+        clock_of: Option<&str>,
+        model: Box<dyn Model>,
+    ) -> usize {
+        let mut s = slot(name, model);
+        s.base = base;
+        s.len = len;
+        s.enable = clock_of.and_then(names::rcc_enable);
+        s.reset_bit = clock_of.and_then(names::rcc_reset);
+        self.slots.push(s);
+        let k = self.slots.len() - 1;
+        self.refresh(k);
+        k
+    }
+
+    /// The model in slot `k`, typed.
+    pub fn model<T: 'static>(&self, k: usize) -> Option<&T> {
+        self.slots.get(k)?.model.as_any().downcast_ref::<T>()
+    }
+
+    /// The model in slot `k`, typed, mutably. The caller must call [`Soc::refresh`] after
+    /// changing its state from outside a register access.
+    pub fn model_mut<T: 'static>(&mut self, k: usize) -> Option<&mut T> {
+        self.slots
+            .get_mut(k)?
+            .model
+            .as_any_mut()
+            .downcast_mut::<T>()
+    }
+
+    /// Slot index of the model named `name`.
+    pub fn slot_of(&self, name: &str) -> Option<usize> {
+        self.slots.iter().position(|s| s.name == name)
+    }
+
+    pub fn rcc(&self) -> &Rcc {
+        self.model::<Rcc>(self.rcc).expect("RCC is always present")
+    }
+
+    pub fn iwdg(&self) -> &Iwdg {
+        self.model::<Iwdg>(self.iwdg)
+            .expect("IWDG is always present")
+    }
+
+    pub fn dbgmcu(&self) -> &Dbgmcu {
+        self.model::<Dbgmcu>(self.dbgmcu)
+            .expect("DBGMCU is always present")
+    }
+
+    pub fn syscfg(&self) -> &Syscfg {
+        self.model::<Syscfg>(self.syscfg)
+            .expect("SYSCFG is always present")
+    }
+
+    pub fn exti_mut(&mut self) -> &mut Exti {
+        let k = self.exti;
+        self.model_mut::<Exti>(k).expect("EXTI is always present")
+    }
+
+    /// GPIO port `port` (0 = A).
+    pub fn gpio(&self, port: u8) -> Option<&GpioPort> {
+        let k = *self.gpio.get(usize::from(port))?;
+        self.model::<GpioPort>(k)
+    }
+
+    /// How the MCU drives pin `pin` of `port`.
+    pub fn pin_drive(&self, port: u8, pin: u8) -> Drive {
+        self.gpio(port).map_or(
+            Drive::Released {
+                pull: crate::periph::gpio::Pull::None,
+            },
+            |g| g.drive(pin),
+        )
+    }
+
+    /// What the run found so far.
+    pub fn diagnostics(&self) -> &[Diagnostic] {
+        &self.diagnostics
+    }
+
+    fn report(&mut self, key: (u32, bool, u8), d: Diagnostic) {
+        if self.seen.insert(key, ()).is_none() {
+            self.diagnostics.push(d);
+        }
+    }
+
+    /// Re-reads slot `k`'s next event, interrupt and DMA lines after its state changed.
+    pub fn refresh(&mut self, k: usize) {
+        if let Some(s) = self.slots.get_mut(k) {
+            s.next = s.model.next_event();
+            if let Some(t) = s.next {
+                // The CPU must stop there, even if the access made it sooner.
+                self.deadline = self.deadline.min(t);
+            }
+            let mut l = IrqLines::default();
+            s.model.irq_lines(&mut l);
+            s.irqs = l;
+            let mut d = DmaRequests::default();
+            s.model.dma_requests(&mut d);
+            s.dma = d;
+        }
+        self.sample_irqs();
+    }
+
+    /// NVIC sampling of the level-sensitive lines of every model.
+    pub fn sample_irqs(&mut self) {
+        let mut all = IrqLines::default();
+        for s in &self.slots {
+            for (a, b) in all.0.iter_mut().zip(s.irqs.0.iter()) {
+                *a |= b;
+            }
+        }
+        if all != self.scs.lines() {
+            self.scs.sample_lines(&all);
+            self.stop.irq = true;
+        }
+    }
+
+    /// All DMA request lines asserted now.
+    pub fn dma_requests(&self) -> DmaRequests {
+        let mut all = DmaRequests::default();
+        for s in &self.slots {
+            for (a, b) in all.0.iter_mut().zip(s.dma.0.iter()) {
+                *a |= b;
+            }
+        }
+        all
+    }
+
+    /// The earliest event of any model.
+    pub fn next_event(&self) -> Option<Cycles> {
+        let models = self.slots.iter().filter_map(|s| s.next).min();
+        let systick = self.scs.next_event(self.now);
+        match (models, systick) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// Processes every model event due up to `now`, in time order.
+    pub fn advance_to(&mut self, now: Cycles) {
+        loop {
+            let due = self
+                .slots
+                .iter()
+                .enumerate()
+                .filter_map(|(k, s)| s.next.filter(|t| *t <= now).map(|t| (t, k)))
+                .min();
+            let Some((t, k)) = due else {
+                break;
+            };
+            if let Some(s) = self.slots.get_mut(k) {
+                s.model.advance(t);
+            }
+            self.refresh(k);
+            self.after_event(k, t);
+        }
+        let last = self.systick_checked;
+        self.scs.advance(now, last.min(now));
+        self.systick_checked = now.max(last);
+        if now > self.now {
+            self.now = now;
+        }
+    }
+
+    /// Cross-peripheral effects after slot `k` changed at `t` (overridden per model by the
+    /// wiring in `crate::wiring` once all models exist).
+    fn after_event(&mut self, k: usize, _t: Cycles) {
+        if k == self.rcc {
+            self.apply_rcc_resets();
+        }
+    }
+
+    fn apply_rcc_resets(&mut self) {
+        let resets = {
+            let rcc = self.slots.get_mut(self.rcc);
+            rcc.and_then(|s| s.model.as_any_mut().downcast_mut::<Rcc>())
+                .map(|r| r.take_resets())
+                .unwrap_or_default()
+        };
+        for bit in resets {
+            let targets: Vec<usize> = self
+                .slots
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| s.reset_bit == Some(bit))
+                .map(|(k, _)| k)
+                .collect();
+            for k in targets {
+                if let Some(s) = self.slots.get_mut(k) {
+                    s.model.reset();
+                }
+                self.refresh(k);
+            }
+        }
+    }
+
+    /// Every model back to reset (a system reset); the RCC records `why`.
+    pub fn system_reset(&mut self, why: crate::periph::rcc::ResetKind) {
+        for k in 0..self.slots.len() {
+            if let Some(s) = self.slots.get_mut(k) {
+                if k == self.rcc {
+                    if let Some(r) = s.model.as_any_mut().downcast_mut::<Rcc>() {
+                        r.system_reset(why);
+                    }
+                } else {
+                    s.model.reset();
+                }
+            }
+        }
+        for k in 0..self.slots.len() {
+            self.refresh(k);
+        }
+        let debugger = self.scs.debugger;
+        self.scs = Scs::new();
+        self.scs.debugger = debugger;
+        self.ipsr = 0;
+        self.poll = Poll::default();
+        self.stop = StopRequest::default();
+    }
+
+    fn find(&self, addr: u32) -> Option<usize> {
+        self.slots
+            .iter()
+            .position(|s| addr >= s.base && addr < s.base.saturating_add(s.len))
+    }
+
+    /// An access where no model is mapped: a peripheral of the chip without a model yet is
+    /// reported by register name, anything else as an unmapped address.
+    fn report_missing(&mut self, addr: u32, write: bool) {
+        let d = match names::locate(addr) {
+            Some(_) => Diagnostic::Unmodelled {
+                what: names::describe(addr),
+                write,
+            },
+            None => Diagnostic::Unmapped { addr, write },
+        };
+        self.report((addr, write, 0), d);
+    }
+
+    fn clocked(&self, k: usize) -> bool {
+        let Some(s) = self.slots.get(k) else {
+            return false;
+        };
+        match s.enable {
+            None => true,
+            Some((off, bit)) => self.rcc().enabled(off, bit),
+        }
+    }
+
+    /// A free-running counter register (reading it is a clock read, not a state poll).
+    fn is_counter(&self, addr: u32) -> bool {
+        matches!(addr, 0xE000_1004 | 0xE000_E018)
+            || (self
+                .find(addr)
+                .and_then(|k| self.slots.get(k))
+                .is_some_and(|s| s.name.starts_with("TIM") && addr - s.base == 0x24))
+    }
+
+    /// A read of `size` bytes at `addr` by the CPU or the DMA.
+    pub fn bus_read(&mut self, addr: u32, size: usize) -> u32 {
+        let aligned = addr & !3;
+        let shift = 8 * (addr & 3);
+        let word = self.read_word(aligned);
+        let v = word >> shift;
+        let v = match size {
+            1 => v & 0xFF,
+            2 => v & 0xFFFF,
+            _ => v,
+        };
+        self.track_poll(aligned, word);
+        v
+    }
+
+    fn read_word(&mut self, addr: u32) -> u32 {
+        if (0xE000_0000..0xE010_0000).contains(&addr) {
+            return self.ppb_read(addr);
+        }
+        let Some(k) = self.find(addr) else {
+            self.report_missing(addr, false);
+            return 0;
+        };
+        if !self.clocked(k) {
+            let what = names::describe(addr);
+            self.report(
+                (addr, false, 1),
+                Diagnostic::Unclocked { what, write: false },
+            );
+            return 0;
+        }
+        let now = self.now;
+        let Some(s) = self.slots.get_mut(k) else {
+            return 0;
+        };
+        let off = addr - s.base;
+        s.model.advance(now);
+        let gpio_port = self.gpio.iter().position(|g| *g == k);
+        let value = match gpio_port {
+            Some(port) if off == 0x10 => self.read_idr(port as u8, k),
+            _ => self.slots.get_mut(k).and_then(|s| s.model.read(off, now)),
+        };
+        self.refresh(k);
+        match value {
+            Some(v) => v,
+            None => {
+                let what = names::describe(addr);
+                self.report(
+                    (addr, false, 2),
+                    Diagnostic::Unmodelled { what, write: false },
+                );
+                0
+            }
+        }
+    }
+
+    fn read_idr(&mut self, port: u8, k: usize) -> Option<u32> {
+        let now = self.now;
+        // The board sees how every pin is driven at this instant.
+        let snapshot: Vec<GpioPort> = self
+            .gpio
+            .iter()
+            .filter_map(|g| self.model::<GpioPort>(*g).cloned())
+            .collect();
+        let drives = |p: u8, n: u8| {
+            snapshot.get(usize::from(p)).map_or(
+                Drive::Released {
+                    pull: crate::periph::gpio::Pull::None,
+                },
+                |g| g.drive(n),
+            )
+        };
+        let board = &mut self.board;
+        let s = self.slots.get_mut(k)?;
+        let g = s.model.as_any_mut().downcast_mut::<GpioPort>()?;
+        let v = g.idr(now, board.as_mut(), &drives);
+        let floating = core::mem::take(&mut g.floating_reads);
+        for n in 0..16u8 {
+            if floating & (1 << n) != 0 {
+                let pin = format!("P{}{}", char::from(b'A' + port), n);
+                self.report(
+                    (u32::from(port) << 8 | u32::from(n), false, 3),
+                    Diagnostic::FloatingInput { pin },
+                );
+            }
+        }
+        Some(v)
+    }
+
+    /// A write of `size` bytes of `value` at `addr` by the CPU or the DMA.
+    pub fn bus_write(&mut self, addr: u32, size: usize, value: u32) {
+        let aligned = addr & !3;
+        let shift = 8 * (addr & 3);
+        let mask = match size {
+            1 => 0xFFu32 << shift,
+            2 => 0xFFFFu32 << shift,
+            _ => !0,
+        };
+        let w = Write {
+            offset: 0,
+            value: value << shift,
+            mask,
+        };
+        self.poll = Poll::default();
+        if (0xE000_0000..0xE010_0000).contains(&aligned) {
+            self.ppb_write(aligned, w);
+            return;
+        }
+        let Some(k) = self.find(aligned) else {
+            self.report_missing(aligned, true);
+            return;
+        };
+        if !self.clocked(k) {
+            let what = names::describe(aligned);
+            self.report(
+                (aligned, true, 1),
+                Diagnostic::Unclocked { what, write: true },
+            );
+            return;
+        }
+        let now = self.now;
+        let ok = match self.slots.get_mut(k) {
+            Some(s) => {
+                s.model.advance(now);
+                s.model.write(
+                    Write {
+                        offset: aligned - s.base,
+                        ..w
+                    },
+                    now,
+                )
+            }
+            None => false,
+        };
+        if !ok {
+            let what = names::describe(aligned);
+            self.report(
+                (aligned, true, 2),
+                Diagnostic::Unmodelled { what, write: true },
+            );
+        }
+        self.refresh(k);
+        self.after_event(k, now);
+        if let Some(port) = self.gpio.iter().position(|g| *g == k) {
+            self.gpio_changed(port);
+        }
+    }
+
+    fn gpio_changed(&mut self, port: usize) {
+        let k = self.gpio.get(port).copied();
+        let changed = k
+            .and_then(|k| self.model_mut::<GpioPort>(k))
+            .is_some_and(|g| g.take_changed());
+        if changed {
+            let snapshot: Vec<GpioPort> = self
+                .gpio
+                .iter()
+                .filter_map(|g| self.model::<GpioPort>(*g).cloned())
+                .collect();
+            let drives = |p: u8, n: u8| {
+                snapshot.get(usize::from(p)).map_or(
+                    Drive::Released {
+                        pull: crate::periph::gpio::Pull::None,
+                    },
+                    |g| g.drive(n),
+                )
+            };
+            let now = self.now;
+            self.board.outputs_changed(now, &drives);
+        }
+    }
+
+    fn ppb_read(&mut self, addr: u32) -> u32 {
+        if (0xE004_2000..0xE004_2400).contains(&addr) {
+            let k = self.dbgmcu;
+            let now = self.now;
+            return self
+                .slots
+                .get_mut(k)
+                .and_then(|s| s.model.read(addr - 0xE004_2000, now))
+                .unwrap_or(0);
+        }
+        let (now, ipsr) = (self.now, self.ipsr);
+        match self.scs.read(addr, now, ipsr) {
+            Some(v) => v,
+            None => {
+                self.report(
+                    (addr, false, 2),
+                    Diagnostic::Unmodelled {
+                        what: format!("{addr:#010x} (PPB)"),
+                        write: false,
+                    },
+                );
+                0
+            }
+        }
+    }
+
+    fn ppb_write(&mut self, addr: u32, w: Write) {
+        if (0xE004_2000..0xE004_2400).contains(&addr) {
+            let k = self.dbgmcu;
+            let now = self.now;
+            if let Some(s) = self.slots.get_mut(k) {
+                s.model.write(
+                    Write {
+                        offset: addr - 0xE004_2000,
+                        ..w
+                    },
+                    now,
+                );
+            }
+            return;
+        }
+        let now = self.now;
+        match self.scs.write(addr, w, now) {
+            Some(fx) => {
+                if fx.system_reset {
+                    self.stop.system_reset = true;
+                }
+                self.stop.irq = true;
+            }
+            None => self.report(
+                (addr, true, 2),
+                Diagnostic::Unmodelled {
+                    what: format!("{addr:#010x} (PPB)"),
+                    write: true,
+                },
+            ),
+        }
+    }
+
+    /// Polling-loop detection: the same register read repeatedly with the same value and
+    /// nothing written in between. After [`POLL_STREAK`] such reads the clock jumps to the
+    /// next event (the first moment anything can change), so that busy-waits cost no host
+    /// time; a loop that also reads a free-running counter jumps at most
+    /// [`COUNTER_POLL_JUMP`] at a time (it may be waiting for a time, not a flag).
+    fn track_poll(&mut self, addr: u32, value: u32) {
+        if self.is_counter(addr) {
+            self.poll.counter = true;
+            return;
+        }
+        if self.poll.addr == addr && self.poll.value == value && self.poll.streak > 0 {
+            self.poll.streak += 1;
+        } else {
+            self.poll = Poll {
+                addr,
+                value,
+                streak: 1,
+                counter: false,
+            };
+            return;
+        }
+        if self.poll.streak < POLL_STREAK {
+            return;
+        }
+        let next = self.next_event();
+        let limit = if self.poll.counter {
+            self.now + COUNTER_POLL_JUMP
+        } else {
+            Cycles::MAX
+        };
+        let target = next.unwrap_or(Cycles::MAX).min(limit).min(self.deadline);
+        if next.is_none() && !self.poll.counter && !self.iwdg().running() {
+            let what = names::describe(addr);
+            self.report((addr, false, 4), Diagnostic::StuckPoll { what, value });
+        }
+        if target > self.now {
+            self.now = target;
+        }
+    }
+
+    /// Instruction count of the block of `size` bytes starting at `addr` (Thumb-2: a
+    /// halfword 0b11101/0b11110/0b11111 in its top bits starts a 32-bit instruction).
+    #[inline]
+    pub fn block_instructions(&mut self, addr: u32, size: u32) -> u64 {
+        let idx = addr.wrapping_sub(FLASH_BASE) as usize / 2;
+        if let Some(&n) = self.block_counts.get(idx) {
+            if n != 0 {
+                return u64::from(n);
+            }
+        }
+        let bytes: &[u8] = if (FLASH_BASE..FLASH_BASE + FLASH_BYTES as u32).contains(&addr) {
+            let o = (addr - FLASH_BASE) as usize;
+            self.flash.get(o..o + size as usize).unwrap_or(&[])
+        } else if (RAM_BASE..RAM_BASE + RAM_BYTES as u32).contains(&addr) {
+            let o = (addr - RAM_BASE) as usize;
+            self.ram.get(o..o + size as usize).unwrap_or(&[])
+        } else {
+            &[]
+        };
+        let mut i = 0;
+        let mut n: u16 = 0;
+        while i + 1 < bytes.len() {
+            let hw = u16::from_le_bytes([bytes[i], bytes[i + 1]]);
+            i += if hw >> 11 >= 0b11101 { 4 } else { 2 };
+            n += 1;
+        }
+        let n = n.max(1);
+        if let Some(slot) = self.block_counts.get_mut(idx) {
+            *slot = n;
+        }
+        u64::from(n)
+    }
+
+    /// RAM as a slice (for the DMA, RTT and tests).
+    pub fn ram(&self) -> &[u8] {
+        &self.ram
+    }
+
+    /// Reads a little-endian word of RAM or flash (`None` elsewhere).
+    pub fn mem_word(&self, addr: u32) -> Option<u32> {
+        let (mem, base): (&[u8], u32) = if addr >= RAM_BASE {
+            (&self.ram, RAM_BASE)
+        } else {
+            (&self.flash, FLASH_BASE)
+        };
+        let o = addr.checked_sub(base)? as usize;
+        let b = mem.get(o..o + 4)?;
+        Some(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+
+    /// Writes a little-endian word of RAM.
+    pub fn set_ram_word(&mut self, addr: u32, v: u32) -> bool {
+        let Some(o) = addr.checked_sub(RAM_BASE) else {
+            return false;
+        };
+        match self.ram.get_mut(o as usize..o as usize + 4) {
+            Some(b) => {
+                b.copy_from_slice(&v.to_le_bytes());
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Slot index of the IWDG (for the CPU's reset logic).
+    pub fn iwdg_slot(&self) -> usize {
+        self.iwdg
+    }
+
+    /// The IWDG expired: the MCU must reset.
+    pub fn watchdog_expired(&self) -> bool {
+        self.iwdg().expired()
+    }
+
+    /// Freezes what DBGMCU says while the core is halted by a debugger.
+    pub fn debug_halt(&mut self, halted: bool) {
+        let now = self.now;
+        if self.dbgmcu().iwdg_stop() {
+            let k = self.iwdg;
+            if let Some(w) = self.model_mut::<Iwdg>(k) {
+                w.set_frozen(halted, now);
+            }
+            self.refresh(k);
+        }
+    }
+
+    /// Syscfg slot index.
+    pub fn syscfg_slot(&self) -> usize {
+        self.syscfg
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn soc() -> Soc {
+        Soc::new(vec![0xFF; 16], Box::new(BareBoard))
+    }
+
+    #[test]
+    fn unclocked_peripherals_read_zero_and_are_reported() {
+        let mut s = soc();
+        // GPIOB is not clocked out of reset: MODER reads 0, not its reset value.
+        assert_eq!(s.bus_read(0x4800_0400, 4), 0);
+        assert!(matches!(
+            s.diagnostics().first(),
+            Some(Diagnostic::Unclocked { what, .. }) if what == "GPIOB.MODER"
+        ));
+        // AHB2ENR bit 1: GPIOBEN.
+        s.bus_write(0x4002_104C, 4, 1 << 1);
+        assert_eq!(s.bus_read(0x4800_0400, 4), 0xFFFF_FEBF);
+    }
+
+    #[test]
+    fn unmodelled_registers_are_named() {
+        let mut s = soc();
+        s.bus_read(0x4002_1024, 4);
+        assert!(s.diagnostics().iter().any(|d| matches!(
+            d, Diagnostic::Unmodelled { what, write: false } if what.starts_with("0x40021024")
+        )));
+    }
+
+    #[test]
+    fn byte_and_halfword_accesses_reach_the_right_bits() {
+        let mut s = soc();
+        s.bus_write(0x4002_104C, 4, 1);
+        s.bus_write(0x4800_0014, 1, 0xA5);
+        assert_eq!(s.bus_read(0x4800_0014, 4), 0xA5);
+        s.bus_write(0x4800_0015, 1, 0x5A);
+        assert_eq!(s.bus_read(0x4800_0014, 4), 0x5AA5);
+        assert_eq!(s.bus_read(0x4800_0015, 1), 0x5A);
+    }
+
+    #[test]
+    fn a_stuck_poll_jumps_to_the_next_event_and_is_named() {
+        let mut s = soc();
+        s.deadline = 1_000_000;
+        // LSION: LSIRDY follows after the start-up time; polling CSR jumps there.
+        s.bus_write(0x4002_1094, 4, 1);
+        let ready_at = s.next_event().unwrap_or(0);
+        for _ in 0..3 {
+            s.bus_read(0x4002_1094, 4);
+        }
+        assert_eq!(s.now, ready_at);
+        s.advance_to(s.now);
+        assert_eq!(s.bus_read(0x4002_1094, 4) & 2, 2);
+        // HSERDY with no crystal never sets: a stuck poll, reported by name.
+        s.bus_write(0x4002_1000, 4, (1 << 16) | 0x500);
+        s.advance_to(s.now + 10_000);
+        for _ in 0..4 {
+            s.bus_read(0x4002_1000, 4);
+        }
+        assert!(s
+            .diagnostics()
+            .iter()
+            .any(|d| matches!(d, Diagnostic::StuckPoll { what, .. } if what == "RCC.CR")));
+        assert_eq!(s.now, 1_000_000, "jumped to the deadline");
+    }
+
+    #[test]
+    fn rcc_reset_bits_reset_the_model() {
+        let mut s = soc();
+        s.bus_write(0x4002_104C, 4, 1);
+        s.bus_write(0x4800_0014, 4, 0xFF);
+        // AHB2RSTR bit 0: GPIOARST.
+        s.bus_write(0x4002_102C, 4, 1);
+        s.bus_write(0x4002_102C, 4, 0);
+        assert_eq!(s.bus_read(0x4800_0014, 4), 0);
+    }
+
+    #[test]
+    fn thumb_block_lengths() {
+        let mut s = Soc::new(
+            // movs r0,#1 (16) ; ldr.w r1,[r2] (32) ; bx lr (16)
+            vec![0x01, 0x20, 0xD2, 0xF8, 0x00, 0x10, 0x70, 0x47],
+            Box::new(BareBoard),
+        );
+        assert_eq!(s.block_instructions(FLASH_BASE, 8), 3);
+    }
+}
