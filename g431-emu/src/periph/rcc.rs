@@ -86,6 +86,9 @@ mod heapless_settle {
             self.0.retain(|o| !(o.reg == s.reg && o.bit == s.bit));
             self.0.push(s);
         }
+        pub fn cancel(&mut self, reg: u32, bit: u32) {
+            self.0.retain(|o| !(o.reg == reg && o.bit == bit));
+        }
         pub fn next(&self) -> Option<super::Cycles> {
             self.0.iter().map(|s| s.at).min()
         }
@@ -223,13 +226,8 @@ impl Rcc {
     fn request(&mut self, now: Cycles, reg: u32, bit: u32, value: bool, delay: Cycles) {
         let cur = self.reg(reg) & (1 << bit) != 0;
         if cur == value {
-            // Already there; a pending opposite change is cancelled.
-            self.settle.push(Settle {
-                at: now,
-                reg,
-                bit,
-                value,
-            });
+            // Already there: a pending opposite change is cancelled.
+            self.settle.cancel(reg, bit);
             return;
         }
         self.settle.push(Settle {
