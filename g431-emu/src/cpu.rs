@@ -283,6 +283,7 @@ impl Cpu {
             }
             let n = s.block_instructions(addr as u32, size);
             s.now += n;
+            s.block = addr as u32;
         })
         .map_err(e)?;
         uc.mmio_map(

@@ -146,6 +146,9 @@ struct Poll {
     streak: u32,
     /// A free-running counter was read in between.
     counter: bool,
+    /// Reads of one counter from one block in a row with nothing else in between (a loop
+    /// waiting for a time, e.g. `block_for`): (block, register, streak).
+    counter_loop: (u32, u32, u32),
 }
 
 /// The SoC.
@@ -176,6 +179,8 @@ pub struct Soc {
     block_counts: Vec<u16>,
     /// SysTick has been brought up to this cycle.
     systick_checked: Cycles,
+    /// Start address of the block the CPU is executing (set by the CPU's block hook).
+    pub block: u32,
 }
 
 fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
@@ -237,6 +242,12 @@ impl Soc {
             ][usize::from(k)];
             add(slot(name, Box::new(GpioPort::new(k))))
         });
+        for name in ["TIM2", "TIM3", "TIM4"] {
+            add(slot(
+                name,
+                Box::new(crate::periph::tim_gp::TimGp::new(name)),
+            ));
+        }
         let dbgmcu = {
             let mut s = slot("DBGMCU", Box::new(Dbgmcu::default()));
             s.enable = None;
@@ -264,6 +275,7 @@ impl Soc {
             poll: Poll::default(),
             block_counts: vec![0; FLASH_BYTES / 2],
             systick_checked: 0,
+            block: 0,
         };
         soc.flash.resize(FLASH_BYTES, 0xFF);
         soc.sort_slots();
@@ -788,8 +800,20 @@ impl Soc {
     fn track_poll(&mut self, addr: u32, value: u32) {
         if self.is_counter(addr) {
             self.poll.counter = true;
+            let (block, reg, n) = self.poll.counter_loop;
+            let n = if block == self.block && reg == addr {
+                n + 1
+            } else {
+                1
+            };
+            self.poll.counter_loop = (self.block, addr, n);
+            if n >= POLL_STREAK && self.poll.streak == 0 {
+                // Only the time is read, over and over: waiting for a time.
+                self.jump(Some(self.now + COUNTER_POLL_JUMP));
+            }
             return;
         }
+        self.poll.counter_loop = (0, 0, 0);
         if self.poll.addr == addr && self.poll.value == value && self.poll.streak > 0 {
             self.poll.streak += 1;
         } else {
@@ -798,23 +822,26 @@ impl Soc {
                 value,
                 streak: 1,
                 counter: false,
+                counter_loop: (0, 0, 0),
             };
             return;
         }
         if self.poll.streak < POLL_STREAK {
             return;
         }
-        let next = self.next_event();
-        let limit = if self.poll.counter {
-            self.now + COUNTER_POLL_JUMP
-        } else {
-            Cycles::MAX
-        };
-        let target = next.unwrap_or(Cycles::MAX).min(limit).min(self.deadline);
-        if next.is_none() && !self.poll.counter && !self.iwdg().running() {
+        let limit = self.poll.counter.then_some(self.now + COUNTER_POLL_JUMP);
+        if self.next_event().is_none() && !self.poll.counter && !self.iwdg().running() {
             let what = names::describe(addr);
             self.report((addr, false, 4), Diagnostic::StuckPoll { what, value });
         }
+        self.jump(limit);
+    }
+
+    /// Moves the clock forward to the next event, the slice's deadline, or `limit`,
+    /// whichever comes first: what a polling loop would spin through.
+    fn jump(&mut self, limit: Option<Cycles>) {
+        let next = self.next_event().unwrap_or(Cycles::MAX);
+        let target = next.min(limit.unwrap_or(Cycles::MAX)).min(self.deadline);
         if target > self.now {
             self.now = target;
         }

@@ -1,0 +1,118 @@
+//! Where the firmware images are: the release ELFs of `firmware-drive` and `firmware-plc`
+//! for `thumbv7em-none-eabihf` in the workspace's target directory, exactly what CI builds
+//! and `probe-rs` flashes.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::Mutex;
+
+use anyhow::{bail, Context, Result};
+
+/// The firmware target.
+pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// The two images.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Firmware {
+    Drive,
+    Plc,
+}
+
+impl Firmware {
+    pub fn crate_name(self) -> &'static str {
+        match self {
+            Firmware::Drive => "firmware-drive",
+            Firmware::Plc => "firmware-plc",
+        }
+    }
+}
+
+/// The workspace root (hil-sim's parent directory).
+fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+}
+
+/// The target directory cargo uses for this workspace (`CARGO_TARGET_DIR` or `target/`).
+pub fn target_dir() -> PathBuf {
+    match std::env::var_os("CARGO_TARGET_DIR") {
+        Some(d) => {
+            let d = PathBuf::from(d);
+            if d.is_absolute() {
+                d
+            } else {
+                workspace_root().join(d)
+            }
+        }
+        None => workspace_root().join("target"),
+    }
+}
+
+/// Path of the release ELF of `fw`.
+pub fn release_elf(fw: Firmware) -> PathBuf {
+    target_dir()
+        .join(TARGET)
+        .join("release")
+        .join(fw.crate_name())
+}
+
+/// The command that builds `fw`'s release image (each image alone: their embassy chip
+/// features differ).
+pub fn build_command(fw: Firmware) -> String {
+    format!(
+        "cargo build --release --target {TARGET} -p {} --bin {}",
+        fw.crate_name(),
+        fw.crate_name()
+    )
+}
+
+/// The release ELF of `fw`, or an error that says how to build it.
+pub fn existing(fw: Firmware) -> Result<PathBuf> {
+    let p = release_elf(fw);
+    if !p.is_file() {
+        bail!(
+            "{} is missing: build the image with `{}` (or pass its path with --{}-elf)",
+            p.display(),
+            build_command(fw),
+            match fw {
+                Firmware::Drive => "drive",
+                Firmware::Plc => "plc",
+            }
+        );
+    }
+    Ok(p)
+}
+
+/// Builds both release images (a no-op when they are up to date) and returns their paths
+/// (drive, PLC). Used by the emulator tests so that `cargo test` alone exercises what is
+/// flashed. Serialised within the process.
+pub fn build_both() -> Result<(PathBuf, PathBuf)> {
+    static LOCK: Mutex<()> = Mutex::new(());
+    let _guard = LOCK.lock().map_err(|_| anyhow::anyhow!("image build lock poisoned"))?;
+    for fw in [Firmware::Drive, Firmware::Plc] {
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        let status = Command::new(cargo)
+            .current_dir(workspace_root())
+            .args([
+                "build",
+                "--release",
+                "--target",
+                TARGET,
+                "-p",
+                fw.crate_name(),
+                "--bin",
+                fw.crate_name(),
+            ])
+            .status()
+            .with_context(|| format!("cannot run `{}`", build_command(fw)))?;
+        if !status.success() {
+            bail!(
+                "`{}` failed ({status}); a fresh machine needs the target and flip-link: \
+                 `rustup target add {TARGET} && cargo install flip-link`",
+                build_command(fw)
+            );
+        }
+    }
+    Ok((release_elf(Firmware::Drive), release_elf(Firmware::Plc)))
+}
