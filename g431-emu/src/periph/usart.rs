@@ -1065,7 +1065,17 @@ impl Peripheral for Usart {
 
     fn next_event(&self) -> Option<Cycles> {
         let tx = self.shift.map(|s| s.end_sub.div_ceil(SUB));
-        let rx = self.rx_incoming.front().map(|(at, _)| *at);
+        // The next character: BUSY rises at its start bit (so that a poll of ISR sees it),
+        // RXNE at its end.
+        let rx = self.rx_incoming.front().map(|(at, _)| {
+            let frame = self.line_config().map_or(0, |c| c.frame_cycles());
+            let start = at.saturating_sub(frame);
+            if self.rx_on() && start > self.now {
+                start
+            } else {
+                *at
+            }
+        });
         [tx, rx, self.idle_at].into_iter().flatten().min()
     }
 
@@ -1450,8 +1460,14 @@ mod tests {
             let mut u = ready(fifo);
             let at = 40_000;
             u.push_rx(at, RxByte::clean(0xa5));
-            assert_eq!(u.next_event(), Some(at));
+            assert_eq!(
+                u.next_event(),
+                Some(at - FRAME),
+                "BUSY rises at the start bit"
+            );
             assert_eq!(isr(&mut u, at - FRAME - 1) & ISR_BUSY, 0);
+            assert_ne!(isr(&mut u, at - FRAME) & ISR_BUSY, 0);
+            assert_eq!(u.next_event(), Some(at));
             let s = isr(&mut u, at - 1);
             assert_eq!(s & ISR_RXNE, 0);
             assert_ne!(s & ISR_BUSY, 0, "start bit seen");
