@@ -8,7 +8,7 @@
 //!   single registers.
 //! * Timing in CPU cycles from BRR, PRESC and OVER8 (the kernel clock is the 170 MHz CPU
 //!   clock, so a USART bit is `BRR·presc` cycles, `USARTDIV·presc/2` with OVER8 (USARTDIV
-//!   is even there: BRR[2:0] holds USARTDIV[3:1]), and an LPUART bit `BRR·presc/256`
+//!   is even there: `BRR[2:0]` holds `USARTDIV[3:1]`), and an LPUART bit `BRR·presc/256`
 //!   cycles). Line times are kept in 1/512 cycle so that back-to-back LPUART frames at a
 //!   fractional bit time do not drift.
 //! * TX: a word written to TDR moves to the shift register as soon as it is free (TXE/TXFNF
