@@ -32,6 +32,7 @@ pub mod comp;
 pub mod dac;
 pub mod dbgmcu;
 pub mod dma;
+pub mod dmamux;
 pub mod exti;
 pub mod flash;
 pub mod gpio;
