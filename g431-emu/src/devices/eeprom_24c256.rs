@@ -20,6 +20,9 @@
 //!   in the page buffer is written ([`TornWrite::Written`]); a test of the firmware's
 //!   storage can choose the pessimistic outcomes (old data kept, or the bytes erased).
 //!
+//! A STOP in the middle of a data byte (the datasheets do not say what it does) is taken as
+//! a STOP after the last complete byte: the latched bytes are written.
+//!
 //! Writes are applied to the memory at the STOP (the NACKs of the write cycle keep the
 //! firmware from reading them early); the page's old bytes are kept until tWR ends so that a
 //! power cut can undo them.

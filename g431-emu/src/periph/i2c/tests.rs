@@ -1,6 +1,9 @@
 //! Tests of the I2C v2 model: register semantics, timing in cycles, and embassy's exact
 //! register sequences against the board's devices.
 
+use std::cell::RefCell;
+use std::rc::Rc;
+
 use super::embassy_driver::{Embassy, Error, TIMINGR_100K};
 use super::*;
 use crate::devices::eeprom_24c256::{Eeprom24c256, DEFAULT_WRITE_CYCLE};
@@ -691,4 +694,68 @@ fn gpio_bit_banged_write_reaches_the_backpack() {
     // Nobody answers another address.
     step(&mut i2c, &mut now, None, Some(true));
     assert!(!byte(&mut i2c, &mut now, 0x33 << 1));
+}
+
+/// The MCU resets in the middle of a page write (third data byte, bit 3). Nothing holds SDA,
+/// but the 24C256 still has two complete bytes in its page buffer and half a byte in its
+/// shift register. How the recovery ends decides what gets written: a STOP (after no or
+/// after 9 pulses) starts the write cycle of what the chip latched — with 9 pulses including
+/// a ghost byte the pulses clocked in (0x33's first four bits, then released 1s: 0x3F) —
+/// while a START before the STOP (the EEPROM makers' "memory reset": clocks, then START)
+/// aborts the page write. The model writes the complete bytes latched at a STOP; the
+/// datasheets do not say what a STOP in the middle of a byte does.
+#[test]
+fn reset_during_a_page_write_then_recovery_endings() {
+    fn interrupted_write() -> (I2c, Shared<Eeprom24c256>, Cycles) {
+        let (mut i2c, eeprom, _) = board();
+        enabled(&mut i2c);
+        let t = i2c.scl_period();
+        wr(&mut i2c, CR2, cr2(0x50, false, 5, false, false), 0);
+        for (k, b) in [0x01u8, 0x00, 0x11, 0x22, 0x33].iter().enumerate() {
+            wr(&mut i2c, TXDR, u32::from(*b), (10 + 9 * k as u64) * t);
+        }
+        let at = 46 * t + 3 * t + t / 2;
+        i2c.advance(at);
+        i2c.reset();
+        assert!(!i2c.sda_held_low());
+        (i2c, eeprom, at + 1000)
+    }
+    fn stop(i2c: &mut I2c, now: Cycles) {
+        i2c.gpio_scl(true, now);
+        i2c.gpio_sda(true, now + 100);
+        i2c.gpio_scl(false, now + 900);
+        i2c.gpio_sda(false, now + 1800);
+    }
+
+    // (a) "pulse while SDA is low" does nothing here, then STOP: bytes 1 and 2 written.
+    let (mut i2c, eeprom, now) = interrupted_write();
+    stop(&mut i2c, now);
+    assert_eq!(eeprom.borrow().writes(), 1);
+    assert_eq!(
+        &eeprom.borrow().contents()[0x100..0x103],
+        &[0x11, 0x22, 0xFF]
+    );
+
+    // (b) always 9 pulses, then STOP: the ghost byte 0x3F is written too.
+    let (mut i2c, eeprom, now) = interrupted_write();
+    i2c.gpio_pulse_scl(9, now);
+    stop(&mut i2c, now + 100);
+    assert_eq!(eeprom.borrow().writes(), 1);
+    assert_eq!(
+        &eeprom.borrow().contents()[0x100..0x103],
+        &[0x11, 0x22, 0x3F]
+    );
+
+    // (c) 9 pulses, START, STOP: the page write is aborted, nothing written.
+    let (mut i2c, eeprom, now) = interrupted_write();
+    i2c.gpio_pulse_scl(9, now);
+    i2c.gpio_sda(true, now + 100); // SDA falls while SCL is high: START
+    i2c.gpio_sda(false, now + 200); // and rises: STOP
+    assert_eq!(eeprom.borrow().writes(), 0);
+    assert_eq!(eeprom.borrow().aborted_writes(), 1);
+    assert_eq!(
+        &eeprom.borrow().contents()[0x100..0x103],
+        &[0xFF, 0xFF, 0xFF]
+    );
+    assert!(i2c.bus().sda() && !i2c.sda_held_low());
 }
