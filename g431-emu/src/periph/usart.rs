@@ -319,6 +319,8 @@ pub struct Usart {
     rx_enabled_at: Option<Cycles>,
     /// When IDLE will set if no start bit comes first.
     idle_at: Option<Cycles>,
+    /// When IDLE last set (to notice a character pushed too late to cancel it).
+    idle_set_at: Option<Cycles>,
     now: Cycles,
     reports: Vec<String>,
     reported: Vec<String>,
@@ -357,6 +359,7 @@ impl Usart {
             rx_incoming: VecDeque::new(),
             rx_enabled_at: None,
             idle_at: None,
+            idle_set_at: None,
             now: 0,
             reports: Vec::new(),
             reported: Vec::new(),
@@ -392,6 +395,17 @@ impl Usart {
         if at < self.now {
             self.report(format!(
                 "{}: RX character pushed for a cycle the model has passed (received late)",
+                self.instance.name()
+            ));
+        }
+        let frame = self.line_config().map_or(0, |c| c.frame_cycles());
+        if self
+            .idle_set_at
+            .is_some_and(|i| at.saturating_sub(frame) <= i && i < at)
+        {
+            self.report(format!(
+                "{}: RX character pushed after IDLE was set although its start bit came \
+                 first (push characters at their start bit)",
                 self.instance.name()
             ));
         }
@@ -679,6 +693,7 @@ impl Usart {
                     let cancelled = next.is_some_and(|at| at.saturating_sub(frame) <= i);
                     if !cancelled && self.rx_on() {
                         self.idle = true;
+                        self.idle_set_at = Some(i);
                     }
                 }
                 _ => break,
@@ -1550,6 +1565,12 @@ mod tests {
         u.push_rx(t + FRAME + FRAME / 2, RxByte::clean(4));
         assert_eq!(isr(&mut u, t + FRAME + FRAME / 2) & ISR_IDLE, 0);
         assert_ne!(isr(&mut u, t + 2 * FRAME + FRAME / 2) & ISR_IDLE, 0);
+        assert!(u.take_reports().is_empty());
+        // A wire that pushes a character only when it ends, after the receiver has passed
+        // the idle frame its start bit would have cancelled: reported.
+        let idle = t + 2 * FRAME + FRAME / 2;
+        u.push_rx(idle + FRAME / 2, RxByte::clean(5));
+        assert_eq!(u.take_reports().len(), 1);
     }
 
     #[test]
