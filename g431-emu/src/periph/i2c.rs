@@ -8,10 +8,10 @@
 //! # Timing
 //! Everything is derived from TIMINGR at I2CCLK = 170 MHz (one CPU cycle per I2CCLK):
 //! * SCL low  = max(SCLL + 1, SDADEL + SCLDEL + 1) x (PRESC + 1) + tSYNC1,
-//! * SCL high = (SCLH + 1) x (PRESC + 1) + tSYNC2,
+//! * SCL high = (SCLH + 1) x (PRESC + 1) + tSYNC2 + the board's SCL rise time
+//!   ([`I2c::set_rise_time_ns`], 0 by default),
 //! * tSYNC = analog filter delay (260 ns, the datasheet maximum, unless ANFOFF) + DNF +
-//!   3 I2CCLK of synchronisation + the SCL rise time ([`I2c::set_rise_time_ns`], 0 by
-//!   default) — RM0440 "I2C clock requirements"/"I2C timings".
+//!   3 I2CCLK of synchronisation — RM0440 "I2C clock requirements"/"I2C timings".
 //!
 //! With embassy's 100 kHz TIMINGR (0x3045D3D3) the SCL period T is 1792 cycles (94.9 kHz).
 //! A START (or repeated START) and a STOP condition each take one T, a byte takes 9 T (eight
@@ -30,6 +30,10 @@
 //!   sends STOP; otherwise TC (stretch until START or STOP is set).
 //! * A NACK (address or data) sets NACKF and the master sends STOP by itself; STOPF is set
 //!   when the STOP condition is seen on the bus, which also clears BUSY and CR2.STOP.
+//! * CR2.STOP set while the peripheral is not master (embassy 0.6's `master_stop` after an
+//!   arbitration loss or a timeout) stays set until a STOP is seen or PE=0, so the next
+//!   transfer stops after its address byte (no TXIS: the driver times out) — the silicon
+//!   behaviour embassy PR #4634 describes for the NACK case.
 //! * PE=0 is RM0440's software reset: CR2.START/STOP/NACK and ISR (BUSY, TXE=1, TXIS, RXNE,
 //!   ADDR, NACKF, TCR, TC, STOPF, BERR, ARLO, OVR, PECERR, TIMEOUT, ALERT) back to reset, the
 //!   lines released; the other registers keep their values.
