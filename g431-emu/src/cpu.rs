@@ -687,6 +687,11 @@ impl Cpu {
 
     /// Runs the core and its SoC up to cycle `until`.
     pub fn run_until(&mut self, until: Cycles) {
+        self.run_loop(until);
+        self.soc_mut().collect_reports();
+    }
+
+    fn run_loop(&mut self, until: Cycles) {
         loop {
             let now = self.now();
             self.soc_mut().advance_to(now);

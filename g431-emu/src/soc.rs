@@ -11,7 +11,12 @@ use std::any::Any;
 use std::collections::BTreeMap;
 
 use crate::names;
+use crate::periph::dma::{Dma, DmaInstance, Transfer};
+use crate::periph::dmamux::Dmamux;
 use crate::periph::gpio::{Drive, GpioPort, PinReader};
+use crate::periph::i2c::{I2c, I2cInstance, SharedDevice};
+use crate::periph::tim_gp::TimGp;
+use crate::periph::usart::{Usart, UsartInstance};
 use crate::periph::{
     dbgmcu::Dbgmcu, exti::Exti, flash::Flash, iwdg::Iwdg, pwr::Pwr, rcc::Rcc, syscfg::Syscfg,
 };
@@ -80,6 +85,9 @@ pub enum Diagnostic {
     StuckPoll { what: String, value: u32 },
     /// An input pin read while nothing drives it and no pull is on.
     FloatingInput { pin: String },
+    /// A model saw the software use something it does not model, or use it in a way the
+    /// reference manual forbids.
+    Model(String),
 }
 
 impl std::fmt::Display for Diagnostic {
@@ -102,6 +110,7 @@ impl std::fmt::Display for Diagnostic {
                 "busy-wait on {what} (reads {value:#010x}) that nothing will ever change"
             ),
             Diagnostic::FloatingInput { pin } => write!(f, "input {pin} read while floating"),
+            Diagnostic::Model(m) => write!(f, "{m}"),
         }
     }
 }
@@ -128,6 +137,28 @@ impl PinReader for BareBoard {
 }
 
 impl Board for BareBoard {}
+
+/// Slot indices of the models the SoC wires to each other or to the host.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Slots {
+    pub usart: [usize; 5],
+    pub dma: [usize; 2],
+    pub dmamux: usize,
+    pub i2c: [usize; 3],
+    pub tim_gp: [usize; 3],
+}
+
+/// The USART instances in [`Slots::usart`] order.
+pub const USARTS: [UsartInstance; 5] = [
+    UsartInstance::Usart1,
+    UsartInstance::Usart2,
+    UsartInstance::Usart3,
+    UsartInstance::Uart4,
+    UsartInstance::Lpuart1,
+];
+
+/// The I2C instances in [`Slots::i2c`] order.
+pub const I2CS: [I2cInstance; 3] = [I2cInstance::I2c1, I2cInstance::I2c2, I2cInstance::I2c3];
 
 /// Why the CPU must stop at the end of the current block.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -181,6 +212,13 @@ pub struct Soc {
     systick_checked: Cycles,
     /// Start address of the block the CPU is executing (set by the CPU's block hook).
     pub block: u32,
+    /// Where the wired models are.
+    pub wired: Slots,
+    /// The board's I2C bus pins (SCL, SDA) as (port, pin), per I2C instance: the SoC drives
+    /// the bus when the firmware bit-bangs those pins as GPIO (bus recovery).
+    i2c_pins: [Option<((u8, u8), (u8, u8))>; 3],
+    /// A DMA service is running (its register accesses must not start another).
+    in_dma: bool,
 }
 
 fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
@@ -276,7 +314,11 @@ impl Soc {
             block_counts: vec![0; FLASH_BYTES / 2],
             systick_checked: 0,
             block: 0,
+            wired: Slots::default(),
+            i2c_pins: [None; 3],
+            in_dma: false,
         };
+        soc.add_wired_models();
         soc.flash.resize(FLASH_BYTES, 0xFF);
         soc.sort_slots();
         soc
@@ -285,6 +327,196 @@ impl Soc {
     fn sort_slots(&mut self) {
         // Indices stored in fields refer to insertion order; keep that order and search
         // linearly (a few dozen slots, most accesses hit the first matches).
+    }
+
+    /// The models the helpers wrote, at their metadata addresses.
+    fn add_wired_models(&mut self) {
+        let mut idx = Slots::default();
+        for (k, inst) in USARTS.into_iter().enumerate() {
+            idx.usart[k] = self.add(inst.name(), Box::new(Usart::new(inst)));
+        }
+        idx.dma[0] = self.add("DMA1", Box::new(Dma::new(DmaInstance::Dma1)));
+        idx.dma[1] = self.add("DMA2", Box::new(Dma::new(DmaInstance::Dma2)));
+        idx.dmamux = self.add("DMAMUX1", Box::new(Dmamux::new()));
+        for (k, inst) in I2CS.into_iter().enumerate() {
+            idx.i2c[k] = self.add(["I2C1", "I2C2", "I2C3"][k], Box::new(I2c::new(inst)));
+        }
+        for (k, name) in ["TIM2", "TIM3", "TIM4"].into_iter().enumerate() {
+            idx.tim_gp[k] = self.add(name, Box::new(TimGp::new(name)));
+        }
+        self.wired = idx;
+    }
+
+    /// The USART `inst`, for the host's wires. Call [`Soc::refresh_usart`] after pushing RX.
+    pub fn usart_mut(&mut self, inst: UsartInstance) -> Option<&mut Usart> {
+        let k = USARTS.iter().position(|u| *u == inst)?;
+        let slot = *self.wired.usart.get(k)?;
+        self.model_mut::<Usart>(slot)
+    }
+
+    /// Re-reads the USART's lines after the host changed it (RX pushed).
+    pub fn refresh_usart(&mut self, inst: UsartInstance) {
+        if let Some(k) = USARTS.iter().position(|u| *u == inst) {
+            if let Some(&slot) = self.wired.usart.get(k) {
+                self.refresh(slot);
+            }
+        }
+    }
+
+    /// Attaches a device to the bus of I2C instance `k` (0 = I2C1) whose SCL/SDA are
+    /// `scl`/`sda` on the board.
+    pub fn attach_i2c(&mut self, k: usize, dev: SharedDevice, scl: (u8, u8), sda: (u8, u8)) {
+        if let Some(p) = self.i2c_pins.get_mut(k) {
+            *p = Some((scl, sda));
+        }
+        let Some(&slot) = self.wired.i2c.get(k) else {
+            return;
+        };
+        if let Some(i) = self.model_mut::<I2c>(slot) {
+            i.attach(dev);
+        }
+    }
+
+    /// The I2C instance `k`.
+    pub fn i2c(&self, k: usize) -> Option<&I2c> {
+        self.model::<I2c>(*self.wired.i2c.get(k)?)
+    }
+
+    /// The firmware drives a bus pin as GPIO: pass the level to the bus (D6 recovery).
+    fn i2c_gpio(&mut self) {
+        let now = self.now;
+        for k in 0..3 {
+            let Some((scl, sda)) = self.i2c_pins.get(k).copied().flatten() else {
+                continue;
+            };
+            let level = |s: &Soc, (port, pin): (u8, u8)| -> Option<bool> {
+                let g = s.gpio(port)?;
+                (g.mode(pin) == crate::periph::gpio::Mode::Output).then(|| !g.odr_bit(pin))
+            };
+            let (scl_low, sda_low) = (level(self, scl), level(self, sda));
+            let Some(&slot) = self.wired.i2c.get(k) else {
+                continue;
+            };
+            if let Some(i) = self.model_mut::<I2c>(slot) {
+                i.advance(now);
+                i.gpio_scl(scl_low.unwrap_or(false), now);
+                i.gpio_sda(sda_low.unwrap_or(false), now);
+            }
+            self.refresh(slot);
+        }
+    }
+
+    /// Performs every DMA transfer the request lines call for now, as register accesses
+    /// (so a DMA read of a data register has the CPU read's side effects).
+    fn service_dma(&mut self) {
+        if self.in_dma {
+            return;
+        }
+        self.in_dma = true;
+        for _ in 0..100_000 {
+            let req = self.dma_requests();
+            let mut next: Option<(usize, Transfer)> = None;
+            for &d in &self.wired.dma {
+                let (Some(dma), Some(mux)) = (
+                    self.model::<Dma>(d),
+                    self.model::<Dmamux>(self.wired.dmamux),
+                ) else {
+                    continue;
+                };
+                if let Some(t) = dma.next_transfer(mux, &req) {
+                    next = Some((d, t));
+                    break;
+                }
+            }
+            let Some((d, t)) = next else {
+                break;
+            };
+            let ok = match self.dma_read(t.src, t.src_size) {
+                Some(v) => self.dma_write(t.dst, t.dst_size, t.value_to_write(v)),
+                None => false,
+            };
+            if let Some(dma) = self.model_mut::<Dma>(d) {
+                if ok {
+                    dma.complete(&t);
+                } else {
+                    dma.bus_error(t.channel);
+                }
+            }
+            self.refresh(d);
+        }
+        self.in_dma = false;
+    }
+
+    fn dma_read(&mut self, addr: u32, size: u8) -> Option<u32> {
+        if (RAM_BASE..RAM_BASE + RAM_BYTES as u32).contains(&addr)
+            || (FLASH_BASE..FLASH_BASE + FLASH_BYTES as u32).contains(&addr)
+        {
+            let aligned = addr & !3;
+            let w = self.mem_word(aligned)?;
+            let v = w >> (8 * (addr & 3));
+            return Some(match size {
+                1 => v & 0xFF,
+                2 => v & 0xFFFF,
+                _ => v,
+            });
+        }
+        if (0x4000_0000..0x6000_0000).contains(&addr) {
+            let aligned = addr & !3;
+            let word = self.read_word(aligned);
+            return Some(word >> (8 * (addr & 3)));
+        }
+        None
+    }
+
+    fn dma_write(&mut self, addr: u32, size: u8, value: u32) -> bool {
+        if (RAM_BASE..RAM_BASE + RAM_BYTES as u32).contains(&addr) {
+            let o = (addr - RAM_BASE) as usize;
+            let bytes = value.to_le_bytes();
+            let n = usize::from(size.clamp(1, 4));
+            return match self.ram.get_mut(o..o + n) {
+                Some(dst) => {
+                    dst.copy_from_slice(&bytes[..n]);
+                    true
+                }
+                None => false,
+            };
+        }
+        if (0x4000_0000..0x6000_0000).contains(&addr) {
+            self.write_raw(addr, usize::from(size), value);
+            return true;
+        }
+        false
+    }
+
+    /// Collects what the models reported since the last call.
+    pub fn collect_reports(&mut self) {
+        let mut out: Vec<String> = Vec::new();
+        for s in self.slots.iter_mut() {
+            let m = s.model.as_any_mut();
+            if let Some(x) = m.downcast_mut::<Usart>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<Dma>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<Dmamux>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<TimGp>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<I2c>() {
+                if let Some(u) = x.unsupported() {
+                    out.push(format!("{}: {u}", x.name()));
+                }
+            }
+        }
+        for r in out {
+            let key = {
+                let mut h: u32 = 0x811C_9DC5;
+                for b in r.bytes() {
+                    h = (h ^ u32::from(b)).wrapping_mul(0x0100_0193);
+                }
+                h
+            };
+            self.report((key, false, 5), Diagnostic::Model(r));
+        }
     }
 
     /// Adds a register model at `name`'s base address (helpers' models: TIM1, USART...).
@@ -473,6 +705,15 @@ impl Soc {
         if k == self.rcc {
             self.apply_rcc_resets();
         }
+        if self.dma_related(k) {
+            self.service_dma();
+        }
+    }
+
+    /// Slot `k` can raise or drop a DMA request, or is a DMA controller.
+    fn dma_related(&self, k: usize) -> bool {
+        let w = &self.wired;
+        w.usart.contains(&k) || w.dma.contains(&k) || w.dmamux == k || w.i2c.contains(&k)
     }
 
     fn apply_rcc_resets(&mut self) {
@@ -604,6 +845,9 @@ impl Soc {
             _ => self.slots.get_mut(k).and_then(|s| s.model.read(off, now)),
         };
         self.refresh(k);
+        if self.dma_related(k) {
+            self.service_dma();
+        }
         match value {
             Some(v) => v,
             None => {
@@ -652,6 +896,12 @@ impl Soc {
 
     /// A write of `size` bytes of `value` at `addr` by the CPU or the DMA.
     pub fn bus_write(&mut self, addr: u32, size: usize, value: u32) {
+        self.poll = Poll::default();
+        self.write_raw(addr, size, value);
+    }
+
+    /// A write by the CPU or the DMA (without the polling-loop bookkeeping).
+    fn write_raw(&mut self, addr: u32, size: usize, value: u32) {
         let aligned = addr & !3;
         let shift = 8 * (addr & 3);
         let mask = match size {
@@ -664,7 +914,6 @@ impl Soc {
             value: value << shift,
             mask,
         };
-        self.poll = Poll::default();
         if (0xE000_0000..0xE010_0000).contains(&aligned) {
             self.ppb_write(aligned, w);
             return;
@@ -706,6 +955,7 @@ impl Soc {
         self.after_event(k, now);
         if let Some(port) = self.gpio.iter().position(|g| *g == k) {
             self.gpio_changed(port);
+            self.i2c_gpio();
         }
     }
 
