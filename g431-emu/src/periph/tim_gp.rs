@@ -71,7 +71,8 @@ impl Reports {
         }
         self.seen.push(kind);
         if self.pending.len() < 256 {
-            self.pending.push(format!("{} @{}: {}", self.name, now, detail()));
+            self.pending
+                .push(format!("{} @{}: {}", self.name, now, detail()));
         }
     }
 
@@ -561,8 +562,7 @@ impl TimeBase {
         if let Some(e) = self.exc {
             return Some(self.time_of_step(e.join_steps));
         }
-        let steps =
-            self.steps_to_wrap(self.p0) + u64::from(self.rep0) * self.wrap_every().max(1);
+        let steps = self.steps_to_wrap(self.p0) + u64::from(self.rep0) * self.wrap_every().max(1);
         Some(self.time_of_step(steps))
     }
 
@@ -688,7 +688,12 @@ impl TimeBase {
     }
 
     /// The next PWM reference edge after `after`: (cycle, new level).
-    pub(crate) fn next_pwm_edge(&self, pwm2: bool, v: u32, after: Cycles) -> Option<(Cycles, bool)> {
+    pub(crate) fn next_pwm_edge(
+        &self,
+        pwm2: bool,
+        v: u32,
+        after: Cycles,
+    ) -> Option<(Cycles, bool)> {
         if !self.running() || self.exc.is_some() {
             return None;
         }
@@ -1105,8 +1110,7 @@ impl Peripheral for TimGp {
             0x1c => self.ccmr[1],
             0x20 => self.ccer,
             0x24 => {
-                let uifcpy = if self.tb.cr1_bits() & cr1::UIFREMAP != 0 && self.sr & sr::UIF != 0
-                {
+                let uifcpy = if self.tb.cr1_bits() & cr1::UIFREMAP != 0 && self.sr & sr::UIF != 0 {
                     1 << 31
                 } else {
                     0
@@ -1143,8 +1147,9 @@ impl Peripheral for TimGp {
                     self.reports.once(now, "cms", || c.to_string());
                 }
                 if v & cr1::DITHEN != 0 {
-                    self.reports
-                        .once(now, "dither", || "dithering (DITHEN) is not modelled".into());
+                    self.reports.once(now, "dither", || {
+                        "dithering (DITHEN) is not modelled".into()
+                    });
                 }
             }
             0x04 => self.cr2 = v & 0x0200_00f8,
@@ -1235,7 +1240,6 @@ impl Peripheral for TimGp {
         *self = TimGp::new(self.name);
     }
 }
-
 
 #[cfg(test)]
 mod tests {
@@ -1335,7 +1339,11 @@ mod tests {
         let uif2 = cen + 2 * 0x10000 * 170;
         t.advance(uif2); // UIF set in between
         wr(&mut t, SR, before & !0b10, uif2 + 1); // "clear CC1IF" with the stale value
-        assert_eq!(rd(&mut t, SR, uif2 + 2) & 1, 0, "the RMW lost the UIF set in between");
+        assert_eq!(
+            rd(&mut t, SR, uif2 + 2) & 1,
+            0,
+            "the RMW lost the UIF set in between"
+        );
     }
 
     /// The embassy time driver: period counter, `now()`, half-period (CC1) and overflow
@@ -1365,7 +1373,12 @@ mod tests {
             wr(tim, CCR2, (ts as u16).into(), t + 1);
             let d = rd(tim, DIER, t + 2);
             let en = ts - now < 0xc000;
-            wr(tim, DIER, (d & !(1 << 2)) | if en { 1 << 2 } else { 0 }, t + 3);
+            wr(
+                tim,
+                DIER,
+                (d & !(1 << 2)) | if en { 1 << 2 } else { 0 },
+                t + 3,
+            );
             true
         };
         let first = alarms.remove(0);
@@ -1433,7 +1446,11 @@ mod tests {
             assert_eq!(calc_now(period, c), ticks_at(probe));
             t_now = probe + 1;
         }
-        assert_eq!(period, (600_000 / 0x8000) as u32, "one period per 2^15 ticks");
+        assert_eq!(
+            period,
+            (600_000 / 0x8000) as u32,
+            "one period per 2^15 ticks"
+        );
         assert_eq!(rung.len(), 6, "{rung:?}");
         for (ts, at) in rung {
             assert_eq!(at, cen + ts * 170, "alarm {ts} rings at its exact cycle");
@@ -1523,9 +1540,16 @@ mod tests {
         let edges: Vec<(Cycles, bool)> = t.take_trgo().map(|e| (e.at, e.level)).collect();
         // UG with MMS = reset is a TRGO pulse; then OC4REF (PWM1, counter 0 < 3) is high.
         assert_eq!(edges, vec![(3, true), (3, false), (4, true)]);
-        assert_eq!(t.next_event(), Some(13), "OC4REF falls when the counter reaches 3");
+        assert_eq!(
+            t.next_event(),
+            Some(13),
+            "OC4REF falls when the counter reaches 3"
+        );
         t.advance(30);
         let edges: Vec<(Cycles, bool)> = t.take_trgo().map(|e| (e.at, e.level)).collect();
-        assert_eq!(edges, vec![(13, false), (20, true), (23, false), (30, true)]);
+        assert_eq!(
+            edges,
+            vec![(13, false), (20, true), (23, false), (30, true)]
+        );
     }
 }
