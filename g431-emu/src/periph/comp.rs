@@ -471,4 +471,84 @@ mod tests {
             })
         );
     }
+
+    /// Board review D10: TIM1 OC5 as the blanking window of COMP1 (BLANKSEL = 001), COMP1 into
+    /// TIM1's break; a spike inside the window does not trip, one outside does.
+    #[test]
+    fn tim1_oc5_blanks_the_comparator_break() {
+        use crate::periph::tim_adv::{OffCause, TimAdv, TimEvent};
+        let mut tim = TimAdv::new("TIM1");
+        let mut comps = CompBank::new();
+        let mut t: Cycles = 10;
+        let w = |tim: &mut TimAdv, off: u32, v: u32, t: &mut Cycles| {
+            tim.advance(*t);
+            assert!(tim.write(Write::word(off, v), *t));
+            *t += 1;
+        };
+        w(&mut tim, 0x2c, 1000, &mut t); // ARR
+        w(&mut tim, 0x50, 6 << 4, &mut t); // CCMR3: OC5 PWM mode 1
+        w(&mut tim, 0x48, 50, &mut t); // CCR5: window of +-50 counts around the valley
+        w(&mut tim, 0x20, 1 << 16, &mut t); // CC5E
+        w(&mut tim, 0x60, 1 << 1, &mut t); // AF1: BKCMP1E only
+        w(&mut tim, 0x44, (1 << 12) | (1 << 13) | (1 << 15), &mut t); // BKE, BKP, MOE
+        w(&mut tim, 0x00, (1 << 5) | 1, &mut t); // centre-aligned 1, CEN
+        let cen = t - 1;
+        let _ = tim.take_events().count();
+        assert!(comps.write(Write::word(0, csr::EN | (0b100 << 4) | (1 << 19)), t));
+        // The SoC's wiring: TIM1 blanking edges to COMP1, COMP1 output edges to the break.
+        let forward = |tim: &mut TimAdv, comps: &mut CompBank, now: Cycles| {
+            tim.advance(now);
+            let ev: Vec<TimEvent> = tim.take_events().collect();
+            for e in ev {
+                if let TimEvent::Blanking { at, active } = e {
+                    if let Some(level) = comps.set_blanking(1, active, at) {
+                        tim.set_comparator(1, level, at);
+                    }
+                }
+            }
+        };
+        forward(&mut tim, &mut comps, t);
+        // The window is open for phases [1950, 2000) and [0, 50): after cen + 1950.
+        let valley = cen + 2000;
+        let mut now = t;
+        while let Some(next) = tim.next_event() {
+            if next > valley {
+                break;
+            }
+            now = next;
+            forward(&mut tim, &mut comps, now);
+        }
+        assert!(comps
+            .config(1)
+            .is_some_and(|c| c.blanking == Some(BlankingSource::Tim1Oc5)));
+        assert!(tim.blanking(valley - 10));
+        // A current spike inside the window (20 cycles from the valley on): no break.
+        if let Some(l) = comps.set_input(1, true, valley) {
+            tim.set_comparator(1, l, valley);
+        }
+        if let Some(l) = comps.set_input(1, false, valley + 20) {
+            tim.set_comparator(1, l, valley + 20);
+        }
+        assert!(tim.gate().moe, "blanked: MOE stays set");
+        // Run past the window's end (valley + 50) and spike again: the break trips.
+        while let Some(next) = tim.next_event() {
+            if next > valley + 100 {
+                break;
+            }
+            now = next;
+            forward(&mut tim, &mut comps, now);
+        }
+        assert!(now >= valley + 50 && !tim.blanking(valley + 100));
+        forward(&mut tim, &mut comps, valley + 100);
+        let at = valley + 100;
+        if let Some(l) = comps.set_input(1, true, at) {
+            tim.set_comparator(1, l, at);
+        }
+        assert!(!tim.gate().moe);
+        assert!(tim.take_events().any(|e| e
+            == TimEvent::OutputsOff {
+                at,
+                cause: OffCause::Break
+            }));
+    }
 }

@@ -272,27 +272,65 @@ impl GateState {
         let (Some(o), true) = (self.phase_origin, self.counting) else {
             return cap;
         };
-        let per = self.cycles_per_count.max(1);
-        let Some(since_origin) = t.checked_sub(o) else {
+        let len = self.len();
+        let Some(c) = self.channels.get(ch) else {
             return cap;
         };
-        let now_level = self.ocref(ch, t);
-        // Walk back step by step over at most `cap` cycles (a dead time is a few hundred
-        // cycles at most); steps are `per` cycles apart.
-        let step_start = o + since_origin / per * per;
-        let mut back = t - step_start;
-        let mut entry = step_start;
-        while back < cap {
-            let Some(prev) = entry.checked_sub(per) else {
-                return cap;
-            };
-            if prev < o || self.ocref(ch, prev) != now_level {
-                return back;
-            }
-            entry = prev;
-            back += per;
+        let Some(d) = t.checked_sub(o) else {
+            return cap;
+        };
+        if len == 0 {
+            return cap;
         }
-        cap
+        let per = self.cycles_per_count.max(1);
+        let n = d / per;
+        let p = n % len;
+        // Cycles since the counter stepped onto the present phase.
+        let into = d - n * per;
+        // The reference can only change where the counter steps onto or off a compare value,
+        // or turns around.
+        let mut cand = [None; 12];
+        let mut k = 0;
+        for oc in [Some(&c.oc), c.with_oc5.then_some(&self.oc5)]
+            .into_iter()
+            .flatten()
+        {
+            if !matches!(oc.mode, ocm::PWM1 | ocm::PWM2) {
+                continue;
+            }
+            for q in self.match_phases(oc.ccr).into_iter().flatten() {
+                cand[k] = Some(q);
+                cand[k + 1] = Some((q + 1) % len);
+                k += 2;
+            }
+            cand[k] = Some(0);
+            cand[k + 1] = Some(u64::from(self.arr) % len);
+            k += 2;
+        }
+        let mut best = cap;
+        for q in cand.into_iter().flatten() {
+            let before = (q + len - 1) % len;
+            if self.refc_at_phase(ch, Some(q)) != self.refc_at_phase(ch, Some(before)) {
+                let back = (p + len - q) % len;
+                best = best.min(into + back * per);
+            }
+        }
+        best
+    }
+
+    /// The phases at which the counter steps onto `v`.
+    fn match_phases(&self, v: u32) -> [Option<u64>; 2] {
+        let a = u64::from(self.arr);
+        let v = u64::from(v);
+        if v > a {
+            return [None, None];
+        }
+        match self.mode {
+            CountMode::Up => [Some(v), None],
+            CountMode::Down => [Some(a - v), None],
+            CountMode::Centre(_) if v == 0 || v == a => [Some(v), None],
+            CountMode::Centre(_) => [Some(v), Some(2 * a - v)],
+        }
     }
 
     /// The level of output pin OCx (`high`) or OCxN of channel `ch` at `t`; `None` when the
@@ -2060,6 +2098,50 @@ mod tests {
                 "{t}"
             );
         }
+    }
+
+    #[test]
+    fn gate_state_reference_matches_the_model_over_a_period() {
+        let mut b = Bus::new();
+        let cen = drive_init(&mut b, 1, 2000, 0x95);
+        b.wr(CCR1, 700);
+        b.wr(CCR1 + 4, 1999);
+        b.wr(CCR1 + 8, 2001);
+        b.at(cen + 8000 + 3);
+        let g = b.tim.gate();
+        for t in (cen + 8000..cen + 16_000).step_by(3) {
+            for ch in 0..3 {
+                assert_eq!(g.ocref(ch, t), b.tim.ocref(ch, t), "ch {ch} at {t}");
+            }
+            assert_eq!(g.counter_at(t), Some(b.tim.cnt(t)), "counter at {t}");
+        }
+    }
+
+    /// Board review D9: `apply_timing`'s `bdtr().modify(..)` reads MOE = 1, a break pulse
+    /// clears MOE and ends, the write-back sets MOE again (accepted: the break is over) while
+    /// BIF stays set for the break interrupt.
+    #[test]
+    fn bdtr_read_modify_write_across_a_break_pulse_re_sets_moe() {
+        let mut b = Bus::new();
+        let cen = drive_init(&mut b, 0, 4250, 0x95);
+        arm_break(&mut b);
+        b.modify(BDTR, |v| v | MOE);
+        b.at(cen + 3000);
+        let read = b.rd(BDTR);
+        assert_ne!(read & MOE, 0);
+        let t = b.t;
+        b.tim.set_comparator(1, true, t);
+        b.tim.set_comparator(1, false, t + 2);
+        b.t = t + 3;
+        assert_eq!(b.rd(BDTR) & MOE, 0, "the break cleared MOE");
+        b.t -= 1;
+        b.wr(BDTR, (read & !0xff) | 0x96); // the stale value with a new DTG
+        assert_ne!(b.rd(BDTR) & MOE, 0, "the stale MOE = 1 was written back");
+        assert_ne!(
+            b.rd(SR) & sr::BIF,
+            0,
+            "BIF is still there for the interrupt"
+        );
     }
 
     #[test]
