@@ -11,9 +11,9 @@
 //! This module adds what the advanced timers have on top:
 //! * six channels (CH5/CH6 internal; OC5 is the comparator blanking window and can be ANDed
 //!   into OC1-3REF with CCR5.GC5Cx), complementary outputs, dead time (DTG/DTGF, DTAE, CKD)
-//!   with its preload DTPE (DTR2, RM0440 §29.6.21), COM (CCPC) preload of CCxE/CCxNE/OCxM;
+//!   with its preload DTPE (RM0440 TIMx_DTR2), COM (CCPC) preload of CCxE/CCxNE/OCxM;
 //! * the repetition counter (RCR);
-//! * break and break 2 (RM0440 §29.3.16 "Using the break function"): the break signal is
+//! * break and break 2 (RM0440 §29.3.18 "Using the break function"): the break signal is
 //!   `(BKINE & (BKIN ^ BKINP)) | OR(BKCMPxE & (COMPx ^ BKCMPxP))` taken with polarity BKP,
 //!   digitally filtered by BKF, ORed with the system break (`tim_sys_brk`: LOCKUP, PVD, SRAM
 //!   parity, flash ECC as enabled in SYSCFG_CFGR2, which the SoC evaluates), and enabled by
@@ -594,7 +594,7 @@ impl TimAdv {
 
     /// The comparator output COMPn (n = 1..=7, after its polarity and blanking) changed.
     pub fn set_comparator(&mut self, n: usize, level: bool, now: Cycles) {
-        self.advance(now);
+        let now = self.catch_up(now);
         if let Some(c) = n.checked_sub(1).and_then(|i| self.comp.get_mut(i)) {
             *c = level;
         }
@@ -604,7 +604,7 @@ impl TimAdv {
 
     /// The BKIN pin level changed.
     pub fn set_bkin(&mut self, level: bool, now: Cycles) {
-        self.advance(now);
+        let now = self.catch_up(now);
         self.bkin = level;
         self.update_break_inputs(now);
         self.settle(now);
@@ -612,7 +612,7 @@ impl TimAdv {
 
     /// The BKIN2 pin level changed (the hardware STO input).
     pub fn set_bkin2(&mut self, level: bool, now: Cycles) {
-        self.advance(now);
+        let now = self.catch_up(now);
         self.bkin2 = level;
         self.update_break_inputs(now);
         self.settle(now);
@@ -621,7 +621,7 @@ impl TimAdv {
     /// The system break input (`tim_sys_brk`: the OR of the sources SYSCFG_CFGR2 enables —
     /// LOCKUP (CLL), PVD (PVDL), SRAM parity (SPL), flash ECC (ECCL) — evaluated by the SoC).
     pub fn set_system_break(&mut self, active: bool, now: Cycles) {
-        self.advance(now);
+        let now = self.catch_up(now);
         self.sys_brk = active;
         self.update_break_inputs(now);
         self.settle(now);
@@ -631,7 +631,7 @@ impl TimAdv {
     /// APB2FZR.DBG_TIM1_STOP is set, and with `false` when the core runs again. The counter
     /// stops and the outputs are disabled as if MOE was reset (MOE itself keeps its value).
     pub fn set_debug_halt(&mut self, frozen: bool, now: Cycles) {
-        self.advance(now);
+        let now = self.catch_up(now);
         self.tb.set_frozen(now, frozen);
         self.settle_with(now, OffCause::DebugFreeze);
     }
@@ -662,6 +662,13 @@ impl TimAdv {
     }
 
     // ---- Internals ----
+
+    /// Advances to `now`; an input timed before the last advance takes effect at the last
+    /// advance (so the event queue stays in time order).
+    fn catch_up(&mut self, now: Cycles) -> Cycles {
+        self.advance(now);
+        now.max(self.last)
+    }
 
     fn push(&mut self, e: TimEvent) {
         if self.events.len() >= EVENT_QUEUE_LIMIT {
@@ -1192,7 +1199,7 @@ impl TimAdv {
         }
         let wants_moe = v & bdtr::MOE != 0 && old & bdtr::MOE == 0;
         if v & bdtr::MOE != 0 && (self.active1 || self.active2) {
-            // MOE cannot be set while a break input is active (RM0440 §29.3.16).
+            // MOE cannot be set while a break input is active (RM0440 §29.3.18).
             v &= !bdtr::MOE;
         }
         self.bdtr = v;

@@ -959,6 +959,7 @@ impl TimGp {
     /// when it resumes).
     pub fn set_debug_halt(&mut self, frozen: bool, now: Cycles) {
         self.advance(now);
+        let now = now.max(self.last);
         self.tb.set_frozen(now, frozen);
         self.refresh_trgo(now);
     }
