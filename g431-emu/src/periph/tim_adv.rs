@@ -425,7 +425,7 @@ fn filter_delay(code: u32, tdts: u64) -> u64 {
     div * n * if dts { tdts } else { 1 }
 }
 
-/// Dead time in tDTS periods for a DTG code (RM0440 BDTR DTG[7:0]).
+/// Dead time in tDTS periods for a DTG code (RM0440 TIMx_BDTR.DTG).
 pub fn decode_dtg(dtg: u8) -> u32 {
     let d = u32::from(dtg);
     match dtg >> 5 {
