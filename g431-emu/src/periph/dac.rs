@@ -151,8 +151,10 @@ impl Dac {
         self.id
     }
 
+    /// Bit offset of channel `ch` (0 = channel 1, 1 = channel 2) in the shared registers;
+    /// the public methods reject other indices before they get here.
     fn shift(ch: usize) -> u32 {
-        16 * ch as u32
+        16 * (ch as u32 & 1)
     }
 
     fn ch_cr(&self, ch: usize) -> u32 {
@@ -161,6 +163,7 @@ impl Dac {
 
     /// The channel's mode (MCR.MODEx).
     pub fn mode(&self, ch: usize) -> DacMode {
+        let ch = ch.min(1);
         DacMode::decode((self.mcr >> Self::shift(ch)) & 7)
     }
 
@@ -171,7 +174,7 @@ impl Dac {
 
     /// The channel's output in volts, `None` while it is disabled or not yet ready (tWAKEUP).
     pub fn output_volts(&self, ch: usize) -> Option<f64> {
-        if self.ch_cr(ch) & CR_EN == 0 || !self.ready.get(ch).copied().unwrap_or(false) {
+        if ch > 1 || self.ch_cr(ch) & CR_EN == 0 || !self.ready.get(ch).copied().unwrap_or(false) {
             return None;
         }
         let mut code = self.dor.get(ch).copied().unwrap_or(0) & 0xfff;
@@ -185,6 +188,9 @@ impl Dac {
     /// A hardware trigger (the signal TSELx = `tsel` selects) at `now`.
     pub fn trigger(&mut self, ch: usize, tsel: u8, now: Cycles) {
         self.advance(now);
+        if ch > 1 {
+            return;
+        }
         let c = self.ch_cr(ch);
         if c & CR_EN != 0 && c & CR_TEN != 0 && (c >> 2) & 0xf == u32::from(tsel) {
             self.triggered(ch, now);
