@@ -727,7 +727,7 @@ impl TimeBase {
     }
 
     /// The cycle at which the counter (virtually) last stepped onto phase 0 at or before the
-    /// anchor: with [`Self::period`] and the trajectory this gives the counter at any cycle
+    /// anchor: with the prescaler (PSC+1 cycles per step) and the trajectory this gives the counter at any cycle
     /// until the next boundary. `None` during an excursion or before cycle 0.
     pub fn phase_origin(&self) -> Option<Cycles> {
         if self.exc.is_some() {
@@ -959,6 +959,7 @@ impl TimGp {
     /// when it resumes).
     pub fn set_debug_halt(&mut self, frozen: bool, now: Cycles) {
         self.advance(now);
+        let now = now.max(self.last);
         self.tb.set_frozen(now, frozen);
         self.refresh_trgo(now);
     }
