@@ -683,6 +683,7 @@ impl Cpu {
         self.events.push(CpuEvent::Lockup { at, pc: self.pc });
         self.state = CpuState::Lockup;
         self.pc = LOCKUP_PC;
+        self.soc_mut().lockup(true);
     }
 
     /// Runs the core and its SoC up to cycle `until`.

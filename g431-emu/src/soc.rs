@@ -11,10 +11,15 @@ use std::any::Any;
 use std::collections::BTreeMap;
 
 use crate::names;
+use crate::periph::adc::{Adc12, AdcId, AnalogSource, TriggerSignal};
+use crate::periph::comp::{BlankingSource, CompBank, CompConfig, InvertingInput};
+use crate::periph::dac::{Dac, DacId};
 use crate::periph::dma::{Dma, DmaInstance, Transfer};
 use crate::periph::dmamux::Dmamux;
 use crate::periph::gpio::{Drive, GpioPort, PinReader};
 use crate::periph::i2c::{I2c, I2cInstance, SharedDevice};
+use crate::periph::opamp::{OpampBank, OpampConfig, OpampInput};
+use crate::periph::tim_adv::{TimAdv, TimEvent};
 use crate::periph::tim_gp::TimGp;
 use crate::periph::usart::{Usart, UsartInstance};
 use crate::periph::{
@@ -38,8 +43,10 @@ pub const SYSMEM_BYTES: usize = 0x1_0000;
 /// A free-running counter read by a polling loop does not break its "nothing changes"
 /// streak, but caps how far the clock may jump (the loop may be waiting for a time).
 const COUNTER_POLL_JUMP: Cycles = 10 * CYCLES_PER_US;
-/// Identical reads of one register in a row before it counts as a polling loop.
-const POLL_STREAK: u32 = 3;
+/// Identical reads of one register, by the same block, in a row before it counts as a
+/// polling loop. High enough that a bounded loop over pins or columns (a keypad scan reads
+/// one IDR four times) is never taken for a poll: fast-forwarding it would stretch its time.
+const POLL_STREAK: u32 = 64;
 
 /// A register model together with what it implements for the SoC.
 pub trait Model: Peripheral + Any {
@@ -115,11 +122,31 @@ impl std::fmt::Display for Diagnostic {
     }
 }
 
-/// The board around the MCU: pin levels, analog voltages.
+/// The board around the MCU: pin levels, analog voltages, the power stage.
 pub trait Board: PinReader {
     /// Output pins changed at `now`; `drives(port, pin)` is how the MCU drives each pin.
     fn outputs_changed(&mut self, _now: Cycles, _drives: &dyn Fn(u8, u8) -> Drive) {}
+
+    /// Volts on pin `pin` ("PA1") at `at` (ADC sampling, comparator inputs, OPAMP inputs).
+    fn pin_volts(&mut self, _pin: &str, _at: Cycles) -> f64 {
+        0.0
+    }
+
+    /// TIM1 changed its outputs (an update with new compares, MOE, a break, the debug
+    /// freeze): the power stage follows from `ev.at`.
+    fn power_stage(&mut self, _ev: &TimEvent) {}
+
+    /// Whether comparator `config.comp`'s non-inverting input has been above `inm_volts`
+    /// since the last call or is above it now (a crossing between two calls counts, so that
+    /// a short overcurrent between two samples still trips, as the hardware does). The
+    /// default compares the pin's volts now.
+    fn comparator_above(&mut self, config: &CompConfig, inm_volts: f64, at: Cycles) -> bool {
+        self.pin_volts(config.inp, at) > inm_volts
+    }
 }
+
+/// VREFINT (DS12589 typical), for the comparators' scaled references and the ADC.
+pub const VREFINT_VOLTS: f64 = 1.212;
 
 /// A bare board: nothing connected.
 pub struct BareBoard;
@@ -146,6 +173,12 @@ pub struct Slots {
     pub dmamux: usize,
     pub i2c: [usize; 3],
     pub tim_gp: [usize; 3],
+    pub tim1: usize,
+    pub tim8: usize,
+    pub adc12: usize,
+    pub dac: [usize; 2],
+    pub comp: usize,
+    pub opamp: usize,
 }
 
 /// The USART instances in [`Slots::usart`] order.
@@ -172,6 +205,7 @@ pub struct StopRequest {
 /// Tracks a possible polling loop: identical reads of one register.
 #[derive(Debug, Clone, Copy, Default)]
 struct Poll {
+    block: u32,
     addr: u32,
     value: u32,
     streak: u32,
@@ -344,6 +378,31 @@ impl Soc {
         for (k, name) in ["TIM2", "TIM3", "TIM4"].into_iter().enumerate() {
             idx.tim_gp[k] = self.add(name, Box::new(TimGp::new(name)));
         }
+        idx.tim1 = self.add("TIM1", Box::new(TimAdv::new("TIM1")));
+        idx.tim8 = self.add("TIM8", Box::new(TimAdv::new("TIM8")));
+        idx.adc12 = self.add_at(
+            "ADC12",
+            0x5000_0000,
+            0x400,
+            Some("ADC1"),
+            Box::new(Adc12::new()),
+        );
+        idx.dac[0] = self.add("DAC1", Box::new(Dac::new(DacId::Dac1)));
+        idx.dac[1] = self.add("DAC3", Box::new(Dac::new(DacId::Dac3)));
+        idx.comp = self.add_at(
+            "COMP",
+            0x4001_0200,
+            0x10,
+            Some("SYSCFG"),
+            Box::new(CompBank::new()),
+        );
+        idx.opamp = self.add_at(
+            "OPAMP",
+            0x4001_0300,
+            0x24,
+            Some("SYSCFG"),
+            Box::new(OpampBank::new()),
+        );
         self.wired = idx;
     }
 
@@ -500,6 +559,16 @@ impl Soc {
             } else if let Some(x) = m.downcast_mut::<Dmamux>() {
                 out.extend(x.take_reports());
             } else if let Some(x) = m.downcast_mut::<TimGp>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<TimAdv>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<Adc12>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<Dac>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<CompBank>() {
+                out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<OpampBank>() {
                 out.extend(x.take_reports());
             } else if let Some(x) = m.downcast_mut::<I2c>() {
                 if let Some(u) = x.unsupported() {
@@ -685,9 +754,7 @@ impl Soc {
             let Some((t, k)) = due else {
                 break;
             };
-            if let Some(s) = self.slots.get_mut(k) {
-                s.model.advance(t);
-            }
+            self.advance_slot(k, t);
             self.refresh(k);
             self.after_event(k, t);
         }
@@ -701,19 +768,200 @@ impl Soc {
 
     /// Cross-peripheral effects after slot `k` changed at `t` (overridden per model by the
     /// wiring in `crate::wiring` once all models exist).
-    fn after_event(&mut self, k: usize, _t: Cycles) {
+    fn after_event(&mut self, k: usize, t: Cycles) {
         if k == self.rcc {
             self.apply_rcc_resets();
+        }
+        if k == self.wired.tim1 {
+            self.tim1_events(t);
+        }
+        if k == self.wired.comp {
+            self.comp_edges();
         }
         if self.dma_related(k) {
             self.service_dma();
         }
     }
 
+    /// Brings slot `k` to `t`; the ADC gets the board's analog values through an adapter.
+    fn advance_slot(&mut self, k: usize, t: Cycles) {
+        if k == self.wired.adc12 {
+            let snap = self.analog_snapshot();
+            let (slots, board) = (&mut self.slots, &mut self.board);
+            if let Some(adc) = slots
+                .get_mut(k)
+                .and_then(|s| s.model.as_any_mut().downcast_mut::<Adc12>())
+            {
+                let mut src = AnalogAdapter {
+                    board: board.as_mut(),
+                    snap: &snap,
+                };
+                adc.advance_with(t, &mut src);
+            }
+            return;
+        }
+        if let Some(s) = self.slots.get_mut(k) {
+            s.model.advance(t);
+        }
+    }
+
+    /// What the analog adapter needs from other models (taken before the ADC is borrowed).
+    fn analog_snapshot(&self) -> AnalogSnapshot {
+        let opamp = self.model::<OpampBank>(self.wired.opamp);
+        let opamps = [1, 2, 3].map(|n| opamp.and_then(|o| o.config(n)));
+        let dac = |k: usize, ch: usize| {
+            self.wired
+                .dac
+                .get(k)
+                .and_then(|&d| self.model::<Dac>(d))
+                .and_then(|d| d.output_volts(ch))
+        };
+        AnalogSnapshot {
+            opamps,
+            dac3: [dac(1, 0), dac(1, 1)],
+            dac1: [dac(0, 0), dac(0, 1)],
+        }
+    }
+
+    /// TIM1's events: TRGO2 to the ADCs, OC5 to the comparators' blanking, output changes
+    /// to the board's power stage; then the comparators are sampled at that instant.
+    fn tim1_events(&mut self, t: Cycles) {
+        let k = self.wired.tim1;
+        let events: Vec<TimEvent> = match self.model_mut::<TimAdv>(k) {
+            Some(tim) => tim.take_events().collect(),
+            None => return,
+        };
+        if events.is_empty() {
+            return;
+        }
+        for ev in &events {
+            match *ev {
+                TimEvent::Trgo2 { at, level } => {
+                    let a = self.wired.adc12;
+                    self.advance_slot(a, at);
+                    if let Some(adc) = self.model_mut::<Adc12>(a) {
+                        adc.trigger_signal(TriggerSignal::Tim1Trgo2, level, at);
+                    }
+                    self.refresh(a);
+                }
+                TimEvent::Blanking { at, active } => {
+                    let c = self.wired.comp;
+                    for n in 1..=4 {
+                        let tim1_oc5 = self
+                            .model::<CompBank>(c)
+                            .and_then(|b| b.config(n))
+                            .is_some_and(|cfg| cfg.blanking == Some(BlankingSource::Tim1Oc5));
+                        if tim1_oc5 {
+                            if let Some(b) = self.model_mut::<CompBank>(c) {
+                                b.set_blanking(n, active, at);
+                            }
+                        }
+                    }
+                    self.refresh(c);
+                    self.comp_edges();
+                }
+                TimEvent::Update { .. }
+                | TimEvent::GateChanged { .. }
+                | TimEvent::OutputsOff { .. }
+                | TimEvent::OutputsOn { .. } => self.board.power_stage(ev),
+                TimEvent::Trgo { .. } | TimEvent::Break { .. } => {}
+            }
+        }
+        self.sample_comparators(t);
+    }
+
+    /// The comparators' inputs at `t`, from the board (the plant) and the thresholds the
+    /// DACs / VREFINT give.
+    fn sample_comparators(&mut self, t: Cycles) {
+        let c = self.wired.comp;
+        let snap = self.analog_snapshot();
+        for n in 1..=4usize {
+            let Some(cfg) = self.model::<CompBank>(c).and_then(|b| b.config(n)) else {
+                continue;
+            };
+            if !cfg.enabled {
+                continue;
+            }
+            let inm = match cfg.inm {
+                InvertingInput::Vrefint { fraction, enabled } => {
+                    if !enabled {
+                        continue;
+                    }
+                    fraction * VREFINT_VOLTS
+                }
+                InvertingInput::Dac { dac, channel } => {
+                    let v = match dac {
+                        DacId::Dac1 => snap.dac1.get(channel).copied().flatten(),
+                        DacId::Dac3 => snap.dac3.get(channel).copied().flatten(),
+                    };
+                    // A DAC that is off drives nothing: the input floats low.
+                    v.unwrap_or(0.0)
+                }
+                InvertingInput::Pin(pin) => self.board.pin_volts(pin, t),
+            };
+            let above = self.board.comparator_above(&cfg, inm, t);
+            if let Some(b) = self.model_mut::<CompBank>(c) {
+                b.set_input(n, above, t);
+            }
+        }
+        self.refresh(c);
+        self.comp_edges();
+    }
+
+    /// Comparator output changes to TIM1's break inputs and the EXTI lines.
+    fn comp_edges(&mut self) {
+        let c = self.wired.comp;
+        let edges = match self.model_mut::<CompBank>(c) {
+            Some(b) => b.take_edges(),
+            None => return,
+        };
+        if edges.is_empty() {
+            return;
+        }
+        let t1 = self.wired.tim1;
+        for e in &edges {
+            if let Some(tim) = self.model_mut::<TimAdv>(t1) {
+                tim.set_comparator(e.comp, e.level, e.at);
+            }
+            if let Some(&line) = crate::periph::exti::COMP_LINES.get(e.comp - 1) {
+                self.exti_mut().set_line(line, e.level);
+            }
+        }
+        self.refresh(t1);
+        let x = self.exti;
+        self.refresh(x);
+    }
+
+    /// The core locked up (or recovered by reset): with SYSCFG_CFGR2.CLL the LOCKUP signal
+    /// is a system break of TIM1 (RM0440 Table 271).
+    pub fn lockup(&mut self, locked: bool) {
+        use crate::periph::syscfg::cfgr2;
+        if self.syscfg().cfgr2() & cfgr2::CLL == 0 {
+            return;
+        }
+        let now = self.now;
+        let k = self.wired.tim1;
+        self.advance_slot(k, now);
+        if let Some(tim) = self.model_mut::<TimAdv>(k) {
+            tim.set_system_break(locked, now);
+        }
+        self.refresh(k);
+        self.after_event(k, now);
+    }
+
+    /// The TIM1 model (for the host's plant wiring and tests).
+    pub fn tim1(&self) -> Option<&TimAdv> {
+        self.model::<TimAdv>(self.wired.tim1)
+    }
+
     /// Slot `k` can raise or drop a DMA request, or is a DMA controller.
     fn dma_related(&self, k: usize) -> bool {
         let w = &self.wired;
-        w.usart.contains(&k) || w.dma.contains(&k) || w.dmamux == k || w.i2c.contains(&k)
+        w.usart.contains(&k)
+            || w.dma.contains(&k)
+            || w.dmamux == k
+            || w.i2c.contains(&k)
+            || w.adc12 == k
     }
 
     fn apply_rcc_resets(&mut self) {
@@ -834,11 +1082,10 @@ impl Soc {
             return 0;
         }
         let now = self.now;
-        let Some(s) = self.slots.get_mut(k) else {
+        let Some(off) = self.slots.get(k).map(|s| addr - s.base) else {
             return 0;
         };
-        let off = addr - s.base;
-        s.model.advance(now);
+        self.advance_slot(k, now);
         let gpio_port = self.gpio.iter().position(|g| *g == k);
         let value = match gpio_port {
             Some(port) if off == 0x10 => self.read_idr(port as u8, k),
@@ -931,17 +1178,15 @@ impl Soc {
             return;
         }
         let now = self.now;
+        self.advance_slot(k, now);
         let ok = match self.slots.get_mut(k) {
-            Some(s) => {
-                s.model.advance(now);
-                s.model.write(
-                    Write {
-                        offset: aligned - s.base,
-                        ..w
-                    },
-                    now,
-                )
-            }
+            Some(s) => s.model.write(
+                Write {
+                    offset: aligned - s.base,
+                    ..w
+                },
+                now,
+            ),
             None => false,
         };
         if !ok {
@@ -1064,10 +1309,15 @@ impl Soc {
             return;
         }
         self.poll.counter_loop = (0, 0, 0);
-        if self.poll.addr == addr && self.poll.value == value && self.poll.streak > 0 {
+        if self.poll.addr == addr
+            && self.poll.value == value
+            && self.poll.block == self.block
+            && self.poll.streak > 0
+        {
             self.poll.streak += 1;
         } else {
             self.poll = Poll {
+                block: self.block,
                 addr,
                 value,
                 streak: 1,
@@ -1174,6 +1424,23 @@ impl Soc {
     /// Freezes what DBGMCU says while the core is halted by a debugger.
     pub fn debug_halt(&mut self, halted: bool) {
         let now = self.now;
+        if self.dbgmcu().tim1_stop() {
+            let k = self.wired.tim1;
+            self.advance_slot(k, now);
+            if let Some(t) = self.model_mut::<TimAdv>(k) {
+                t.set_debug_halt(halted, now);
+            }
+            self.refresh(k);
+            self.after_event(k, now);
+        }
+        if self.dbgmcu().tim4_stop() {
+            let k = self.wired.tim_gp[2];
+            self.advance_slot(k, now);
+            if let Some(t) = self.model_mut::<TimGp>(k) {
+                t.set_debug_halt(halted, now);
+            }
+            self.refresh(k);
+        }
         if self.dbgmcu().iwdg_stop() {
             let k = self.iwdg;
             if let Some(w) = self.model_mut::<Iwdg>(k) {
@@ -1186,6 +1453,72 @@ impl Soc {
     /// Syscfg slot index.
     pub fn syscfg_slot(&self) -> usize {
         self.syscfg
+    }
+}
+
+/// The other models' state the ADC's analog adapter needs.
+struct AnalogSnapshot {
+    opamps: [Option<OpampConfig>; 3],
+    dac1: [Option<f64>; 2],
+    dac3: [Option<f64>; 2],
+}
+
+/// What the ADC converts: pins from the board, OPAMP outputs computed from their inputs,
+/// the internal references.
+struct AnalogAdapter<'a> {
+    board: &'a mut dyn Board,
+    snap: &'a AnalogSnapshot,
+}
+
+/// The pin of ADC `adc`'s external channel `ch` (from the metadata's pin table).
+fn adc_pin(adc: AdcId, ch: u8) -> Option<&'static str> {
+    let name = match adc {
+        AdcId::Adc1 => "ADC1",
+        AdcId::Adc2 => "ADC2",
+    };
+    let signal = format!("IN{ch}");
+    names::peripheral(name)?
+        .pins
+        .iter()
+        .find(|p| p.signal == signal)
+        .map(|p| p.pin)
+}
+
+impl AnalogAdapter<'_> {
+    fn opamp_out(&mut self, n: usize, at: Cycles) -> f64 {
+        let Some(cfg) = self.snap.opamps.get(n).copied().flatten() else {
+            return 0.0;
+        };
+        let vinp = match cfg.vinp {
+            OpampInput::Pin(p) => self.board.pin_volts(p, at),
+            OpampInput::Dac3(ch) => self.snap.dac3.get(ch).copied().flatten().unwrap_or(0.0),
+            OpampInput::NotConnected => 0.0,
+        };
+        let vinm0 = match cfg.mode {
+            crate::periph::opamp::OpampMode::PgaVinm0 { vinm0, .. } => {
+                self.board.pin_volts(vinm0, at)
+            }
+            _ => 0.0,
+        };
+        cfg.output_volts(vinp, vinm0).unwrap_or(0.0)
+    }
+}
+
+impl AnalogSource for AnalogAdapter<'_> {
+    fn volts(&mut self, adc: AdcId, channel: u8, at: Cycles) -> f64 {
+        match (adc, channel) {
+            (AdcId::Adc1, 13) => self.opamp_out(0, at),
+            (AdcId::Adc2, 16) => self.opamp_out(1, at),
+            (AdcId::Adc2, 18) => self.opamp_out(2, at),
+            // Temperature sensor at 30 °C (DS12589 V30), VBAT/3 at 3.3 V, VREFINT.
+            (AdcId::Adc1, 16) => 0.76,
+            (AdcId::Adc1, 17) => 3.3 / 3.0,
+            (AdcId::Adc1, 18) => VREFINT_VOLTS,
+            _ => match adc_pin(adc, channel) {
+                Some(pin) => self.board.pin_volts(pin, at),
+                None => 0.0,
+            },
+        }
     }
 }
 
@@ -1238,7 +1571,7 @@ mod tests {
         // LSION: LSIRDY follows after the start-up time; polling CSR jumps there.
         s.bus_write(0x4002_1094, 4, 1);
         let ready_at = s.next_event().unwrap_or(0);
-        for _ in 0..3 {
+        for _ in 0..POLL_STREAK {
             s.bus_read(0x4002_1094, 4);
         }
         assert_eq!(s.now, ready_at);
@@ -1249,7 +1582,7 @@ mod tests {
         s.advance_to(s.now + 10_000);
         // The run loop sets the deadline anew for each run slice.
         s.deadline = 1_000_000;
-        for _ in 0..4 {
+        for _ in 0..POLL_STREAK {
             s.bus_read(0x4002_1000, 4);
         }
         assert!(s
