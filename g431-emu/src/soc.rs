@@ -165,6 +165,12 @@ impl PinReader for BareBoard {
 
 impl Board for BareBoard {}
 
+/// A pin as (port, number): `(1, 8)` is PB8.
+pub type PinId = (u8, u8);
+
+/// An I2C bus's (SCL, SDA) pins on the board.
+pub type BusPins = (PinId, PinId);
+
 /// Slot indices of the models the SoC wires to each other or to the host.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Slots {
@@ -250,7 +256,7 @@ pub struct Soc {
     pub wired: Slots,
     /// The board's I2C bus pins (SCL, SDA) as (port, pin), per I2C instance: the SoC drives
     /// the bus when the firmware bit-bangs those pins as GPIO (bus recovery).
-    i2c_pins: [Option<((u8, u8), (u8, u8))>; 3],
+    i2c_pins: [Option<BusPins>; 3],
     /// A DMA service is running (its register accesses must not start another).
     in_dma: bool,
 }
@@ -424,7 +430,7 @@ impl Soc {
 
     /// Attaches a device to the bus of I2C instance `k` (0 = I2C1) whose SCL/SDA are
     /// `scl`/`sda` on the board.
-    pub fn attach_i2c(&mut self, k: usize, dev: SharedDevice, scl: (u8, u8), sda: (u8, u8)) {
+    pub fn attach_i2c(&mut self, k: usize, dev: SharedDevice, scl: PinId, sda: PinId) {
         if let Some(p) = self.i2c_pins.get_mut(k) {
             *p = Some((scl, sda));
         }
@@ -448,7 +454,7 @@ impl Soc {
             let Some((scl, sda)) = self.i2c_pins.get(k).copied().flatten() else {
                 continue;
             };
-            let level = |s: &Soc, (port, pin): (u8, u8)| -> Option<bool> {
+            let level = |s: &Soc, (port, pin): PinId| -> Option<bool> {
                 let g = s.gpio(port)?;
                 (g.mode(pin) == crate::periph::gpio::Mode::Output).then(|| !g.odr_bit(pin))
             };
