@@ -15,8 +15,14 @@
 //! | DC link voltage | PA0 | ADC1_IN1 (injected), COMP3_INP vs DAC1_CH1 | VBUS |
 //! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 (injected) | POT |
 //! | brake chopper gate | PB5 | GPIO out, active high | free pin |
-//! | link TX / RX | PB3 / PB4 | USART2 (AF7), DMA1 CH1 / CH2 | VCP TX / RX |
+//! | link TX / RX | PB6 / PB7 | USART1 (AF7), DMA1 CH1 / CH2 | encoder/Hall H1 / H2 pads |
 //! | heartbeat LED (toggles while the watchdog is fed) | PC6 | GPIO out | LED |
+
+//!
+//! The link is not on USART2 (PB3/PB4): those are the virtual COM port of the ST-LINK on the
+//! ESC1's detachable daughterboard, whose TX drives PB4 push-pull while it is attached, so
+//! the PLC could never pull that line low (board review D3). PB6/PB7 are the encoder/Hall
+//! inputs H1/H2, free without an encoder.
 
 use embassy_stm32::{peripherals as p, Peri, Peripherals};
 
@@ -55,9 +61,9 @@ pub struct Protection {
 
 /// The PLC link USART with its DMA channels.
 pub struct Link {
-    pub usart: Peri<'static, p::USART2>,
-    pub tx: Peri<'static, p::PB3>,
-    pub rx: Peri<'static, p::PB4>,
+    pub usart: Peri<'static, p::USART1>,
+    pub tx: Peri<'static, p::PB6>,
+    pub rx: Peri<'static, p::PB7>,
     pub tx_dma: Peri<'static, p::DMA1_CH1>,
     pub rx_dma: Peri<'static, p::DMA1_CH2>,
 }
@@ -106,9 +112,9 @@ pub fn split(p: Peripherals) -> Board {
             dac_voltage: p.DAC1,
         },
         link: Link {
-            usart: p.USART2,
-            tx: p.PB3,
-            rx: p.PB4,
+            usart: p.USART1,
+            tx: p.PB6,
+            rx: p.PB7,
             tx_dma: p.DMA1_CH1,
             rx_dma: p.DMA1_CH2,
         },

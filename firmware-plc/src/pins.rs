@@ -11,9 +11,14 @@
 //! | analog A00, A01, A02, A03 | PA0, PA1, PB0, PC1 | ADC1_IN1, IN2, IN15, IN7 | Arduino A0, A1, A3, A4 |
 //! | keypad rows R0..R3 (driven low one at a time) | PA6, PA7, PB6, PB7 | GPIO out, open drain | morpho |
 //! | keypad columns C0..C3 | PC2, PC3, PC4, PC5 | GPIO in, pull-up | morpho |
-//! | I2C SCL / SDA (24C256 at 0x50, PCF8574 LCD at 0x27) | PB8 / PB9 | I2C1 (AF4) | Arduino D15 / D14 |
+//! | I2C SCL / SDA (24C256 at 0x50, PCF8574 LCD at 0x27) | PA8 / PB5 | I2C3 (AF2 / AF8) | Arduino D7 / D4 |
 //! | link TX / RX | PA9 / PA10 | USART1 (AF7), DMA1 CH1 / CH2 | Arduino D8 / D2 |
 //! | heartbeat LED (toggles while the watchdog is fed) | PA5 | GPIO out | LD2 |
+
+//!
+//! The I2C bus is not on PB8/PB9 (I2C1): PB8 is BOOT0 with the factory option bytes
+//! (nSWBOOT0 = 1), and the bus's pull-ups would make every reset boot the ROM bootloader
+//! (board review D2). PB8 must never be an input that can be high at reset.
 
 use embassy_stm32::{peripherals as p, Peri, Peripherals};
 
@@ -62,9 +67,9 @@ pub struct Keypad {
 
 /// The I2C bus with the EEPROM and the LCD backpack.
 pub struct Bus {
-    pub i2c: Peri<'static, p::I2C1>,
-    pub scl: Peri<'static, p::PB8>,
-    pub sda: Peri<'static, p::PB9>,
+    pub i2c: Peri<'static, p::I2C3>,
+    pub scl: Peri<'static, p::PA8>,
+    pub sda: Peri<'static, p::PB5>,
 }
 
 /// The drive link USART with its DMA channels.
@@ -132,9 +137,9 @@ pub fn split(p: Peripherals) -> Board {
             c3: p.PC5,
         },
         bus: Bus {
-            i2c: p.I2C1,
-            scl: p.PB8,
-            sda: p.PB9,
+            i2c: p.I2C3,
+            scl: p.PA8,
+            sda: p.PB5,
         },
         link: Link {
             usart: p.USART1,

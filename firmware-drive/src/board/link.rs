@@ -1,4 +1,4 @@
-//! The PLC link: USART2, 115200 8N1, TX and RX on DMA (RX into a ring buffer so no byte is
+//! The PLC link: USART1, 115200 8N1, TX and RX on DMA (RX into a ring buffer so no byte is
 //! lost while the task is busy).
 
 use embassy_stm32::mode::Async;
@@ -20,7 +20,7 @@ const RX_RING_BYTES: usize = 256;
 const POLL: Duration = Duration::from_millis(1);
 
 bind_interrupts!(struct Irqs {
-    USART2 => usart::InterruptHandler<peripherals::USART2>;
+    USART1 => usart::InterruptHandler<peripherals::USART1>;
     DMA1_CHANNEL1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
     DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
 });

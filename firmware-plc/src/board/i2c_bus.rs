@@ -1,4 +1,4 @@
-//! I2C1 at 100 kHz (the PCF8574's rating) shared by the EEPROM and the LCD backpack.
+//! I2C3 at 100 kHz (the PCF8574's rating) shared by the EEPROM and the LCD backpack.
 //!
 //! Both users run in the application task, so the bus is a `RefCell` borrowed for one
 //! blocking transaction at a time and never across an `await`.
