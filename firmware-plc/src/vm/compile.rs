@@ -597,6 +597,13 @@ mod tests {
     }
 
     #[test]
+    fn a_full_section_takes_eight_bytes_per_line() {
+        // docs/vm.md, "RAM": 850 x (op + timer start time).
+        assert_eq!(size_of::<Slot>(), 8);
+        assert!(size_of::<Code>() <= 850 * 8 + 4);
+    }
+
+    #[test]
     fn the_benchmark_programs_fit() {
         // Mixed: 50 blocks of 17 lines. Only 4 of the 50 `LCD` lines fill a field, and
         // `LD B`+`AND`, `LDC D`+`OR` fuse while their push cannot drop a bit (the stack

@@ -43,7 +43,7 @@ pub const B_COUNT: usize = 100;
 pub const Q_COUNT: usize = 64;
 
 /// The PLC VM: the compiled program with its timer/edge state, the data memory, the
-/// first-scan flag and the last direction request. About 7.6 KiB, all inline (no
+/// first-scan flag and the last direction request. About 7.4 KiB, all inline (no
 /// allocation). `Clone` gives a snapshot (e.g. for hil-sim).
 #[derive(Clone)]
 pub struct PlcVm {
