@@ -1,5 +1,5 @@
-//! The compiled form of the PLC section: one 4-byte [`Op`] per line that does something,
-//! built once at RUN from the stored lines (issue 21).
+//! The compiled form of the PLC section: at most one 4-byte [`Op`] per line that does
+//! something, built once at RUN from the stored lines (issue 21, docs/vm.md).
 //!
 //! What compiling decides once instead of every scan:
 //! * empty lines, drive mnemonics and lines with invalid operands (no-ops in the VM) are
@@ -14,6 +14,10 @@
 //!   is dropped;
 //! * only the last `REV` of the section matters (its direction is what the scan reports),
 //!   so the others are dropped;
+//! * S is a 32-bit register at run time; how many of its bits can be in use is known
+//!   here too, so only a push that can drop bit 15 of the 16-bit stack masks
+//!   ([`Op::PushDrop`]);
+//! * a bit load followed by a binary logic op becomes one op ([`Op::AndBit`] ...);
 //! * timer and `ACK` lines carry their flag byte inside the op, a timer's start time sits
 //!   next to it ([`Slot`]).
 //!
