@@ -187,7 +187,8 @@ impl<E: Eeprom> PlcApp<E> {
     }
 
     /// The program, for loading it from elsewhere (e.g. hil-sim from a text file) while
-    /// stopped. Changing it while running has no effect on the drive until the next RUN.
+    /// stopped. Changing it while running has no effect until the next RUN: the drive
+    /// runs the section downloaded at RUN, the PLC the section compiled at RUN.
     pub fn program_mut(&mut self) -> &mut Program {
         &mut self.program
     }
@@ -318,7 +319,8 @@ impl<E: Eeprom> PlcApp<E> {
             self.run = RunState::WaitLink;
             return;
         }
-        self.vm.start(now.millis());
+        // Compiles the PLC section now (issue 21), not in the first scan.
+        self.vm.start_program(&self.program, now.millis());
         self.link.forget_q();
         self.q_sent = [None; Q_COUNT];
         self.drive_writes_q = drive_written_q(&self.program);

@@ -6,21 +6,34 @@
 //! [`Program`] (lines the verifier would reject execute as no-ops), any inputs and any
 //! time (wrapping-safe).
 //!
-//! The scan interprets the [`Program`] directly: the worst case (850 lines) stays far
-//! below the 1 ms budget on the 170 MHz Cortex-M4 (see `benches/scan.rs` and
-//! `src/bin/m4bench.rs`), so no compiled form is needed and the editor's program is
-//! always the one that runs.
+//! At RUN the PLC section is compiled once into a pre-decoded form (`compile.rs`: one
+//! 4-byte op per line that does something, operands resolved to memory cells, constants
+//! inline) and every scan runs that (`exec.rs`), about four times faster than
+//! interpreting the stored lines (docs/vm.md, "Speed"). The direct interpreter is kept,
+//! in test builds only, as the oracle of a differential test (`reference.rs`,
+//! `differential.rs`).
 
 mod arith;
+mod cells;
+mod compile;
+mod exec;
 mod io;
 pub mod sample;
 mod timer;
 
+#[cfg(test)]
+mod differential;
+#[cfg(test)]
+mod reference;
+
 pub use io::{DriveView, ScanInputs, ScanOutputs, Warning, LCD_FIELDS, OUTPUTS, OUTPUT_MASK};
 
-use shared_protocol::program::{Instruction, Mnemonic, Operand, Program, LINES, PLC_FIRST_LINE};
+use cells::Cells;
+use compile::Code;
+#[cfg(test)]
+use shared_protocol::program::{Instruction, Mnemonic, Operand};
+use shared_protocol::program::{Program, LINES, PLC_FIRST_LINE};
 use shared_protocol::units::Millis;
-use timer::LineState;
 
 /// Number of PLC-section lines (150-999), each with its own timer/edge state.
 pub const PLC_LINES: usize = LINES - PLC_FIRST_LINE as usize;
@@ -28,77 +41,44 @@ pub const PLC_LINES: usize = LINES - PLC_FIRST_LINE as usize;
 pub const B_COUNT: usize = 100;
 /// Integer variables Q00-Q63.
 pub const Q_COUNT: usize = 64;
-/// Largest value of the 10-bit analog operands (A, COM).
-const ADC_MAX: u16 = 1023;
 
-/// The PLC's data memory: what RUN clears and the program reads and writes.
-#[derive(Clone)]
-struct Memory {
-    b: [bool; B_COUNT],
-    q: [i16; Q_COUNT],
-    /// Output image O00-O05 (bit n = On); kept between scans.
-    o: u8,
-}
-
-/// The working registers of one scan.
-struct Regs {
-    /// Bit stack, bit 0 = S0 (top).
-    s: u16,
-    /// Accumulator ("pomkonst").
-    p: i16,
-    /// How many bits loaded in this scan are still on S (0..=16); lets `CTU`/`CTD` tell
-    /// a lone count input from a count + reset pair.
-    depth: u8,
-}
-
-impl Regs {
-    fn top(&self) -> bool {
-        self.s & 1 != 0
-    }
-    fn push(&mut self, bit: bool) {
-        self.s = (self.s << 1) | u16::from(bit);
-        self.depth = (self.depth + 1).min(16);
-    }
-    fn pop(&mut self) {
-        self.s >>= 1;
-        self.depth = self.depth.saturating_sub(1);
-    }
-    fn set_top(&mut self, bit: bool) {
-        self.s = (self.s & !1) | u16::from(bit);
-    }
-    /// Pops t = S0 and combines the new S0 with it.
-    fn combine(&mut self, op: impl Fn(bool, bool) -> bool) {
-        let t = self.top();
-        self.pop();
-        self.depth = self.depth.max(1);
-        let s0 = self.top();
-        self.set_top(op(s0, t));
-    }
-}
-
-/// Read-only context of one scan.
-struct Env<'a> {
-    inputs: &'a ScanInputs,
-    now: Millis,
-    first_scan: bool,
-}
-
-/// The PLC VM: data memory, per-line timer/edge state, the first-scan flag and the last
-/// direction request. About 4.6 KiB, all inline (no allocation). `Clone` gives a
-/// snapshot (e.g. for hil-sim).
+/// The PLC VM: the compiled program with its timer/edge state, the data memory, the
+/// first-scan flag and the last direction request. About 7.4 KiB, all inline (no
+/// allocation). `Clone` gives a snapshot (e.g. for hil-sim).
 #[derive(Clone)]
 pub struct PlcVm {
-    mem: Memory,
-    /// Per PLC line (index = line - 150): timer/edge flags, see `timer`.
-    flags: [u8; PLC_LINES],
-    /// Per PLC line: when its timer started.
-    since: [Millis; PLC_LINES],
-    first_scan: bool,
-    /// Direction set by the last `REV` executed in this RUN (`true` = reverse).
-    rev_state: Option<bool>,
-    /// Direction last reported in [`ScanOutputs::rev_request`]; `None` at RUN start, so
+    /// B, O, Q and the inputs of the current scan.
+    cells: Cells,
+    /// The PLC section compiled at RUN, with its timer/edge state.
+    code: Code,
+    /// `code` holds the program of this RUN (set by [`PlcVm::start_program`] or by the
+    /// first scan after [`PlcVm::start`]).
+    compiled: bool,
+    /// A scan has run since RUN started (the first-scan rules are off).
+    scanned: bool,
+    /// Direction set by the last `REV` executed in this RUN.
+    rev_state: Direction,
+    /// Direction last reported in [`ScanOutputs::rev_request`]; `Unset` at RUN start, so
     /// the first `REV` always reports (the drive may hold an earlier RUN's direction).
-    rev_reported: Option<bool>,
+    rev_reported: Direction,
+}
+
+/// The direction set by a `REV`; `Unset` (none in this RUN yet) is 0.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Direction {
+    Unset,
+    Forward,
+    Reverse,
+}
+
+impl Direction {
+    fn from_reverse(reverse: bool) -> Self {
+        if reverse {
+            Direction::Reverse
+        } else {
+            Direction::Forward
+        }
+    }
 }
 
 impl Default for PlcVm {
@@ -110,51 +90,72 @@ impl Default for PlcVm {
 impl PlcVm {
     /// A VM in the state RUN starts from (as after [`PlcVm::start`]).
     pub const fn new() -> Self {
-        PlcVm {
-            mem: Memory {
-                b: [false; B_COUNT],
-                q: [0; Q_COUNT],
-                o: 0,
-            },
-            flags: [0; PLC_LINES],
-            since: [Millis(0); PLC_LINES],
-            first_scan: true,
-            rev_state: None,
-            rev_reported: None,
-        }
+        Self::EMPTY
     }
+
+    /// The VM as RUN starts it. All zero bytes (see `Direction`, `scanned`, `Code::new`):
+    /// the board builds the application in its static slot, and a zero constant is
+    /// written there directly, not first on the stack (CI's stack step) or as a copy of
+    /// a 7.6 KiB constant in flash.
+    const EMPTY: PlcVm = PlcVm {
+        cells: Cells::new(),
+        code: Code::new(),
+        compiled: false,
+        scanned: false,
+        rev_state: Direction::Unset,
+        rev_reported: Direction::Unset,
+    };
 
     /// RUN starts: clears B, Q, the output image and every line's timer/edge state, and
     /// arms the first-scan rule. The first `REV` executed after it reports its direction.
-    pub fn start(&mut self, now: Millis) {
-        *self = Self::new();
-        self.since = [now; PLC_LINES];
+    /// The program is compiled by the first [`PlcVm::scan`] (use
+    /// [`PlcVm::start_program`] to compile it now). `now` is not needed: a timer starts
+    /// at the first scan that sees its input.
+    pub fn start(&mut self, _now: Millis) {
+        self.cells = Cells::new();
+        self.code.clear();
+        self.compiled = false;
+        self.scanned = false;
+        self.rev_state = Direction::Unset;
+        self.rev_reported = Direction::Unset;
+    }
+
+    /// RUN starts with `program` (verified by the caller): [`PlcVm::start`], then the PLC
+    /// section is compiled at once, so the first scan takes no longer than the others.
+    /// Every scan of this RUN executes this program, whatever [`PlcVm::scan`] is given.
+    pub fn start_program(&mut self, program: &Program, now: Millis) {
+        self.start(now);
+        self.code.compile(program, now);
+        self.compiled = true;
     }
 
     /// The PLC's copy of Qn (0 for n out of range).
     pub fn q(&self, addr: u8) -> i16 {
-        self.mem.q.get(usize::from(addr)).copied().unwrap_or(0)
+        self.cells.q(addr)
     }
 
     /// Bit memory Bn (false for n out of range).
     pub fn b(&self, addr: u8) -> bool {
-        self.mem.b.get(usize::from(addr)).copied().unwrap_or(false)
+        self.cells.b(addr)
     }
 
     /// Output image On as the last scan left it.
     pub fn output(&self, n: u8) -> bool {
-        n < OUTPUTS && self.mem.o & (1 << n) != 0
+        n < OUTPUTS && self.cells.outputs() & (1 << n) != 0
     }
 
     /// `true` until the first scan after [`PlcVm::start`] has run.
     pub fn is_first_scan(&self) -> bool {
-        self.first_scan
+        !self.scanned
     }
 
     /// One scan: executes lines 150-999 in order with the inputs sampled by the caller at
     /// the start of the scan and `now` from the monotonic ms clock; overwrites `out`.
     ///
-    /// S and P start every scan at 0.
+    /// The first scan after [`PlcVm::start`] compiles `program`; the later scans of the
+    /// RUN execute that compiled form and do not read `program` (pass the same one; the
+    /// PLC application cannot change its program while running). S and P start every scan
+    /// at 0.
     pub fn scan(
         &mut self,
         program: &Program,
@@ -162,265 +163,25 @@ impl PlcVm {
         now: Millis,
         out: &mut ScanOutputs,
     ) {
+        if !self.compiled {
+            self.code.compile(program, now);
+            self.compiled = true;
+        }
         *out = ScanOutputs::default();
-        let env = Env {
-            inputs,
+        self.cells.load_inputs(inputs);
+        let env = exec::Env {
             now,
-            first_scan: self.first_scan,
+            first_scan: !self.scanned,
         };
-        let mut regs = Regs {
-            s: 0,
-            p: 0,
-            depth: 0,
-        };
-        let mut lcd_used = 0usize;
-        let plc = program
-            .lines
-            .get(usize::from(PLC_FIRST_LINE)..)
-            .unwrap_or(&[]);
-        // A plain index loop keeps S, P and the line pointer in registers on the M4.
-        for (idx, slot) in plc.iter().enumerate() {
-            if let Some(ins) = slot {
-                self.exec(&mut regs, &env, out, &mut lcd_used, ins, idx);
-            }
+        if let Some(rev) = exec::run(self.code.slots(), &mut self.cells, &env, out) {
+            self.rev_state = Direction::from_reverse(rev);
         }
-        if self.rev_state.is_some() && self.rev_state != self.rev_reported {
+        if self.rev_state != Direction::Unset && self.rev_state != self.rev_reported {
             self.rev_reported = self.rev_state;
-            out.rev_request = self.rev_state;
+            out.rev_request = Some(self.rev_state == Direction::Reverse);
         }
-        out.outputs = self.mem.o & OUTPUT_MASK;
-        self.first_scan = false;
-    }
-}
-
-impl PlcVm {
-    /// Executes one instruction of PLC line `PLC_FIRST_LINE + idx`.
-    #[inline(always)]
-    fn exec(
-        &mut self,
-        regs: &mut Regs,
-        env: &Env<'_>,
-        out: &mut ScanOutputs,
-        lcd_used: &mut usize,
-        ins: &Instruction,
-        idx: usize,
-    ) {
-        use Mnemonic as M;
-        let mem = &mut self.mem;
-        let x = ins.operand;
-        let k = ins.constant;
-        match ins.mnemonic {
-            M::Ld => match x {
-                Some(Operand::Vlt) => regs.p = arith::vlt(regs.p),
-                Some(Operand::Amp) => regs.p = arith::amp(regs.p),
-                Some(op) => {
-                    if let Some(bit) = read_bit(mem, env, op) {
-                        regs.push(bit);
-                    } else if let Some(v) = read_int(mem, env, op, k) {
-                        regs.p = v;
-                    }
-                }
-                None => {}
-            },
-            M::Ldc => {
-                if let Some(bit) = x.and_then(|op| read_bit(mem, env, op)) {
-                    regs.push(!bit);
-                }
-            }
-            M::Wr | M::Wrc => {
-                // WR stores S0, WRC its complement; to Q only when that is 1.
-                let value = regs.top() == (ins.mnemonic == M::Wr);
-                match x {
-                    Some(Operand::Q(n)) if value => write_q(mem, out, n, regs.p),
-                    // write_bit ignores Q (the condition was false) and non-bit operands.
-                    Some(op) => write_bit(mem, op, value),
-                    None => {}
-                }
-            }
-            M::Not => regs.s ^= 1,
-            M::And => regs.combine(|s, t| s & t),
-            M::Or => regs.combine(|s, t| s | t),
-            M::Xor => regs.combine(|s, t| s ^ t),
-            M::Anc => regs.combine(|s, t| s & !t),
-            M::Orc => regs.combine(|s, t| s | !t),
-            M::Let => {
-                if let Some(Operand::B(n)) = x {
-                    if let Some(b) = mem.b.get_mut(usize::from(n)) {
-                        let s0 = regs.top();
-                        let edge = s0 && !*b && !env.first_scan;
-                        *b = s0;
-                        regs.set_top(edge);
-                    }
-                }
-            }
-            M::Io | M::Set | M::Res => {
-                if let Some(op) = x.filter(|_| regs.top()) {
-                    let value = match ins.mnemonic {
-                        M::Set => Some(true),
-                        M::Res => Some(false),
-                        _ => read_bit(mem, env, op).map(|v| !v),
-                    };
-                    if let Some(v) = value {
-                        write_bit(mem, op, v);
-                    }
-                }
-            }
-            M::Eq | M::Gt | M::Lt => {
-                if let Some(v) = x.and_then(|op| read_int(mem, env, op, k)) {
-                    let p = regs.p;
-                    regs.set_top(match ins.mnemonic {
-                        M::Eq => p == v,
-                        M::Gt => p > v,
-                        _ => p < v,
-                    });
-                }
-            }
-            M::Ctu | M::Ctd => {
-                if let Some(Operand::Q(n)) = x {
-                    if let Some(q) = mem.q.get_mut(usize::from(n)) {
-                        // With fewer than two bits loaded in this scan there is no reset
-                        // input: S0 is the count input (docs/vm.md).
-                        let pair = regs.depth >= 2;
-                        let s0 = regs.top();
-                        regs.pop();
-                        let (reset, count) = if pair {
-                            (s0, !s0 && regs.top())
-                        } else {
-                            (false, s0)
-                        };
-                        if reset {
-                            *q = 0;
-                        } else if count {
-                            *q = if ins.mnemonic == M::Ctu {
-                                q.saturating_add(1)
-                            } else {
-                                q.saturating_sub(1)
-                            };
-                        }
-                    }
-                }
-            }
-            M::Ton | M::Tof | M::Imp => {
-                let v = x.and_then(|op| read_int(mem, env, op, k));
-                if let (Some(v), Some(flags), Some(since)) =
-                    (v, self.flags.get_mut(idx), self.since.get_mut(idx))
-                {
-                    let st = LineState { flags, since };
-                    let preset = timer::preset_ms(v);
-                    let input = regs.top();
-                    regs.set_top(match ins.mnemonic {
-                        M::Ton => timer::on_delay(st, input, env.now, preset),
-                        M::Tof => timer::off_delay(st, input, env.now, preset),
-                        _ => timer::pulse(st, input, env.now, preset, env.first_scan),
-                    });
-                }
-            }
-            M::Add | M::Sub | M::Mul | M::Div => {
-                if let Some(v) = x.and_then(|op| read_int(mem, env, op, k)) {
-                    let p = regs.p;
-                    regs.p = match ins.mnemonic {
-                        M::Add => arith::add(p, v),
-                        M::Sub => arith::sub(p, v),
-                        M::Mul => arith::mul(p, v),
-                        _ => arith::div(p, v).unwrap_or_else(|| {
-                            let line = PLC_FIRST_LINE.saturating_add(idx as u16);
-                            out.warning.get_or_insert(Warning::Div0 { line });
-                            0
-                        }),
-                    };
-                }
-            }
-            M::Lcd => {
-                if let Some(field) = out.lcd.get_mut(*lcd_used) {
-                    *field = Some(regs.p);
-                    *lcd_used += 1;
-                }
-            }
-            M::Rev => self.rev_state = Some(regs.top()),
-            M::Ack => {
-                if let Some(flags) = self.flags.get_mut(idx) {
-                    if timer::rising_edge(flags, regs.top(), env.first_scan) {
-                        out.ack_request = true;
-                    }
-                }
-            }
-            // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
-            M::Pwf
-            | M::Pr0
-            | M::Pr1
-            | M::Pr2
-            | M::Pi
-            | M::Sn1
-            | M::Sn2
-            | M::Sn3
-            | M::RsSet
-            | M::UcSet
-            | M::IzSet
-            | M::CalcDu
-            | M::DuSet
-            | M::UMax
-            | M::UMin
-            | M::IMax
-            | M::Fmn
-            | M::Fjm
-            | M::Fmx
-            | M::Frv => {}
-        }
-    }
-}
-
-/// A bit operand's value; `None` if `op` is not a (valid) bit operand.
-fn read_bit(mem: &Memory, env: &Env<'_>, op: Operand) -> Option<bool> {
-    let inputs = env.inputs;
-    match op {
-        Operand::D(n) if n < 8 => Some(inputs.digital & (1 << n) != 0),
-        Operand::O(n) if n < OUTPUTS => Some(mem.o & (1 << n) != 0),
-        Operand::B(n) => mem.b.get(usize::from(n)).copied(),
-        Operand::Rdy => Some(inputs.drive.ready),
-        Operand::Flb => Some(inputs.drive.fault_latched),
-        _ => None,
-    }
-}
-
-/// An int operand's value; `None` if `op` is not a (valid) int operand.
-fn read_int(mem: &Memory, env: &Env<'_>, op: Operand, constant: u16) -> Option<i16> {
-    let d = &env.inputs.drive;
-    let adc = |v: u16| v.min(ADC_MAX) as i16;
-    match op {
-        Operand::A(n) => env.inputs.analog.get(usize::from(n)).map(|&v| adc(v)),
-        Operand::K(_) => Some(i16::try_from(constant).unwrap_or(i16::MAX)),
-        Operand::Q(n) => mem.q.get(usize::from(n)).copied(),
-        Operand::Com => Some(adc(d.com)),
-        Operand::Frq => Some(d.frq.0),
-        Operand::Udc => Some(d.udc.0),
-        Operand::Imx => Some(d.imx.0),
-        Operand::Flt => Some(i16::from(d.flt)),
-        Operand::Dir => Some(i16::from(d.dir_reverse)),
-        _ => None,
-    }
-}
-
-/// Writes a bit operand (O, B); anything else is ignored.
-fn write_bit(mem: &mut Memory, op: Operand, value: bool) {
-    match op {
-        Operand::O(n) if n < OUTPUTS => {
-            let mask = 1u8 << n;
-            mem.o = if value { mem.o | mask } else { mem.o & !mask };
-        }
-        Operand::B(n) => {
-            if let Some(b) = mem.b.get_mut(usize::from(n)) {
-                *b = value;
-            }
-        }
-        _ => {}
-    }
-}
-
-/// `WR`/`WRC` to Qn: stores it and reports it for the drive.
-fn write_q(mem: &mut Memory, out: &mut ScanOutputs, n: u8, value: i16) {
-    if let Some(q) = mem.q.get_mut(usize::from(n)) {
-        *q = value;
-        out.q_dirty |= 1u64 << n;
+        out.outputs = self.cells.outputs() & OUTPUT_MASK;
+        self.scanned = true;
     }
 }
 

@@ -25,9 +25,15 @@ pub fn preset_ms(preset_ds: i16) -> u32 {
     u32::try_from(preset_ds).unwrap_or(0) * 100
 }
 
-/// On-delay: output 1 once the input has been 1 continuously for `preset` ms, measured
-/// from the first scan that saw it 1.
-pub fn on_delay(st: LineState<'_>, input: bool, now: Millis, preset: u32) -> bool {
+/// Whether `preset_ds` (0.1 s) has elapsed at `now` since `since`.
+fn elapsed(now: Millis, since: Millis, preset_ds: i16) -> bool {
+    now.since(since) >= preset_ms(preset_ds)
+}
+
+/// On-delay: output 1 once the input has been 1 continuously for `preset_ds` (0.1 s),
+/// measured from the first scan that saw it 1.
+#[inline(always)]
+pub fn on_delay(st: LineState<'_>, input: bool, now: Millis, preset_ds: i16) -> bool {
     if !input {
         *st.flags = 0;
         return false;
@@ -39,7 +45,7 @@ pub fn on_delay(st: LineState<'_>, input: bool, now: Millis, preset: u32) -> boo
         *st.flags = RUNNING;
         *st.since = now;
     }
-    if now.since(*st.since) >= preset {
+    if elapsed(now, *st.since, preset_ds) {
         *st.flags = DONE;
         true
     } else {
@@ -47,9 +53,10 @@ pub fn on_delay(st: LineState<'_>, input: bool, now: Millis, preset: u32) -> boo
     }
 }
 
-/// Off-delay: output 1 while the input is 1 and until `preset` ms after the first scan
-/// that saw it 0 again. An input that is 0 from RUN on never starts the delay.
-pub fn off_delay(st: LineState<'_>, input: bool, now: Millis, preset: u32) -> bool {
+/// Off-delay: output 1 while the input is 1 and until `preset_ds` (0.1 s) after the first
+/// scan that saw it 0 again. An input that is 0 from RUN on never starts the delay.
+#[inline(always)]
+pub fn off_delay(st: LineState<'_>, input: bool, now: Millis, preset_ds: i16) -> bool {
     if input {
         *st.flags = PREV;
         return true;
@@ -61,7 +68,7 @@ pub fn off_delay(st: LineState<'_>, input: bool, now: Millis, preset: u32) -> bo
     if *st.flags & RUNNING == 0 {
         return false;
     }
-    if now.since(*st.since) >= preset {
+    if elapsed(now, *st.since, preset_ds) {
         *st.flags = 0;
         false
     } else {
@@ -69,26 +76,32 @@ pub fn off_delay(st: LineState<'_>, input: bool, now: Millis, preset: u32) -> bo
     }
 }
 
-/// Pulse: a rising edge of the input (not on the first scan) starts a `preset` ms pulse;
-/// edges while it runs are ignored. A preset of 0 gives no pulse.
-pub fn pulse(st: LineState<'_>, input: bool, now: Millis, preset: u32, first_scan: bool) -> bool {
+/// Pulse: a rising edge of the input (not on the first scan) starts a `preset_ds` (0.1 s)
+/// pulse; edges while it runs are ignored. A preset of 0 gives no pulse.
+#[inline(always)]
+pub fn pulse(
+    st: LineState<'_>,
+    input: bool,
+    now: Millis,
+    preset_ds: i16,
+    first_scan: bool,
+) -> bool {
     let edge = input && *st.flags & PREV == 0 && !first_scan;
     let mut running = *st.flags & RUNNING != 0;
-    if running && now.since(*st.since) >= preset {
+    if running && elapsed(now, *st.since, preset_ds) {
         running = false;
     }
     if edge && !running {
-        running = true;
         *st.since = now;
-    }
-    if running && now.since(*st.since) >= preset {
-        running = false;
+        // A preset of 0 ends the pulse at once.
+        running = preset_ds > 0;
     }
     *st.flags = if input { PREV } else { 0 } | if running { RUNNING } else { 0 };
     running
 }
 
 /// Rising edge of the input since the previous scan (never on the first scan).
+#[inline(always)]
 pub fn rising_edge(flags: &mut u8, input: bool, first_scan: bool) -> bool {
     let edge = input && *flags & PREV == 0 && !first_scan;
     *flags = if input { PREV } else { 0 };
@@ -130,27 +143,27 @@ mod tests {
     #[test]
     fn on_delay_counts_from_first_scan_with_input() {
         let mut s = Slot::new();
-        assert!(!on_delay(s.st(), false, Millis(0), 1000));
-        assert!(!on_delay(s.st(), true, Millis(10), 1000));
-        assert!(!on_delay(s.st(), true, Millis(1009), 1000));
-        assert!(on_delay(s.st(), true, Millis(1010), 1000));
-        assert!(on_delay(s.st(), true, Millis(5000), 1000));
+        assert!(!on_delay(s.st(), false, Millis(0), 10));
+        assert!(!on_delay(s.st(), true, Millis(10), 10));
+        assert!(!on_delay(s.st(), true, Millis(1009), 10));
+        assert!(on_delay(s.st(), true, Millis(1010), 10));
+        assert!(on_delay(s.st(), true, Millis(5000), 10));
         // Input drop resets; a new delay starts from scratch.
-        assert!(!on_delay(s.st(), false, Millis(5001), 1000));
-        assert!(!on_delay(s.st(), true, Millis(5002), 1000));
-        assert!(!on_delay(s.st(), true, Millis(6001), 1000));
-        assert!(on_delay(s.st(), true, Millis(6002), 1000));
+        assert!(!on_delay(s.st(), false, Millis(5001), 10));
+        assert!(!on_delay(s.st(), true, Millis(5002), 10));
+        assert!(!on_delay(s.st(), true, Millis(6001), 10));
+        assert!(on_delay(s.st(), true, Millis(6002), 10));
     }
 
     #[test]
     fn on_delay_stays_on_across_clock_wrap() {
         let mut s = Slot::new();
         let t0 = Millis(u32::MAX - 100);
-        assert!(!on_delay(s.st(), true, t0, 500));
-        assert!(!on_delay(s.st(), true, t0.add(499), 500));
-        assert!(on_delay(s.st(), true, t0.add(500), 500));
+        assert!(!on_delay(s.st(), true, t0, 5));
+        assert!(!on_delay(s.st(), true, t0.add(499), 5));
+        assert!(on_delay(s.st(), true, t0.add(500), 5));
         // A full wrap later the latched output is still on.
-        assert!(on_delay(s.st(), true, t0.add(200), 500));
+        assert!(on_delay(s.st(), true, t0.add(200), 5));
     }
 
     #[test]
@@ -163,19 +176,19 @@ mod tests {
     #[test]
     fn off_delay_holds_after_fall() {
         let mut s = Slot::new();
-        assert!(!off_delay(s.st(), false, Millis(0), 1000));
-        assert!(off_delay(s.st(), true, Millis(10), 1000));
-        assert!(off_delay(s.st(), false, Millis(20), 1000));
-        assert!(off_delay(s.st(), false, Millis(1019), 1000));
-        assert!(!off_delay(s.st(), false, Millis(1020), 1000));
-        assert!(!off_delay(s.st(), false, Millis(3000), 1000));
+        assert!(!off_delay(s.st(), false, Millis(0), 10));
+        assert!(off_delay(s.st(), true, Millis(10), 10));
+        assert!(off_delay(s.st(), false, Millis(20), 10));
+        assert!(off_delay(s.st(), false, Millis(1019), 10));
+        assert!(!off_delay(s.st(), false, Millis(1020), 10));
+        assert!(!off_delay(s.st(), false, Millis(3000), 10));
         // Input back during the delay: output stays 1 and the delay restarts on the fall.
-        assert!(off_delay(s.st(), true, Millis(4000), 1000));
-        assert!(off_delay(s.st(), false, Millis(4100), 1000));
-        assert!(off_delay(s.st(), true, Millis(4500), 1000));
-        assert!(off_delay(s.st(), false, Millis(4600), 1000));
-        assert!(off_delay(s.st(), false, Millis(5599), 1000));
-        assert!(!off_delay(s.st(), false, Millis(5600), 1000));
+        assert!(off_delay(s.st(), true, Millis(4000), 10));
+        assert!(off_delay(s.st(), false, Millis(4100), 10));
+        assert!(off_delay(s.st(), true, Millis(4500), 10));
+        assert!(off_delay(s.st(), false, Millis(4600), 10));
+        assert!(off_delay(s.st(), false, Millis(5599), 10));
+        assert!(!off_delay(s.st(), false, Millis(5600), 10));
     }
 
     #[test]
@@ -188,24 +201,24 @@ mod tests {
     #[test]
     fn pulse_has_preset_length_and_is_not_retriggered() {
         let mut s = Slot::new();
-        assert!(!pulse(s.st(), false, Millis(0), 700, true));
-        assert!(pulse(s.st(), true, Millis(100), 700, false));
-        assert!(pulse(s.st(), false, Millis(200), 700, false));
+        assert!(!pulse(s.st(), false, Millis(0), 7, true));
+        assert!(pulse(s.st(), true, Millis(100), 7, false));
+        assert!(pulse(s.st(), false, Millis(200), 7, false));
         // A new edge during the pulse does not extend it.
-        assert!(pulse(s.st(), true, Millis(300), 700, false));
-        assert!(pulse(s.st(), true, Millis(799), 700, false));
-        assert!(!pulse(s.st(), true, Millis(800), 700, false));
+        assert!(pulse(s.st(), true, Millis(300), 7, false));
+        assert!(pulse(s.st(), true, Millis(799), 7, false));
+        assert!(!pulse(s.st(), true, Millis(800), 7, false));
         // Input still high: no new pulse without a new edge.
-        assert!(!pulse(s.st(), true, Millis(2000), 700, false));
-        assert!(!pulse(s.st(), false, Millis(2100), 700, false));
-        assert!(pulse(s.st(), true, Millis(2200), 700, false));
+        assert!(!pulse(s.st(), true, Millis(2000), 7, false));
+        assert!(!pulse(s.st(), false, Millis(2100), 7, false));
+        assert!(pulse(s.st(), true, Millis(2200), 7, false));
     }
 
     #[test]
     fn pulse_sees_no_edge_on_first_scan() {
         let mut s = Slot::new();
-        assert!(!pulse(s.st(), true, Millis(0), 700, true));
-        assert!(!pulse(s.st(), true, Millis(10), 700, false));
+        assert!(!pulse(s.st(), true, Millis(0), 7, true));
+        assert!(!pulse(s.st(), true, Millis(10), 7, false));
     }
 
     #[test]
