@@ -1130,10 +1130,25 @@ impl Soc {
                 |g| g.drive(n),
             )
         };
-        let board = &mut self.board;
+        // The I2C bus pins read the bus (its pull-ups, a device holding SDA low), not the
+        // board.
+        let mut bus_levels: Vec<(PinId, bool)> = Vec::new();
+        for k2 in 0..3 {
+            let (Some((scl, sda)), Some(i)) =
+                (self.i2c_pins.get(k2).copied().flatten(), self.i2c(k2))
+            else {
+                continue;
+            };
+            bus_levels.push((scl, i.bus().scl()));
+            bus_levels.push((sda, i.bus().sda()));
+        }
+        let mut reader = BusOrBoard {
+            bus: &bus_levels,
+            board: self.board.as_mut(),
+        };
         let s = self.slots.get_mut(k)?;
         let g = s.model.as_any_mut().downcast_mut::<GpioPort>()?;
-        let v = g.idr(now, board.as_mut(), &drives);
+        let v = g.idr(now, &mut reader, &drives);
         let floating = core::mem::take(&mut g.floating_reads);
         for n in 0..16u8 {
             if floating & (1 << n) != 0 {
@@ -1459,6 +1474,29 @@ impl Soc {
     /// Syscfg slot index.
     pub fn syscfg_slot(&self) -> usize {
         self.syscfg
+    }
+}
+
+/// Pin levels for an IDR read: the I2C bus lines from the bus, the rest from the board.
+struct BusOrBoard<'a> {
+    bus: &'a [(PinId, bool)],
+    board: &'a mut dyn Board,
+}
+
+impl PinReader for BusOrBoard<'_> {
+    fn external(
+        &mut self,
+        port: u8,
+        pin: u8,
+        now: Cycles,
+        drives: &dyn Fn(u8, u8) -> Drive,
+    ) -> crate::periph::gpio::External {
+        use crate::periph::gpio::External;
+        match self.bus.iter().find(|(p, _)| *p == (port, pin)) {
+            Some((_, true)) => External::High,
+            Some((_, false)) => External::Low,
+            None => self.board.external(port, pin, now, drives),
+        }
     }
 }
 

@@ -2,6 +2,7 @@
 //!
 //! * [`plant`]: DC link, inverter, induction motor, sensors, comparators.
 //! * [`mcu`]: the two MCUs (the firmware's cores behind one seam per peripheral).
+//! * [`emu`]: the same runs on the real firmware images, in an emulator of both boards.
 //! * [`panel`]: the interactive front panel (`hil-sim panel`).
 //! * [`sim`]: the virtual-time scheduler joining them with the UART wires.
 //! * [`seams`]: one trait per simulated peripheral (what the scheduler needs of a model).
@@ -10,6 +11,7 @@
 //!
 //! Decisions and model equations: `hil-sim/docs/`.
 
+pub mod emu;
 pub mod latency;
 pub mod mcu;
 pub mod panel;

@@ -58,6 +58,38 @@ enum Cmd {
     Disasm { program: PathBuf },
     /// Interactive virtual front panel (LCD + keypad) in the terminal.
     Panel { program: Option<PathBuf> },
+    /// The same run on the real firmware images, in an emulator of both boards.
+    Emu {
+        /// The program (.plc text or an EEPROM image).
+        program: PathBuf,
+        /// Scenario file (TOML); without it all inputs stay 0.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Simulated seconds (default: the scenario's duration_s, else 10).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Write the record as CSV (the columns of `run`).
+        #[arg(long)]
+        csv: Option<PathBuf>,
+        /// Write a PNG plot.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// The drive's ELF (default: the release image in the workspace's target directory).
+        #[arg(long)]
+        drive_elf: Option<PathBuf>,
+        /// The PLC's ELF (default: the release image in the workspace's target directory).
+        #[arg(long)]
+        plc_elf: Option<PathBuf>,
+        /// Print both images' defmt logs, in virtual time.
+        #[arg(long)]
+        log: bool,
+        /// CSV sampling period, ms.
+        #[arg(long, default_value_t = 1.0)]
+        sample_ms: f64,
+        /// Seed of the link's bit errors.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
 }
 
 fn main() -> ExitCode {
@@ -92,6 +124,29 @@ fn real_main() -> Result<()> {
         Cmd::Asm { program, output } => cmd_asm(&program, output.as_deref()),
         Cmd::Disasm { program } => cmd_disasm(&program),
         Cmd::Panel { program } => hil_sim::panel_command(program.as_deref()),
+        Cmd::Emu {
+            program,
+            scenario,
+            duration,
+            csv,
+            plot,
+            drive_elf,
+            plc_elf,
+            log,
+            sample_ms,
+            seed,
+        } => cmd_emu(EmuArgs {
+            program: &program,
+            scenario: scenario.as_deref(),
+            duration,
+            csv: csv.as_deref(),
+            plot: plot.as_deref(),
+            drive_elf: drive_elf.as_deref(),
+            plc_elf: plc_elf.as_deref(),
+            log,
+            sample_ms,
+            seed,
+        }),
     }
 }
 
@@ -167,6 +222,114 @@ fn cmd_run(
     }
     if let Some(p) = plot {
         let title = format!("{} ({duration_s} s)", program.display());
+        hil_sim::plot::plot(p, &report.samples, &title)?;
+    }
+    print!("{}", report.summary());
+    Ok(())
+}
+
+struct EmuArgs<'a> {
+    program: &'a Path,
+    scenario: Option<&'a Path>,
+    duration: Option<f64>,
+    csv: Option<&'a Path>,
+    plot: Option<&'a Path>,
+    drive_elf: Option<&'a Path>,
+    plc_elf: Option<&'a Path>,
+    log: bool,
+    sample_ms: f64,
+    seed: u64,
+}
+
+fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
+    use hil_sim::emu::images::{existing, Firmware};
+    // Everything is checked before anything is emulated.
+    let prog = load_program(a.program)?;
+    let scen = match a.scenario {
+        Some(p) => Scenario::load(p)?,
+        None => Scenario::default(),
+    };
+    let duration_s = scen.duration_s(a.duration);
+    if !(duration_s.is_finite() && duration_s > 0.0) {
+        anyhow::bail!("--duration must be a positive number of seconds, got {duration_s}");
+    }
+    if !(a.sample_ms.is_finite() && a.sample_ms > 0.0) {
+        anyhow::bail!("--sample-ms must be a positive number, got {}", a.sample_ms);
+    }
+    let drive_elf = match a.drive_elf {
+        Some(p) => p.to_path_buf(),
+        None => existing(Firmware::Drive)?,
+    };
+    let plc_elf = match a.plc_elf {
+        Some(p) => p.to_path_buf(),
+        None => existing(Firmware::Plc)?,
+    };
+    for p in [&drive_elf, &plc_elf] {
+        g431_emu::elf::Image::load(p)?;
+    }
+    let opts = RunOptions {
+        seed: a.seed,
+        sample_ns: ((a.sample_ms * 1e6).round() as u64).max(1),
+    };
+    if let Some(p) = a.plot {
+        File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
+    }
+    let mut writer = match a.csv {
+        Some(p) => Some(
+            CsvWriter::new(BufWriter::new(
+                File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+            ))
+            .with_context(|| format!("cannot write {}", p.display()))?,
+        ),
+        None => None,
+    };
+    let mut csv_err = None;
+    let tty = std::io::stderr().is_terminal();
+    let mut last_progress = 0.0;
+    let report = hil_sim::emu::run::run(
+        &drive_elf,
+        &plc_elf,
+        &prog,
+        scen,
+        duration_s,
+        opts,
+        a.plot.is_some(),
+        |s| {
+            if let Some(w) = writer.as_mut() {
+                if let Err(e) = w.write(s) {
+                    csv_err.get_or_insert(e);
+                }
+            }
+            let t = s.t_ns as f64 * 1e-9;
+            if tty && t - last_progress >= 0.1 {
+                last_progress = t;
+                eprint!("\r{t:8.1} / {duration_s:.1} s emulated");
+                let _ = std::io::stderr().flush();
+            }
+        },
+        |image, line| {
+            if a.log {
+                if tty {
+                    eprint!("\r");
+                }
+                println!("{image:>5} {line}");
+            }
+        },
+    )?;
+    if tty {
+        eprintln!();
+    }
+    if let Some(e) = csv_err {
+        return Err(e).context("writing the CSV");
+    }
+    if let Some(w) = writer {
+        w.finish().context("writing the CSV")?;
+    }
+    if let Some(p) = a.plot {
+        let title = format!(
+            "{} on the real images ({duration_s} s)",
+            a.program.display()
+        );
         hil_sim::plot::plot(p, &report.samples, &title)?;
     }
     print!("{}", report.summary());

@@ -89,7 +89,9 @@ pub fn existing(fw: Firmware) -> Result<PathBuf> {
 /// flashed. Serialised within the process.
 pub fn build_both() -> Result<(PathBuf, PathBuf)> {
     static LOCK: Mutex<()> = Mutex::new(());
-    let _guard = LOCK.lock().map_err(|_| anyhow::anyhow!("image build lock poisoned"))?;
+    let _guard = LOCK
+        .lock()
+        .map_err(|_| anyhow::anyhow!("image build lock poisoned"))?;
     for fw in [Firmware::Drive, Firmware::Plc] {
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
         let status = Command::new(cargo)

@@ -1,0 +1,580 @@
+//! The co-simulation of the two real images: both emulated MCUs, joined by their USARTs
+//! over a wire, with the drive's TIM1 driving hil-sim's plant and the plant feeding the
+//! drive's ADC and comparators, in the same virtual time, under the same scenario and with
+//! the same record as `hil-sim run`.
+//!
+//! Time advances in slices no longer than [`QUANTUM_NS`], shorter than one UART character
+//! (86.8 µs at 115200 baud), so a character that starts on one side within a slice always
+//! ends after it: each side can run its slice alone and the wire hands the character over
+//! at the slice's end, exactly on time. The drive runs first in each slice; the plant is
+//! advanced inside it, at every TIM1 event and ADC sample.
+//!
+//! What the record cannot read from registers it reads where a user would: the drive's
+//! state, frequency, direction and fault come from the status frames on the wire (the same
+//! decoder as the PLC's), Q00-Q07 are the values the PLC sent in its Q writes, the LCD
+//! fields are read off the LCD, and `m` is derived from the three leg duties.
+
+use std::cell::RefCell;
+use std::path::Path;
+use std::rc::Rc;
+
+use anyhow::{Context, Result};
+use g431_emu::cpu::{CpuEvent, CpuState};
+use g431_emu::devices::eeprom_24c256::Eeprom24c256;
+use g431_emu::devices::lcd_backpack::LcdBackpack;
+use g431_emu::mcu::Mcu;
+use g431_emu::periph::gpio::Mode;
+use g431_emu::periph::usart::{RxByte, UsartInstance};
+use g431_emu::soc::{Soc, USARTS};
+use g431_emu::time::{cycles_to_ns, ns_to_cycles};
+use shared_protocol::link::message::{DriveMsg, DriveStatus, PlcMsg};
+use shared_protocol::link::FrameReader;
+use shared_protocol::program::Program;
+
+use super::boards::{drive_pins, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
+use crate::mcu::Lcd;
+use crate::plant::Plant;
+use crate::scenario::{Action, Input, Scenario};
+use crate::sim::{FaultRecord, RunOptions, Sample};
+
+/// Longest slice both MCUs run before the wire hands characters over.
+pub const QUANTUM_NS: u64 = 50_000;
+
+/// Fault-column codes for what happened to an image rather than to the drive core
+/// (documented in `docs/emulator.md`): they never collide with drive.md's codes.
+pub mod image_fault {
+    /// The drive image took a HardFault (a panic ends there too).
+    pub const HARD_FAULT: u8 = 90;
+    /// The drive's core locked up.
+    pub const LOCKUP: u8 = 91;
+    /// The drive image was reset by its watchdog (until it reports again).
+    pub const WATCHDOG: u8 = 92;
+    /// BOOT0 was high at reset: the drive ran the ROM bootloader.
+    pub const BOOT_ROM: u8 = 93;
+}
+
+/// One direction of the link: a UART wire with the scenario's bit errors and cut.
+struct Wire {
+    /// Characters handed over, and lost on the way (cut, or no USART on the far pin).
+    delivered: u64,
+    lost: u64,
+    rng: u64,
+    ber: f64,
+    /// The frames on this wire, decoded for the record.
+    reader: FrameReader,
+}
+
+impl Wire {
+    fn new(seed: u64, ber: f64) -> Self {
+        Wire {
+            delivered: 0,
+            lost: 0,
+            rng: seed | 1,
+            ber,
+            reader: FrameReader::new(),
+        }
+    }
+
+    /// xorshift64*: a uniform draw in [0, 1).
+    fn uniform(&mut self) -> f64 {
+        let mut x = self.rng;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.rng = x;
+        (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// The character as the receiver sees it: each of its 10 bits flips with the bit
+    /// error rate; a flipped start or stop bit is a framing error.
+    fn impair(&mut self, data: u16) -> RxByte {
+        let mut b = RxByte::clean(data);
+        if self.ber <= 0.0 {
+            return b;
+        }
+        for bit in 0..10 {
+            if self.uniform() < self.ber {
+                match bit {
+                    0 | 9 => b.framing_error = true,
+                    k => b.data ^= 1 << (k - 1),
+                }
+            }
+        }
+        b
+    }
+}
+
+/// The USART whose `signal` ("TX"/"RX") is routed to pin `pin` by the GPIO configuration
+/// (alternate function mode with that USART's AF number, per the STM32 metadata).
+pub fn usart_on_pin(soc: &Soc, pin: &str, signal: &str) -> Option<UsartInstance> {
+    let (port, n) = pin_id(pin)?;
+    let g = soc.gpio(port)?;
+    if g.mode(n) != Mode::Alternate {
+        return None;
+    }
+    let af = g.af(n);
+    USARTS.into_iter().find(|u| {
+        g431_emu::names::peripheral(u.name()).is_some_and(|p| {
+            p.pins
+                .iter()
+                .any(|pp| pp.pin == pin && pp.signal == signal && pp.af == Some(af))
+        })
+    })
+}
+
+/// Both images, the rig and the scenario.
+pub struct EmuSim {
+    now_ns: u64,
+    drive: Mcu,
+    plc: Mcu,
+    rig: Rc<RefCell<Rig>>,
+    io: Rc<RefCell<PlcIo>>,
+    eeprom: Rc<RefCell<Eeprom24c256>>,
+    lcd: Rc<RefCell<LcdBackpack>>,
+    scenario: Scenario,
+    next_action: usize,
+    /// PLC → drive, drive → PLC.
+    to_drive: Wire,
+    to_plc: Wire,
+    cut: bool,
+    status: Option<DriveStatus>,
+    q: [i16; 8],
+    faults: Vec<FaultRecord>,
+    last_fault: u8,
+    next_sample_ns: u64,
+    sample_ns: u64,
+}
+
+impl EmuSim {
+    /// The images at `drive_elf`/`plc_elf` with `program` in the PLC's EEPROM (slot 1, RUN
+    /// at power-up unless the scenario types the RUN key), as `hil-sim run` sets it up.
+    pub fn new(
+        drive_elf: &Path,
+        plc_elf: &Path,
+        program: &Program,
+        scenario: Scenario,
+        opts: RunOptions,
+    ) -> Result<Self> {
+        let image = firmware_plc::storage::image::program_image(
+            program,
+            &firmware_plc::storage::image::ImageOptions {
+                slot: 1,
+                run_at_power_up: !scenario.keys_start_run,
+            },
+        )
+        .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))?;
+        let rig = Rc::new(RefCell::new(Rig::new(Plant::new(scenario.rig))));
+        let drive = Mcu::load("drive", drive_elf, Box::new(DriveBoard::new(rig.clone())))
+            .with_context(|| format!("drive image {}", drive_elf.display()))?;
+        let io = Rc::new(RefCell::new(PlcIo::default()));
+        let mut plc = Mcu::load("plc", plc_elf, Box::new(PlcBoard::new(io.clone())))
+            .with_context(|| format!("PLC image {}", plc_elf.display()))?;
+        let eeprom = Rc::new(RefCell::new(Eeprom24c256::default()));
+        eeprom
+            .borrow_mut()
+            .load(&image)
+            .map_err(|e| anyhow::anyhow!("EEPROM image: {e}"))?;
+        let lcd = Rc::new(RefCell::new(LcdBackpack::default()));
+        // I2C3 (index 2) on PA8/PB5.
+        plc.soc_mut()
+            .attach_i2c(2, eeprom.clone(), plc_pins::I2C_SCL, plc_pins::I2C_SDA);
+        plc.soc_mut()
+            .attach_i2c(2, lcd.clone(), plc_pins::I2C_SCL, plc_pins::I2C_SDA);
+        let seed = opts.seed;
+        Ok(EmuSim {
+            now_ns: 0,
+            drive,
+            plc,
+            rig,
+            io,
+            eeprom,
+            lcd,
+            next_action: 0,
+            to_drive: Wire::new(seed, scenario.bit_error_rate),
+            to_plc: Wire::new(
+                seed.wrapping_mul(31).wrapping_add(17),
+                scenario.bit_error_rate,
+            ),
+            cut: false,
+            status: None,
+            q: [0; 8],
+            faults: Vec::new(),
+            last_fault: 0,
+            next_sample_ns: 0,
+            sample_ns: opts.sample_ns.max(1),
+            scenario,
+        })
+    }
+
+    pub fn now_ns(&self) -> u64 {
+        self.now_ns
+    }
+
+    pub fn drive(&self) -> &Mcu {
+        &self.drive
+    }
+
+    pub fn plc(&self) -> &Mcu {
+        &self.plc
+    }
+
+    pub fn drive_mut(&mut self) -> &mut Mcu {
+        &mut self.drive
+    }
+
+    pub fn plc_mut(&mut self) -> &mut Mcu {
+        &mut self.plc
+    }
+
+    pub fn rig(&self) -> std::cell::Ref<'_, Rig> {
+        self.rig.borrow()
+    }
+
+    pub fn rig_mut(&self) -> std::cell::RefMut<'_, Rig> {
+        self.rig.borrow_mut()
+    }
+
+    pub fn eeprom(&self) -> std::cell::Ref<'_, Eeprom24c256> {
+        self.eeprom.borrow()
+    }
+
+    pub fn lcd_device(&self) -> std::cell::Ref<'_, LcdBackpack> {
+        self.lcd.borrow()
+    }
+
+    /// The LCD as the user sees it.
+    pub fn lcd(&self) -> Lcd {
+        let mut l = Lcd::default();
+        for (r, text) in self.lcd.borrow().text().iter().enumerate() {
+            l.set_row(r, text);
+        }
+        l
+    }
+
+    /// The drive's last status frame on the wire.
+    pub fn status(&self) -> Option<DriveStatus> {
+        self.status
+    }
+
+    /// Faults in the order they latched (from the status frames and the images' own
+    /// resets and faults).
+    pub fn faults(&self) -> &[FaultRecord] {
+        &self.faults
+    }
+
+    /// Characters delivered and lost on (PLC → drive, drive → PLC).
+    pub fn wire_counts(&self) -> [(u64, u64); 2] {
+        [
+            (self.to_drive.delivered, self.to_drive.lost),
+            (self.to_plc.delivered, self.to_plc.lost),
+        ]
+    }
+
+    /// Cuts (or reconnects) both wires of the link.
+    pub fn set_cut(&mut self, cut: bool) {
+        self.cut = cut;
+    }
+
+    /// Holds a keypad key down (or releases it).
+    pub fn set_key(&mut self, key: char, down: bool) {
+        let mut io = self.io.borrow_mut();
+        if down {
+            io.keys_down.insert(key);
+        } else {
+            io.keys_down.remove(&key);
+        }
+    }
+
+    /// Runs until `end_ns`, calling `on_sample` at every sample time.
+    pub fn run_until(&mut self, end_ns: u64, mut on_sample: impl FnMut(&Sample)) {
+        while self.now_ns < end_ns {
+            let mut t = (self.now_ns + QUANTUM_NS).min(end_ns);
+            t = t.min(self.next_sample_ns.max(self.now_ns + 1));
+            if let Some(a) = self.scenario.actions.get(self.next_action) {
+                t = t.min(a.at_ns.max(self.now_ns + 1));
+            }
+            if !self.cut {
+                t = t.min(self.scenario.cut_at_ns.max(self.now_ns + 1));
+            }
+            let until = ns_to_cycles(t);
+            self.drive.run_until(until);
+            self.plc.run_until(until);
+            self.rig.borrow_mut().advance_to(t);
+            self.now_ns = t;
+            self.exchange();
+            self.apply_actions();
+            self.track_faults();
+            if t >= self.next_sample_ns {
+                let s = self.sample(t);
+                on_sample(&s);
+                self.next_sample_ns += self.sample_ns;
+            }
+        }
+    }
+
+    /// Hands the characters each side started sending in this slice to the other side.
+    fn exchange(&mut self) {
+        let cut = self.cut || self.now_ns >= self.scenario.cut_at_ns;
+        if cut && !self.cut {
+            self.cut = true;
+        }
+        // PLC → drive.
+        move_chars(
+            &mut self.plc,
+            plc_pins::LINK_TX,
+            &mut self.drive,
+            drive_pins::LINK_RX,
+            &mut self.to_drive,
+            cut,
+            &mut |_m: PlcMsg| {},
+            &mut self.q,
+        );
+        let mut status = self.status;
+        move_drive_chars(
+            &mut self.drive,
+            &mut self.plc,
+            &mut self.to_plc,
+            cut,
+            &mut status,
+        );
+        self.status = status;
+    }
+
+    fn apply_actions(&mut self) {
+        while let Some(a) = self.scenario.actions.get(self.next_action) {
+            if a.at_ns > self.now_ns {
+                break;
+            }
+            let action = a.action.clone();
+            self.next_action += 1;
+            match action {
+                Action::Set(Input::Digital(n), v) => {
+                    let mut io = self.io.borrow_mut();
+                    if v != 0 {
+                        io.digital_in |= 1 << n;
+                    } else {
+                        io.digital_in &= !(1 << n);
+                    }
+                }
+                Action::Set(Input::Analog(n), v) => {
+                    if let Some(a) = self.io.borrow_mut().analog.get_mut(usize::from(n)) {
+                        *a = v;
+                    }
+                }
+                Action::Set(Input::Aux, v) => self.rig.borrow_mut().aux_counts = (v << 2).min(4095),
+                Action::KeyDown(k) => self.set_key(k, true),
+                Action::KeyUp(k) => self.set_key(k, false),
+                Action::Plant(c) => c.apply(self.rig.borrow_mut().plant.params_mut()),
+            }
+        }
+    }
+
+    /// The image's own troubles go into the fault record too.
+    fn image_fault(&self) -> Option<u8> {
+        match self.drive.state() {
+            CpuState::Lockup => return Some(image_fault::LOCKUP),
+            CpuState::BootRom => return Some(image_fault::BOOT_ROM),
+            _ => {}
+        }
+        if self.drive.soc().ipsr == 3 {
+            return Some(image_fault::HARD_FAULT);
+        }
+        None
+    }
+
+    fn track_faults(&mut self) {
+        let f = self
+            .image_fault()
+            .unwrap_or_else(|| self.status.map_or(0, |s| s.fault));
+        if f != 0 && f != self.last_fault {
+            self.faults.push(FaultRecord {
+                t_ns: self.now_ns,
+                code: f,
+            });
+        }
+        self.last_fault = f;
+    }
+
+    /// One row of the record.
+    fn sample(&self, t: u64) -> Sample {
+        let rig = self.rig.borrow();
+        let o = rig.plant.outputs();
+        let st = self.status.unwrap_or_default();
+        let duties = rig.duties();
+        let m = modulation_index(&duties);
+        let io = self.io.borrow();
+        Sample {
+            t_ns: t,
+            f_cmd_hz: f64::from(st.freq_dhz) / 10.0,
+            dir: if st.reverse { -1 } else { 1 },
+            m,
+            pwm_on: duties.iter().any(Option::is_some) && !o.hw_break,
+            fault: self.image_fault().unwrap_or(st.fault),
+            u_dc_v: o.u_dc_v,
+            i_abc_a: o.i_abc_a,
+            speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
+            torque_nm: o.torque_nm,
+            brake: o.brake_on,
+            digital_in: io.digital_in as u8,
+            digital_out: io.outputs,
+            q: self.q,
+            lcd: lcd_fields(&self.lcd.borrow().text()),
+        }
+    }
+
+    /// The image events of both MCUs, with their names.
+    pub fn cpu_events(&self) -> Vec<(String, CpuEvent)> {
+        let mut v: Vec<(String, CpuEvent)> = Vec::new();
+        for m in [&self.drive, &self.plc] {
+            for e in m.events() {
+                v.push((m.name.clone(), e.clone()));
+            }
+        }
+        v
+    }
+
+    /// Simulated time in ns of cycle `c`.
+    pub fn ns(c: u64) -> u64 {
+        cycles_to_ns(c)
+    }
+}
+
+/// Moves the PLC's transmitted characters to the drive, decoding them for the record.
+#[allow(clippy::too_many_arguments)]
+fn move_chars(
+    from: &mut Mcu,
+    from_pin: &str,
+    to: &mut Mcu,
+    to_pin: &str,
+    wire: &mut Wire,
+    cut: bool,
+    _on_msg: &mut dyn FnMut(PlcMsg),
+    q: &mut [i16; 8],
+) {
+    let Some(tx) = usart_on_pin(from.soc(), from_pin, "TX") else {
+        return;
+    };
+    let rx = usart_on_pin(to.soc(), to_pin, "RX");
+    while let Some(f) = from.soc_mut().usart_mut(tx).and_then(|u| u.take_tx()) {
+        if let Some(Ok(frame)) = wire.reader.push::<PlcMsg>(f.data as u8) {
+            if let PlcMsg::QWrite(values) = frame.msg {
+                for v in values {
+                    if let Some(slot) = q.get_mut(usize::from(v.addr)) {
+                        *slot = v.value;
+                    }
+                }
+            }
+        }
+        deliver(to, rx, f.end, f.data, wire, cut);
+    }
+    if let Some(rx) = rx {
+        to.soc_mut().refresh_usart(rx);
+    }
+}
+
+/// Moves the drive's characters to the PLC, decoding its status frames.
+fn move_drive_chars(
+    from: &mut Mcu,
+    to: &mut Mcu,
+    wire: &mut Wire,
+    cut: bool,
+    status: &mut Option<DriveStatus>,
+) {
+    let Some(tx) = usart_on_pin(from.soc(), drive_pins::LINK_TX, "TX") else {
+        return;
+    };
+    let rx = usart_on_pin(to.soc(), plc_pins::LINK_RX, "RX");
+    while let Some(f) = from.soc_mut().usart_mut(tx).and_then(|u| u.take_tx()) {
+        if let Some(Ok(frame)) = wire.reader.push::<DriveMsg>(f.data as u8) {
+            if let DriveMsg::Status(s) = frame.msg {
+                *status = Some(s);
+            }
+        }
+        deliver(to, rx, f.end, f.data, wire, cut);
+    }
+    if let Some(rx) = rx {
+        to.soc_mut().refresh_usart(rx);
+    }
+}
+
+fn deliver(
+    to: &mut Mcu,
+    rx: Option<UsartInstance>,
+    end: u64,
+    data: u16,
+    wire: &mut Wire,
+    cut: bool,
+) {
+    let Some(rx) = rx.filter(|_| !cut) else {
+        wire.lost += 1;
+        return;
+    };
+    let byte = wire.impair(data);
+    if let Some(u) = to.soc_mut().usart_mut(rx) {
+        u.push_rx(end, byte);
+        wire.delivered += 1;
+    }
+}
+
+/// The modulation index from three leg duties: for d_k = c + (m/2)·sin(θ + φ_k) the
+/// deviations from their mean have Σ(d_k − mean)² = 3/2·(m/2)² (exact in the linear range;
+/// an estimate when the duties clip).
+pub fn modulation_index(duties: &[Option<f64>; 3]) -> f64 {
+    let d: Vec<f64> = duties.iter().flatten().copied().collect();
+    if d.len() != 3 {
+        return 0.0;
+    }
+    let mean = d.iter().sum::<f64>() / 3.0;
+    let ss: f64 = d.iter().map(|x| (x - mean).powi(2)).sum();
+    2.0 * (ss * 2.0 / 3.0).sqrt()
+}
+
+/// The 4 `LCD` value fields read off the run screen ("1:   500   2:  9800"), if shown.
+pub fn lcd_fields(rows: &[String; 4]) -> [Option<i16>; 4] {
+    let mut out = [None; 4];
+    for row in rows.iter().skip(1).take(2) {
+        let mut rest = row.as_str();
+        while let Some(colon) = rest.find(':') {
+            let label = rest[..colon].trim_end().chars().last();
+            let after = &rest[colon + 1..];
+            let value: String = after
+                .trim_start()
+                .chars()
+                .take_while(|c| c.is_ascii_digit() || *c == '-')
+                .collect();
+            if let (Some(d), Ok(v)) = (label.and_then(|c| c.to_digit(10)), value.parse()) {
+                if (1..=4).contains(&d) {
+                    out[(d - 1) as usize] = Some(v);
+                }
+            }
+            rest = after;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modulation_index_of_balanced_duties() {
+        let m: f64 = 0.8;
+        let th: f64 = 0.3;
+        let duties = [0.0, 2.0, 4.0]
+            .map(|k: f64| Some(0.5 + 0.5 * m * (th + k * std::f64::consts::PI / 3.0).sin()));
+        assert!((modulation_index(&duties) - m).abs() < 1e-9);
+        assert_eq!(modulation_index(&[None, Some(0.5), Some(0.5)]), 0.0);
+    }
+
+    #[test]
+    fn lcd_fields_are_read_off_the_run_screen() {
+        let rows = [
+            "RUN  LINK OK  RUN".to_string(),
+            "1:   500   2:  9800".to_string(),
+            "3:    -7   4:      ".to_string(),
+            String::new(),
+        ];
+        assert_eq!(lcd_fields(&rows), [Some(500), Some(9800), Some(-7), None]);
+    }
+}
