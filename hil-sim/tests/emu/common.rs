@@ -1,0 +1,34 @@
+//! Shared set-up of the emulator tests.
+
+use std::path::PathBuf;
+use std::sync::OnceLock;
+
+use hil_sim::emu::images::build_both;
+use hil_sim::emu::sim::EmuSim;
+use hil_sim::run::parse_program;
+use hil_sim::scenario::Scenario;
+use hil_sim::sim::RunOptions;
+
+/// The source's full motor example as the project ships it.
+pub const MOTOR_PLC: &str = include_str!("../../../shared-protocol/programs/motor.plc");
+/// Its scenario.
+pub const MOTOR_TOML: &str = include_str!("../../scenarios/motor.toml");
+
+/// The release images (drive, PLC), built if needed.
+pub fn images() -> &'static (PathBuf, PathBuf) {
+    static IMAGES: OnceLock<(PathBuf, PathBuf)> = OnceLock::new();
+    IMAGES.get_or_init(|| build_both().expect("the firmware images build"))
+}
+
+/// Both images with `program` in the PLC's EEPROM under `scenario`.
+pub fn emu(program: &str, scenario: &str) -> EmuSim {
+    let (drive, plc) = images();
+    let p = parse_program(program, "test.plc").expect("program assembles");
+    let s = Scenario::parse(scenario).expect("scenario parses");
+    EmuSim::new(drive, plc, &p, s, RunOptions::default()).expect("images load")
+}
+
+/// Seconds to ns.
+pub fn ns(s: f64) -> u64 {
+    (s * 1e9).round() as u64
+}
