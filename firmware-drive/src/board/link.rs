@@ -67,11 +67,10 @@ pub async fn run(mut port: LinkPort) {
             Ok(Err(e)) => defmt::warn!("link: rx error {}", e),
             Err(_timeout) => {}
         }
-        loop {
-            let n = shared::with(|s| s.app.poll_tx(shared::now(), &mut frame)).unwrap_or(0);
-            let Some(bytes) = frame.get(..n).filter(|b| !b.is_empty()) else {
-                break;
-            };
+        // At most one frame per pass, then RX again (the PLC's link task had a whole
+        // window's worth of line time between two reads: see the PLC's board/link.rs).
+        let n = shared::with(|s| s.app.poll_tx(shared::now(), &mut frame)).unwrap_or(0);
+        if let Some(bytes) = frame.get(..n).filter(|b| !b.is_empty()) {
             if let Err(e) = port.tx.write(bytes).await {
                 defmt::warn!("link: tx error {}", e);
             }

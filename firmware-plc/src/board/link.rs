@@ -69,11 +69,11 @@ pub async fn run(mut port: LinkPort, app: shared::SharedApp) {
             Ok(Err(e)) => defmt::warn!("link: rx error {}", e),
             Err(_timeout) => {}
         }
-        loop {
-            let n = shared::with(app, |a| a.poll_tx(shared::now(), &mut frame));
-            let Some(bytes) = frame.get(..n).filter(|b| !b.is_empty()) else {
-                break;
-            };
+        // At most one frame per pass, then RX again: a go-back-N window of download frames
+        // is about 50 ms of line time at 115200 baud, longer than the link timeout, so
+        // sending it all before reading the acks made the download time out forever.
+        let n = shared::with(app, |a| a.poll_tx(shared::now(), &mut frame));
+        if let Some(bytes) = frame.get(..n).filter(|b| !b.is_empty()) {
             if let Err(e) = port.tx.write(bytes).await {
                 defmt::warn!("link: tx error {}", e);
             }
