@@ -104,6 +104,8 @@ pub struct Cpu {
     sev_sites: Vec<u32>,
     /// The image's vector table base in flash.
     vectors: u32,
+    /// Exception entries, by exception number (16 + IRQ for interrupts).
+    entries: Vec<u64>,
 }
 
 fn rd(uc: &Unicorn<'static, Soc>, r: RegisterARM) -> u32 {
@@ -261,6 +263,7 @@ impl Cpu {
             events: Vec::new(),
             sev_sites: sites,
             vectors: FLASH_BASE,
+            entries: vec![0; 16 + crate::scs::IRQ_COUNT as usize],
         };
         cpu.reset(ResetKind::PowerOn);
         Ok(cpu)
@@ -578,7 +581,20 @@ impl Cpu {
         s.scs.activate(n);
         s.ipsr = n;
         self.pc = self.vector(n) & !1;
+        if let Some(c) = self.entries.get_mut(usize::from(n)) {
+            *c += 1;
+        }
         true
+    }
+
+    /// How many times exception `n` (16 + IRQ for an interrupt) was entered.
+    pub fn entries(&self, n: u16) -> u64 {
+        self.entries.get(usize::from(n)).copied().unwrap_or(0)
+    }
+
+    /// How many times interrupt `name` (`"TIM1_UP_TIM16"`) was entered.
+    pub fn irq_entries(&self, name: &str) -> u64 {
+        crate::names::irq(name).map_or(0, |irq| self.entries(exc::IRQ0 + irq))
     }
 
     /// Exception return (B1.5.8) for the EXC_RETURN value `magic`.

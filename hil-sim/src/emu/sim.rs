@@ -275,6 +275,17 @@ impl EmuSim {
         self.cut = cut;
     }
 
+    /// Switches the PLC board off and on again: the MCU restarts from power-on, the EEPROM
+    /// loses a write cycle in progress, the LCD starts uninitialised.
+    pub fn power_cycle_plc(&mut self) {
+        let now = self.plc.now();
+        self.eeprom.borrow_mut().power_cut(now);
+        self.lcd.borrow_mut().power_on(now);
+        self.plc
+            .cpu_mut()
+            .reset(g431_emu::periph::rcc::ResetKind::PowerOn);
+    }
+
     /// Holds a keypad key down (or releases it).
     pub fn set_key(&mut self, key: char, down: bool) {
         let mut io = self.io.borrow_mut();

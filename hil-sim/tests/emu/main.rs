@@ -6,4 +6,8 @@
 
 mod common;
 
+mod boot;
 mod link;
+mod motor;
+mod storage;
+mod trips;

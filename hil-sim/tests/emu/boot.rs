@@ -1,0 +1,87 @@
+//! Both images boot on their boards.
+
+use g431_emu::cpu::CpuEvent;
+use g431_emu::soc::Diagnostic;
+use g431_emu::time::{cycles_to_ns, HCLK_HZ};
+use shared_protocol::link::message::DriveState;
+
+use crate::common::{emu, ns, MOTOR_PLC};
+
+/// RUN is left to the keys (typed after the test ends): the PLC stays in STOP.
+const STAY_STOPPED: &str = "[[event]]\nat_s = 10.0\nkeys = \"A\"\n";
+
+#[test]
+fn both_images_boot_to_idle_and_stop() {
+    let mut sim = emu(MOTOR_PLC, STAY_STOPPED);
+    sim.run_until(ns(0.5), |_| {});
+    let tim1_up = sim.drive().cpu().irq_entries("TIM1_UP_TIM16");
+    let mut outputs_seen_on = false;
+    for k in 1..=50 {
+        sim.run_until(ns(0.5 + 0.01 * f64::from(k)), |_| {});
+        let g = sim.drive().soc().tim1().map(|t| t.gate());
+        outputs_seen_on |= g.is_some_and(|g| g.outputs_enabled);
+    }
+    let tim1_up = sim.drive().cpu().irq_entries("TIM1_UP_TIM16") - tim1_up;
+
+    // Boot lines, no fault, no extra reset.
+    for (m, image) in [(sim.drive(), "firmware-drive"), (sim.plc(), "firmware-plc")] {
+        let first = m
+            .log()
+            .first()
+            .map(|l| l.message.clone())
+            .unwrap_or_default();
+        assert!(
+            first.starts_with(image) && first.contains("boot: 170 MHz"),
+            "{image} boot line: {first:?}"
+        );
+        assert!(
+            m.events()
+                .iter()
+                .all(|e| matches!(e, CpuEvent::Reset { at: 0, .. })),
+            "{image}: {:?}",
+            m.events()
+        );
+        let bad: Vec<String> = m
+            .diagnostics()
+            .iter()
+            .filter(|d| {
+                matches!(
+                    d,
+                    Diagnostic::Unmodelled { .. }
+                        | Diagnostic::Unclocked { .. }
+                        | Diagnostic::Unmapped { .. }
+                        | Diagnostic::StuckPoll { .. }
+                )
+            })
+            .map(|d| d.to_string())
+            .collect();
+        assert!(bad.is_empty(), "{image}: {bad:?}");
+        // The watchdog is fed, never with more than half its 100 ms timeout between feeds.
+        let w = m.soc().iwdg();
+        assert!(w.running() && w.feeds > 20, "{image}: {} feeds", w.feeds);
+        let gap_ms = cycles_to_ns(w.longest_gap) as f64 * 1e-6;
+        assert!(gap_ms < 50.0, "{image}: longest feed gap {gap_ms} ms");
+    }
+
+    // The drive is idle and reports it; its PWM interrupt runs at the programmed rate with
+    // the outputs off.
+    assert_eq!(sim.status().map(|s| s.state), Some(DriveState::Idle));
+    assert!(!outputs_seen_on, "outputs enabled while idle");
+    let g = sim.drive().soc().tim1().expect("TIM1").gate();
+    let period_cycles = 2 * u64::from(g.arr) * g.cycles_per_count;
+    let expected = 0.5 * HCLK_HZ as f64 / period_cycles as f64;
+    let rate_err = (tim1_up as f64 - expected).abs() / expected;
+    assert!(
+        rate_err < 0.002,
+        "{tim1_up} TIM1 updates in 0.5 s, expected {expected:.0} (ARR {})",
+        g.arr
+    );
+
+    // The PLC shows the editor's listing of the loaded program, in STOP.
+    let lcd = sim.lcd();
+    let rows: Vec<String> = (0..4).map(|r| lcd.row(r)).collect();
+    assert!(
+        rows.first().is_some_and(|r| r.starts_with(">000 PWF  Q00")),
+        "LCD: {rows:#?}"
+    );
+}

@@ -1,0 +1,109 @@
+//! Protections of the real images.
+
+use g431_emu::cpu::CpuEvent;
+use g431_emu::periph::rcc::ResetKind;
+use g431_emu::time::cycles_to_ns;
+
+use crate::common::{emu, ns, MOTOR_PLC};
+
+const START_50HZ: &str = r#"
+[[event]]
+at_s = 0.0
+set = { A00 = 980, A01 = 500 }
+
+[[event]]
+at_s = 0.3
+press = "D00"
+"#;
+
+/// The motor program with the software limit I> above the hardware comparator (3 A), and
+/// a large IR boost so that a locked rotor draws more than 3 A.
+fn motor_with_high_i_limit() -> String {
+    MOTOR_PLC
+        .replace("016 I>  K11 0200", "016 I>  K11 0500")
+        .replace("010 =dU ", "010 dU= K15 0400 ;")
+}
+
+#[test]
+fn a_comparator_break_latches_the_outputs_off_with_oc_hw() {
+    let scen = format!("[plant]\nlocked_rotor = true\n{START_50HZ}");
+    let mut sim = emu(&motor_with_high_i_limit(), &scen);
+    let mut samples = Vec::new();
+    sim.run_until(ns(3.0), |s| samples.push(s.clone()));
+    let codes: Vec<u8> = sim.faults().iter().map(|f| f.code).collect();
+    assert_eq!(codes, vec![2], "faults {:?}", sim.faults());
+    let t_trip = sim.faults()[0].t_ns;
+    // Latched off: no switching after the trip, and the current dies out.
+    let after: Vec<_> = samples
+        .iter()
+        .filter(|s| s.t_ns > t_trip + ns(0.005))
+        .collect();
+    assert!(!after.is_empty() && after.iter().all(|s| !s.pwm_on && s.fault == 2));
+    assert!(after
+        .iter()
+        .filter(|s| s.t_ns > t_trip + ns(0.05))
+        .all(|s| s.i_abc_a.iter().all(|i| i.abs() < 0.05)));
+    let tim1 = sim.drive().soc().tim1().expect("TIM1").gate();
+    assert!(!tim1.moe, "MOE set again after the break");
+}
+
+#[test]
+fn a_link_cut_trips_link_within_50_ms() {
+    let scen = format!("[link]\ncut_at_s = 2.0\n{START_50HZ}");
+    let mut sim = emu(MOTOR_PLC, &scen);
+    sim.run_until(ns(2.2), |_| {});
+    // The drive logs its fault; the outputs are off.
+    let trip = sim
+        .drive()
+        .log()
+        .iter()
+        .find(|l| l.message.contains("fault Link"))
+        .map(|l| cycles_to_ns(l.at))
+        .expect("LINK fault logged");
+    assert!(
+        trip > ns(2.0) && trip <= ns(2.0) + ns(0.05) + ns(0.002),
+        "LINK at {trip} ns"
+    );
+    let g = sim.drive().soc().tim1().expect("TIM1").gate();
+    assert!(!g.outputs_enabled);
+    // The PLC shows the lost link within 100 ms.
+    let lcd = sim.lcd();
+    assert!(
+        (0..4).any(|r| lcd.row(r).contains("LINK LOST")),
+        "LCD {:?}",
+        (0..4).map(|r| lcd.row(r)).collect::<Vec<_>>()
+    );
+}
+
+#[test]
+fn a_late_watchdog_feed_resets_the_drive_and_the_plc_shows_wdg() {
+    let mut sim = emu(MOTOR_PLC, START_50HZ);
+    sim.run_until(ns(1.5), |_| {});
+    // The core stops (as if stuck) for 150 ms: the independent watchdog (100 ms) resets it.
+    sim.drive_mut().cpu_mut().halt();
+    sim.run_until(ns(1.65), |_| {});
+    sim.drive_mut().cpu_mut().resume();
+    sim.run_until(ns(3.0), |_| {});
+    assert!(
+        sim.drive().events().iter().any(|e| matches!(
+            e,
+            CpuEvent::Reset {
+                why: ResetKind::Watchdog,
+                ..
+            }
+        )),
+        "{:?}",
+        sim.drive().events()
+    );
+    assert!(
+        sim.faults().iter().any(|f| f.code == 7),
+        "{:?}",
+        sim.faults()
+    );
+    let lcd = sim.lcd();
+    assert!(
+        (0..4).any(|r| lcd.row(r).contains("WDG") || lcd.row(r).contains("watchdog")),
+        "LCD {:?}",
+        (0..4).map(|r| lcd.row(r)).collect::<Vec<_>>()
+    );
+}
