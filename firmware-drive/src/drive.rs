@@ -370,6 +370,11 @@ impl DriveCore {
         if self.state == DriveState::Boot {
             self.finish_boot();
         }
+        // At standstill a pending direction request applies before the section runs, so
+        // the first PWM period of a restart is in the requested direction.
+        if let Some(dir) = self.reversal.start_cycle() {
+            self.push_event(DriveEvent::Reversed(dir));
+        }
         let vm_active = self.run_requested
             && matches!(self.state, DriveState::Run | DriveState::Fault)
             && self.program.is_some();

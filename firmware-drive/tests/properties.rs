@@ -120,6 +120,11 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
     // A fault has latched since the last accepted RUN: outputs must stay off.
     let mut latched_since_run = false;
     let mut f_prev_tick = 0i16;
+    // The PLC's latest direction request, and its value at the last tick that started at
+    // standstill (f = 0 in the previous tick) until the outputs next come on.
+    let mut requested = false;
+    let mut start_dir: Option<bool> = None;
+    let mut was_enabled = false;
     for op in ops {
         match op {
             Op::Periods(n, s) => {
@@ -141,6 +146,14 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                     if !c.enable {
                         prop_assert_eq!(c.duty, [0; 3]);
                     }
+                    // After any stop, the first period with the outputs on runs in the
+                    // direction requested when the drive restarted from standstill.
+                    if c.enable && !was_enabled {
+                        if let Some(dir) = start_dir.take() {
+                            prop_assert_eq!(core.modulator().params().swap_1_2, dir);
+                        }
+                    }
+                    was_enabled = c.enable;
                     if core.fault().is_some() {
                         latched_since_run = true;
                     }
@@ -173,7 +186,15 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                 });
                 let st = core.status();
                 let f = st.f_command.0;
-                if reversed.is_some() {
+                let standstill = f_prev_tick == 0;
+                if standstill {
+                    // program.md 4.2 / lift.md 2.2: a pending request applies at once.
+                    prop_assert_eq!(st.reverse, requested, "standstill, f now {}", f);
+                    start_dir = Some(requested);
+                } else {
+                    start_dir = None;
+                }
+                if !standstill && reversed.is_some() {
                     prop_assert!(f < core.vm().settings().frv, "reversed at f {} >= frv", f);
                     prop_assert!(
                         f >= f_prev_tick,
@@ -185,10 +206,15 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                 f_prev_tick = f;
             }
             Op::Cmd(c) => {
+                let before = core.state();
                 let ok = core.command(c).is_ok();
-                if c == DriveCommand::Run && ok && core.state() == DriveState::Run {
+                if c == DriveCommand::Run && ok && before != DriveState::Run {
+                    // A RUN starts from standstill.
                     latched_since_run = false;
                     f_prev_tick = 0;
+                }
+                if let DriveCommand::Direction { reverse } = c {
+                    requested = reverse;
                 }
             }
             Op::Trip(f) => core.trip(f),

@@ -10,5 +10,6 @@ mod cli;
 mod keypad;
 mod link_latency;
 mod motor_program;
+mod reversal;
 mod shipped_scenarios;
 mod trips;
