@@ -19,7 +19,7 @@ use shared_protocol::units::{CentiAmps, Decihertz, Decivolts};
 
 use crate::config::{DriveConfig, ResetCause};
 use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, PeakTracker};
-use crate::modulator::{LegMode, Modulator, ModulatorParams};
+use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
 use crate::sine::{phase_of_decidegrees, SINE_Q15};
@@ -140,7 +140,8 @@ pub struct DriveStatus {
     pub i_peak: CentiAmps,
     /// `COM`: aux channel, 10-bit.
     pub com: u16,
-    /// Modulation index applied, 0.001 (0 while the outputs are off).
+    /// Requested modulation index m = A / fjm + dU / 1023 (above 1.0 the drive
+    /// overmodulates), 0.001 (0 while the outputs are off).
     pub modulation_permille: u16,
     pub brake: bool,
     pub pwm_millihertz: u32,
@@ -554,7 +555,8 @@ impl DriveCore {
         self.outputs_on = self.state == DriveState::Run && any_leg && o.f >= s.fmn;
         let fjm = u64::from(s.fjm.max(1) as u16);
         let m = (u64::from(o.a.max(0) as u16) << 16) / fjm + (u64::from(s.du) << 16) / 1023;
-        let m_q16 = m.min(u64::from(self.modulator.m_max_q16())) as u32;
+        // Above the linear range the modulator clips (overmodulation, program.md 4.3).
+        let m_q16 = m.min(u64::from(M_LIMIT_Q16)) as u32;
         let [p1, p2, p3] = o.phase_decideg;
         self.modulator.set_params(ModulatorParams {
             step: self.timing.phase_step(o.f),
