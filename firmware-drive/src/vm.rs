@@ -14,7 +14,9 @@
 //! * `PI` with T <= 0 has no integral part (I = 0); the integral is kept in Q16 so that a
 //!   2333 ms time constant integrates steps far below 1 count per millisecond.
 
-use shared_protocol::program::{DriveSection, Instruction, Mnemonic, Operand, DRIVE_LINES};
+use shared_protocol::program::{
+    drive_stack_step, DriveSection, Instruction, Mnemonic, Operand, DRIVE_LINES,
+};
 
 use crate::modulator::LegMode;
 
@@ -126,6 +128,11 @@ pub struct DriveVm {
     q: [i16; Q_COUNT],
     out: Outputs,
     pwf_clamped: bool,
+    /// Values loaded in the running cycle (the verifier's count, program.md 4.1).
+    depth: u8,
+    /// Instructions that found fewer values than they need since the last load: 0 for
+    /// every section the verifier accepts (property-tested).
+    underflows: u32,
 }
 
 impl DriveVm {
@@ -138,7 +145,15 @@ impl DriveVm {
             q: [0; Q_COUNT],
             out: Outputs::default(),
             pwf_clamped: false,
+            depth: 0,
+            underflows: 0,
         }
+    }
+
+    /// Instructions that ran with fewer values loaded in their cycle than they need
+    /// (the verifier's stack rule), since the program was loaded.
+    pub fn stack_underflows(&self) -> u32 {
+        self.underflows
     }
 
     pub fn settings(&self) -> &Settings {
@@ -174,6 +189,7 @@ impl DriveVm {
     pub fn load(&mut self, s: &DriveSection) {
         self.settings = Settings::new(self.default_pwm_hz);
         self.q = [0; Q_COUNT];
+        self.underflows = 0;
         self.start_run();
         for (line, ins) in lines(s) {
             if is_setting(ins) {
@@ -198,7 +214,15 @@ impl DriveVm {
 
     /// One 1 ms cycle: every line of the section, in order.
     pub fn run(&mut self, s: &DriveSection, warn: &mut impl FnMut(VmWarning)) {
+        self.depth = 0;
         for (line, ins) in lines(s) {
+            self.depth = match drive_stack_step(self.depth, ins.mnemonic) {
+                Ok(d) => d,
+                Err(d) => {
+                    self.underflows = self.underflows.saturating_add(1);
+                    d
+                }
+            };
             self.exec(line, ins, warn);
         }
     }

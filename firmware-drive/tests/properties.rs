@@ -53,6 +53,7 @@ fn program() -> impl Strategy<Value = DriveSection> {
             for (n, i) in lines {
                 s.lines[usize::from(n)] = Some(i);
             }
+            shared_protocol::program::testing::fix_drive_stack(&mut s.lines);
             assert!(verify_drive(&s).is_ok());
             s
         })
@@ -298,5 +299,68 @@ proptest! {
         for r in runs.iter().skip(1) {
             prop_assert!(*r > u32::from(min), "pulse of {} ticks with min {}", r, min);
         }
+    }
+}
+
+/// Any section of lines the per-line rules accept, stack use not fixed up.
+fn raw_section() -> impl Strategy<Value = DriveSection> {
+    prop::collection::vec(
+        shared_protocol::program::testing::line_in(Section::Drive),
+        0..40,
+    )
+    .prop_map(|lines| {
+        let mut s = DriveSection::default();
+        for (n, i) in lines {
+            s.lines[usize::from(n)] = Some(i);
+        }
+        s
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    /// Item 9: the verifier's stack count is what the VM does. A section the verifier
+    /// accepts never runs an instruction with fewer values than it needs, and one it
+    /// rejects for the stack does, at the line it names.
+    #[test]
+    fn no_accepted_section_underflows_at_run_time(s in raw_section()) {
+        use firmware_drive::vm::DriveVm;
+        use shared_protocol::program::VerifyErrorKind;
+        let mut vm = DriveVm::new(16_000);
+        vm.load(&s);
+        for _ in 0..3 {
+            vm.run(&s, &mut |_| {});
+        }
+        match verify_drive(&s) {
+            Ok(()) => prop_assert_eq!(vm.stack_underflows(), 0),
+            Err(e) => {
+                prop_assert!(
+                    matches!(e.kind, VerifyErrorKind::StackUnderflow { .. }),
+                    "{:?}",
+                    e
+                );
+                prop_assert!(vm.stack_underflows() >= 3);
+                // The lines before the one named run without an underflow.
+                let mut head = s.clone();
+                for l in head.lines.iter_mut().skip(usize::from(e.line)) {
+                    *l = None;
+                }
+                let mut vm = DriveVm::new(16_000);
+                vm.run(&head, &mut |_| {});
+                prop_assert_eq!(vm.stack_underflows(), 0);
+            }
+        }
+        // The same lines made stack-valid (underflowing lines replaced by a load): the
+        // verifier accepts them and they run without an underflow.
+        let mut fixed = s.clone();
+        shared_protocol::program::testing::fix_drive_stack(&mut fixed.lines);
+        prop_assert_eq!(verify_drive(&fixed), Ok(()));
+        let mut vm = DriveVm::new(16_000);
+        vm.load(&fixed);
+        for _ in 0..3 {
+            vm.run(&fixed, &mut |_| {});
+        }
+        prop_assert_eq!(vm.stack_underflows(), 0);
     }
 }

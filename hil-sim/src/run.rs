@@ -5,15 +5,31 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use firmware_plc::storage::image::{is_image, program_from_image};
-use shared_protocol::program::{assemble, Program};
+use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
 use crate::mcu::{Lcd, PlcMcu};
 use crate::scenario::Scenario;
 use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
 
-/// Reads a program: `.plc` text, or a whole-EEPROM image (32 KiB, as `asm -o` writes).
-/// Errors name the file, text line and column.
+/// Reads a program that the PLC would start: `.plc` text, or a whole-EEPROM image
+/// (32 KiB, as `asm -o` writes), checked by the whole-program verifier (e.g. the drive
+/// section's stack depth). Errors name the file, text line and column (or the program
+/// line for an image).
 pub fn load_program(path: &Path) -> Result<Program> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    if is_image(&bytes) {
+        let p = load_any(path)?;
+        verify(&p).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        return Ok(p);
+    }
+    let Ok(text) = String::from_utf8(bytes) else {
+        return load_any(path);
+    };
+    parse_program(&text, &path.display().to_string())
+}
+
+/// Reads any program the text format or an image holds, runnable or not (for `disasm`).
+pub fn load_any(path: &Path) -> Result<Program> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     if is_image(&bytes) {
         return program_from_image(&bytes)
@@ -25,12 +41,13 @@ pub fn load_program(path: &Path) -> Result<Program> {
             path.display()
         );
     };
-    parse_program(&text, &path.display().to_string())
+    assemble(&text).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))
 }
 
-/// Assembles `.plc` text; `name` prefixes the error (`name:line:col: message`).
+/// Assembles `.plc` text into a program the PLC would start (line rules and the
+/// whole-program verifier); `name` prefixes the error (`name:line:col: message`).
 pub fn parse_program(text: &str, name: &str) -> Result<Program> {
-    assemble(text).map_err(|e| anyhow::anyhow!("{name}:{e}"))
+    assemble_runnable(text).map_err(|e| anyhow::anyhow!("{name}:{e}"))
 }
 
 /// What a run produced.

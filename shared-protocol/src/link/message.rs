@@ -142,6 +142,7 @@ pub fn verify_kind_code(kind: &crate::program::VerifyErrorKind) -> u8 {
         K::OperandOutOfRange { .. } => 7,
         K::ConstantOutOfRange { .. } => 8,
         K::ConstantWithoutK { .. } => 9,
+        K::StackUnderflow { .. } => 10,
     }
 }
 
