@@ -95,8 +95,13 @@ pub enum DriveEvent {
 pub struct PwmCommand {
     /// Main output enable (MOE): false = all six switches open.
     pub enable: bool,
+    /// Per output leg (TIM1 CH1-3): the leg switches; false = both of its switches open
+    /// (CCxE = CCxNE = 0 with OSSR = 1 holds them at their inactive level). All false when
+    /// `enable` is false. A sine leg is off while f < fmn; a direct `WR PWx` leg is not
+    /// (program.md 4.2 `fmn`, as the source).
+    pub leg_enable: [bool; 3],
     /// Duties in counts, 0..=`period_counts`: the fraction duty/period of the period the
-    /// high switch is on (all 0 when disabled). Write them with [`PwmCommand::ccr`].
+    /// high switch is on (0 for a leg that is off). Write them with [`PwmCommand::ccr`].
     pub duty: [u16; 3],
     /// ARR the duties refer to (= [`PwmTiming::arr`]); reprogram TIM1 when it changes.
     pub period_counts: u16,
@@ -171,9 +176,14 @@ pub struct DriveCore {
     timing: PwmTiming,
     timing_key: (u16, u16),
     modulator: Modulator,
-    /// Set by the tick: RUN, f >= fmn and at least one leg in use.
+    /// Set by the tick: RUN and at least one leg switching (a direct leg, or a sine leg
+    /// with f >= fmn).
     outputs_on: bool,
-    /// Outputs were on in the previous PWM period (to restart the sine at angle 0).
+    /// Set by the tick: the sine legs switch (f >= fmn).
+    sine_on: bool,
+    /// Per output leg (after the reverse swap): switching while the outputs are on.
+    legs_on: [bool; 3],
+    /// The sine legs were on in the previous PWM period (to restart the sine at angle 0).
     was_on: bool,
     brake: bool,
     last: AdcSample,
@@ -204,6 +214,8 @@ impl DriveCore {
             limits: Limits::default(),
             modulator: Modulator::new(cfg.min_pulse_counts, cfg.min_max_injection),
             outputs_on: false,
+            sine_on: false,
+            legs_on: [false; 3],
             was_on: false,
             brake: false,
             last: AdcSample::default(),
@@ -416,6 +428,7 @@ impl DriveCore {
         let period_counts = self.timing.arr;
         let off = |brake| PwmCommand {
             enable: false,
+            leg_enable: [false; 3],
             duty: [0; 3],
             period_counts,
             brake,
@@ -441,24 +454,35 @@ impl DriveCore {
             self.trip(FaultCode::Uv);
             on = false;
         }
+        let sine_on = on && self.sine_on;
+        if !sine_on && self.was_on {
+            self.modulator.reset_phase();
+        }
+        self.was_on = sine_on;
         if !on {
-            if self.was_on {
-                self.modulator.reset_phase();
-                self.was_on = false;
-            }
             return off(self.brake);
         }
-        self.was_on = true;
+        let mut duty = self.modulator.step(period_counts);
+        if !sine_on {
+            // Direct legs only: the sine waits at angle 0 for f >= fmn.
+            self.modulator.reset_phase();
+        }
+        for (d, leg_on) in duty.iter_mut().zip(self.legs_on) {
+            if !leg_on {
+                *d = 0;
+            }
+        }
         PwmCommand {
             enable: true,
-            duty: self.modulator.step(period_counts),
+            leg_enable: self.legs_on,
+            duty,
             period_counts,
             brake: self.brake,
         }
     }
 
     pub fn status(&self) -> DriveStatus {
-        let on = self.state == DriveState::Run && self.outputs_on;
+        let on = self.state == DriveState::Run && self.outputs_on && self.sine_on;
         let m = if on {
             (self.modulator.params().m_q16 * 1000 + 0x8000) >> 16
         } else {
@@ -551,8 +575,21 @@ impl DriveCore {
     fn update_modulator(&mut self) {
         let s = *self.vm.settings();
         let o = *self.vm.outputs();
-        let any_leg = o.legs.iter().any(|l| *l != LegMode::Unused);
-        self.outputs_on = self.state == DriveState::Run && any_leg && o.f >= s.fmn;
+        // fmn stops only the sine legs (program.md 4.2, as the source): a direct `WR PWx`
+        // leg keeps switching, and an unused leg (duty 0) is driven while any other is.
+        let run = self.state == DriveState::Run;
+        let sine_on = o.f >= s.fmn;
+        let direct = o.legs.iter().any(|l| matches!(l, LegMode::Direct { .. }));
+        let sine = o.legs.contains(&LegMode::Sine);
+        self.sine_on = sine && sine_on;
+        self.outputs_on = run && (direct || self.sine_on);
+        let mut legs_on = o
+            .legs
+            .map(|l| self.outputs_on && (l != LegMode::Sine || sine_on));
+        if self.reversal.applied() {
+            legs_on.swap(0, 1);
+        }
+        self.legs_on = legs_on;
         let fjm = u64::from(s.fjm.max(1) as u16);
         let m = (u64::from(o.a.max(0) as u16) << 16) / fjm + (u64::from(s.du) << 16) / 1023;
         // Above the linear range the modulator clips (overmodulation, program.md 4.3).
@@ -680,6 +717,55 @@ mod tests {
         assert_eq!(core.status().f_applied, Decihertz(50));
         // A = f = 5 Hz at fjm 50 Hz: m = 0.1.
         assert_eq!(core.status().modulation_permille, 100);
+    }
+
+    #[test]
+    fn fmn_stops_only_the_sine_legs() {
+        // Phase 1 sine from Q01, phase 2 direct at 50 %, phase 3 unused (duty 0).
+        let text = "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n\
+                    004 LD K01 0500\n005 WR PW3\n006 fmn K02 0050\n";
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        core.pwm_period(&ok_sample());
+        events(&mut core);
+        core.load_program(&section(text)).unwrap();
+        core.command(DriveCommand::SetQ { addr: 1, value: 10 })
+            .unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        events(&mut core);
+        // 1 Hz < fmn: the sine leg is off, the direct leg (and the unused one, at duty 0)
+        // switch, as the source's direct PDC writes did.
+        let c = core.pwm_period(&ok_sample());
+        let n = c.period_counts;
+        assert!(c.enable);
+        assert_eq!(c.leg_enable, [false, true, true]);
+        assert_eq!(c.duty, [0, n / 2 + n % 2, 0]);
+        assert_eq!(core.status().f_applied, Decihertz(0));
+        // At fmn the sine leg starts, at angle 0.
+        core.command(DriveCommand::SetQ { addr: 1, value: 50 })
+            .unwrap();
+        events(&mut core);
+        let c = core.pwm_period(&ok_sample());
+        assert_eq!(c.leg_enable, [true; 3]);
+        assert_eq!(c.duty[0], n / 2 + n % 2);
+        assert_eq!(core.status().f_applied, Decihertz(50));
+        // Reversed (from standstill), the enables follow their legs.
+        core.command(DriveCommand::SetQ { addr: 1, value: 0 })
+            .unwrap();
+        events(&mut core);
+        core.command(DriveCommand::Direction { reverse: true })
+            .unwrap();
+        core.command(DriveCommand::SetQ { addr: 1, value: 10 })
+            .unwrap();
+        events(&mut core);
+        assert!(core.status().reverse);
+        assert_eq!(
+            core.pwm_period(&ok_sample()).leg_enable,
+            [true, false, true]
+        );
+        // A program with sine legs only is all off below fmn (MOE cleared).
+        let mut core = running(40);
+        let c = core.pwm_period(&ok_sample());
+        assert!(!c.enable && c.leg_enable == [false; 3]);
     }
 
     #[test]

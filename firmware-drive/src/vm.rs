@@ -24,8 +24,8 @@ use crate::modulator::LegMode;
 pub const STACK_DEPTH: usize = 5;
 /// Number of Q variables.
 pub const Q_COUNT: usize = 64;
-/// `PWF` range, Hz (program.md 4.2).
-pub const PWF_MIN_HZ: u16 = 500;
+/// `PWF` range, Hz (program.md 4.2): the source's 488 Hz minimum.
+pub const PWF_MIN_HZ: u16 = 488;
 pub const PWF_MAX_HZ: u16 = 20_000;
 /// `fjm` when the program has none: 50.0 Hz.
 pub const FJM_DEFAULT: i16 = 500;
@@ -55,7 +55,7 @@ pub struct Settings {
     pub fjm: i16,
     pub fmx: i16,
     pub frv: i16,
-    /// `PWF`, Hz (500..=20000).
+    /// `PWF`, Hz (488..=20000).
     pub pwf_hz: u16,
     /// `PR0`/`PR1`/`PR2`: 4/16/64; 1 when none ran.
     pub prescaler: u16,
@@ -109,7 +109,7 @@ pub struct Outputs {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum VmWarning {
-    /// `PWF Qxx` outside 500..=20000 Hz: `applied` is the clamped value. Reported when the
+    /// `PWF Qxx` outside 488..=20000 Hz: `applied` is the clamped value. Reported when the
     /// clamping starts, not every millisecond.
     PwfClamped {
         line: u16,
@@ -495,14 +495,14 @@ mod tests {
         for _ in 0..3 {
             vm.run(&s, &mut |w| warnings.push(w));
         }
-        assert_eq!(vm.settings().pwf_hz, 500);
+        assert_eq!(vm.settings().pwf_hz, 488);
         assert_eq!(vm.settings().prescaler, 16);
         assert_eq!(
             warnings,
             vec![VmWarning::PwfClamped {
                 line: 0,
                 requested: 100,
-                applied: 500
+                applied: 488
             }]
         );
         vm.set_q(0, 9800);

@@ -273,7 +273,13 @@ proptest! {
         for d in &raw {
             let duty = dead_time_safe(*d, n, min);
             prop_assert!(duty <= n);
-            let cmd = PwmCommand { enable: true, duty: [duty; 3], period_counts: n, brake: false };
+            let cmd = PwmCommand {
+                enable: true,
+                leg_enable: [true; 3],
+                duty: [duty; 3],
+                period_counts: n,
+                brake: false,
+            };
             let ccr = u32::from(cmd.ccr()[0]);
             // Up-down counter 0..ARR..0 (2 * ARR ticks); PWM mode 1: active while
             // CNT < CCR, held active when CCR > ARR (RM0440).

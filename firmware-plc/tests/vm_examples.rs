@@ -151,7 +151,7 @@ fn arithmetic() {
     }
 }
 
-/// Source: "shows A02 and the counted Q02 on the LCD" (project copy: an explicit reset bit).
+/// Source: "shows A02 and the counted Q02 on the LCD" (the project copy is the listing).
 const LCD: &str = include_str!("../../shared-protocol/programs/lcd.plc");
 
 /// The source's own LCD listing: only the edge is on the stack before `CTU`.

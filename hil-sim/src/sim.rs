@@ -186,6 +186,7 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             pending_gate: GateCommand::OFF,
             last_cmd: PwmCommand {
                 enable: false,
+                leg_enable: [false; 3],
                 duty: [0; 3],
                 period_counts: timing.arr,
                 brake: false,
@@ -449,8 +450,14 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             (u64::from(timing.dead_time_counts) * 1_000_000_000).div_ceil(u64::from(f_tim.max(1)));
         let gate = if cmd.enable {
             let n = f64::from(cmd.period_counts.max(1));
+            let mut legs = [Leg::Off; 3];
+            for ((leg, d), on) in legs.iter_mut().zip(cmd.duty).zip(cmd.leg_enable) {
+                if on {
+                    *leg = Leg::Duty(f64::from(d) / n);
+                }
+            }
             GateCommand {
-                legs: cmd.duty.map(|d| Leg::Duty(f64::from(d) / n)),
+                legs,
                 dead_time_ns: dead_ns,
             }
         } else {

@@ -188,12 +188,12 @@ mod tests {
 
     #[test]
     fn constant_digits_skip_invalid_values() {
-        // PWF K: 0500..=9999.
+        // PWF K: 0488..=9999.
         let pwf = with_mnemonic(Mnemonic::Pwf, Section::Drive, None);
         assert_eq!(pwf.operand, Some(Operand::K(0)));
-        assert_eq!(pwf.constant, 500);
+        assert_eq!(pwf.constant, 488);
         let down = step_digit(pwf, Section::Drive, 1, false);
-        assert_eq!(down.constant, 900, "0400..0000 are invalid, wraps to 0900");
+        assert_eq!(down.constant, 988, "0388..0088 are invalid, wraps to 0988");
         // dU= K: 0000..=1023.
         let du = Instruction {
             constant: 1023,

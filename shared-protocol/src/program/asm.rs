@@ -534,8 +534,8 @@ mod tests {
             "1:9: LDC needs a bit operand (D, O, B, RDY, FLB), K00 is an int"
         );
         assert_eq!(
-            e("003 PWF K00 0499"),
-            "1:13: constant 0499 out of range for PWF (0500-9999)"
+            e("003 PWF K00 0487"),
+            "1:13: constant 0487 out of range for PWF (0488-9999)"
         );
         assert_eq!(
             e("150 DIV K00 0000"),

@@ -11,7 +11,7 @@
 //! * `WR`/`WRC` write `O`, `B`, `Q` (never `D`, `A`, `K` or read-only operands).
 //! * Every 4-digit constant is 0000-9999 unless the instruction needs more: `DIV` needs
 //!   1-9999 (a constant divisor of 0 is a program error, a `Q` divisor of 0 is the run-time
-//!   warning), drive `PWF` 0500-9999 Hz, `PI` limit 0001-9999, `Uc=` 0001-9999 (divisor
+//!   warning), drive `PWF` 0488-9999 Hz (the source's 488 Hz minimum), `PI` limit 0001-9999, `Uc=` 0001-9999 (divisor
 //!   of `=dU`), `dU=` 0000-1023, `U>` 0001-9999 (0 would brake permanently), `I>`
 //!   0001-9999 (0 would trip at once), `fjm` 0001-9999 (divisor of the V/f ratio), `fmx`
 //!   0001-9999. `Rs=`, `Iz=`, `U<` (0 = no undervoltage trip), `fmn`, `frv` and timers
@@ -184,7 +184,7 @@ pub fn constant_range(
     }
     let min = match (section, m) {
         (Section::Plc, M::Div) => 1,
-        (Section::Drive, M::Pwf) => 500,
+        (Section::Drive, M::Pwf) => 488,
         (Section::Drive, M::Pi | M::UcSet | M::UMax | M::IMax | M::Fjm | M::Fmx) => 1,
         _ => 0,
     };
@@ -571,7 +571,7 @@ mod tests {
         let k = Some(Operand::K(0));
         assert_eq!(
             constant_range(Mnemonic::Pwf, Section::Drive, k),
-            Some(500..=9999)
+            Some(488..=9999)
         );
         assert_eq!(
             constant_range(Mnemonic::DuSet, Section::Drive, k),
@@ -631,7 +631,7 @@ mod tests {
             E::OperandOutOfRange { .. }
         ));
         assert!(matches!(
-            e(5, Mnemonic::Pwf, Some(Operand::K(0)), 499),
+            e(5, Mnemonic::Pwf, Some(Operand::K(0)), 487),
             E::ConstantOutOfRange { .. }
         ));
         assert!(matches!(
@@ -669,10 +669,10 @@ mod tests {
             msg(VerifyErrorKind::ConstantOutOfRange {
                 mnemonic: Mnemonic::Pwf,
                 value: 100,
-                min: 500,
+                min: 488,
                 max: 9999
             }),
-            "constant 0100 out of range for PWF (0500-9999)"
+            "constant 0100 out of range for PWF (0488-9999)"
         );
         let err = VerifyError {
             line: 7,
