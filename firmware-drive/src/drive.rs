@@ -15,8 +15,10 @@
 
 use heapless::Deque;
 use shared_protocol::program::{verify_drive, DriveSection, VerifyError};
-use shared_protocol::units::{CentiAmps, Decihertz, Decivolts};
+use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
+use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Volts};
 
+use crate::comparators::{dac_values, DacValues, HwThresholds};
 use crate::config::{DriveConfig, ResetCause};
 use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, PeakTracker};
 use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
@@ -151,6 +153,10 @@ pub struct DriveStatus {
     pub brake: bool,
     pub pwm_millihertz: u32,
     pub program_loaded: bool,
+    /// The hardware comparator thresholds in effect (`IHW`, `UHW`).
+    pub hw: HwThresholds,
+    /// The drive section's run-time warning while its cause lasts.
+    pub warning: Option<VmWarning>,
 }
 
 impl DriveStatus {
@@ -258,6 +264,36 @@ impl DriveCore {
     /// The modulator (read-only: angle and parameters, for benches and hil-sim probes).
     pub fn modulator(&self) -> &Modulator {
         &self.modulator
+    }
+
+    /// The hardware thresholds in effect: the program's `I>>`/`U>>`, or the board's
+    /// defaults ([`DriveConfig`]) while it sets none, within the sensors' full scale.
+    pub fn hw_thresholds(&self) -> HwThresholds {
+        let s = self.vm.settings();
+        let pick = |set: u16, default: u16, max: u16| {
+            let v = if set > 0 { set } else { default };
+            v.clamp(1, max) as i16
+        };
+        HwThresholds {
+            oc_hw: CentiAmps(pick(
+                s.oc_hw_centiamps,
+                self.cfg.oc_hw_default_centiamps,
+                I_MAX_HW_LIMIT,
+            )),
+            ov_hw: Volts(pick(
+                s.ov_hw_volts,
+                self.cfg.ov_hw_default_volts,
+                U_MAX_HW_LIMIT,
+            )),
+        }
+    }
+
+    /// What the board writes to the comparators' threshold DACs (12-bit), from
+    /// [`DriveCore::hw_thresholds`] and the board profile: changes only when a program is
+    /// loaded (the source's trimmers, set at download). The board writes a channel when
+    /// its value differs from the one it last wrote.
+    pub fn comparator_dacs(&self) -> DacValues {
+        dac_values(self.cfg.board, self.hw_thresholds())
     }
 
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
@@ -502,6 +538,8 @@ impl DriveCore {
             brake: self.brake,
             pwm_millihertz: self.timing.pwm_millihertz,
             program_loaded: self.program.is_some(),
+            hw: self.hw_thresholds(),
+            warning: self.vm.active_warning(),
         }
     }
 
@@ -963,6 +1001,59 @@ mod tests {
         let ev = events(&mut core);
         assert_eq!(ev.len(), EVENT_QUEUE + 1);
         assert!(matches!(ev.last(), Some(DriveEvent::EventsLost(n)) if *n > 0));
+    }
+
+    #[test]
+    fn hardware_thresholds_are_settings_written_to_the_dacs_at_download() {
+        use crate::comparators::DacChannel;
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        events(&mut core);
+        // No program: the board's defaults (3.00 A, 40 V).
+        let th = core.hw_thresholds();
+        assert_eq!((th.oc_hw, th.ov_hw), (CentiAmps(300), Volts(40)));
+        assert_eq!(core.comparator_dacs().get(DacChannel::Dac3Ch1), Some(2662));
+        // I>> 1.50 A and U>> 38 V take effect at download, before any RUN.
+        let p = section(&(SINE.to_string() + "020 I>> K08 0150\n021 U>> K09 0038\n"));
+        core.load_program(&p).unwrap();
+        let th = core.hw_thresholds();
+        assert_eq!((th.oc_hw, th.ov_hw), (CentiAmps(150), Volts(38)));
+        let dacs = core.comparator_dacs();
+        assert_eq!(dacs.get(DacChannel::Dac3Ch1), Some(2048 + 307));
+        assert_eq!(dacs.get(DacChannel::Dac3Ch2), Some(2048 + 307));
+        assert_eq!(dacs.get(DacChannel::Dac1Ch1), Some(91 * 38));
+        assert_eq!(core.status().hw, th);
+        // A program without them: back to the defaults.
+        core.load_program(&section(SINE)).unwrap();
+        assert_eq!(core.hw_thresholds().oc_hw, CentiAmps(300));
+    }
+
+    #[test]
+    fn a_clamped_pwf_is_an_active_warning_while_it_lasts() {
+        let text = "000 PWF Q00\n".to_string() + &SINE.replace("000 PWF K00 9800\n", "");
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        events(&mut core);
+        core.load_program(&section(&text)).unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        let ev = events(&mut core);
+        let w = VmWarning::PwfClamped {
+            line: 0,
+            requested: 0,
+            applied: 488,
+        };
+        assert!(ev.contains(&DriveEvent::Warning(DriveWarning::Vm(w))));
+        assert_eq!(core.status().warning, Some(w));
+        // Still clamped: still active, reported once as an event.
+        let ev = events(&mut core);
+        assert!(!ev.iter().any(|e| matches!(e, DriveEvent::Warning(_))));
+        assert_eq!(core.status().warning, Some(w));
+        core.command(DriveCommand::SetQ {
+            addr: 0,
+            value: 9800,
+        })
+        .unwrap();
+        events(&mut core);
+        assert_eq!(core.status().warning, None);
+        assert_eq!(core.vm().settings().pwf_hz, 9800);
     }
 
     #[test]

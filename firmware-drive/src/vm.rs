@@ -59,6 +59,10 @@ pub struct Settings {
     pub pwf_hz: u16,
     /// `PR0`/`PR1`/`PR2`: 4/16/64; 1 when none ran.
     pub prescaler: u16,
+    /// `I>>`: hardware overcurrent threshold, 0.01 A (0 = none: the board's default).
+    pub oc_hw_centiamps: u16,
+    /// `U>>`: hardware overvoltage threshold, V (0 = none: the board's default).
+    pub ov_hw_volts: u16,
 }
 
 impl Settings {
@@ -77,6 +81,8 @@ impl Settings {
             frv: FRV_DEFAULT,
             pwf_hz: default_pwm_hz.clamp(PWF_MIN_HZ, PWF_MAX_HZ),
             prescaler: 1,
+            oc_hw_centiamps: 0,
+            ov_hw_volts: 0,
         }
     }
 
@@ -128,6 +134,8 @@ pub struct DriveVm {
     q: [i16; Q_COUNT],
     out: Outputs,
     pwf_clamped: bool,
+    /// The warning of the last full cycle while its cause lasts (PWF clamped).
+    active: Option<VmWarning>,
     /// Values loaded in the running cycle (the verifier's count, program.md 4.1).
     depth: u8,
     /// Instructions that found fewer values than they need since the last load: 0 for
@@ -145,6 +153,7 @@ impl DriveVm {
             q: [0; Q_COUNT],
             out: Outputs::default(),
             pwf_clamped: false,
+            active: None,
             depth: 0,
             underflows: 0,
         }
@@ -162,6 +171,12 @@ impl DriveVm {
 
     pub fn outputs(&self) -> &Outputs {
         &self.out
+    }
+
+    /// The run-time warning whose cause lasts (the `PWF` of the last cycle clamped), for
+    /// the status the PLC shows.
+    pub fn active_warning(&self) -> Option<VmWarning> {
+        self.active
     }
 
     pub fn stack(&self) -> &[i16; STACK_DEPTH] {
@@ -204,17 +219,20 @@ impl DriveVm {
         self.pi = [0; DRIVE_LINES];
         self.out = Outputs::default();
         self.pwf_clamped = false;
+        self.active = None;
     }
 
     /// Stop generating: f and the leg modes back to none (the PI states are kept until
     /// the next RUN).
     pub fn stop_outputs(&mut self) {
         self.out = Outputs::default();
+        self.active = None;
     }
 
     /// One 1 ms cycle: every line of the section, in order.
     pub fn run(&mut self, s: &DriveSection, warn: &mut impl FnMut(VmWarning)) {
         self.depth = 0;
+        self.active = None;
         for (line, ins) in lines(s) {
             self.depth = match drive_stack_step(self.depth, ins.mnemonic) {
                 Ok(d) => d,
@@ -278,12 +296,16 @@ impl DriveVm {
                 if let Some(v) = self.value(ins) {
                     let applied = v.clamp(PWF_MIN_HZ as i16, PWF_MAX_HZ as i16) as u16;
                     let clamped = applied as i16 != v;
-                    if matches!(ins.operand, Some(Operand::Q(_))) && clamped && !self.pwf_clamped {
-                        warn(VmWarning::PwfClamped {
+                    if matches!(ins.operand, Some(Operand::Q(_))) && clamped {
+                        let w = VmWarning::PwfClamped {
                             line,
                             requested: v,
                             applied,
-                        });
+                        };
+                        if !self.pwf_clamped {
+                            warn(w);
+                        }
+                        self.active = Some(w);
                     }
                     self.pwf_clamped = clamped;
                     self.settings.pwf_hz = applied;
@@ -316,6 +338,8 @@ impl DriveVm {
             Mnemonic::UMax => self.settings.u_max_volts = k,
             Mnemonic::UMin => self.settings.u_min_volts = k,
             Mnemonic::IMax => self.settings.i_max_centiamps = k,
+            Mnemonic::IMaxHw => self.settings.oc_hw_centiamps = k,
+            Mnemonic::UMaxHw => self.settings.ov_hw_volts = k,
             Mnemonic::Fmn => self.settings.fmn = ki,
             Mnemonic::Fjm if ki > 0 => self.settings.fjm = ki,
             Mnemonic::Fmx => self.settings.fmx = ki,
@@ -376,6 +400,8 @@ fn is_setting(i: &Instruction) -> bool {
         | M::UMax
         | M::UMin
         | M::IMax
+        | M::IMaxHw
+        | M::UMaxHw
         | M::Fmn
         | M::Fjm
         | M::Fmx

@@ -127,8 +127,6 @@ pub enum PlantChange {
     DcLinkV(f64),
     LoadTorqueNm(f64),
     InertiaKgm2(f64),
-    OcHwA(f64),
-    OvHwV(f64),
     BrakeResistorOhm(f64),
     LockedRotor(bool),
 }
@@ -139,8 +137,6 @@ impl PlantChange {
             PlantChange::DcLinkV(v) => rig.supply_v = v,
             PlantChange::LoadTorqueNm(v) => rig.motor.load_torque_nm = v,
             PlantChange::InertiaKgm2(v) => rig.motor.inertia_kgm2 = v,
-            PlantChange::OcHwA(v) => rig.comparators.oc_hw_a = v,
-            PlantChange::OvHwV(v) => rig.comparators.ov_hw_v = v,
             PlantChange::BrakeResistorOhm(v) => rig.brake_resistor_ohm = v,
             PlantChange::LockedRotor(v) => rig.motor.locked_rotor = v,
         }
@@ -251,10 +247,10 @@ impl Scenario {
             rig.motor.inertia_kgm2 = v;
         }
         if let Some(v) = positive("plant.oc_hw_a", p.oc_hw_a)? {
-            rig.comparators.oc_hw_a = v;
+            rig.hw_defaults.oc_hw_a = v;
         }
         if let Some(v) = positive("plant.ov_hw_v", p.ov_hw_v)? {
-            rig.comparators.ov_hw_v = v;
+            rig.hw_defaults.ov_hw_v = v;
         }
         if let Some(v) = positive("plant.dc_capacitor_uf", p.dc_capacitor_uf)? {
             rig.dc_capacitor_f = v * 1e-6;
@@ -326,6 +322,13 @@ impl Scenario {
         if !(e.at_s.is_finite() && e.at_s >= 0.0) {
             bail!("at_s must be >= 0");
         }
+        if e.oc_hw_a.is_some() || e.ov_hw_v.is_some() {
+            bail!(
+                "oc_hw_a / ov_hw_v cannot change at run time: the hardware thresholds are drive \
+                 settings now (I>> and U>> in the program, written to the comparator DACs at \
+                 download; [plant] oc_hw_a / ov_hw_v are the board's defaults)"
+            );
+        }
         let mut any = false;
         if let Some(set) = &e.set {
             for (name, &v) in set {
@@ -372,8 +375,6 @@ impl Scenario {
             non_negative("dc_link_v", e.dc_link_v)?.map(PlantChange::DcLinkV),
             non_negative("load_torque_nm", e.load_torque_nm)?.map(PlantChange::LoadTorqueNm),
             positive("inertia_kgm2", e.inertia_kgm2)?.map(PlantChange::InertiaKgm2),
-            positive("oc_hw_a", e.oc_hw_a)?.map(PlantChange::OcHwA),
-            positive("ov_hw_v", e.ov_hw_v)?.map(PlantChange::OvHwV),
             positive("brake_resistor_ohm", e.brake_resistor_ohm)?
                 .map(PlantChange::BrakeResistorOhm),
             e.locked_rotor.map(PlantChange::LockedRotor),
@@ -485,6 +486,7 @@ load_torque_nm = 0.05
         assert!(err("[plant]\npwm_mode = \"fast\"").contains("pwm_mode"));
         assert!(err("[[event]]\nat_s = 1").contains("does nothing"));
         assert!(err("duration_s = -1").contains("duration_s"));
+        assert!(err("[[event]]\nat_s = 1\noc_hw_a = 2.0").contains("I>>"));
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //! sample), so a run is a pure function of its inputs and the seed.
 
 use anyhow::{Context, Result};
-use firmware_drive::{AdcSample, HwBreak, PwmCommand};
+use firmware_drive::{AdcSample, DriveConfig, HwBreak, PwmCommand};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::channel::{Channel, Impairments};
@@ -19,7 +19,7 @@ use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins};
-use crate::plant::{BreakCause, GateCommand, Leg, Plant, PlantOutputs};
+use crate::plant::{BreakCause, Comparators, GateCommand, Leg, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
 use crate::seams::{Rig, UartWire};
 
@@ -122,12 +122,23 @@ impl Simulation<DriveBoard, PlcBoard> {
         .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))
         .context("EEPROM image")?;
         let link = LinkConfig::at_baud(scenario.baud);
-        let drive = DriveBoard::new(link);
+        let drive = DriveBoard::with_config(link, drive_config(&scenario.rig));
         let mut plc = PlcBoard::new(MemEeprom::from_image(&image), link, Micros(0));
         // The link's quiet window after each scan lasts until the next scan.
         plc.app_mut()
             .set_scan_period_us((scenario.scan_time_ns / 1000).max(1));
         Ok(Simulation::with_boards(drive, plc, scenario, opts))
+    }
+}
+
+/// The drive's configuration on this rig: the board's default hardware thresholds are the
+/// rig's (`[plant] oc_hw_a`, `ov_hw_v`), used while the program sets no `I>>`/`U>>`.
+pub fn drive_config(rig: &RigParams) -> DriveConfig {
+    let t = rig.hw_defaults.thresholds();
+    DriveConfig {
+        oc_hw_default_centiamps: t.oc_hw.0 as u16,
+        ov_hw_default_volts: t.ov_hw.0 as u16,
+        ..DriveConfig::default()
     }
 }
 
@@ -408,6 +419,14 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
     }
 
     fn pwm_event(&mut self, t: u64) {
+        // The comparators' DACs as the firmware last wrote them (they change at a download).
+        let comparators = Comparators {
+            board: self.drive.board(),
+            dacs: self.drive.comparator_dacs(),
+        };
+        if comparators != self.plant.comparators() {
+            self.plant.set_comparators(comparators);
+        }
         // Break input first: the hardware has already opened the switches.
         if let Some(c) = self.plant.take_break() {
             let k = cause_index(c);

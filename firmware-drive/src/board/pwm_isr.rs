@@ -61,7 +61,7 @@ fn TIM1_BRK_TIM15() {
         return;
     }
     power_stage::outputs_off();
-    let causes = hw_protection::active();
+    let causes = hw_protection::active(firmware_drive::config::DriveConfig::default().board);
     shared::with(|s| {
         let mut any = false;
         for (cause, present) in causes {

@@ -361,6 +361,8 @@ impl PlcVm {
             | M::UMax
             | M::UMin
             | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
             | M::Fmn
             | M::Fjm
             | M::Fmx
@@ -396,6 +398,8 @@ fn read_int(mem: &Memory, env: &Env<'_>, op: Operand, constant: u16) -> Option<i
         Operand::Imx => Some(d.imx.0),
         Operand::Flt => Some(i16::from(d.flt)),
         Operand::Dir => Some(i16::from(d.dir_reverse)),
+        Operand::Ihw => Some(d.ihw.0),
+        Operand::Uhw => Some(d.uhw.0),
         _ => None,
     }
 }

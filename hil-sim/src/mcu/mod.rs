@@ -10,6 +10,7 @@ pub mod drive_board;
 pub mod lcd;
 pub mod plc_board;
 
+use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::{AdcSample, DriveStatus, HwBreak, PwmCommand, PwmTiming};
 use shared_protocol::units::Micros;
 
@@ -34,6 +35,10 @@ pub trait DriveMcu {
     /// The timer's kernel clock.
     fn timer_clock_hz(&self) -> u32;
     fn status(&self) -> DriveStatus;
+    /// The board's comparators (which signal, direction and DAC each one has).
+    fn board(&self) -> &'static BoardProfile;
+    /// What the firmware writes to the comparator threshold DACs now.
+    fn comparator_dacs(&self) -> DacValues;
 }
 
 /// The PLC's inputs as its pins present them.

@@ -12,7 +12,7 @@ pub mod sensors;
 
 pub use inverter::{GateCommand, Leg, PwmMode};
 pub use motor::MotorParams;
-pub use sensors::{AdcSample, BreakCause, Comparators};
+pub use sensors::{AdcSample, BreakCause, Comparators, HwDefaults};
 
 use inverter::Conn;
 
@@ -55,7 +55,9 @@ pub struct RigParams {
     pub supply_r_ohm: f64,
     pub dc_capacitor_f: f64,
     pub brake_resistor_ohm: f64,
-    pub comparators: Comparators,
+    /// The board's default hardware thresholds (the drive's, while the program sets no
+    /// `I>>`/`U>>`).
+    pub hw_defaults: HwDefaults,
     pub pwm_mode: PwmMode,
 }
 
@@ -67,7 +69,7 @@ impl Default for RigParams {
             supply_r_ohm: 0.5,
             dc_capacitor_f: 1000e-6,
             brake_resistor_ohm: 10.0,
-            comparators: Comparators {
+            hw_defaults: HwDefaults {
                 oc_hw_a: 3.0,
                 ov_hw_v: 40.0,
             },
@@ -113,6 +115,8 @@ pub struct Plant {
     hw_break: Option<BreakCause>,
     /// A break that fired and was not yet collected by [`Plant::take_break`].
     break_event: Option<BreakCause>,
+    /// The board's comparators (table and DAC values from the drive core).
+    comparators: Comparators,
     /// Comparator outputs after the last step: [overcurrent, overvoltage].
     comparator_levels: [bool; 2],
     /// Mechanical angle, rad (for plots and tests of reversal).
@@ -134,6 +138,10 @@ impl Plant {
             tau_ns: 0,
             hw_break: None,
             break_event: None,
+            comparators: Comparators::new(
+                firmware_drive::DriveConfig::default().board,
+                params.hw_defaults.thresholds(),
+            ),
             comparator_levels: [false; 2],
             angle_rad: 0.0,
             brake_energy_j: 0.0,
@@ -177,6 +185,16 @@ impl Plant {
     /// Comparator outputs now: [overcurrent, overvoltage].
     pub fn comparator_levels(&self) -> [bool; 2] {
         self.comparator_levels
+    }
+
+    /// The comparators and their DAC values (as the drive core last set them).
+    pub fn comparators(&self) -> &Comparators {
+        &self.comparators
+    }
+
+    /// The drive wrote its threshold DACs (board profile and values from the core).
+    pub fn set_comparators(&mut self, c: Comparators) {
+        self.comparators = c;
     }
 
     pub fn hw_break(&self) -> Option<BreakCause> {
@@ -332,10 +350,7 @@ impl Plant {
             self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
         }
         let o = self.outputs();
-        let levels = self
-            .params
-            .comparators
-            .levels(o.i_abc_a[0], o.i_abc_a[1], o.u_dc_v);
+        let levels = self.comparators.levels(o.i_abc_a, o.u_dc_v);
         for (k, cause) in BreakCause::ALL.into_iter().enumerate() {
             // The break input is edge-triggered: it latches on the comparator's rising edge.
             if levels[k] && !self.comparator_levels[k] {

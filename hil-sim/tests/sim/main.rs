@@ -7,6 +7,7 @@ mod common;
 
 mod brake_and_determinism;
 mod cli;
+mod hw_comparators;
 mod keypad;
 mod link_latency;
 mod motor_program;

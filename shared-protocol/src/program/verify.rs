@@ -13,7 +13,8 @@
 //!   1-9999 (a constant divisor of 0 is a program error, a `Q` divisor of 0 is the run-time
 //!   warning), drive `PWF` 0488-9999 Hz (the source's 488 Hz minimum), `PI` limit 0001-9999, `Uc=` 0001-9999 (divisor
 //!   of `=dU`), `dU=` 0000-1023, `U>` 0001-9999 (0 would brake permanently), `I>`
-//!   0001-9999 (0 would trip at once), `fjm` 0001-9999 (divisor of the V/f ratio), `fmx`
+//!   0001-9999 (0 would trip at once), `I>>` 0001-0999 and `U>>` 0001-0045 (the hardware
+//!   comparator thresholds: within the sensors' full scale, +-10 A and 45 V), `fjm` 0001-9999 (divisor of the V/f ratio), `fmx`
 //!   0001-9999. `Rs=`, `Iz=`, `U<` (0 = no undervoltage trip), `fmn`, `frv` and timers
 //!   (0.1 s units, 0000-9999 = 0-999.9 s) take 0000-9999.
 //! * A constant on a line without a `K` operand must be 0 (the text format has no column
@@ -54,6 +55,8 @@ const PLC_LD: OperandSet = OperandSet::of(&[
     C::Dir,
     C::Rdy,
     C::Flb,
+    C::Ihw,
+    C::Uhw,
 ]);
 const PLC_WR: OperandSet = OperandSet::of(&[C::O, C::B, C::Q]);
 const B_ONLY: OperandSet = OperandSet::of(&[C::B]);
@@ -104,6 +107,8 @@ pub fn operand_set(m: Mnemonic, section: Section) -> Option<OperandSet> {
             | M::UMax
             | M::UMin
             | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
             | M::Fmn
             | M::Fjm
             | M::Fmx
@@ -185,15 +190,26 @@ pub fn constant_range(
     let min = match (section, m) {
         (Section::Plc, M::Div) => 1,
         (Section::Drive, M::Pwf) => 488,
-        (Section::Drive, M::Pi | M::UcSet | M::UMax | M::IMax | M::Fjm | M::Fmx) => 1,
+        (
+            Section::Drive,
+            M::Pi | M::UcSet | M::UMax | M::IMax | M::IMaxHw | M::UMaxHw | M::Fjm | M::Fmx,
+        ) => 1,
         _ => 0,
     };
     let max = match (section, m) {
         (Section::Drive, M::DuSet) => 1023,
+        (Section::Drive, M::IMaxHw) => I_MAX_HW_LIMIT,
+        (Section::Drive, M::UMaxHw) => U_MAX_HW_LIMIT,
         _ => CONSTANT_MAX,
     };
     Some(min..=max)
 }
+
+/// Largest `I>>` (0.01 A): the current sensors' full scale is +-10 A (drive.md
+/// "Measurements"), so a comparator threshold at or above it could never be reached.
+pub const I_MAX_HW_LIMIT: u16 = 999;
+/// Largest `U>>` (V): the DC-link sensor's full scale is 45 V.
+pub const U_MAX_HW_LIMIT: u16 = 45;
 
 /// Depth of the drive section's int stack (program.md 4.1).
 pub const DRIVE_STACK_DEPTH: u8 = 5;
@@ -556,14 +572,22 @@ mod tests {
     fn editor_order_and_counts() {
         let ld: std::vec::Vec<_> = operands_for(Mnemonic::Ld, Section::Plc).collect();
         assert_eq!(ld.first(), Some(&Some(Operand::D(0))));
-        assert_eq!(ld.last(), Some(&Some(Operand::Flb)));
-        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 10 named.
-        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 10);
+        assert_eq!(ld.last(), Some(&Some(Operand::Uhw)));
+        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 12 named.
+        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 12);
         let not: std::vec::Vec<_> = operands_for(Mnemonic::Not, Section::Plc).collect();
         assert_eq!(not, std::vec![None]);
         assert_eq!(operands_for(Mnemonic::Pwf, Section::Plc).count(), 0);
         assert_eq!(mnemonics_for(Section::Plc).count(), 29);
-        assert_eq!(mnemonics_for(Section::Drive).count(), 22);
+        assert_eq!(mnemonics_for(Section::Drive).count(), 24);
+        assert_eq!(
+            constant_range(Mnemonic::IMaxHw, Section::Drive, Some(Operand::K(0))),
+            Some(1..=999)
+        );
+        assert_eq!(
+            constant_range(Mnemonic::UMaxHw, Section::Drive, Some(Operand::K(0))),
+            Some(1..=45)
+        );
     }
 
     #[test]
