@@ -1,5 +1,5 @@
-//! The PNG plot of a run: frequency, speed, phase currents, DC-link voltage, and the
-//! fault / brake / PWM signals, on a shared time axis.
+//! The PNG plot of a run: frequency, speed, phase currents, line voltage a-b (PWM-period
+//! average), DC-link voltage, and the fault / brake / PWM signals, on a shared time axis.
 //!
 //! Text is drawn with a font shipped in the crate (DejaVu Sans Mono, `assets/`), through
 //! plotters' `ab_glyph` backend: no fontconfig or FreeType needed on the machine.
@@ -57,7 +57,7 @@ fn range(samples: &[Sample], series: &[Series<'_>], min_span: f64) -> (f64, f64)
 pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
     register_font();
     let err = |e: &dyn std::fmt::Display| anyhow!("plot {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (1400, 1600)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1400, 1800)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(title, ("sans-serif", 22))
@@ -105,6 +105,15 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
                     y: Box::new(|s| s.i_abc_a[2]),
                 },
             ],
+        ),
+        (
+            "line voltage a-b [V] (PWM-period average)",
+            1.0,
+            vec![Series {
+                name: "u_ab_v",
+                color: RGBColor(0, 110, 160),
+                y: Box::new(|s| s.u_ab_v),
+            }],
         ),
         (
             "DC-link voltage [V]",

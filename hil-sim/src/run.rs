@@ -62,6 +62,9 @@ pub struct RunReport {
     pub plc_running: bool,
     pub final_speed_rpm: f64,
     pub final_f_hz: f64,
+    /// Each run-time warning seen (one per status-line text: the long text of its first
+    /// appearance), with the time it first appeared.
+    pub warnings: Vec<(f64, String)>,
 }
 
 /// Fault name for a code.
@@ -100,6 +103,14 @@ impl RunReport {
                 ));
             }
         }
+        if self.warnings.is_empty() {
+            s.push_str("warnings: none\n");
+        } else {
+            s.push_str("warnings:\n");
+            for (t, w) in &self.warnings {
+                s.push_str(&format!("  {t:.3} s  {w}\n"));
+            }
+        }
         s.push_str("LCD:\n");
         s.push_str(&self.lcd.framed());
         s.push('\n');
@@ -125,11 +136,21 @@ pub fn run(
     let mut sim = Simulation::new(program, scenario, opts)?;
     let end_ns = (duration_s * 1e9).round() as u64;
     let mut samples = Vec::new();
+    let mut warnings: Vec<(f64, String)> = Vec::new();
+    let mut seen: Vec<String> = Vec::new();
     let chunk_ns = 100_000_000;
     let mut t = 0;
     while t < end_ns {
         t = (t + chunk_ns).min(end_ns);
         sim.run_until(t, |s| {
+            if !s.warn.is_empty() {
+                for (short, long) in s.warn.texts() {
+                    if !seen.contains(&short) {
+                        seen.push(short);
+                        warnings.push((s.t_ns as f64 * 1e-9, long));
+                    }
+                }
+            }
             on_sample(s);
             if keep_samples {
                 samples.push(s.clone());
@@ -149,6 +170,7 @@ pub fn run(
         plc_running: sim.plc().running(),
         final_speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
         final_f_hz: st.1,
+        warnings,
     })
 }
 

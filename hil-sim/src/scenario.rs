@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
-use crate::plant::{PwmMode, RigParams};
+use crate::plant::{Load, PwmMode, RigParams};
 
 /// Duration when neither `--duration` nor the scenario gives one.
 pub const DEFAULT_DURATION_S: f64 = 10.0;
@@ -46,6 +46,10 @@ pub struct PlantKeys {
     pub scan_time_ms: Option<f64>,
     pub pwm_mode: Option<PwmMode>,
     // Additions (hil-sim docs): the rest of the rig.
+    /// `"motor"` (default) or `"rl"`: a star RL load instead of the motor.
+    pub load: Option<LoadKind>,
+    pub load_r_ohm: Option<f64>,
+    pub load_l_h: Option<f64>,
     pub supply_r_ohm: Option<f64>,
     pub locked_rotor: Option<bool>,
     pub friction_nms: Option<f64>,
@@ -54,6 +58,14 @@ pub struct PlantKeys {
     pub lls_h: Option<f64>,
     pub llr_h: Option<f64>,
     pub lm_h: Option<f64>,
+}
+
+/// `[plant] load`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LoadKind {
+    Motor,
+    Rl,
 }
 
 /// `[link]`.
@@ -281,6 +293,20 @@ impl Scenario {
         if let Some(m) = p.pwm_mode {
             rig.pwm_mode = m;
         }
+        let r = positive("plant.load_r_ohm", p.load_r_ohm)?;
+        let l = positive("plant.load_l_h", p.load_l_h)?;
+        match p.load {
+            Some(LoadKind::Rl) => {
+                rig.load = Load::Rl {
+                    r_ohm: r.unwrap_or(Load::RL_R_OHM),
+                    l_h: l.unwrap_or(Load::RL_L_H),
+                };
+            }
+            _ if r.is_some() || l.is_some() => {
+                bail!("plant.load_r_ohm / load_l_h need plant.load = \"rl\"")
+            }
+            _ => {}
+        }
         if let Some(v) = positive("plant.scan_time_ms", p.scan_time_ms)? {
             if v > 1000.0 {
                 bail!("plant.scan_time_ms must be at most 1000, got {v}");
@@ -487,6 +513,16 @@ load_torque_nm = 0.05
         assert!(err("[[event]]\nat_s = 1").contains("does nothing"));
         assert!(err("duration_s = -1").contains("duration_s"));
         assert!(err("[[event]]\nat_s = 1\noc_hw_a = 2.0").contains("I>>"));
+        assert!(err("[plant]\nload_r_ohm = 5.0").contains("load = \"rl\""));
+        assert!(err("[plant]\nload = \"lamp\"").contains("load"));
+        let rl = Scenario::parse("[plant]\nload = \"rl\"\nload_l_h = 0.05").unwrap();
+        assert_eq!(
+            rl.rig.load,
+            Load::Rl {
+                r_ohm: 10.0,
+                l_h: 0.05
+            }
+        );
     }
 
     #[test]

@@ -18,7 +18,7 @@ use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins};
+use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins, Warnings};
 use crate::plant::{BreakCause, Comparators, GateCommand, Leg, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
 use crate::seams::{Rig, UartWire};
@@ -43,6 +43,12 @@ pub struct Sample {
     pub digital_out: u8,
     pub q: [i16; 8],
     pub lcd: [Option<i16>; 4],
+    /// Leg duties 0..1, averaged over the last complete PWM period.
+    pub duty_abc: [f64; 3],
+    /// Line voltage a-b averaged over the last complete PWM period, V.
+    pub u_ab_v: f64,
+    /// The run-time warnings the PLC shows (its own and the drive's).
+    pub warn: Warnings,
 }
 
 /// A drive fault as it was latched.
@@ -511,6 +517,9 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             digital_out: self.plc.outputs(),
             q,
             lcd: self.plc.lcd_fields(),
+            duty_abc: o.duty_abc,
+            u_ab_v: o.u_ab_v,
+            warn: self.plc.warnings(),
         }
     }
 }

@@ -50,6 +50,51 @@ pub struct PlcPins {
     pub analog: [u16; 4],
 }
 
+/// The run-time warnings the PLC knows of: its own (`DIV0 @ line`, kept until the next
+/// RUN) and the drive's as its status reports it (while it lasts).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Warnings {
+    pub plc: Option<firmware_plc::vm::Warning>,
+    pub drive: Option<shared_protocol::link::DriveWarning>,
+}
+
+impl Warnings {
+    pub fn is_empty(&self) -> bool {
+        self.plc.is_none() && self.drive.is_none()
+    }
+
+    /// The LCD status line's texts, `; `-separated (the CSV's `warn`), e.g.
+    /// `DIV0 @ 151` or `PWF 488Hz @ 000`; empty when none.
+    pub fn short(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(w) = self.plc {
+            parts.push(w.to_string());
+        }
+        if let Some(w) = self.drive {
+            parts.push(w.short().to_string());
+        }
+        parts.join("; ")
+    }
+
+    /// Each warning as (status-line text, long text for the run summary).
+    pub fn texts(&self) -> Vec<(String, String)> {
+        let mut v = Vec::new();
+        if let Some(w) = self.plc {
+            match w {
+                firmware_plc::vm::Warning::Div0 { line } => v.push((
+                    w.to_string(),
+                    format!("{w} (PLC): DIV by a Q holding 0 on line {line:03}, P set to 0"),
+                )),
+            }
+        }
+        if let Some(w) = self.drive {
+            let short = w.short().to_string();
+            v.push((short.clone(), format!("{short} (drive): {w}")));
+        }
+        v
+    }
+}
+
 /// The PLC MCU.
 pub trait PlcMcu {
     /// The 1 ms system tick (link timers, keypad debouncing, LCD refresh).
@@ -70,4 +115,6 @@ pub trait PlcMcu {
     fn lcd(&self) -> &Lcd;
     /// The user program is running.
     fn running(&self) -> bool;
+    /// The run-time warnings the PLC shows on its status line.
+    fn warnings(&self) -> Warnings;
 }

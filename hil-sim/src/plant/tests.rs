@@ -152,6 +152,49 @@ fn hardware_comparator_breaks_and_outputs_float() {
 }
 
 #[test]
+fn the_rl_load_variant_is_a_star_rl() {
+    // Leg 1 at a DC duty d against legs 2 and 3 low: i_a = d Udc / (R + R/2) after L/R.
+    let rig = RigParams {
+        load: Load::Rl {
+            r_ohm: 10.0,
+            l_h: 0.02,
+        },
+        ..stiff_rig()
+    };
+    let mut plant = Plant::new(rig);
+    let cmd = GateCommand {
+        legs: [Leg::Duty(0.5), Leg::Duty(0.0), Leg::Duty(0.0)],
+        dead_time_ns: 0,
+    };
+    for _ in 0..2000 {
+        plant.start_period(100_000, cmd);
+        plant.advance(100_000);
+    }
+    let o = plant.outputs();
+    let expect = 0.5 * 30.0 / 15.0;
+    assert!((o.i_abc_a[0] - expect).abs() < 0.01, "{o:?}");
+    assert!((o.i_abc_a[1] + expect / 2.0).abs() < 0.01, "{o:?}");
+    assert_eq!((o.speed_rad_s, o.torque_nm), (0.0, 0.0));
+    // Period averages: the leg duties and the line voltage a-b.
+    assert!((o.duty_abc[0] - 0.5).abs() < 1e-9 && o.duty_abc[1] == 0.0);
+    assert!((o.u_ab_v - 15.0).abs() < 0.01, "{o:?}");
+    // Sine at 50 Hz, m = 1: |Z| = |10 + j 6.28| = 11.8 ohm, 15 V peak per phase.
+    let mut plant = Plant::new(rig);
+    let mut peak: f64 = 0.0;
+    drive_sine(&mut plant, 50.0, 1.0, 20_000, 200_000_000, |p, t| {
+        if t > 100_000_000 {
+            peak = peak.max(p.outputs().i_abc_a[0]);
+        }
+    });
+    let z = (10.0f64).hypot(2.0 * PI * 50.0 * 0.02);
+    assert!(
+        (peak - 15.0 / z).abs() < 0.02,
+        "peak {peak} vs {}",
+        15.0 / z
+    );
+}
+
+#[test]
 fn outputs_off_lets_the_motor_coast_with_no_current() {
     let mut plant = Plant::new(RigParams::default());
     drive_sine(&mut plant, 20.0, 0.45, 62_500, 1_000_000_000, |_, _| {});
