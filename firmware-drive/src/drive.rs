@@ -155,7 +155,7 @@ pub struct DriveStatus {
     pub program_loaded: bool,
     /// The hardware comparator thresholds in effect (`IHW`, `UHW`).
     pub hw: HwThresholds,
-    /// The drive section's run-time warning while its cause lasts.
+    /// The drive section's run-time warning while its cause lasts and the outputs switch.
     pub warning: Option<VmWarning>,
 }
 
@@ -539,7 +539,12 @@ impl DriveCore {
             pwm_millihertz: self.timing.pwm_millihertz,
             program_loaded: self.program.is_some(),
             hw: self.hw_thresholds(),
-            warning: self.vm.active_warning(),
+            // Only while switching: the switching frequency of an idle drive does not
+            // matter (and the PLC's first Q write may still be on its way after RUN).
+            warning: self
+                .vm
+                .active_warning()
+                .filter(|_| self.state == DriveState::Run && self.outputs_on),
         }
     }
 
@@ -1041,6 +1046,14 @@ mod tests {
             applied: 488,
         };
         assert!(ev.contains(&DriveEvent::Warning(DriveWarning::Vm(w))));
+        // Reported in the status only while the outputs switch (f >= fmn).
+        assert_eq!(core.status().warning, None);
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 500,
+        })
+        .unwrap();
+        events(&mut core);
         assert_eq!(core.status().warning, Some(w));
         // Still clamped: still active, reported once as an event.
         let ev = events(&mut core);

@@ -62,10 +62,12 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
     let root = root
         .titled(title, ("sans-serif", 22))
         .map_err(|e| err(&e))?;
+    // The time axis spans the samples (a window of a run starts where it starts).
+    let t_start = samples.first().map_or(0.0, |s| s.t_ns as f64 * 1e-9);
     let t_end = samples
         .last()
         .map_or(1.0, |s| s.t_ns as f64 * 1e-9)
-        .max(1e-3);
+        .max(t_start + 1e-6);
     let panels: Vec<(&str, f64, Vec<Series<'_>>)> = vec![
         (
             "output frequency [Hz] (signed by direction)",
@@ -154,7 +156,7 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             .margin(8)
             .x_label_area_size(28)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..t_end, lo..hi)
+            .build_cartesian_2d(t_start..t_end, lo..hi)
             .map_err(|e| err(&e))?;
         chart
             .configure_mesh()

@@ -240,6 +240,13 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
         self.pins
     }
 
+    /// Changes the sampling period from the next sample on (e.g. fine samples of one
+    /// window of a long run, for the current ripple of a PWM period).
+    pub fn set_sample_ns(&mut self, sample_ns: u64) {
+        self.sample_ns = sample_ns.max(1);
+        self.next_sample_ns = self.next_sample_ns.min(self.now_ns + self.sample_ns);
+    }
+
     /// Faults in the order they latched.
     pub fn faults(&self) -> &[FaultRecord] {
         &self.faults

@@ -22,8 +22,22 @@ const PLC_EXAMPLES: &[(&str, &str)] = &[
 ];
 
 /// Examples with both sections (besides the motor program).
-const MIXED_EXAMPLES: &[(&str, &str)] =
-    &[("com_monitor", include_str!("../programs/com_monitor.plc"))];
+const MIXED_EXAMPLES: &[(&str, &str)] = &[
+    ("com_monitor", include_str!("../programs/com_monitor.plc")),
+    // The source's lab chapter (Obr 5.1-5.7), hil-sim/docs/lab.md.
+    (
+        "lab_5_1_runup",
+        include_str!("../programs/lab_5_1_runup.plc"),
+    ),
+    (
+        "lab_5_3_rundown_runup",
+        include_str!("../programs/lab_5_3_rundown_runup.plc"),
+    ),
+    (
+        "lab_5_4_switching",
+        include_str!("../programs/lab_5_4_switching.plc"),
+    ),
+];
 
 const DRIVE_EXAMPLES: &[(&str, &str)] = &[
     ("pi_ramp", include_str!("../programs/pi_ramp.plc")),

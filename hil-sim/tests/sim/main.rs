@@ -10,6 +10,7 @@ mod cli;
 mod examples_on_rig;
 mod hw_comparators;
 mod keypad;
+mod lab;
 mod link_latency;
 mod motor_program;
 mod overmodulation;

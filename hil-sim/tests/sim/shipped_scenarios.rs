@@ -39,6 +39,38 @@ fn shipped_scenarios_behave_as_described() {
             example("three_phase_sine.plc"),
             none.clone(),
         ),
+        // The source's lab chapter (tests/sim/lab.rs).
+        (
+            "lab_5_1_runup.toml",
+            example("lab_5_1_runup.plc"),
+            none.clone(),
+        ),
+        ("lab_5_2_reversal.toml", MOTOR_PLC.to_string(), none.clone()),
+        (
+            "lab_5_3_rundown_runup.toml",
+            example("lab_5_3_rundown_runup.plc"),
+            none.clone(),
+        ),
+        (
+            "lab_5_4_switching_9990hz.toml",
+            example("lab_5_4_switching.plc"),
+            none.clone(),
+        ),
+        (
+            "lab_5_4_switching_5000hz.toml",
+            example("lab_5_4_switching.plc"),
+            none.clone(),
+        ),
+        (
+            "lab_5_4_switching_2500hz.toml",
+            example("lab_5_4_switching.plc"),
+            none.clone(),
+        ),
+        (
+            "lab_5_4_switching_1250hz.toml",
+            example("lab_5_4_switching.plc"),
+            none.clone(),
+        ),
     ];
     for (scenario, program, faults) in checks {
         assert_eq!(&run_file(scenario, program), faults, "{scenario}");
