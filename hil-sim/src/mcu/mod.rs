@@ -35,10 +35,22 @@ pub trait DriveMcu {
     /// The timer's kernel clock.
     fn timer_clock_hz(&self) -> u32;
     fn status(&self) -> DriveStatus;
-    /// The board's comparators (which signal, direction and DAC each one has).
-    fn board(&self) -> &'static BoardProfile;
-    /// What the firmware writes to the comparator threshold DACs now.
-    fn comparator_dacs(&self) -> DacValues;
+    /// The board's comparators (which signal, direction and DAC each one has). Default:
+    /// the drive core's default profile.
+    fn board(&self) -> &'static BoardProfile {
+        firmware_drive::DriveConfig::default().board
+    }
+    /// What the firmware writes to the comparator threshold DACs now. Default: the
+    /// drive core's default levels (a board model that reads its DAC registers overrides
+    /// this).
+    fn comparator_dacs(&self) -> DacValues {
+        let c = firmware_drive::DriveConfig::default();
+        let t = firmware_drive::comparators::HwThresholds {
+            oc_hw: shared_protocol::units::CentiAmps(c.oc_hw_default_centiamps as i16),
+            ov_hw: shared_protocol::units::Volts(c.ov_hw_default_volts as i16),
+        };
+        firmware_drive::comparators::dac_values(self.board(), t)
+    }
 }
 
 /// The PLC's inputs as its pins present them.
@@ -115,6 +127,8 @@ pub trait PlcMcu {
     fn lcd(&self) -> &Lcd;
     /// The user program is running.
     fn running(&self) -> bool;
-    /// The run-time warnings the PLC shows on its status line.
-    fn warnings(&self) -> Warnings;
+    /// The run-time warnings the PLC shows on its status line (default: none known).
+    fn warnings(&self) -> Warnings {
+        Warnings::default()
+    }
 }
