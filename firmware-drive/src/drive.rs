@@ -199,6 +199,9 @@ pub struct DriveCore {
     boot_offset_bad: bool,
     events: Deque<DriveEvent, EVENT_QUEUE>,
     events_lost: u16,
+    /// The hardware thresholds in effect and their DAC values (updated at download).
+    hw: HwThresholds,
+    dacs: DacValues,
 }
 
 impl DriveCore {
@@ -206,7 +209,7 @@ impl DriveCore {
         let vm = DriveVm::new(cfg.default_pwm_hz);
         let s = vm.settings();
         let key = (s.pwf_hz, s.prescaler);
-        DriveCore {
+        let mut core = DriveCore {
             timing: Self::timing_for(&cfg, key),
             timing_key: key,
             cfg,
@@ -231,7 +234,14 @@ impl DriveCore {
             boot_offset_bad: false,
             events: Deque::new(),
             events_lost: 0,
-        }
+            hw: HwThresholds {
+                oc_hw: CentiAmps(0),
+                ov_hw: Volts(0),
+            },
+            dacs: DacValues::default(),
+        };
+        core.update_hw_thresholds();
+        core
     }
 
     fn timing_for(cfg: &DriveConfig, (pwf, pre): (u16, u16)) -> PwmTiming {
@@ -267,8 +277,13 @@ impl DriveCore {
     }
 
     /// The hardware thresholds in effect: the program's `I>>`/`U>>`, or the board's
-    /// defaults ([`DriveConfig`]) while it sets none, within the sensors' full scale.
+    /// defaults ([`DriveConfig`]) while it sets none, within the sensors' full scale. Set
+    /// when a program is loaded (the trimmers of the source, set at download).
     pub fn hw_thresholds(&self) -> HwThresholds {
+        self.hw
+    }
+
+    fn compute_hw_thresholds(&self) -> HwThresholds {
         let s = self.vm.settings();
         let pick = |set: u16, default: u16, max: u16| {
             let v = if set > 0 { set } else { default };
@@ -293,7 +308,14 @@ impl DriveCore {
     /// loaded (the source's trimmers, set at download). The board writes a channel when
     /// its value differs from the one it last wrote.
     pub fn comparator_dacs(&self) -> DacValues {
-        dac_values(self.cfg.board, self.hw_thresholds())
+        self.dacs
+    }
+
+    /// The thresholds and DAC values from the settings now (at construction and at each
+    /// download).
+    fn update_hw_thresholds(&mut self) {
+        self.hw = self.compute_hw_thresholds();
+        self.dacs = dac_values(self.cfg.board, self.hw);
     }
 
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
@@ -319,6 +341,7 @@ impl DriveCore {
         self.vm.load(s);
         self.program = Some(s.clone());
         self.apply_settings();
+        self.update_hw_thresholds();
         Ok(())
     }
 
@@ -538,7 +561,7 @@ impl DriveCore {
             brake: self.brake,
             pwm_millihertz: self.timing.pwm_millihertz,
             program_loaded: self.program.is_some(),
-            hw: self.hw_thresholds(),
+            hw: self.hw,
             // Only while switching: the switching frequency of an idle drive does not
             // matter (and the PLC's first Q write may still be on its way after RUN).
             warning: self
