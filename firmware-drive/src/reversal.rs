@@ -63,11 +63,6 @@ impl Reversal {
         }
     }
 
-    /// Whether the previous cycle ended at standstill (f = 0).
-    pub fn at_standstill(&self) -> bool {
-        self.f_prev == 0
-    }
-
     /// The end of a 1 ms cycle with commanded frequency `f`; returns the new direction when
     /// the pending request is applied in this cycle (f below frv and not falling).
     pub fn cycle(&mut self, f: i16, frv: i16) -> Option<bool> {
