@@ -22,7 +22,9 @@
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
 use shared_protocol::link::drive::{DriveEvent as LinkEvent, DriveLink, DriveLinkState};
-use shared_protocol::link::{DriveState as WireState, DriveStatus as WireStatus, LinkConfig};
+use shared_protocol::link::{
+    DriveState as WireState, DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig,
+};
 use shared_protocol::units::Micros;
 
 use crate::config::{DriveConfig, ResetCause};
@@ -31,6 +33,7 @@ use crate::measure::AdcSample;
 use crate::protection::{FaultCode, HwBreak};
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
+use crate::vm::VmWarning;
 
 /// Fault reports waiting for room in the link's queue.
 const UNREPORTED: usize = 8;
@@ -228,5 +231,18 @@ pub fn wire_status(s: &DriveStatus) -> WireStatus {
         udc_dv: s.u_dc.0,
         imax_ca: s.i_peak.0,
         com: s.com,
+        oc_hw_ca: s.hw.oc_hw.0,
+        ov_hw_v: s.hw.ov_hw.0,
+        warning: s.warning.map(|w| match w {
+            VmWarning::PwfClamped {
+                line,
+                requested,
+                applied,
+            } => WireWarning::PwfClamped {
+                line: line.min(u16::from(u8::MAX)) as u8,
+                requested,
+                applied_hz: applied,
+            },
+        }),
     }
 }

@@ -1,5 +1,7 @@
 //! Build-time/board-time configuration of the drive core (not part of the user program).
 
+use crate::comparators::{BoardProfile, B_G431B_ESC1};
+
 /// Why the MCU last started; the board reads it from the reset flags (RCC_CSR).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -33,6 +35,13 @@ pub struct DriveConfig {
     /// Boot self-test: a phase-current channel must read within this many counts of
     /// 2048 (0 A) while the PWM is off.
     pub current_offset_tolerance_counts: u16,
+    /// The board's hardware comparators (which signal, direction, DAC).
+    pub board: &'static BoardProfile,
+    /// Hardware overcurrent threshold while the program sets no `I>>` (the source's
+    /// trimmer as delivered), 0.01 A.
+    pub oc_hw_default_centiamps: u16,
+    /// Hardware overvoltage threshold while the program sets no `U>>`, V.
+    pub ov_hw_default_volts: u16,
 }
 
 impl Default for DriveConfig {
@@ -45,6 +54,9 @@ impl Default for DriveConfig {
             min_max_injection: false,
             default_pwm_hz: 16_000,
             current_offset_tolerance_counts: 205,
+            board: &B_G431B_ESC1,
+            oc_hw_default_centiamps: 300,
+            ov_hw_default_volts: 40,
         }
     }
 }

@@ -15,11 +15,13 @@
 
 use heapless::Deque;
 use shared_protocol::program::{verify_drive, DriveSection, VerifyError};
-use shared_protocol::units::{CentiAmps, Decihertz, Decivolts};
+use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
+use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Volts};
 
+use crate::comparators::{dac_values, DacValues, HwThresholds};
 use crate::config::{DriveConfig, ResetCause};
 use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, PeakTracker};
-use crate::modulator::{LegMode, Modulator, ModulatorParams};
+use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
 use crate::sine::{phase_of_decidegrees, SINE_Q15};
@@ -95,8 +97,13 @@ pub enum DriveEvent {
 pub struct PwmCommand {
     /// Main output enable (MOE): false = all six switches open.
     pub enable: bool,
+    /// Per output leg (TIM1 CH1-3): the leg switches; false = both of its switches open
+    /// (CCxE = CCxNE = 0 with OSSR = 1 holds them at their inactive level). All false when
+    /// `enable` is false. A sine leg is off while f < fmn; a direct `WR PWx` leg is not
+    /// (program.md 4.2 `fmn`, as the source).
+    pub leg_enable: [bool; 3],
     /// Duties in counts, 0..=`period_counts`: the fraction duty/period of the period the
-    /// high switch is on (all 0 when disabled). Write them with [`PwmCommand::ccr`].
+    /// high switch is on (0 for a leg that is off). Write them with [`PwmCommand::ccr`].
     pub duty: [u16; 3],
     /// ARR the duties refer to (= [`PwmTiming::arr`]); reprogram TIM1 when it changes.
     pub period_counts: u16,
@@ -140,11 +147,16 @@ pub struct DriveStatus {
     pub i_peak: CentiAmps,
     /// `COM`: aux channel, 10-bit.
     pub com: u16,
-    /// Modulation index applied, 0.001 (0 while the outputs are off).
+    /// Requested modulation index m = A / fjm + dU / 1023 (above 1.0 the drive
+    /// overmodulates), 0.001 (0 while the outputs are off).
     pub modulation_permille: u16,
     pub brake: bool,
     pub pwm_millihertz: u32,
     pub program_loaded: bool,
+    /// The hardware comparator thresholds in effect (`IHW`, `UHW`).
+    pub hw: HwThresholds,
+    /// The drive section's run-time warning while its cause lasts and the outputs switch.
+    pub warning: Option<VmWarning>,
 }
 
 impl DriveStatus {
@@ -170,9 +182,14 @@ pub struct DriveCore {
     timing: PwmTiming,
     timing_key: (u16, u16),
     modulator: Modulator,
-    /// Set by the tick: RUN, f >= fmn and at least one leg in use.
+    /// Set by the tick: RUN and at least one leg switching (a direct leg, or a sine leg
+    /// with f >= fmn).
     outputs_on: bool,
-    /// Outputs were on in the previous PWM period (to restart the sine at angle 0).
+    /// Set by the tick: the sine legs switch (f >= fmn).
+    sine_on: bool,
+    /// Per output leg (after the reverse swap): switching while the outputs are on.
+    legs_on: [bool; 3],
+    /// The sine legs were on in the previous PWM period (to restart the sine at angle 0).
     was_on: bool,
     brake: bool,
     last: AdcSample,
@@ -182,6 +199,9 @@ pub struct DriveCore {
     boot_offset_bad: bool,
     events: Deque<DriveEvent, EVENT_QUEUE>,
     events_lost: u16,
+    /// The hardware thresholds in effect and their DAC values (updated at download).
+    hw: HwThresholds,
+    dacs: DacValues,
 }
 
 impl DriveCore {
@@ -189,7 +209,7 @@ impl DriveCore {
         let vm = DriveVm::new(cfg.default_pwm_hz);
         let s = vm.settings();
         let key = (s.pwf_hz, s.prescaler);
-        DriveCore {
+        let mut core = DriveCore {
             timing: Self::timing_for(&cfg, key),
             timing_key: key,
             cfg,
@@ -203,6 +223,8 @@ impl DriveCore {
             limits: Limits::default(),
             modulator: Modulator::new(cfg.min_pulse_counts, cfg.min_max_injection),
             outputs_on: false,
+            sine_on: false,
+            legs_on: [false; 3],
             was_on: false,
             brake: false,
             last: AdcSample::default(),
@@ -212,7 +234,14 @@ impl DriveCore {
             boot_offset_bad: false,
             events: Deque::new(),
             events_lost: 0,
-        }
+            hw: HwThresholds {
+                oc_hw: CentiAmps(0),
+                ov_hw: Volts(0),
+            },
+            dacs: DacValues::default(),
+        };
+        core.update_hw_thresholds();
+        core
     }
 
     fn timing_for(cfg: &DriveConfig, (pwf, pre): (u16, u16)) -> PwmTiming {
@@ -247,6 +276,48 @@ impl DriveCore {
         &self.modulator
     }
 
+    /// The hardware thresholds in effect: the program's `I>>`/`U>>`, or the board's
+    /// defaults ([`DriveConfig`]) while it sets none, within the sensors' full scale. Set
+    /// when a program is loaded (the trimmers of the source, set at download).
+    pub fn hw_thresholds(&self) -> HwThresholds {
+        self.hw
+    }
+
+    fn compute_hw_thresholds(&self) -> HwThresholds {
+        let s = self.vm.settings();
+        let pick = |set: u16, default: u16, max: u16| {
+            let v = if set > 0 { set } else { default };
+            v.clamp(1, max) as i16
+        };
+        HwThresholds {
+            oc_hw: CentiAmps(pick(
+                s.oc_hw_centiamps,
+                self.cfg.oc_hw_default_centiamps,
+                I_MAX_HW_LIMIT,
+            )),
+            ov_hw: Volts(pick(
+                s.ov_hw_volts,
+                self.cfg.ov_hw_default_volts,
+                U_MAX_HW_LIMIT,
+            )),
+        }
+    }
+
+    /// What the board writes to the comparators' threshold DACs (12-bit), from
+    /// [`DriveCore::hw_thresholds`] and the board profile: changes only when a program is
+    /// loaded (the source's trimmers, set at download). The board writes a channel when
+    /// its value differs from the one it last wrote.
+    pub fn comparator_dacs(&self) -> DacValues {
+        self.dacs
+    }
+
+    /// The thresholds and DAC values from the settings now (at construction and at each
+    /// download).
+    fn update_hw_thresholds(&mut self) {
+        self.hw = self.compute_hw_thresholds();
+        self.dacs = dac_values(self.cfg.board, self.hw);
+    }
+
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
     pub fn pwm_timing(&self) -> PwmTiming {
         self.timing
@@ -270,6 +341,7 @@ impl DriveCore {
         self.vm.load(s);
         self.program = Some(s.clone());
         self.apply_settings();
+        self.update_hw_thresholds();
         Ok(())
     }
 
@@ -370,6 +442,11 @@ impl DriveCore {
         if self.state == DriveState::Boot {
             self.finish_boot();
         }
+        // At standstill a pending direction request applies before the section runs, so
+        // the first PWM period of a restart is in the requested direction.
+        if let Some(dir) = self.reversal.start_cycle() {
+            self.push_event(DriveEvent::Reversed(dir));
+        }
         let vm_active = self.run_requested
             && matches!(self.state, DriveState::Run | DriveState::Fault)
             && self.program.is_some();
@@ -410,6 +487,7 @@ impl DriveCore {
         let period_counts = self.timing.arr;
         let off = |brake| PwmCommand {
             enable: false,
+            leg_enable: [false; 3],
             duty: [0; 3],
             period_counts,
             brake,
@@ -435,24 +513,35 @@ impl DriveCore {
             self.trip(FaultCode::Uv);
             on = false;
         }
+        let sine_on = on && self.sine_on;
+        if !sine_on && self.was_on {
+            self.modulator.reset_phase();
+        }
+        self.was_on = sine_on;
         if !on {
-            if self.was_on {
-                self.modulator.reset_phase();
-                self.was_on = false;
-            }
             return off(self.brake);
         }
-        self.was_on = true;
+        let mut duty = self.modulator.step(period_counts);
+        if !sine_on {
+            // Direct legs only: the sine waits at angle 0 for f >= fmn.
+            self.modulator.reset_phase();
+        }
+        for (d, leg_on) in duty.iter_mut().zip(self.legs_on) {
+            if !leg_on {
+                *d = 0;
+            }
+        }
         PwmCommand {
             enable: true,
-            duty: self.modulator.step(period_counts),
+            leg_enable: self.legs_on,
+            duty,
             period_counts,
             brake: self.brake,
         }
     }
 
     pub fn status(&self) -> DriveStatus {
-        let on = self.state == DriveState::Run && self.outputs_on;
+        let on = self.state == DriveState::Run && self.outputs_on && self.sine_on;
         let m = if on {
             (self.modulator.params().m_q16 * 1000 + 0x8000) >> 16
         } else {
@@ -472,6 +561,13 @@ impl DriveCore {
             brake: self.brake,
             pwm_millihertz: self.timing.pwm_millihertz,
             program_loaded: self.program.is_some(),
+            hw: self.hw,
+            // Only while switching: the switching frequency of an idle drive does not
+            // matter (and the PLC's first Q write may still be on its way after RUN).
+            warning: self
+                .vm
+                .active_warning()
+                .filter(|_| self.state == DriveState::Run && self.outputs_on),
         }
     }
 
@@ -545,11 +641,25 @@ impl DriveCore {
     fn update_modulator(&mut self) {
         let s = *self.vm.settings();
         let o = *self.vm.outputs();
-        let any_leg = o.legs.iter().any(|l| *l != LegMode::Unused);
-        self.outputs_on = self.state == DriveState::Run && any_leg && o.f >= s.fmn;
+        // fmn stops only the sine legs (program.md 4.2, as the source): a direct `WR PWx`
+        // leg keeps switching, and an unused leg (duty 0) is driven while any other is.
+        let run = self.state == DriveState::Run;
+        let sine_on = o.f >= s.fmn;
+        let direct = o.legs.iter().any(|l| matches!(l, LegMode::Direct { .. }));
+        let sine = o.legs.contains(&LegMode::Sine);
+        self.sine_on = sine && sine_on;
+        self.outputs_on = run && (direct || self.sine_on);
+        let mut legs_on = o
+            .legs
+            .map(|l| self.outputs_on && (l != LegMode::Sine || sine_on));
+        if self.reversal.applied() {
+            legs_on.swap(0, 1);
+        }
+        self.legs_on = legs_on;
         let fjm = u64::from(s.fjm.max(1) as u16);
         let m = (u64::from(o.a.max(0) as u16) << 16) / fjm + (u64::from(s.du) << 16) / 1023;
-        let m_q16 = m.min(u64::from(self.modulator.m_max_q16())) as u32;
+        // Above the linear range the modulator clips (overmodulation, program.md 4.3).
+        let m_q16 = m.min(u64::from(M_LIMIT_Q16)) as u32;
         let [p1, p2, p3] = o.phase_decideg;
         self.modulator.set_params(ModulatorParams {
             step: self.timing.phase_step(o.f),
@@ -673,6 +783,55 @@ mod tests {
         assert_eq!(core.status().f_applied, Decihertz(50));
         // A = f = 5 Hz at fjm 50 Hz: m = 0.1.
         assert_eq!(core.status().modulation_permille, 100);
+    }
+
+    #[test]
+    fn fmn_stops_only_the_sine_legs() {
+        // Phase 1 sine from Q01, phase 2 direct at 50 %, phase 3 unused (duty 0).
+        let text = "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n\
+                    004 LD K01 0500\n005 WR PW3\n006 fmn K02 0050\n";
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        core.pwm_period(&ok_sample());
+        events(&mut core);
+        core.load_program(&section(text)).unwrap();
+        core.command(DriveCommand::SetQ { addr: 1, value: 10 })
+            .unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        events(&mut core);
+        // 1 Hz < fmn: the sine leg is off, the direct leg (and the unused one, at duty 0)
+        // switch, as the source's direct PDC writes did.
+        let c = core.pwm_period(&ok_sample());
+        let n = c.period_counts;
+        assert!(c.enable);
+        assert_eq!(c.leg_enable, [false, true, true]);
+        assert_eq!(c.duty, [0, n / 2 + n % 2, 0]);
+        assert_eq!(core.status().f_applied, Decihertz(0));
+        // At fmn the sine leg starts, at angle 0.
+        core.command(DriveCommand::SetQ { addr: 1, value: 50 })
+            .unwrap();
+        events(&mut core);
+        let c = core.pwm_period(&ok_sample());
+        assert_eq!(c.leg_enable, [true; 3]);
+        assert_eq!(c.duty[0], n / 2 + n % 2);
+        assert_eq!(core.status().f_applied, Decihertz(50));
+        // Reversed (from standstill), the enables follow their legs.
+        core.command(DriveCommand::SetQ { addr: 1, value: 0 })
+            .unwrap();
+        events(&mut core);
+        core.command(DriveCommand::Direction { reverse: true })
+            .unwrap();
+        core.command(DriveCommand::SetQ { addr: 1, value: 10 })
+            .unwrap();
+        events(&mut core);
+        assert!(core.status().reverse);
+        assert_eq!(
+            core.pwm_period(&ok_sample()).leg_enable,
+            [true, false, true]
+        );
+        // A program with sine legs only is all off below fmn (MOE cleared).
+        let mut core = running(40);
+        let c = core.pwm_period(&ok_sample());
+        assert!(!c.enable && c.leg_enable == [false; 3]);
     }
 
     #[test]
@@ -870,6 +1029,67 @@ mod tests {
         let ev = events(&mut core);
         assert_eq!(ev.len(), EVENT_QUEUE + 1);
         assert!(matches!(ev.last(), Some(DriveEvent::EventsLost(n)) if *n > 0));
+    }
+
+    #[test]
+    fn hardware_thresholds_are_settings_written_to_the_dacs_at_download() {
+        use crate::comparators::DacChannel;
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        events(&mut core);
+        // No program: the board's defaults (3.00 A, 40 V).
+        let th = core.hw_thresholds();
+        assert_eq!((th.oc_hw, th.ov_hw), (CentiAmps(300), Volts(40)));
+        assert_eq!(core.comparator_dacs().get(DacChannel::Dac3Ch1), Some(2662));
+        // I>> 1.50 A and U>> 38 V take effect at download, before any RUN.
+        let p = section(&(SINE.to_string() + "020 I>> K08 0150\n021 U>> K09 0038\n"));
+        core.load_program(&p).unwrap();
+        let th = core.hw_thresholds();
+        assert_eq!((th.oc_hw, th.ov_hw), (CentiAmps(150), Volts(38)));
+        let dacs = core.comparator_dacs();
+        assert_eq!(dacs.get(DacChannel::Dac3Ch1), Some(2048 + 307));
+        assert_eq!(dacs.get(DacChannel::Dac3Ch2), Some(2048 + 307));
+        assert_eq!(dacs.get(DacChannel::Dac1Ch1), Some(91 * 38));
+        assert_eq!(core.status().hw, th);
+        // A program without them: back to the defaults.
+        core.load_program(&section(SINE)).unwrap();
+        assert_eq!(core.hw_thresholds().oc_hw, CentiAmps(300));
+    }
+
+    #[test]
+    fn a_clamped_pwf_is_an_active_warning_while_it_lasts() {
+        let text = "000 PWF Q00\n".to_string() + &SINE.replace("000 PWF K00 9800\n", "");
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        events(&mut core);
+        core.load_program(&section(&text)).unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        let ev = events(&mut core);
+        let w = VmWarning::PwfClamped {
+            line: 0,
+            requested: 0,
+            applied: 488,
+        };
+        assert!(ev.contains(&DriveEvent::Warning(DriveWarning::Vm(w))));
+        // Reported in the status only while the outputs switch (f >= fmn).
+        assert_eq!(core.status().warning, None);
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 500,
+        })
+        .unwrap();
+        events(&mut core);
+        assert_eq!(core.status().warning, Some(w));
+        // Still clamped: still active, reported once as an event.
+        let ev = events(&mut core);
+        assert!(!ev.iter().any(|e| matches!(e, DriveEvent::Warning(_))));
+        assert_eq!(core.status().warning, Some(w));
+        core.command(DriveCommand::SetQ {
+            addr: 0,
+            value: 9800,
+        })
+        .unwrap();
+        events(&mut core);
+        assert_eq!(core.status().warning, None);
+        assert_eq!(core.vm().settings().pwf_hz, 9800);
     }
 
     #[test]

@@ -10,6 +10,13 @@
 //! With min-max injection, the common-mode offset -(max v + min v)/2 is added to all three
 //! legs (equivalent to third-harmonic injection, line-to-line voltages unchanged), which
 //! keeps duties inside 0..N up to m = 2/sqrt(3) = 1.1547.
+//!
+//! Above the linear range (m > 1.0, or 1.1547 with injection) the drive overmodulates as
+//! the source did: each sample's duty is clipped at the carrier limits 0 and N (then the
+//! dead-time-safe clamp), so the fundamental keeps rising with m toward the six-step
+//! limit (4/pi of the linear m = 1.0 value). m itself is limited only to [`M_LIMIT_Q16`]
+//! so that the fixed-point products cannot overflow; at that m the legs are within 1 % of
+//! six-step.
 
 use crate::sine::sin_q15;
 
@@ -17,6 +24,10 @@ use crate::sine::sin_q15;
 pub const M_ONE_Q16: u32 = 1 << 16;
 /// 2/sqrt(3) in Q16: the linear limit with min-max injection.
 pub const M_MAX_MIN_MAX_Q16: u32 = 75_674;
+/// Largest modulation index the modulator takes (8.0, Q16): far into overmodulation
+/// (fundamental within 1 % of six-step), and small enough that N/2 * m * sin stays far
+/// inside i64 for any 16-bit N.
+pub const M_LIMIT_Q16: u32 = 8 << 16;
 
 /// What one leg (phase pair PW0/PW1, PW2/PW3, PW4/PW5) outputs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -36,7 +47,8 @@ pub enum LegMode {
 pub struct ModulatorParams {
     /// Phase advance per PWM period (2^64 = one turn).
     pub step: u64,
-    /// Modulation index, Q16 (already limited to m_max).
+    /// Requested modulation index, Q16 (at most [`M_LIMIT_Q16`]; above the linear range
+    /// the duties clip).
     pub m_q16: u32,
     /// Phase offsets of the three sine phases (2^32 = one turn).
     pub phi: [u32; 3],
@@ -63,8 +75,9 @@ impl Modulator {
         }
     }
 
-    /// Largest modulation index this configuration can produce undistorted.
-    pub fn m_max_q16(&self) -> u32 {
+    /// End of the linear range of this configuration (1.0, or 1.1547 with min-max
+    /// injection); above it the duties clip (overmodulation).
+    pub fn linear_limit_q16(&self) -> u32 {
         if self.min_max_injection {
             M_MAX_MIN_MAX_Q16
         } else {
@@ -96,7 +109,7 @@ impl Modulator {
         let p = &self.p;
         let nn = i64::from(n);
         // Half the period times m, Q16 counts: the sine's amplitude in counts.
-        let half_amp_q16 = (u64::from(n) * u64::from(p.m_q16)) >> 1;
+        let half_amp_q16 = (u64::from(n) * u64::from(p.m_q16.min(M_LIMIT_Q16))) >> 1;
         let angle = (self.theta >> 32) as u32;
         let mut v = [0i64; 3];
         for k in 0..3 {
@@ -238,6 +251,58 @@ mod tests {
         }
         // Line-to-line amplitude m*sqrt(3)/2 = 1.0 of the DC link at m = 1.1547.
         assert!((worst_line - 1.0).abs() < 0.002, "{worst_line}");
+    }
+
+    /// Fundamental of the line voltage (duty_1 - duty_2, in units of U_dc) over one
+    /// 1000-period turn, by correlation.
+    fn line_fundamental(m_q16: u32, injection: bool) -> f64 {
+        let mut m = Modulator::new(4, injection);
+        let periods = 1000u32;
+        m.set_params(three_phase(m_q16, u64::MAX / u64::from(periods) + 1));
+        let n = 10_000u16;
+        let (mut re, mut im) = (0.0, 0.0);
+        for k in 0..periods {
+            let d = m.step(n);
+            for x in d {
+                assert!(x <= n);
+            }
+            let v = (f64::from(d[0]) - f64::from(d[1])) / f64::from(n);
+            let a = std::f64::consts::TAU * f64::from(k) / f64::from(periods);
+            re += v * a.cos();
+            im += v * a.sin();
+        }
+        2.0 * re.hypot(im) / f64::from(periods)
+    }
+
+    #[test]
+    fn overmodulation_keeps_the_fundamental_rising_to_six_step() {
+        let q16 = |m: f64| (m * 65536.0).round() as u32;
+        let lin = 3f64.sqrt() / 2.0;
+        // Linear range: sqrt(3)/2 * m.
+        assert!((line_fundamental(q16(0.5), false) - lin * 0.5).abs() < 1e-3);
+        assert!((line_fundamental(q16(1.0), false) - lin).abs() < 2e-3);
+        // Clipped sine: (2/pi)(asin(1/m) + sqrt(1 - 1/m^2)/m) * m of the linear value.
+        for m in [1.1, 1.2, 1.3, 1.465, 2.0] {
+            let r = 1.0 / m;
+            let expect =
+                lin * m * 2.0 / std::f64::consts::PI * (r.asin() + r * (1.0 - r * r).sqrt());
+            let got = line_fundamental(q16(m), false);
+            assert!((got - expect).abs() < 3e-3, "m {m}: {got} vs {expect}");
+        }
+        // Monotonic up to the six-step limit 2 sqrt(3)/pi = 1.1027 of U_dc.
+        let six_step = 2.0 * 3f64.sqrt() / std::f64::consts::PI;
+        let mut last = 0.0;
+        for k in 1..=16 {
+            let v = line_fundamental(q16(0.5 * f64::from(k)), false);
+            assert!(v > last, "m = {}", 0.5 * f64::from(k));
+            assert!(v <= six_step + 1e-9);
+            last = v;
+        }
+        assert!(last > 0.99 * six_step, "{last}");
+        // With min-max injection: linear to 1.1547, then clipping too.
+        let at_lin = line_fundamental(M_MAX_MIN_MAX_Q16, true);
+        assert!((at_lin - 1.0).abs() < 3e-3, "{at_lin}");
+        assert!(line_fundamental(q16(1.5), true) > at_lin);
     }
 
     #[test]

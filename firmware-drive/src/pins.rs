@@ -12,6 +12,7 @@
 //! | PWM W high / low | PA10 / PB15 | TIM1_CH3 / TIM1_CH3N | WH / WL |
 //! | phase current a | PA1 | ADC1_IN2 (injected), COMP1_INP vs DAC3_CH1 | Curr_fdbk1 |
 //! | phase current b | PA7 | ADC2_IN4 (injected), COMP2_INP vs DAC3_CH2 | Curr_fdbk2 |
+//! | phase current c (comparator only) | PB0 | COMP4_INP vs DAC3_CH2 | Curr_fdbk3 |
 //! | DC link voltage | PA0 | ADC1_IN1 (injected), COMP3_INP vs DAC1_CH1 | VBUS |
 //! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 (injected) | POT |
 //! | brake chopper gate | PB5 | GPIO out, active high | free pin |
@@ -47,7 +48,8 @@ pub struct Analog {
     pub aux: Peri<'static, p::PB12>,
 }
 
-/// Hardware trip path: comparators and the DACs that set their thresholds.
+/// Hardware trip path: comparators and the DACs that set their thresholds (which one
+/// watches what: `firmware_drive::comparators::B_G431B_ESC1`).
 pub struct Protection {
     /// Phase current a against DAC3 CH1.
     pub comp_ia: Peri<'static, p::COMP1>,
@@ -55,6 +57,10 @@ pub struct Protection {
     pub comp_ib: Peri<'static, p::COMP2>,
     /// DC link against DAC1 CH1.
     pub comp_udc: Peri<'static, p::COMP3>,
+    /// Phase current c against DAC3 CH2 (shared with COMP2: the same threshold).
+    pub comp_ic: Peri<'static, p::COMP4>,
+    /// Phase current c's sense signal (the ESC1's third shunt; the core does not sample it).
+    pub current_c: Peri<'static, p::PB0>,
     pub dac_current: Peri<'static, p::DAC3>,
     pub dac_voltage: Peri<'static, p::DAC1>,
 }
@@ -108,6 +114,8 @@ pub fn split(p: Peripherals) -> Board {
             comp_ia: p.COMP1,
             comp_ib: p.COMP2,
             comp_udc: p.COMP3,
+            comp_ic: p.COMP4,
+            current_c: p.PB0,
             dac_current: p.DAC3,
             dac_voltage: p.DAC1,
         },

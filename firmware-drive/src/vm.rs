@@ -14,7 +14,9 @@
 //! * `PI` with T <= 0 has no integral part (I = 0); the integral is kept in Q16 so that a
 //!   2333 ms time constant integrates steps far below 1 count per millisecond.
 
-use shared_protocol::program::{DriveSection, Instruction, Mnemonic, Operand, DRIVE_LINES};
+use shared_protocol::program::{
+    drive_stack_step, DriveSection, Instruction, Mnemonic, Operand, DRIVE_LINES,
+};
 
 use crate::modulator::LegMode;
 
@@ -22,8 +24,8 @@ use crate::modulator::LegMode;
 pub const STACK_DEPTH: usize = 5;
 /// Number of Q variables.
 pub const Q_COUNT: usize = 64;
-/// `PWF` range, Hz (program.md 4.2).
-pub const PWF_MIN_HZ: u16 = 500;
+/// `PWF` range, Hz (program.md 4.2): the source's 488 Hz minimum.
+pub const PWF_MIN_HZ: u16 = 488;
 pub const PWF_MAX_HZ: u16 = 20_000;
 /// `fjm` when the program has none: 50.0 Hz.
 pub const FJM_DEFAULT: i16 = 500;
@@ -53,10 +55,14 @@ pub struct Settings {
     pub fjm: i16,
     pub fmx: i16,
     pub frv: i16,
-    /// `PWF`, Hz (500..=20000).
+    /// `PWF`, Hz (488..=20000).
     pub pwf_hz: u16,
     /// `PR0`/`PR1`/`PR2`: 4/16/64; 1 when none ran.
     pub prescaler: u16,
+    /// `I>>`: hardware overcurrent threshold, 0.01 A (0 = none: the board's default).
+    pub oc_hw_centiamps: u16,
+    /// `U>>`: hardware overvoltage threshold, V (0 = none: the board's default).
+    pub ov_hw_volts: u16,
 }
 
 impl Settings {
@@ -75,6 +81,8 @@ impl Settings {
             frv: FRV_DEFAULT,
             pwf_hz: default_pwm_hz.clamp(PWF_MIN_HZ, PWF_MAX_HZ),
             prescaler: 1,
+            oc_hw_centiamps: 0,
+            ov_hw_volts: 0,
         }
     }
 
@@ -107,7 +115,7 @@ pub struct Outputs {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum VmWarning {
-    /// `PWF Qxx` outside 500..=20000 Hz: `applied` is the clamped value. Reported when the
+    /// `PWF Qxx` outside 488..=20000 Hz: `applied` is the clamped value. Reported when the
     /// clamping starts, not every millisecond.
     PwfClamped {
         line: u16,
@@ -126,6 +134,13 @@ pub struct DriveVm {
     q: [i16; Q_COUNT],
     out: Outputs,
     pwf_clamped: bool,
+    /// The warning of the last full cycle while its cause lasts (PWF clamped).
+    active: Option<VmWarning>,
+    /// Values loaded in the running cycle (the verifier's count, program.md 4.1).
+    depth: u8,
+    /// Instructions that found fewer values than they need since the last load: 0 for
+    /// every section the verifier accepts (property-tested).
+    underflows: u32,
 }
 
 impl DriveVm {
@@ -138,7 +153,16 @@ impl DriveVm {
             q: [0; Q_COUNT],
             out: Outputs::default(),
             pwf_clamped: false,
+            active: None,
+            depth: 0,
+            underflows: 0,
         }
+    }
+
+    /// Instructions that ran with fewer values loaded in their cycle than they need
+    /// (the verifier's stack rule), since the program was loaded.
+    pub fn stack_underflows(&self) -> u32 {
+        self.underflows
     }
 
     pub fn settings(&self) -> &Settings {
@@ -147,6 +171,12 @@ impl DriveVm {
 
     pub fn outputs(&self) -> &Outputs {
         &self.out
+    }
+
+    /// The run-time warning whose cause lasts (the `PWF` of the last cycle clamped), for
+    /// the status the PLC shows.
+    pub fn active_warning(&self) -> Option<VmWarning> {
+        self.active
     }
 
     pub fn stack(&self) -> &[i16; STACK_DEPTH] {
@@ -174,6 +204,7 @@ impl DriveVm {
     pub fn load(&mut self, s: &DriveSection) {
         self.settings = Settings::new(self.default_pwm_hz);
         self.q = [0; Q_COUNT];
+        self.underflows = 0;
         self.start_run();
         for (line, ins) in lines(s) {
             if is_setting(ins) {
@@ -188,17 +219,28 @@ impl DriveVm {
         self.pi = [0; DRIVE_LINES];
         self.out = Outputs::default();
         self.pwf_clamped = false;
+        self.active = None;
     }
 
     /// Stop generating: f and the leg modes back to none (the PI states are kept until
     /// the next RUN).
     pub fn stop_outputs(&mut self) {
         self.out = Outputs::default();
+        self.active = None;
     }
 
     /// One 1 ms cycle: every line of the section, in order.
     pub fn run(&mut self, s: &DriveSection, warn: &mut impl FnMut(VmWarning)) {
+        self.depth = 0;
+        self.active = None;
         for (line, ins) in lines(s) {
+            self.depth = match drive_stack_step(self.depth, ins.mnemonic) {
+                Ok(d) => d,
+                Err(d) => {
+                    self.underflows = self.underflows.saturating_add(1);
+                    d
+                }
+            };
             self.exec(line, ins, warn);
         }
     }
@@ -254,12 +296,16 @@ impl DriveVm {
                 if let Some(v) = self.value(ins) {
                     let applied = v.clamp(PWF_MIN_HZ as i16, PWF_MAX_HZ as i16) as u16;
                     let clamped = applied as i16 != v;
-                    if matches!(ins.operand, Some(Operand::Q(_))) && clamped && !self.pwf_clamped {
-                        warn(VmWarning::PwfClamped {
+                    if matches!(ins.operand, Some(Operand::Q(_))) && clamped {
+                        let w = VmWarning::PwfClamped {
                             line,
                             requested: v,
                             applied,
-                        });
+                        };
+                        if !self.pwf_clamped {
+                            warn(w);
+                        }
+                        self.active = Some(w);
                     }
                     self.pwf_clamped = clamped;
                     self.settings.pwf_hz = applied;
@@ -292,6 +338,8 @@ impl DriveVm {
             Mnemonic::UMax => self.settings.u_max_volts = k,
             Mnemonic::UMin => self.settings.u_min_volts = k,
             Mnemonic::IMax => self.settings.i_max_centiamps = k,
+            Mnemonic::IMaxHw => self.settings.oc_hw_centiamps = k,
+            Mnemonic::UMaxHw => self.settings.ov_hw_volts = k,
             Mnemonic::Fmn => self.settings.fmn = ki,
             Mnemonic::Fjm if ki > 0 => self.settings.fjm = ki,
             Mnemonic::Fmx => self.settings.fmx = ki,
@@ -352,6 +400,8 @@ fn is_setting(i: &Instruction) -> bool {
         | M::UMax
         | M::UMin
         | M::IMax
+        | M::IMaxHw
+        | M::UMaxHw
         | M::Fmn
         | M::Fjm
         | M::Fmx
@@ -471,14 +521,14 @@ mod tests {
         for _ in 0..3 {
             vm.run(&s, &mut |w| warnings.push(w));
         }
-        assert_eq!(vm.settings().pwf_hz, 500);
+        assert_eq!(vm.settings().pwf_hz, 488);
         assert_eq!(vm.settings().prescaler, 16);
         assert_eq!(
             warnings,
             vec![VmWarning::PwfClamped {
                 line: 0,
                 requested: 100,
-                applied: 500
+                applied: 488
             }]
         );
         vm.set_q(0, 9800);

@@ -153,8 +153,8 @@ fn motor_pwf_from_q_below_range_is_clamped_with_a_warning() {
     rig.cmd(DriveCommand::SetQ { addr: 0, value: 30 });
     rig.cmd(DriveCommand::Run);
     rig.run_ms(5);
-    // 500 Hz is 170 MHz / (2 * 56667 * 3): 499.997 Hz.
-    assert_eq!(rig.core.pwm_timing().pwm_millihertz, 499_997);
+    // The source's minimum 488 Hz is 170 MHz / (2 * 58060 * 3): 488.001 Hz.
+    assert_eq!(rig.core.pwm_timing().pwm_millihertz, 488_001);
     let warnings: Vec<_> = rig
         .events
         .iter()
@@ -167,7 +167,7 @@ fn motor_pwf_from_q_below_range_is_clamped_with_a_warning() {
             DriveEvent::Warning(DriveWarning::Vm(VmWarning::PwfClamped {
                 line: 0,
                 requested: 30,
-                applied: 500
+                applied: 488
             }))
         )]
     );

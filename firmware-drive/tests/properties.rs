@@ -53,6 +53,7 @@ fn program() -> impl Strategy<Value = DriveSection> {
             for (n, i) in lines {
                 s.lines[usize::from(n)] = Some(i);
             }
+            shared_protocol::program::testing::fix_drive_stack(&mut s.lines);
             assert!(verify_drive(&s).is_ok());
             s
         })
@@ -120,6 +121,11 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
     // A fault has latched since the last accepted RUN: outputs must stay off.
     let mut latched_since_run = false;
     let mut f_prev_tick = 0i16;
+    // The PLC's latest direction request, and its value at the last tick that started at
+    // standstill (f = 0 in the previous tick) until the outputs next come on.
+    let mut requested = false;
+    let mut start_dir: Option<bool> = None;
+    let mut was_enabled = false;
     for op in ops {
         match op {
             Op::Periods(n, s) => {
@@ -141,6 +147,14 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                     if !c.enable {
                         prop_assert_eq!(c.duty, [0; 3]);
                     }
+                    // After any stop, the first period with the outputs on runs in the
+                    // direction requested when the drive restarted from standstill.
+                    if c.enable && !was_enabled {
+                        if let Some(dir) = start_dir.take() {
+                            prop_assert_eq!(core.modulator().params().swap_1_2, dir);
+                        }
+                    }
+                    was_enabled = c.enable;
                     if core.fault().is_some() {
                         latched_since_run = true;
                     }
@@ -173,7 +187,15 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                 });
                 let st = core.status();
                 let f = st.f_command.0;
-                if reversed.is_some() {
+                let standstill = f_prev_tick == 0;
+                if standstill {
+                    // program.md 4.2 / lift.md 2.2: a pending request applies at once.
+                    prop_assert_eq!(st.reverse, requested, "standstill, f now {}", f);
+                    start_dir = Some(requested);
+                } else {
+                    start_dir = None;
+                }
+                if !standstill && reversed.is_some() {
                     prop_assert!(f < core.vm().settings().frv, "reversed at f {} >= frv", f);
                     prop_assert!(
                         f >= f_prev_tick,
@@ -185,10 +207,15 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                 f_prev_tick = f;
             }
             Op::Cmd(c) => {
+                let before = core.state();
                 let ok = core.command(c).is_ok();
-                if c == DriveCommand::Run && ok && core.state() == DriveState::Run {
+                if c == DriveCommand::Run && ok && before != DriveState::Run {
+                    // A RUN starts from standstill.
                     latched_since_run = false;
                     f_prev_tick = 0;
+                }
+                if let DriveCommand::Direction { reverse } = c {
+                    requested = reverse;
                 }
             }
             Op::Trip(f) => core.trip(f),
@@ -246,7 +273,13 @@ proptest! {
         for d in &raw {
             let duty = dead_time_safe(*d, n, min);
             prop_assert!(duty <= n);
-            let cmd = PwmCommand { enable: true, duty: [duty; 3], period_counts: n, brake: false };
+            let cmd = PwmCommand {
+                enable: true,
+                leg_enable: [true; 3],
+                duty: [duty; 3],
+                period_counts: n,
+                brake: false,
+            };
             let ccr = u32::from(cmd.ccr()[0]);
             // Up-down counter 0..ARR..0 (2 * ARR ticks); PWM mode 1: active while
             // CNT < CCR, held active when CCR > ARR (RM0440).
@@ -272,5 +305,68 @@ proptest! {
         for r in runs.iter().skip(1) {
             prop_assert!(*r > u32::from(min), "pulse of {} ticks with min {}", r, min);
         }
+    }
+}
+
+/// Any section of lines the per-line rules accept, stack use not fixed up.
+fn raw_section() -> impl Strategy<Value = DriveSection> {
+    prop::collection::vec(
+        shared_protocol::program::testing::line_in(Section::Drive),
+        0..40,
+    )
+    .prop_map(|lines| {
+        let mut s = DriveSection::default();
+        for (n, i) in lines {
+            s.lines[usize::from(n)] = Some(i);
+        }
+        s
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    /// Item 9: the verifier's stack count is what the VM does. A section the verifier
+    /// accepts never runs an instruction with fewer values than it needs, and one it
+    /// rejects for the stack does, at the line it names.
+    #[test]
+    fn no_accepted_section_underflows_at_run_time(s in raw_section()) {
+        use firmware_drive::vm::DriveVm;
+        use shared_protocol::program::VerifyErrorKind;
+        let mut vm = DriveVm::new(16_000);
+        vm.load(&s);
+        for _ in 0..3 {
+            vm.run(&s, &mut |_| {});
+        }
+        match verify_drive(&s) {
+            Ok(()) => prop_assert_eq!(vm.stack_underflows(), 0),
+            Err(e) => {
+                prop_assert!(
+                    matches!(e.kind, VerifyErrorKind::StackUnderflow { .. }),
+                    "{:?}",
+                    e
+                );
+                prop_assert!(vm.stack_underflows() >= 3);
+                // The lines before the one named run without an underflow.
+                let mut head = s.clone();
+                for l in head.lines.iter_mut().skip(usize::from(e.line)) {
+                    *l = None;
+                }
+                let mut vm = DriveVm::new(16_000);
+                vm.run(&head, &mut |_| {});
+                prop_assert_eq!(vm.stack_underflows(), 0);
+            }
+        }
+        // The same lines made stack-valid (underflowing lines replaced by a load): the
+        // verifier accepts them and they run without an underflow.
+        let mut fixed = s.clone();
+        shared_protocol::program::testing::fix_drive_stack(&mut fixed.lines);
+        prop_assert_eq!(verify_drive(&fixed), Ok(()));
+        let mut vm = DriveVm::new(16_000);
+        vm.load(&fixed);
+        for _ in 0..3 {
+            vm.run(&fixed, &mut |_| {});
+        }
+        prop_assert_eq!(vm.stack_underflows(), 0);
     }
 }

@@ -27,10 +27,10 @@
 use shared_protocol::link::plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
 use shared_protocol::link::Q_COUNT;
 use shared_protocol::link::{
-    fault_text, DownloadResult, DriveState, DriveStatus, LinkConfig, RejectReason,
+    fault_text, DownloadResult, DriveState, DriveStatus, DriveWarning, LinkConfig, RejectReason,
 };
 use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section};
-use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros};
+use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
 
 use crate::editor::{Editor, Key, Notice, Page, Request, RunView, Screen, View, Warning};
 use crate::storage::{Eeprom, FaultEntry, Storage, FAULT_LOG_ENTRIES};
@@ -62,6 +62,8 @@ pub struct RunStatus {
     pub lcd: [Option<i16>; 4],
     /// The newest run-time warning (`DIV0 @ line`), kept until the next RUN.
     pub warning: Option<vm::Warning>,
+    /// The drive's run-time warning while its status reports it (e.g. `PWF` clamped).
+    pub drive_warning: Option<DriveWarning>,
 }
 
 /// What must reach the LCD at once when it changes (link.md and panel.md: a lost link
@@ -75,6 +77,7 @@ pub struct Alerts {
     pub drive_fault: Option<u8>,
     pub newest_fault: Option<u8>,
     pub warning: Option<vm::Warning>,
+    pub drive_warning: Option<DriveWarning>,
 }
 
 /// The PLC application.
@@ -236,6 +239,7 @@ impl<E: Eeprom> PlcApp<E> {
             newest_fault: self.newest_fault.map(|c| (c, fault_text(c))),
             lcd: self.out.lcd,
             warning: self.warning,
+            drive_warning: self.drive_status().and_then(|s| s.warning),
         }
     }
 
@@ -249,6 +253,7 @@ impl<E: Eeprom> PlcApp<E> {
             drive_fault: drive.map(|d| d.fault),
             newest_fault: self.newest_fault,
             warning: self.warning,
+            drive_warning: drive.and_then(|d| d.warning),
         }
     }
 
@@ -389,6 +394,8 @@ impl<E: Eeprom> PlcApp<E> {
                 dir_reverse: s.reverse,
                 ready: s.state == DriveState::Run && s.fault == 0,
                 fault_latched: s.fault != 0,
+                ihw: CentiAmps(s.oc_hw_ca),
+                uhw: Volts(s.ov_hw_v),
             },
             None => DriveView::default(),
         }
@@ -518,6 +525,11 @@ impl<E: Eeprom> PlcApp<E> {
             },
         });
         let drive = self.drive_status();
+        let drive_text = drive.and_then(|s| s.warning).map(|w| w.short());
+        let drive_warning = drive_text.as_ref().map(|t| Warning {
+            text: t.as_str(),
+            line: None,
+        });
         let run = RunView {
             running: self.run == RunState::Running,
             link_up: self.link.is_up(),
@@ -530,6 +542,7 @@ impl<E: Eeprom> PlcApp<E> {
                 .or(self.newest_fault.filter(|_| drive.is_none())),
             lcd: self.out.lcd,
             warning,
+            drive_warning,
         };
         let view = View {
             program: &self.program,

@@ -151,7 +151,7 @@ fn arithmetic() {
     }
 }
 
-/// Source: "shows A02 and the counted Q02 on the LCD" (project copy: an explicit reset bit).
+/// Source: "shows A02 and the counted Q02 on the LCD" (the project copy is the listing).
 const LCD: &str = include_str!("../../shared-protocol/programs/lcd.plc");
 
 /// The source's own LCD listing: only the edge is on the stack before `CTU`.
@@ -230,15 +230,27 @@ fn conditional_write_sends_q() {
     assert_eq!(r.vm.q(1), 100);
 }
 
-/// Source's measurement examples: COM shown raw, as volts (VLT) and as amps (AMP).
-const COM_VLT_AMP: &str = include_str!("../../shared-protocol/programs/com_monitor.plc");
+/// Source's commissioning example: COM raw and as volts (VLT), and the hardware trip
+/// levels (its trimmers) as the drive reports them (IHW, UHW).
+const COM_MONITOR: &str = include_str!("../../shared-protocol/programs/com_monitor.plc");
 
 #[test]
-fn com_vlt_amp() {
-    let mut r = Rig::new(COM_VLT_AMP);
+fn com_vlt_and_the_trimmers() {
+    let mut r = Rig::new(COM_MONITOR);
     r.inputs.drive.com = 682;
-    // 682 * 450 / 1023 = 300.0 (30.0 V); (682 - 512) * 100 / 512 = 33.2 (3.3 A)
-    assert_eq!(r.step(10).lcd, [Some(682), Some(300), Some(33), None]);
+    r.inputs.drive.ihw = shared_protocol::units::CentiAmps(250);
+    r.inputs.drive.uhw = shared_protocol::units::Volts(38);
+    // 682 * 450 / 1023 = 300.0 (30.0 V).
+    assert_eq!(r.step(10).lcd, [Some(682), Some(300), Some(250), Some(38)]);
+}
+
+#[test]
+fn amp_converts_com_to_tenths_of_an_amp() {
+    // The source's third display: a current trimmer on COM, LD AMP.
+    let mut r = Rig::new("150 LD COM\n151 LD AMP\n152 LCD\n");
+    r.inputs.drive.com = 682;
+    // (682 - 512) * 100 / 512 = 33.2 (3.3 A).
+    assert_eq!(r.step(10).lcd[0], Some(33));
 }
 
 #[test]

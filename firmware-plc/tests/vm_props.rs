@@ -77,6 +77,8 @@ fn inputs() -> impl Strategy<Value = ScanInputs> {
                         dir_reverse,
                         ready,
                         fault_latched,
+                        ihw: CentiAmps(imx.wrapping_add(7)),
+                        uhw: shared_protocol::units::Volts(udc / 10),
                     },
                 }
             },

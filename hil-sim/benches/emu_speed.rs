@@ -43,8 +43,8 @@ fn main() {
         let mut scen = Scenario::parse(MOTOR_TOML).expect("scenario");
         scen.rig.pwm_mode = mode;
         let duration = scen.duration_s(None);
-        let mut sim = EmuSim::new(&drive, &plc, &program, scen, RunOptions::default())
-            .expect("images");
+        let mut sim =
+            EmuSim::new(&drive, &plc, &program, scen, RunOptions::default()).expect("images");
         let start = Instant::now();
         let mut pwm_hz = 0i16;
         sim.run_until((duration * 1e9) as u64, |s| pwm_hz = s.lcd[1].unwrap_or(0));

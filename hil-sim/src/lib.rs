@@ -7,11 +7,13 @@
 //! * [`sim`]: the virtual-time scheduler joining them with the UART wires.
 //! * [`seams`]: one trait per simulated peripheral (what the scheduler needs of a model).
 //! * [`scenario`]: scenario files; [`record`]: the CSV; [`plot`]: the PNG;
-//!   [`run`]: one whole run as the CLI does it; [`latency`]: `WR Q` latency end to end.
+//!   [`run`]: one whole run as the CLI does it; [`latency`]: `WR Q` latency end to end;
+//!   [`lab`]: the source's lab chapter (ramp times, current ripple), `docs/lab.md`.
 //!
 //! Decisions and model equations: `hil-sim/docs/`.
 
 pub mod emu;
+pub mod lab;
 pub mod latency;
 pub mod mcu;
 pub mod panel;

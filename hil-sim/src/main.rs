@@ -361,7 +361,7 @@ fn cmd_asm(program: &Path, output: Option<&Path>) -> Result<()> {
 }
 
 fn cmd_disasm(program: &Path) -> Result<()> {
-    let p = load_program(program)?;
+    let p = hil_sim::run::load_any(program)?;
     let mut text = String::new();
     shared_protocol::program::disassemble(&p, &mut text)
         .map_err(|_| anyhow::anyhow!("cannot format the program"))?;

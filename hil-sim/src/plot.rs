@@ -1,5 +1,5 @@
-//! The PNG plot of a run: frequency, speed, phase currents, DC-link voltage, and the
-//! fault / brake / PWM signals, on a shared time axis.
+//! The PNG plot of a run: frequency, speed, phase currents, line voltage a-b (PWM-period
+//! average), DC-link voltage, and the fault / brake / PWM signals, on a shared time axis.
 //!
 //! Text is drawn with a font shipped in the crate (DejaVu Sans Mono, `assets/`), through
 //! plotters' `ab_glyph` backend: no fontconfig or FreeType needed on the machine.
@@ -57,15 +57,17 @@ fn range(samples: &[Sample], series: &[Series<'_>], min_span: f64) -> (f64, f64)
 pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
     register_font();
     let err = |e: &dyn std::fmt::Display| anyhow!("plot {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (1400, 1600)).into_drawing_area();
+    let root = BitMapBackend::new(path, (1400, 1800)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(title, ("sans-serif", 22))
         .map_err(|e| err(&e))?;
+    // The time axis spans the samples (a window of a run starts where it starts).
+    let t_start = samples.first().map_or(0.0, |s| s.t_ns as f64 * 1e-9);
     let t_end = samples
         .last()
         .map_or(1.0, |s| s.t_ns as f64 * 1e-9)
-        .max(1e-3);
+        .max(t_start + 1e-6);
     let panels: Vec<(&str, f64, Vec<Series<'_>>)> = vec![
         (
             "output frequency [Hz] (signed by direction)",
@@ -107,6 +109,15 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             ],
         ),
         (
+            "line voltage a-b [V] (PWM-period average)",
+            1.0,
+            vec![Series {
+                name: "u_ab_v",
+                color: RGBColor(0, 110, 160),
+                y: Box::new(|s| s.u_ab_v),
+            }],
+        ),
+        (
             "DC-link voltage [V]",
             2.0,
             vec![Series {
@@ -145,7 +156,7 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             .margin(8)
             .x_label_area_size(28)
             .y_label_area_size(60)
-            .build_cartesian_2d(0.0..t_end, lo..hi)
+            .build_cartesian_2d(t_start..t_end, lo..hi)
             .map_err(|e| err(&e))?;
         chart
             .configure_mesh()

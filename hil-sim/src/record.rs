@@ -31,6 +31,11 @@ pub fn header() -> String {
     cols.extend((0..6).map(|n| format!("O{n:02}")));
     cols.extend((0..8).map(|n| format!("Q{n:02}")));
     cols.extend((0..4).map(|n| format!("lcd{n}")));
+    cols.extend(
+        ["duty_a", "duty_b", "duty_c", "u_ab_v", "warn"]
+            .iter()
+            .map(|s| s.to_string()),
+    );
     cols.join(",")
 }
 
@@ -72,6 +77,10 @@ pub fn row(s: &Sample) -> String {
             None => r.push(','),
         }
     }
+    for d in s.duty_abc {
+        let _ = write!(r, ",{}", num(d, 4));
+    }
+    let _ = write!(r, ",{},{}", num(s.u_ab_v, 3), s.warn.short());
     r
 }
 
@@ -117,7 +126,7 @@ mod tests {
         ));
         assert!(h.contains(",D07,O00,"));
         assert!(h.contains(",O05,Q00,"));
-        assert!(h.ends_with(",Q07,lcd0,lcd1,lcd2,lcd3"));
+        assert!(h.ends_with(",Q07,lcd0,lcd1,lcd2,lcd3,duty_a,duty_b,duty_c,u_ab_v,warn"));
     }
 
     #[test]
@@ -138,11 +147,31 @@ mod tests {
             digital_out: 0b10,
             q: [1, 2, 3, 4, 5, 6, 7, 8],
             lcd: [Some(500), None, None, None],
+            duty_abc: [0.5, 0.25, 1.0],
+            u_ab_v: 7.5,
+            warn: crate::mcu::Warnings {
+                plc: Some(firmware_plc::vm::Warning::Div0 { line: 151 }),
+                drive: Some(shared_protocol::link::DriveWarning::PwfClamped {
+                    line: 0,
+                    requested: 0,
+                    applied_hz: 488,
+                }),
+            },
         };
         let r = row(&s);
         assert_eq!(r.split(',').count(), header().split(',').count());
         assert!(r.starts_with("0.001500,12.3,-1,0.500,1,0,30.000,"));
-        assert!(r.ends_with(",1,2,3,4,5,6,7,8,500,,,"));
+        assert!(
+            r.ends_with(
+                ",1,2,3,4,5,6,7,8,500,,,,0.5000,0.2500,1.0000,7.500,DIV0 @ 151; PWF 488Hz @ 000"
+            ),
+            "{r}"
+        );
+        let quiet = Sample {
+            warn: crate::mcu::Warnings::default(),
+            ..s
+        };
+        assert!(row(&quiet).ends_with(",7.500,"));
     }
 
     #[test]

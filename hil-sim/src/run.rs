@@ -5,15 +5,31 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use firmware_plc::storage::image::{is_image, program_from_image};
-use shared_protocol::program::{assemble, Program};
+use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
 use crate::mcu::{Lcd, PlcMcu};
 use crate::scenario::Scenario;
 use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
 
-/// Reads a program: `.plc` text, or a whole-EEPROM image (32 KiB, as `asm -o` writes).
-/// Errors name the file, text line and column.
+/// Reads a program that the PLC would start: `.plc` text, or a whole-EEPROM image
+/// (32 KiB, as `asm -o` writes), checked by the whole-program verifier (e.g. the drive
+/// section's stack depth). Errors name the file, text line and column (or the program
+/// line for an image).
 pub fn load_program(path: &Path) -> Result<Program> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    if is_image(&bytes) {
+        let p = load_any(path)?;
+        verify(&p).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        return Ok(p);
+    }
+    let Ok(text) = String::from_utf8(bytes) else {
+        return load_any(path);
+    };
+    parse_program(&text, &path.display().to_string())
+}
+
+/// Reads any program the text format or an image holds, runnable or not (for `disasm`).
+pub fn load_any(path: &Path) -> Result<Program> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
     if is_image(&bytes) {
         return program_from_image(&bytes)
@@ -25,12 +41,13 @@ pub fn load_program(path: &Path) -> Result<Program> {
             path.display()
         );
     };
-    parse_program(&text, &path.display().to_string())
+    assemble(&text).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))
 }
 
-/// Assembles `.plc` text; `name` prefixes the error (`name:line:col: message`).
+/// Assembles `.plc` text into a program the PLC would start (line rules and the
+/// whole-program verifier); `name` prefixes the error (`name:line:col: message`).
 pub fn parse_program(text: &str, name: &str) -> Result<Program> {
-    assemble(text).map_err(|e| anyhow::anyhow!("{name}:{e}"))
+    assemble_runnable(text).map_err(|e| anyhow::anyhow!("{name}:{e}"))
 }
 
 /// What a run produced.
@@ -45,6 +62,9 @@ pub struct RunReport {
     pub plc_running: bool,
     pub final_speed_rpm: f64,
     pub final_f_hz: f64,
+    /// Each run-time warning seen (one per status-line text: the long text of its first
+    /// appearance), with the time it first appeared.
+    pub warnings: Vec<(f64, String)>,
 }
 
 /// Fault name for a code.
@@ -83,6 +103,14 @@ impl RunReport {
                 ));
             }
         }
+        if self.warnings.is_empty() {
+            s.push_str("warnings: none\n");
+        } else {
+            s.push_str("warnings:\n");
+            for (t, w) in &self.warnings {
+                s.push_str(&format!("  {t:.3} s  {w}\n"));
+            }
+        }
         s.push_str("LCD:\n");
         s.push_str(&self.lcd.framed());
         s.push('\n');
@@ -108,11 +136,21 @@ pub fn run(
     let mut sim = Simulation::new(program, scenario, opts)?;
     let end_ns = (duration_s * 1e9).round() as u64;
     let mut samples = Vec::new();
+    let mut warnings: Vec<(f64, String)> = Vec::new();
+    let mut seen: Vec<String> = Vec::new();
     let chunk_ns = 100_000_000;
     let mut t = 0;
     while t < end_ns {
         t = (t + chunk_ns).min(end_ns);
         sim.run_until(t, |s| {
+            if !s.warn.is_empty() {
+                for (short, long) in s.warn.texts() {
+                    if !seen.contains(&short) {
+                        seen.push(short);
+                        warnings.push((s.t_ns as f64 * 1e-9, long));
+                    }
+                }
+            }
             on_sample(s);
             if keep_samples {
                 samples.push(s.clone());
@@ -132,6 +170,7 @@ pub fn run(
         plc_running: sim.plc().running(),
         final_speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
         final_f_hz: st.1,
+        warnings,
     })
 }
 

@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
-use crate::plant::{PwmMode, RigParams};
+use crate::plant::{Load, PwmMode, RigParams};
 
 /// Duration when neither `--duration` nor the scenario gives one.
 pub const DEFAULT_DURATION_S: f64 = 10.0;
@@ -46,6 +46,10 @@ pub struct PlantKeys {
     pub scan_time_ms: Option<f64>,
     pub pwm_mode: Option<PwmMode>,
     // Additions (hil-sim docs): the rest of the rig.
+    /// `"motor"` (default) or `"rl"`: a star RL load instead of the motor.
+    pub load: Option<LoadKind>,
+    pub load_r_ohm: Option<f64>,
+    pub load_l_h: Option<f64>,
     pub supply_r_ohm: Option<f64>,
     pub locked_rotor: Option<bool>,
     pub friction_nms: Option<f64>,
@@ -54,6 +58,14 @@ pub struct PlantKeys {
     pub lls_h: Option<f64>,
     pub llr_h: Option<f64>,
     pub lm_h: Option<f64>,
+}
+
+/// `[plant] load`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LoadKind {
+    Motor,
+    Rl,
 }
 
 /// `[link]`.
@@ -127,8 +139,6 @@ pub enum PlantChange {
     DcLinkV(f64),
     LoadTorqueNm(f64),
     InertiaKgm2(f64),
-    OcHwA(f64),
-    OvHwV(f64),
     BrakeResistorOhm(f64),
     LockedRotor(bool),
 }
@@ -139,8 +149,6 @@ impl PlantChange {
             PlantChange::DcLinkV(v) => rig.supply_v = v,
             PlantChange::LoadTorqueNm(v) => rig.motor.load_torque_nm = v,
             PlantChange::InertiaKgm2(v) => rig.motor.inertia_kgm2 = v,
-            PlantChange::OcHwA(v) => rig.comparators.oc_hw_a = v,
-            PlantChange::OvHwV(v) => rig.comparators.ov_hw_v = v,
             PlantChange::BrakeResistorOhm(v) => rig.brake_resistor_ohm = v,
             PlantChange::LockedRotor(v) => rig.motor.locked_rotor = v,
         }
@@ -251,10 +259,10 @@ impl Scenario {
             rig.motor.inertia_kgm2 = v;
         }
         if let Some(v) = positive("plant.oc_hw_a", p.oc_hw_a)? {
-            rig.comparators.oc_hw_a = v;
+            rig.hw_defaults.oc_hw_a = v;
         }
         if let Some(v) = positive("plant.ov_hw_v", p.ov_hw_v)? {
-            rig.comparators.ov_hw_v = v;
+            rig.hw_defaults.ov_hw_v = v;
         }
         if let Some(v) = positive("plant.dc_capacitor_uf", p.dc_capacitor_uf)? {
             rig.dc_capacitor_f = v * 1e-6;
@@ -284,6 +292,20 @@ impl Scenario {
         }
         if let Some(m) = p.pwm_mode {
             rig.pwm_mode = m;
+        }
+        let r = positive("plant.load_r_ohm", p.load_r_ohm)?;
+        let l = positive("plant.load_l_h", p.load_l_h)?;
+        match p.load {
+            Some(LoadKind::Rl) => {
+                rig.load = Load::Rl {
+                    r_ohm: r.unwrap_or(Load::RL_R_OHM),
+                    l_h: l.unwrap_or(Load::RL_L_H),
+                };
+            }
+            _ if r.is_some() || l.is_some() => {
+                bail!("plant.load_r_ohm / load_l_h need plant.load = \"rl\"")
+            }
+            _ => {}
         }
         if let Some(v) = positive("plant.scan_time_ms", p.scan_time_ms)? {
             if v > 1000.0 {
@@ -325,6 +347,13 @@ impl Scenario {
     fn add_event(&mut self, e: &EventKeys) -> Result<()> {
         if !(e.at_s.is_finite() && e.at_s >= 0.0) {
             bail!("at_s must be >= 0");
+        }
+        if e.oc_hw_a.is_some() || e.ov_hw_v.is_some() {
+            bail!(
+                "oc_hw_a / ov_hw_v cannot change at run time: the hardware thresholds are drive \
+                 settings now (I>> and U>> in the program, written to the comparator DACs at \
+                 download; [plant] oc_hw_a / ov_hw_v are the board's defaults)"
+            );
         }
         let mut any = false;
         if let Some(set) = &e.set {
@@ -372,8 +401,6 @@ impl Scenario {
             non_negative("dc_link_v", e.dc_link_v)?.map(PlantChange::DcLinkV),
             non_negative("load_torque_nm", e.load_torque_nm)?.map(PlantChange::LoadTorqueNm),
             positive("inertia_kgm2", e.inertia_kgm2)?.map(PlantChange::InertiaKgm2),
-            positive("oc_hw_a", e.oc_hw_a)?.map(PlantChange::OcHwA),
-            positive("ov_hw_v", e.ov_hw_v)?.map(PlantChange::OvHwV),
             positive("brake_resistor_ohm", e.brake_resistor_ohm)?
                 .map(PlantChange::BrakeResistorOhm),
             e.locked_rotor.map(PlantChange::LockedRotor),
@@ -485,6 +512,17 @@ load_torque_nm = 0.05
         assert!(err("[plant]\npwm_mode = \"fast\"").contains("pwm_mode"));
         assert!(err("[[event]]\nat_s = 1").contains("does nothing"));
         assert!(err("duration_s = -1").contains("duration_s"));
+        assert!(err("[[event]]\nat_s = 1\noc_hw_a = 2.0").contains("I>>"));
+        assert!(err("[plant]\nload_r_ohm = 5.0").contains("load = \"rl\""));
+        assert!(err("[plant]\nload = \"lamp\"").contains("load"));
+        let rl = Scenario::parse("[plant]\nload = \"rl\"\nload_l_h = 0.05").unwrap();
+        assert_eq!(
+            rl.rig.load,
+            Load::Rl {
+                r_ohm: 10.0,
+                l_h: 0.05
+            }
+        );
     }
 
     #[test]

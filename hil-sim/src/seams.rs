@@ -20,7 +20,9 @@ use shared_protocol::link::channel::Channel;
 use shared_protocol::units::Micros;
 
 use crate::mcu::{Lcd, PlcPins};
-use crate::plant::{AdcSample, BreakCause, GateCommand, Plant, PlantOutputs, RigParams};
+use crate::plant::{
+    AdcSample, BreakCause, Comparators, GateCommand, Plant, PlantOutputs, RigParams,
+};
 
 /// One direction of a UART wire, timed to the byte.
 pub trait UartWire {
@@ -79,6 +81,10 @@ pub trait BreakInput {
     fn take_break(&mut self) -> Option<BreakCause>;
     /// Comparator outputs now: [overcurrent, overvoltage].
     fn comparator_levels(&self) -> [bool; 2];
+    /// The comparators as configured now (board table and DAC values).
+    fn comparators(&self) -> Comparators;
+    /// The drive (re)wrote its threshold DACs.
+    fn set_comparators(&mut self, c: Comparators);
 }
 
 /// The continuous-time plant: advanced between events, observed for the record.
@@ -113,6 +119,12 @@ impl BreakInput for Plant {
     }
     fn comparator_levels(&self) -> [bool; 2] {
         Plant::comparator_levels(self)
+    }
+    fn comparators(&self) -> Comparators {
+        *Plant::comparators(self)
+    }
+    fn set_comparators(&mut self, c: Comparators) {
+        Plant::set_comparators(self, c)
     }
 }
 

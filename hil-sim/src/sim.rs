@@ -10,7 +10,7 @@
 //! sample), so a run is a pure function of its inputs and the seed.
 
 use anyhow::{Context, Result};
-use firmware_drive::{AdcSample, HwBreak, PwmCommand};
+use firmware_drive::{AdcSample, DriveConfig, HwBreak, PwmCommand};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::channel::{Channel, Impairments};
@@ -18,8 +18,8 @@ use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins};
-use crate::plant::{BreakCause, GateCommand, Leg, Plant, PlantOutputs};
+use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins, Warnings};
+use crate::plant::{BreakCause, Comparators, GateCommand, Leg, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
 use crate::seams::{Rig, UartWire};
 
@@ -43,6 +43,12 @@ pub struct Sample {
     pub digital_out: u8,
     pub q: [i16; 8],
     pub lcd: [Option<i16>; 4],
+    /// Leg duties 0..1, averaged over the last complete PWM period.
+    pub duty_abc: [f64; 3],
+    /// Line voltage a-b averaged over the last complete PWM period, V.
+    pub u_ab_v: f64,
+    /// The run-time warnings the PLC shows (its own and the drive's).
+    pub warn: Warnings,
 }
 
 /// A drive fault as it was latched.
@@ -122,12 +128,23 @@ impl Simulation<DriveBoard, PlcBoard> {
         .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))
         .context("EEPROM image")?;
         let link = LinkConfig::at_baud(scenario.baud);
-        let drive = DriveBoard::new(link);
+        let drive = DriveBoard::with_config(link, drive_config(&scenario.rig));
         let mut plc = PlcBoard::new(MemEeprom::from_image(&image), link, Micros(0));
         // The link's quiet window after each scan lasts until the next scan.
         plc.app_mut()
             .set_scan_period_us((scenario.scan_time_ns / 1000).max(1));
         Ok(Simulation::with_boards(drive, plc, scenario, opts))
+    }
+}
+
+/// The drive's configuration on this rig: the board's default hardware thresholds are the
+/// rig's (`[plant] oc_hw_a`, `ov_hw_v`), used while the program sets no `I>>`/`U>>`.
+pub fn drive_config(rig: &RigParams) -> DriveConfig {
+    let t = rig.hw_defaults.thresholds();
+    DriveConfig {
+        oc_hw_default_centiamps: t.oc_hw.0 as u16,
+        ov_hw_default_volts: t.ov_hw.0 as u16,
+        ..DriveConfig::default()
     }
 }
 
@@ -186,6 +203,7 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             pending_gate: GateCommand::OFF,
             last_cmd: PwmCommand {
                 enable: false,
+                leg_enable: [false; 3],
                 duty: [0; 3],
                 period_counts: timing.arr,
                 brake: false,
@@ -220,6 +238,13 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
 
     pub fn pins(&self) -> PlcPins {
         self.pins
+    }
+
+    /// Changes the sampling period from the next sample on (e.g. fine samples of one
+    /// window of a long run, for the current ripple of a PWM period).
+    pub fn set_sample_ns(&mut self, sample_ns: u64) {
+        self.sample_ns = sample_ns.max(1);
+        self.next_sample_ns = self.next_sample_ns.min(self.now_ns + self.sample_ns);
     }
 
     /// Faults in the order they latched.
@@ -407,6 +432,14 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
     }
 
     fn pwm_event(&mut self, t: u64) {
+        // The comparators' DACs as the firmware last wrote them (they change at a download).
+        let comparators = Comparators {
+            board: self.drive.board(),
+            dacs: self.drive.comparator_dacs(),
+        };
+        if comparators != self.plant.comparators() {
+            self.plant.set_comparators(comparators);
+        }
         // Break input first: the hardware has already opened the switches.
         if let Some(c) = self.plant.take_break() {
             let k = cause_index(c);
@@ -449,8 +482,14 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             (u64::from(timing.dead_time_counts) * 1_000_000_000).div_ceil(u64::from(f_tim.max(1)));
         let gate = if cmd.enable {
             let n = f64::from(cmd.period_counts.max(1));
+            let mut legs = [Leg::Off; 3];
+            for ((leg, d), on) in legs.iter_mut().zip(cmd.duty).zip(cmd.leg_enable) {
+                if on {
+                    *leg = Leg::Duty(f64::from(d) / n);
+                }
+            }
             GateCommand {
-                legs: cmd.duty.map(|d| Leg::Duty(f64::from(d) / n)),
+                legs,
                 dead_time_ns: dead_ns,
             }
         } else {
@@ -485,6 +524,9 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             digital_out: self.plc.outputs(),
             q,
             lcd: self.plc.lcd_fields(),
+            duty_abc: o.duty_abc,
+            u_ab_v: o.u_ab_v,
+            warn: self.plc.warnings(),
         }
     }
 }

@@ -38,6 +38,11 @@ pub struct Decihertz(pub i16);
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct Decivolts(pub i16);
 
+/// Voltage in whole volts (the program's `U>`/`U<`/`U>>`/`Uc=` unit and the PLC's `UHW`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Volts(pub i16);
+
 /// Current in 0.01 A (the program's `I>`/`Iz=` unit and the PLC's `IMX`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]

@@ -19,7 +19,24 @@ const PLC_EXAMPLES: &[(&str, &str)] = &[
         "conditional_write",
         include_str!("../programs/conditional_write.plc"),
     ),
+];
+
+/// Examples with both sections (besides the motor program).
+const MIXED_EXAMPLES: &[(&str, &str)] = &[
     ("com_monitor", include_str!("../programs/com_monitor.plc")),
+    // The source's lab chapter (Obr 5.1-5.7), hil-sim/docs/lab.md.
+    (
+        "lab_5_1_runup",
+        include_str!("../programs/lab_5_1_runup.plc"),
+    ),
+    (
+        "lab_5_3_rundown_runup",
+        include_str!("../programs/lab_5_3_rundown_runup.plc"),
+    ),
+    (
+        "lab_5_4_switching",
+        include_str!("../programs/lab_5_4_switching.plc"),
+    ),
 ];
 
 const DRIVE_EXAMPLES: &[(&str, &str)] = &[
@@ -80,6 +97,31 @@ fn drive_examples_are_drive_only_from_line_000() {
 }
 
 #[test]
+fn mixed_examples_verify_in_both_sections() {
+    for (name, text) in MIXED_EXAMPLES {
+        let p = checked(name, text);
+        assert!(p.section(Section::Drive).count() > 0, "{name}");
+        assert!(p.section(Section::Plc).count() > 0, "{name}");
+    }
+    // com_monitor: the trimmers are I>> and U>>, shown with IHW and UHW.
+    let p = checked("com_monitor", MIXED_EXAMPLES[0].1);
+    assert_eq!(
+        p.get(0),
+        Some(&ins(Mnemonic::IMaxHw, Some(Operand::K(0)), 250))
+    );
+    assert_eq!(
+        p.get(1),
+        Some(&ins(Mnemonic::UMaxHw, Some(Operand::K(1)), 38))
+    );
+    let shown: Vec<_> = p
+        .section(Section::Plc)
+        .filter(|(_, i)| i.mnemonic == Mnemonic::Ld)
+        .filter_map(|(_, i)| i.operand)
+        .collect();
+    assert!(shown.contains(&Operand::Ihw) && shown.contains(&Operand::Uhw));
+}
+
+#[test]
 fn every_file_in_programs_is_covered() {
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/programs");
     let mut names: Vec<String> = std::fs::read_dir(dir)
@@ -91,6 +133,7 @@ fn every_file_in_programs_is_covered() {
     let mut known: Vec<String> = PLC_EXAMPLES
         .iter()
         .chain(DRIVE_EXAMPLES)
+        .chain(MIXED_EXAMPLES)
         .map(|(n, _)| format!("{n}.plc"))
         .chain([String::from("motor.plc")])
         .collect();
@@ -149,24 +192,23 @@ fn arithmetic_follows_the_prose_add_10_multiply_by_3() {
 }
 
 #[test]
-fn counters_get_their_reset_in_s0_and_count_in_s1() {
-    // In both counter examples the line before CTU pushes the reset bit (an LD of a B bit)
-    // and the line before that is the LET producing the count edge.
-    for (name, text) in [PLC_EXAMPLES[3], PLC_EXAMPLES[6]] {
-        let p = checked(name, text);
-        let (n, _) = p
-            .section(Section::Plc)
+fn counters_follow_the_two_bit_and_the_single_bit_rule() {
+    let ctu = |p: &shared_protocol::program::Program| {
+        p.section(Section::Plc)
             .find(|(_, i)| i.mnemonic == Mnemonic::Ctu)
-            .unwrap();
-        assert_eq!(
-            p.get(n - 1).map(|i| i.mnemonic),
-            Some(Mnemonic::Ld),
-            "{name}"
-        );
-        assert_eq!(
-            p.get(n - 2).map(|i| i.mnemonic),
-            Some(Mnemonic::Let),
-            "{name}"
-        );
-    }
+            .unwrap()
+            .0
+    };
+    // counter100: the line before CTU pushes the reset bit (an LD of a B bit) and the line
+    // before that is the LET producing the count edge.
+    let p = checked("counter100", PLC_EXAMPLES[3].1);
+    let n = ctu(&p);
+    assert_eq!(p.get(n - 1).map(|i| i.mnemonic), Some(Mnemonic::Ld));
+    assert_eq!(p.get(n - 2).map(|i| i.mnemonic), Some(Mnemonic::Let));
+    // lcd: the source's listing, only the edge loaded before CTU (program.md 3.2, the
+    // single-bit rule: it is the count input).
+    let p = checked("lcd", PLC_EXAMPLES[6].1);
+    let n = ctu(&p);
+    assert_eq!(p.get(n - 1).map(|i| i.mnemonic), Some(Mnemonic::Let));
+    assert_eq!(p.get(n - 2).map(|i| i.mnemonic), Some(Mnemonic::Ld));
 }

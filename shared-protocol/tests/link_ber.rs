@@ -140,6 +140,15 @@ fn status_for(k: u16) -> DriveStatus {
         udc_dv: (k as i16).wrapping_mul(7),
         imax_ca: (k as i16) ^ 0x5A5A,
         com: k % 1024,
+        oc_hw_ca: 300,
+        ov_hw_v: 40,
+        warning: k
+            .is_multiple_of(7)
+            .then_some(shared_protocol::link::DriveWarning::PwfClamped {
+                line: (k % 150) as u8,
+                requested: k as i16,
+                applied_hz: 488,
+            }),
     }
 }
 

@@ -20,9 +20,12 @@ const EVENTS_PER_TICK: usize = 32;
 #[embassy_executor::task]
 pub async fn run() {
     let mut ticker = Ticker::every(PERIOD);
+    let board = firmware_drive::config::DriveConfig::default().board;
+    // The threshold DACs as written at start-up (the core's defaults).
+    let mut dacs = shared::with(|s| s.app.core().comparator_dacs());
     loop {
         ticker.next().await;
-        let causes = hw_protection::active();
+        let causes = hw_protection::active(board);
         let mut events: Vec<AppEvent, EVENTS_PER_TICK> = Vec::new();
         #[cfg(feature = "dwt-cycles")]
         let start = super::cycles::now();
@@ -33,6 +36,12 @@ pub async fn run() {
                 }
             }
             s.app.tick_1ms(shared::now());
+            // A download may have changed I>>/U>>: write the core's new DAC values.
+            let now = s.app.core().comparator_dacs();
+            if Some(now) != dacs {
+                hw_protection::write_dacs(now);
+                dacs = Some(now);
+            }
             while !events.is_full() {
                 match s.app.poll_event() {
                     Some(e) => {

@@ -1,41 +1,31 @@
-//! Hardware trips: COMP1/COMP2 compare the phase-current signals with DAC3's two channels
-//! (`OC_HW`), COMP3 compares the DC-link divider with DAC1 CH1 (`OV_HW`). Their outputs are
-//! ORed into TIM1's break input, which clears MOE within a few tens of nanoseconds without
-//! software; automatic output enable is off, so the break latches until the core
-//! acknowledges the fault and a new RUN sets MOE again.
+//! Hardware trips, configured from the drive core's comparator table
+//! (`firmware_drive::comparators`, the board profile of `DriveConfig::board`): on the
+//! B-G431B-ESC1, COMP1/COMP2/COMP4 compare the phase-current signals of U, V, W with DAC3's
+//! two channels (`OC_HW`, positive half-wave: each phase pin reaches only one comparator
+//! input, see the table's docs), COMP3 compares the DC-link divider with DAC1 CH1
+//! (`OV_HW`). Their outputs are ORed into TIM1's break input, which clears MOE within a
+//! few tens of nanoseconds without software; automatic output enable is off, so the break
+//! latches until the core acknowledges the fault and a new RUN sets MOE again.
 //!
-//! The comparators see the same pins as the ADC, so the thresholds are in ADC counts of the
-//! same scale as the core's measurements (see `firmware_drive::measure`).
+//! The thresholds are the core's decision (`DriveCore::comparator_dacs`: the program's
+//! `I>>`/`U>>` or the board's defaults, in ADC counts of the same signals); this module
+//! only writes them to the DACs, at start-up and whenever the core's values change (a
+//! download).
 
 use embassy_stm32::comp::{self, Comp, Config, Hysteresis, InvertingInput, OutputPolarity};
-use embassy_stm32::dac::{Dac, DacChannel, Value};
+use embassy_stm32::dac::{Dac, DacChannel as Channel, Value};
 use embassy_stm32::mode::Blocking;
-use embassy_stm32::peripherals::{COMP1, COMP2, COMP3, PA0, PA1, PA7};
+use embassy_stm32::peripherals::{COMP1, COMP2, COMP3, COMP4, PA0, PA1, PA7};
 use embassy_stm32::{bind_interrupts, pac, Peri};
-use firmware_drive::measure::{
-    udc_counts_at_volts, ADC_FULL_COUNTS, CURRENT_FULL_CENTIAMPS, CURRENT_ZERO_COUNTS,
-};
+use firmware_drive::comparators::{BoardProfile, ComparatorSpec, DacChannel, DacValues};
 use firmware_drive::protection::HwBreak;
 
 use crate::pins::Protection;
 
-/// Hardware overcurrent threshold (the source's trimmer; hil-sim's default rig), 0.01 A.
-pub const OC_HW_CENTIAMPS: i32 = 300;
-/// Hardware overvoltage threshold (the source's trimmer; hil-sim's default rig), V.
-pub const OV_HW_VOLTS: u32 = 40;
-/// TIM1 break-input comparator indices (AF1.BKCMPxE, 0-based) of COMP1..COMP3.
-pub const BREAK_COMPARATORS: [usize; 3] = [0, 1, 2];
-
 bind_interrupts!(struct Irqs {
     COMP1_2_3 => comp::InterruptHandler<COMP1>, comp::InterruptHandler<COMP2>, comp::InterruptHandler<COMP3>;
+    COMP4 => comp::InterruptHandler<COMP4>;
 });
-
-/// ADC counts of a phase current (the inverse of `measure::current_centiamps`), clamped to
-/// the converter's range.
-fn current_counts(centiamps: i32) -> u16 {
-    let counts = CURRENT_ZERO_COUNTS + centiamps * CURRENT_ZERO_COUNTS / CURRENT_FULL_CENTIAMPS;
-    counts.clamp(0, ADC_FULL_COUNTS as i32) as u16
-}
 
 /// The running comparators and threshold DACs.
 pub struct HwProtection {
@@ -43,61 +33,126 @@ pub struct HwProtection {
         Comp<'static, COMP1>,
         Comp<'static, COMP2>,
         Comp<'static, COMP3>,
+        Comp<'static, COMP4>,
     ),
-    _dac_current: (DacChannel<'static, Blocking>, DacChannel<'static, Blocking>),
+    _dac_current: (Channel<'static, Blocking>, Channel<'static, Blocking>),
     _dac_voltage: Dac<'static, Blocking>,
 }
 
-/// Sets the thresholds and enables the three comparators (not yet routed to the break
-/// input: [`super::power_stage::arm_break`] does that once TIM1 runs).
+/// The table entry of comparator `comp` (a profile without it is a build mistake; its
+/// input pins are checked against RM0440 by the core's unit tests).
+fn spec(board: &BoardProfile, comp: u8) -> ComparatorSpec {
+    let Some(s) = board.comparators.iter().find(|s| s.comp == comp) else {
+        defmt::panic!("board profile has no COMP{}", comp);
+    };
+    *s
+}
+
+/// COMPx configuration from its table entry: inverting input (INMSEL 0b100 = DACA,
+/// 0b101 = DACB), output polarity from the trip direction.
+fn config(s: &ComparatorSpec) -> Config {
+    let inverting_input = match s.inmsel() {
+        Some(0b100) => InvertingInput::Dac1,
+        Some(0b101) => InvertingInput::Dac2,
+        _ => defmt::panic!("COMP{}: its DAC cannot reach it", s.comp),
+    };
+    Config {
+        hysteresis: Hysteresis::Hyst20M,
+        output_polarity: if s.inverted() {
+            OutputPolarity::Inverted
+        } else {
+            OutputPolarity::NotInverted
+        },
+        inverting_input,
+        ..Config::default()
+    }
+}
+
+/// Writes the DAC channels the core's values name (12-bit right-aligned).
+pub fn write_dacs(v: DacValues) {
+    for ch in DacChannel::ALL {
+        let Some(counts) = v.get(ch) else { continue };
+        let (dac, idx) = match ch {
+            DacChannel::Dac1Ch1 => (pac::DAC1, 0),
+            DacChannel::Dac1Ch2 => (pac::DAC1, 1),
+            DacChannel::Dac3Ch1 => (pac::DAC3, 0),
+            DacChannel::Dac3Ch2 => (pac::DAC3, 1),
+        };
+        dac.dhr12r(idx).write(|w| w.set_dhr(counts));
+    }
+}
+
+/// Sets the thresholds `dacs` and enables the comparators of `board` (not yet routed to
+/// the break input: [`super::power_stage::arm_break`] does that once TIM1 runs).
 pub fn init(
     p: Protection,
-    ia: Peri<'_, PA1>,
-    ib: Peri<'_, PA7>,
-    udc: Peri<'_, PA0>,
+    board: &'static BoardProfile,
+    pins: (Peri<'_, PA1>, Peri<'_, PA7>, Peri<'_, PA0>),
+    dacs: DacValues,
 ) -> HwProtection {
-    let oc = current_counts(OC_HW_CENTIAMPS);
-    let ov = udc_counts_at_volts(OV_HW_VOLTS).min(ADC_FULL_COUNTS) as u16;
+    let (ia, ib, udc) = pins;
+    let ic = p.current_c;
     let (mut dac_a, mut dac_b) = Dac::<Blocking>::new_internal(p.dac_current).split();
-    dac_a.set(Value::Bit12Right(oc));
-    dac_b.set(Value::Bit12Right(oc));
+    let mut dac_v = Dac::<Blocking>::new_internal(p.dac_voltage);
+    dac_a.set(Value::Bit12Right(
+        dacs.get(DacChannel::Dac3Ch1).unwrap_or(4095),
+    ));
+    dac_b.set(Value::Bit12Right(
+        dacs.get(DacChannel::Dac3Ch2).unwrap_or(4095),
+    ));
+    dac_v.ch1().set(Value::Bit12Right(
+        dacs.get(DacChannel::Dac1Ch1).unwrap_or(4095),
+    ));
     dac_a.enable();
     dac_b.enable();
-    let mut dac_v = Dac::<Blocking>::new_internal(p.dac_voltage);
-    dac_v.ch1().set(Value::Bit12Right(ov));
     dac_v.ch1().enable();
 
-    let config = |dac| Config {
-        hysteresis: Hysteresis::Hyst20M,
-        output_polarity: OutputPolarity::NotInverted,
-        inverting_input: dac,
-        ..Config::default()
-    };
-    // On COMP1/COMP2, DACA is DAC3 CH1/CH2; on COMP3, DACB is DAC1 CH1 (RM0440, COMP
-    // inverting-input table).
-    let mut c1 = Comp::new(p.comp_ia, ia, Irqs, config(InvertingInput::Dac1));
-    let mut c2 = Comp::new(p.comp_ib, ib, Irqs, config(InvertingInput::Dac1));
-    let mut c3 = Comp::new(p.comp_udc, udc, Irqs, config(InvertingInput::Dac2));
+    let mut c1 = Comp::new(p.comp_ia, ia, Irqs, config(&spec(board, 1)));
+    let mut c2 = Comp::new(p.comp_ib, ib, Irqs, config(&spec(board, 2)));
+    let mut c3 = Comp::new(p.comp_udc, udc, Irqs, config(&spec(board, 3)));
+    let mut c4 = Comp::new(p.comp_ic, ic, Irqs, config(&spec(board, 4)));
     c1.enable();
     c2.enable();
     c3.enable();
+    c4.enable();
     defmt::info!(
-        "hw trips: OC_HW {} counts ({} cA), OV_HW {} counts ({} V)",
-        oc,
-        OC_HW_CENTIAMPS,
-        ov,
-        OV_HW_VOLTS
+        "hw trips: DAC3 {} {}, DAC1 {}",
+        dacs.get(DacChannel::Dac3Ch1),
+        dacs.get(DacChannel::Dac3Ch2),
+        dacs.get(DacChannel::Dac1Ch1)
     );
     HwProtection {
-        _comps: (c1, c2, c3),
+        _comps: (c1, c2, c3, c4),
         _dac_current: (dac_a, dac_b),
         _dac_voltage: dac_v,
     }
 }
 
-/// Which hardware causes are present now (comparator outputs).
-pub fn active() -> [(HwBreak, bool); 2] {
-    let oc = pac::COMP1.csr().read().value() || pac::COMP2.csr().read().value();
-    let ov = pac::COMP3.csr().read().value();
+/// TIM1 break-input comparator indices (AF1.BKCMPxE, 0-based) of the profile.
+pub fn break_comparators(board: &BoardProfile) -> heapless::Vec<usize, 7> {
+    board
+        .comparators
+        .iter()
+        .map(|s| usize::from(s.comp.saturating_sub(1)))
+        .collect()
+}
+
+/// Which hardware causes are present now (comparator outputs, after polarity).
+pub fn active(board: &BoardProfile) -> [(HwBreak, bool); 2] {
+    let mut oc = false;
+    let mut ov = false;
+    for s in board.comparators {
+        let regs = match s.comp {
+            1 => pac::COMP1,
+            2 => pac::COMP2,
+            3 => pac::COMP3,
+            _ => pac::COMP4,
+        };
+        let high = regs.csr().read().value();
+        match s.cause() {
+            HwBreak::Overcurrent => oc |= high,
+            HwBreak::Overvoltage => ov |= high,
+        }
+    }
     [(HwBreak::Overcurrent, oc), (HwBreak::Overvoltage, ov)]
 }

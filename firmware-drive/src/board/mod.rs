@@ -67,9 +67,13 @@ pub async fn start(spawner: Spawner) {
     let a = &mut board.analog;
     HW.init(hw_protection::init(
         board.protection,
-        a.current_a.reborrow(),
-        a.current_b.reborrow(),
-        a.dc_link.reborrow(),
+        cfg.board,
+        (
+            a.current_a.reborrow(),
+            a.current_b.reborrow(),
+            a.dc_link.reborrow(),
+        ),
+        app.core().comparator_dacs(),
     ));
     ANALOG.init(analog::init(board.analog));
     PWM.init(power_stage::init(board.power, timing, min_dead_counts));
@@ -80,7 +84,7 @@ pub async fn start(spawner: Spawner) {
         timing,
         min_dead_counts,
     });
-    power_stage::arm_break(&hw_protection::BREAK_COMPARATORS);
+    power_stage::arm_break(&hw_protection::break_comparators(cfg.board));
     pwm_isr::enable();
     defmt::info!(
         "TIM1: PSC {} ARR {} DTG {=u8:#x} ({} counts), {} mHz",

@@ -160,6 +160,27 @@ pub fn write_duties(duty: [u16; 3]) {
     }
 }
 
+/// Which legs switch (CCxE and CCxNE of CH1-3 together); the core turns a sine leg off
+/// below `fmn` while a direct leg keeps switching. A leg that is off has both outputs
+/// disabled: not driven by the timer, held low by the pins' pull-downs and the gate
+/// driver's, so both of its switches are open. Written only when it changes.
+#[inline(always)]
+pub fn set_legs(on: [bool; 3]) {
+    let t = pac::TIM1;
+    let ccer = t.ccer().read();
+    if (0..3)
+        .zip(on)
+        .any(|(ch, o)| ccer.cce(ch) != o || ccer.ccne(ch) != o)
+    {
+        t.ccer().modify(|w| {
+            for (ch, o) in (0..3).zip(on) {
+                w.set_cce(ch, o);
+                w.set_ccne(ch, o);
+            }
+        });
+    }
+}
+
 /// MOE on, unless a break is pending: the hardware refuses MOE while the break input is
 /// active, and a break that has already ended must still reach the core (break interrupt)
 /// before the outputs may come back.

@@ -42,6 +42,7 @@ fn TIM1_UP_TIM16() {
         let max = timing.arr.saturating_add(1);
         power_stage::write_duties(cmd.ccr().map(|d| d.min(max)));
         if cmd.enable {
+            power_stage::set_legs(cmd.leg_enable);
             power_stage::outputs_on();
         }
         s.brake.set_level(Level::from(cmd.brake));
@@ -60,7 +61,7 @@ fn TIM1_BRK_TIM15() {
         return;
     }
     power_stage::outputs_off();
-    let causes = hw_protection::active();
+    let causes = hw_protection::active(firmware_drive::config::DriveConfig::default().board);
     shared::with(|s| {
         let mut any = false;
         for (cause, present) in causes {

@@ -178,7 +178,7 @@ mod tests {
         );
         // Backwards from the first class wraps to the last class's first entry.
         let last = step_operand_class(ld, Section::Plc, false);
-        assert_eq!(last.operand, Some(Operand::Flb));
+        assert_eq!(last.operand, Some(Operand::Uhw));
         let mut i = ld;
         for _ in 0..400 {
             i = step_operand(i, Section::Plc, 1);
@@ -188,12 +188,12 @@ mod tests {
 
     #[test]
     fn constant_digits_skip_invalid_values() {
-        // PWF K: 0500..=9999.
+        // PWF K: 0488..=9999.
         let pwf = with_mnemonic(Mnemonic::Pwf, Section::Drive, None);
         assert_eq!(pwf.operand, Some(Operand::K(0)));
-        assert_eq!(pwf.constant, 500);
+        assert_eq!(pwf.constant, 488);
         let down = step_digit(pwf, Section::Drive, 1, false);
-        assert_eq!(down.constant, 900, "0400..0000 are invalid, wraps to 0900");
+        assert_eq!(down.constant, 988, "0388..0088 are invalid, wraps to 0988");
         // dU= K: 0000..=1023.
         let du = Instruction {
             constant: 1023,

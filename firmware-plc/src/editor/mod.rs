@@ -102,7 +102,10 @@ pub struct RunView<'a> {
     pub fault: Option<u8>,
     /// The 4 `LCD` value fields, `None` when no `LCD` instruction filled them.
     pub lcd: [Option<i16>; 4],
+    /// The PLC's own run-time warning (`DIV0` at a line).
     pub warning: Option<Warning<'a>>,
+    /// The drive's run-time warning as its status reports it (e.g. `PWF 488Hz @ 000`).
+    pub drive_warning: Option<Warning<'a>>,
 }
 
 impl Default for RunView<'_> {
@@ -116,6 +119,7 @@ impl Default for RunView<'_> {
             fault: None,
             lcd: [None; 4],
             warning: None,
+            drive_warning: None,
         }
     }
 }

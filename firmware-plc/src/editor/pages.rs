@@ -87,8 +87,8 @@ fn fault_line(code: u8, s: &mut Line) {
     push(s, format_args!("F{} {}", code, fault_text(code)));
 }
 
-fn warning_line(view: &View<'_>, s: &mut Line) -> bool {
-    let Some(w) = view.run.warning else {
+fn warning_line(w: Option<super::Warning<'_>>, s: &mut Line) -> bool {
+    let Some(w) = w else {
         return false;
     };
     match w.line {
@@ -98,6 +98,11 @@ fn warning_line(view: &View<'_>, s: &mut Line) -> bool {
     true
 }
 
+/// Whether a fault or a warning (the PLC's or the drive's) waits to be shown.
+fn any_alert(view: &View<'_>) -> bool {
+    view.run.fault.is_some() || view.run.warning.is_some() || view.run.drive_warning.is_some()
+}
+
 /// The prompt of a pending command or edit, or the transient message.
 fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
     let narrow = ed.cols < 20;
@@ -105,8 +110,7 @@ fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
         let now = view.now_ms;
         let drawn = ed.message_drawn_at.get().unwrap_or(now);
         ed.message_drawn_at.set(Some(drawn));
-        let alerts = view.run.fault.is_some() || view.run.warning.is_some();
-        if !alerts || now.wrapping_sub(drawn) < MESSAGE_MS {
+        if !any_alert(view) || now.wrapping_sub(drawn) < MESSAGE_MS {
             push(s, format_args!("{m}"));
             return true;
         }
@@ -185,22 +189,36 @@ pub(super) fn status_text(ed: &Editor, view: &View<'_>, s: &mut Line) {
         return;
     }
     let tick = (view.now_ms / ROTATE_MS) as usize;
-    let fault = view.run.fault;
-    let alerts = usize::from(fault.is_some()) + usize::from(view.run.warning.is_some());
-    if alerts == 0 {
+    // The alerts present, in this order: fault, PLC warning, drive warning.
+    let mut alerts: heapless::Vec<u8, 3> = heapless::Vec::new();
+    for (k, present) in [
+        view.run.fault.is_some(),
+        view.run.warning.is_some(),
+        view.run.drive_warning.is_some(),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        if present {
+            let _ = alerts.push(k as u8);
+        }
+    }
+    if alerts.is_empty() {
         let mut scratch = Line::new();
         let count = hint(ed, view, 0, &mut scratch);
         hint(ed, view, tick % count, s);
         return;
     }
     // Alerts, then the main hint (so RUN/STOP/save/load stay discoverable).
-    let k = tick % (alerts + 1);
-    match (k, fault) {
-        (0, Some(code)) => fault_line(code, s),
-        (k, _) if k < alerts => {
-            warning_line(view, s);
+    match alerts.get(tick % (alerts.len() + 1)) {
+        Some(0) => fault_line(view.run.fault.unwrap_or(0), s),
+        Some(1) => {
+            warning_line(view.run.warning, s);
         }
-        _ => {
+        Some(_) => {
+            warning_line(view.run.drive_warning, s);
+        }
+        None => {
             hint(ed, view, 0, s);
         }
     }
@@ -290,7 +308,7 @@ pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     }
     // Two rows: the second rotates through the fields, alerts and the main hint.
     let fields_34 = view.run.lcd.iter().skip(2).any(|v| v.is_some());
-    let mut items: heapless::Vec<u8, 5> = heapless::Vec::new();
+    let mut items: heapless::Vec<u8, 6> = heapless::Vec::new();
     let _ = items.push(0);
     if fields_34 {
         let _ = items.push(1);
@@ -301,6 +319,9 @@ pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     if view.run.warning.is_some() {
         let _ = items.push(3);
     }
+    if view.run.drive_warning.is_some() {
+        let _ = items.push(5);
+    }
     let _ = items.push(4);
     let tick = (view.now_ms / ROTATE_MS) as usize;
     match items.get(tick % items.len()).copied().unwrap_or(4) {
@@ -308,7 +329,10 @@ pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
         1 => fields_row(view, 2, true, &mut s),
         2 => fault_line(view.run.fault.unwrap_or(0), &mut s),
         3 => {
-            warning_line(view, &mut s);
+            warning_line(view.run.warning, &mut s);
+        }
+        5 => {
+            warning_line(view.run.drive_warning, &mut s);
         }
         _ => {
             hint(ed, view, 0, &mut s);

@@ -243,6 +243,7 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
         fault: None,
         lcd: [Some(812), Some(-32768), None, None],
         warning: None,
+        drive_warning: None,
     };
     let s = draw(&ed, &p, run, &[], 0);
     assert_eq!(s.row(0), "RUN  RUN    42.3Hz R");
@@ -271,6 +272,31 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
     assert_eq!(
         rows,
         ["F2 overcurrent (HW)", "W:DIV0 @ 163", "A=RUN C=SAVE D=LOAD"]
+    );
+    // The drive's warning (item 5 of issue 15: a clamped PWF) takes its turn too.
+    let both = RunView {
+        drive_warning: Some(Warning {
+            text: "PWF 488Hz @ 000",
+            line: None,
+        }),
+        ..faulted
+    };
+    let rows: Vec<String> = (0..4)
+        .map(|k| {
+            draw(&ed, &p, both, &[], k * 2000)
+                .row(3)
+                .trim_end()
+                .to_string()
+        })
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            "F2 overcurrent (HW)",
+            "W:DIV0 @ 163",
+            "W:PWF 488Hz @ 000",
+            "A=RUN C=SAVE D=LOAD"
+        ]
     );
     let lost = RunView {
         link_up: false,
@@ -361,6 +387,7 @@ fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
         fault: Some(1),
         lcd: [Some(12), Some(-5), Some(7), None],
         warning: None,
+        drive_warning: None,
     };
     let rows: Vec<String> = (0..5)
         .map(|k| draw(&ed, &p, run, &[], k * 2000).to_string())

@@ -24,7 +24,7 @@ const D0: u8 = O0 + OUTPUTS;
 const RDY: u8 = D0 + 8;
 const FLB: u8 = RDY + 1;
 
-/// Int cells: Q00-Q63, then A00-A03, COM, FRQ, UDC, IMX, FLT, DIR.
+/// Int cells: Q00-Q63, then A00-A03, COM, FRQ, UDC, IMX, FLT, DIR, IHW, UHW.
 const Q0: u8 = 0;
 const A0: u8 = Q0 + Q_COUNT as u8;
 const COM: u8 = A0 + 4;
@@ -33,6 +33,8 @@ const UDC: u8 = FRQ + 1;
 const IMX: u8 = UDC + 1;
 const FLT: u8 = IMX + 1;
 const DIR: u8 = FLT + 1;
+const IHW: u8 = DIR + 1;
+const UHW: u8 = IHW + 1;
 
 /// B, O, Q (what RUN clears and the program keeps between scans) and the scan's inputs.
 #[derive(Clone)]
@@ -77,6 +79,8 @@ impl Cells {
         self.set_int(IMX, d.imx.0);
         self.set_int(FLT, i16::from(d.flt));
         self.set_int(DIR, i16::from(d.dir_reverse));
+        self.set_int(IHW, d.ihw.0);
+        self.set_int(UHW, d.uhw.0);
     }
 
     fn set_bit(&mut self, cell: u8, v: bool) {
@@ -151,6 +155,8 @@ pub fn int_cell(op: Operand) -> Option<u8> {
         Operand::Imx => Some(IMX),
         Operand::Flt => Some(FLT),
         Operand::Dir => Some(DIR),
+        Operand::Ihw => Some(IHW),
+        Operand::Uhw => Some(UHW),
         _ => None,
     }
 }
@@ -190,6 +196,8 @@ mod tests {
             Operand::Imx,
             Operand::Flt,
             Operand::Dir,
+            Operand::Ihw,
+            Operand::Uhw,
         ] {
             ints.extend(int_cell(op));
         }
@@ -197,7 +205,7 @@ mod tests {
         ints.sort();
         ints.dedup();
         assert_eq!(ints.len(), n);
-        assert_eq!(n, 4 + 64 + 6);
+        assert_eq!(n, 4 + 64 + 8);
         assert_eq!(q_cell(63), Some(63));
         assert_eq!(q_cell(64), None);
     }

@@ -467,6 +467,8 @@ impl Lowering {
             | M::UMax
             | M::UMin
             | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
             | M::Fmn
             | M::Fjm
             | M::Fmx

@@ -25,17 +25,22 @@ fn drive_view() -> impl Strategy<Value = DriveView> {
     (
         (any::<u16>(), any::<i16>(), any::<i16>(), any::<i16>()),
         (any::<u8>(), any::<bool>(), any::<bool>(), any::<bool>()),
+        (any::<i16>(), any::<i16>()),
     )
         .prop_map(
-            |((com, frq, udc, imx), (flt, dir_reverse, ready, fault_latched))| DriveView {
-                com,
-                frq: Decihertz(frq),
-                udc: Decivolts(udc),
-                imx: CentiAmps(imx),
-                flt,
-                dir_reverse,
-                ready,
-                fault_latched,
+            |((com, frq, udc, imx), (flt, dir_reverse, ready, fault_latched), (ihw, uhw))| {
+                DriveView {
+                    com,
+                    frq: Decihertz(frq),
+                    udc: Decivolts(udc),
+                    imx: CentiAmps(imx),
+                    flt,
+                    dir_reverse,
+                    ready,
+                    fault_latched,
+                    ihw: CentiAmps(ihw),
+                    uhw: shared_protocol::units::Volts(uhw),
+                }
             },
         )
 }

@@ -1,7 +1,7 @@
 //! What a scan reads and what it reports: plain data, so the board layer, the link endpoint,
 //! the LCD and hil-sim can fill and read it without knowing the VM.
 
-use shared_protocol::units::{CentiAmps, Decihertz, Decivolts};
+use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Volts};
 
 /// Number of `LCD` value fields on the run screen (program.md 3.2).
 pub const LCD_FIELDS: usize = 4;
@@ -31,6 +31,10 @@ pub struct DriveView {
     pub ready: bool,
     /// `FLB`: any fault latched.
     pub fault_latched: bool,
+    /// `IHW`: hardware overcurrent threshold in effect (`I>>`), 0.01 A.
+    pub ihw: CentiAmps,
+    /// `UHW`: hardware overvoltage threshold in effect (`U>>`), V.
+    pub uhw: Volts,
 }
 
 /// Everything one scan reads from the outside world.

@@ -344,6 +344,8 @@ impl ReferenceVm {
             | M::UMax
             | M::UMin
             | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
             | M::Fmn
             | M::Fjm
             | M::Fmx
@@ -377,6 +379,8 @@ fn read_int(mem: &Memory, env: &Env<'_>, op: Operand, constant: u16) -> Option<i
         Operand::Frq => Some(d.frq.0),
         Operand::Udc => Some(d.udc.0),
         Operand::Imx => Some(d.imx.0),
+        Operand::Ihw => Some(d.ihw.0),
+        Operand::Uhw => Some(d.uhw.0),
         Operand::Flt => Some(i16::from(d.flt)),
         Operand::Dir => Some(i16::from(d.dir_reverse)),
         _ => None,

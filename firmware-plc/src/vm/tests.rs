@@ -184,6 +184,16 @@ fn ld_extension_int_operands() {
 }
 
 #[test]
+fn ld_hardware_thresholds() {
+    // The source's commissioning display of its trimmers, without DIP switches.
+    let lines = vec![l(M::Ld, X::Ihw), n(M::Lcd), l(M::Ld, X::Uhw), n(M::Lcd)];
+    let mut r = Rig::new(&lines);
+    r.inputs.drive.ihw = CentiAmps(300);
+    r.inputs.drive.uhw = shared_protocol::units::Volts(40);
+    assert_eq!(r.scan().lcd, [Some(300), Some(40), None, None]);
+}
+
+#[test]
 fn ld_q_reads_the_plc_copy() {
     let lines = vec![
         l(M::Ldc, X::B(0)),

@@ -22,7 +22,7 @@ use g431_emu::periph::tim_adv::{GateState, PinDrive, TimEvent};
 use g431_emu::soc::Board;
 use g431_emu::time::{cycles_to_ns, Cycles};
 
-use crate::plant::{sensors, BreakCause, GateCommand, Leg, Plant};
+use crate::plant::{sensors, Comparators, GateCommand, Leg, Plant};
 
 /// ADC reference of both boards.
 pub const VREF: f64 = 3.3;
@@ -48,22 +48,23 @@ pub struct Rig {
     pub aux_counts: u16,
     /// TIM1's gate state from the last update (for the record: duties, outputs on).
     pub gate: Option<GateState>,
-    /// A hardware break the plant latched, not yet reported to the comparators, and the
-    /// cycle of the comparator sampling that reports it.
-    latched: Option<(BreakCause, Cycles)>,
-    /// Cycle of the last comparator sampling.
-    sampled_at: Cycles,
 }
 
 impl Rig {
-    pub fn new(plant: Plant) -> Self {
+    /// The rig around `plant`. The plant's own comparator model is switched off: in the
+    /// emulator the comparators are the emulated COMP/DAC registers (sampled by the SoC at
+    /// every TIM1 event), and TIM1's break opens the switches.
+    pub fn new(mut plant: Plant) -> Self {
+        let board = plant.comparators().board;
+        plant.set_comparators(Comparators {
+            board,
+            dacs: firmware_drive::comparators::DacValues::default(),
+        });
         Rig {
             plant,
             plant_ns: 0,
             aux_counts: 0,
             gate: None,
-            latched: None,
-            sampled_at: 0,
         }
     }
 
@@ -151,6 +152,8 @@ pub struct DriveBoard {
 pub mod drive_pins {
     pub const CURRENT_A: &str = "PA1";
     pub const CURRENT_B: &str = "PA7";
+    /// Phase W's shunt (the ESC1's third current sense, COMP4's input).
+    pub const CURRENT_C: &str = "PB0";
     pub const DC_LINK: &str = "PA0";
     pub const AUX: &str = "PB12";
     /// Brake chopper gate (GPIO out, active high).
@@ -188,6 +191,7 @@ impl Board for DriveBoard {
         match pin {
             drive_pins::CURRENT_A => current_volts(o.i_abc_a[0]),
             drive_pins::CURRENT_B => current_volts(o.i_abc_a[1]),
+            drive_pins::CURRENT_C => current_volts(o.i_abc_a[2]),
             drive_pins::DC_LINK => udc_volts(o.u_dc_v),
             drive_pins::AUX => f64::from(rig.aux_counts) / f64::from(sensors::ADC_MAX) * VREF,
             _ => 0.0,
@@ -231,39 +235,7 @@ impl Board for DriveBoard {
     }
 
     fn comparator_above(&mut self, cfg: &CompConfig, inm_volts: f64, at: Cycles) -> bool {
-        let mut rig = self.rig.borrow_mut();
-        rig.advance_to(cycles_to_ns(at));
-        // The plant opens its switches itself when a comparator threshold is crossed
-        // between two samplings (the hardware path); give it the thresholds the emulated
-        // DACs set, and report a latched crossing to the comparators once.
-        let o = rig.plant.outputs();
-        match cfg.inp {
-            drive_pins::CURRENT_A | drive_pins::CURRENT_B => {
-                rig.plant.params_mut().comparators.oc_hw_a = volts_current(inm_volts).abs();
-            }
-            drive_pins::DC_LINK => {
-                rig.plant.params_mut().comparators.ov_hw_v =
-                    inm_volts / VREF * sensors::UDC_FULL_SCALE_V;
-            }
-            _ => {}
-        }
-        if at != rig.sampled_at {
-            rig.sampled_at = at;
-            rig.latched = rig.plant.take_break().map(|c| (c, at));
-        }
-        let latched = |c: BreakCause| rig.latched.is_some_and(|(l, t)| l == c && t == at);
-        let v = match cfg.inp {
-            drive_pins::CURRENT_A => current_volts(o.i_abc_a[0]),
-            drive_pins::CURRENT_B => current_volts(o.i_abc_a[1]),
-            drive_pins::DC_LINK => udc_volts(o.u_dc_v),
-            _ => 0.0,
-        };
-        let crossed = match cfg.inp {
-            drive_pins::CURRENT_A | drive_pins::CURRENT_B => latched(BreakCause::Overcurrent),
-            drive_pins::DC_LINK => latched(BreakCause::Overvoltage),
-            _ => false,
-        };
-        v > inm_volts || crossed
+        self.pin_volts(cfg.inp, at) > inm_volts
     }
 }
 

@@ -430,6 +430,14 @@ impl EmuSim {
             digital_out: io.outputs,
             q: self.q,
             lcd: lcd_fields(&self.lcd.borrow().text()),
+            duty_abc: o.duty_abc,
+            u_ab_v: o.u_ab_v,
+            // The drive's warning is in its status; the PLC's own (DIV0) is not on the
+            // wire and is not recorded by `emu`.
+            warn: crate::mcu::Warnings {
+                plc: None,
+                drive: st.warning,
+            },
         }
     }
 

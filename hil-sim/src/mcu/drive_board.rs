@@ -2,6 +2,7 @@
 //! called as the board's interrupts and tasks call it.
 
 use firmware_drive::app::DriveApp;
+use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::{
     AdcSample, DriveConfig, DriveCore, DriveStatus, HwBreak, PwmCommand, PwmTiming, ResetCause,
 };
@@ -18,7 +19,11 @@ pub struct DriveBoard {
 
 impl DriveBoard {
     pub fn new(link_cfg: LinkConfig) -> Self {
-        let cfg = DriveConfig::default();
+        Self::with_config(link_cfg, DriveConfig::default())
+    }
+
+    /// A board with its own configuration (e.g. the rig's default hardware thresholds).
+    pub fn with_config(link_cfg: LinkConfig, cfg: DriveConfig) -> Self {
         DriveBoard {
             timer_clock_hz: cfg.timer_clock_hz,
             app: DriveApp::new(cfg, ResetCause::PowerOn, link_cfg),
@@ -75,5 +80,13 @@ impl DriveMcu for DriveBoard {
 
     fn status(&self) -> DriveStatus {
         self.app.status()
+    }
+
+    fn board(&self) -> &'static BoardProfile {
+        self.app.core().config().board
+    }
+
+    fn comparator_dacs(&self) -> DacValues {
+        self.app.core().comparator_dacs()
     }
 }

@@ -10,6 +10,7 @@ pub mod drive_board;
 pub mod lcd;
 pub mod plc_board;
 
+use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::{AdcSample, DriveStatus, HwBreak, PwmCommand, PwmTiming};
 use shared_protocol::units::Micros;
 
@@ -34,6 +35,22 @@ pub trait DriveMcu {
     /// The timer's kernel clock.
     fn timer_clock_hz(&self) -> u32;
     fn status(&self) -> DriveStatus;
+    /// The board's comparators (which signal, direction and DAC each one has). Default:
+    /// the drive core's default profile.
+    fn board(&self) -> &'static BoardProfile {
+        firmware_drive::DriveConfig::default().board
+    }
+    /// What the firmware writes to the comparator threshold DACs now. Default: the
+    /// drive core's default levels (a board model that reads its DAC registers overrides
+    /// this).
+    fn comparator_dacs(&self) -> DacValues {
+        let c = firmware_drive::DriveConfig::default();
+        let t = firmware_drive::comparators::HwThresholds {
+            oc_hw: shared_protocol::units::CentiAmps(c.oc_hw_default_centiamps as i16),
+            ov_hw: shared_protocol::units::Volts(c.ov_hw_default_volts as i16),
+        };
+        firmware_drive::comparators::dac_values(self.board(), t)
+    }
 }
 
 /// The PLC's inputs as its pins present them.
@@ -43,6 +60,51 @@ pub struct PlcPins {
     pub digital: u8,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
+}
+
+/// The run-time warnings the PLC knows of: its own (`DIV0 @ line`, kept until the next
+/// RUN) and the drive's as its status reports it (while it lasts).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Warnings {
+    pub plc: Option<firmware_plc::vm::Warning>,
+    pub drive: Option<shared_protocol::link::DriveWarning>,
+}
+
+impl Warnings {
+    pub fn is_empty(&self) -> bool {
+        self.plc.is_none() && self.drive.is_none()
+    }
+
+    /// The LCD status line's texts, `; `-separated (the CSV's `warn`), e.g.
+    /// `DIV0 @ 151` or `PWF 488Hz @ 000`; empty when none.
+    pub fn short(&self) -> String {
+        let mut parts = Vec::new();
+        if let Some(w) = self.plc {
+            parts.push(w.to_string());
+        }
+        if let Some(w) = self.drive {
+            parts.push(w.short().to_string());
+        }
+        parts.join("; ")
+    }
+
+    /// Each warning as (status-line text, long text for the run summary).
+    pub fn texts(&self) -> Vec<(String, String)> {
+        let mut v = Vec::new();
+        if let Some(w) = self.plc {
+            match w {
+                firmware_plc::vm::Warning::Div0 { line } => v.push((
+                    w.to_string(),
+                    format!("{w} (PLC): DIV by a Q holding 0 on line {line:03}, P set to 0"),
+                )),
+            }
+        }
+        if let Some(w) = self.drive {
+            let short = w.short().to_string();
+            v.push((short.clone(), format!("{short} (drive): {w}")));
+        }
+        v
+    }
 }
 
 /// The PLC MCU.
@@ -65,4 +127,8 @@ pub trait PlcMcu {
     fn lcd(&self) -> &Lcd;
     /// The user program is running.
     fn running(&self) -> bool;
+    /// The run-time warnings the PLC shows on its status line (default: none known).
+    fn warnings(&self) -> Warnings {
+        Warnings::default()
+    }
 }

@@ -137,6 +137,14 @@ impl PlcMcu for PlcBoard {
         &self.lcd
     }
 
+    fn warnings(&self) -> super::Warnings {
+        let s = self.app.status();
+        super::Warnings {
+            plc: s.warning,
+            drive: s.drive_warning,
+        }
+    }
+
     fn running(&self) -> bool {
         self.app.run_state() == RunState::Running
     }

@@ -87,6 +87,9 @@ impl PlcMcu for PanelPlc {
     fn running(&self) -> bool {
         self.inner.running()
     }
+    fn warnings(&self) -> crate::mcu::Warnings {
+        self.inner.warnings()
+    }
 }
 
 /// The co-simulated rig behind the panel, in virtual time that the panel advances.

@@ -12,7 +12,7 @@ pub mod sensors;
 
 pub use inverter::{GateCommand, Leg, PwmMode};
 pub use motor::MotorParams;
-pub use sensors::{AdcSample, BreakCause, Comparators};
+pub use sensors::{AdcSample, BreakCause, Comparators, HwDefaults};
 
 use inverter::Conn;
 
@@ -45,17 +45,40 @@ fn motor_to_legs(m: [f64; 3]) -> [f64; 3] {
     WIRING.map(|w| m[w])
 }
 
+/// What the inverter feeds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Load {
+    /// The induction motor of [`RigParams::motor`] (the default rig).
+    Motor,
+    /// A star-connected resistive-inductive load, R and L per phase, star point floating:
+    /// the rig variant for the source's examples that drive a single leg with a DC duty or
+    /// start a full-voltage sine at once (`docs/rig.md`).
+    Rl { r_ohm: f64, l_h: f64 },
+}
+
+impl Load {
+    /// The RL variant's default resistance per phase.
+    pub const RL_R_OHM: f64 = 10.0;
+    /// The RL variant's default inductance per phase (with 10 ohm: 1.27 A peak at 50 Hz,
+    /// m = 1, on the 30 V link; L/R = 2 ms).
+    pub const RL_L_H: f64 = 0.02;
+}
+
 /// Every parameter of the rig (defaults: `docs/rig.md`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RigParams {
     pub motor: MotorParams,
+    /// The motor, or the RL load variant.
+    pub load: Load,
     /// Open-circuit voltage of the rectified supply.
     pub supply_v: f64,
     /// Source resistance of the supply (transformer + rectifier).
     pub supply_r_ohm: f64,
     pub dc_capacitor_f: f64,
     pub brake_resistor_ohm: f64,
-    pub comparators: Comparators,
+    /// The board's default hardware thresholds (the drive's, while the program sets no
+    /// `I>>`/`U>>`).
+    pub hw_defaults: HwDefaults,
     pub pwm_mode: PwmMode,
 }
 
@@ -63,11 +86,12 @@ impl Default for RigParams {
     fn default() -> Self {
         RigParams {
             motor: MotorParams::DEFAULT_RIG,
+            load: Load::Motor,
             supply_v: 30.0,
             supply_r_ohm: 0.5,
             dc_capacitor_f: 1000e-6,
             brake_resistor_ohm: 10.0,
-            comparators: Comparators {
+            hw_defaults: HwDefaults {
                 oc_hw_a: 3.0,
                 ov_hw_v: 40.0,
             },
@@ -95,6 +119,11 @@ pub struct PlantOutputs {
     pub brake_on: bool,
     /// Hardware break latched (outputs forced off).
     pub hw_break: bool,
+    /// Leg voltages as fractions of the DC link, averaged over the last complete PWM
+    /// period (a floating leg counts at the rail its diodes clamp it to).
+    pub duty_abc: [f64; 3],
+    /// Line voltage leg 1 - leg 2 averaged over the last complete PWM period, V.
+    pub u_ab_v: f64,
 }
 
 /// The rig's state and the command it is under.
@@ -113,10 +142,16 @@ pub struct Plant {
     hw_break: Option<BreakCause>,
     /// A break that fired and was not yet collected by [`Plant::take_break`].
     break_event: Option<BreakCause>,
+    /// The board's comparators (table and DAC values from the drive core).
+    comparators: Comparators,
     /// Comparator outputs after the last step: [overcurrent, overvoltage].
     comparator_levels: [bool; 2],
     /// Mechanical angle, rad (for plots and tests of reversal).
     angle_rad: f64,
+    /// Integrals over the running PWM period: leg fractions, line voltage a-b, time (s).
+    period_acc: ([f64; 3], f64, f64),
+    /// Averages of the last complete PWM period: leg fractions, line voltage a-b.
+    period_avg: ([f64; 3], f64),
     brake_energy_j: f64,
 }
 
@@ -134,8 +169,14 @@ impl Plant {
             tau_ns: 0,
             hw_break: None,
             break_event: None,
+            comparators: Comparators::new(
+                firmware_drive::DriveConfig::default().board,
+                params.hw_defaults.thresholds(),
+            ),
             comparator_levels: [false; 2],
             angle_rad: 0.0,
+            period_acc: ([0.0; 3], 0.0, 0.0),
+            period_avg: ([0.0; 3], 0.0),
             brake_energy_j: 0.0,
         }
     }
@@ -151,6 +192,11 @@ impl Plant {
 
     /// Starts a PWM period with a new gate command (the timer's preload taking effect).
     pub fn start_period(&mut self, period_ns: u64, cmd: GateCommand) {
+        let (legs, u_ab, t) = self.period_acc;
+        if t > 0.0 {
+            self.period_avg = (legs.map(|x| x / t), u_ab / t);
+        }
+        self.period_acc = ([0.0; 3], 0.0, 0.0);
         self.period_ns = period_ns.max(1);
         self.tau_ns = 0;
         self.set_command(cmd);
@@ -179,6 +225,16 @@ impl Plant {
         self.comparator_levels
     }
 
+    /// The comparators and their DAC values (as the drive core last set them).
+    pub fn comparators(&self) -> &Comparators {
+        &self.comparators
+    }
+
+    /// The drive wrote its threshold DACs (board profile and values from the core).
+    pub fn set_comparators(&mut self, c: Comparators) {
+        self.comparators = c;
+    }
+
     pub fn hw_break(&self) -> Option<BreakCause> {
         self.hw_break
     }
@@ -200,13 +256,19 @@ impl Plant {
         let m = &self.params.motor;
         let (i_s, psi_s) = self.stator(&self.x);
         let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
+        let torque_nm = match self.params.load {
+            Load::Motor => motor::torque_nm(m, psi_s, i_s),
+            Load::Rl { .. } => 0.0,
+        };
         PlantOutputs {
             i_abc_a: i_abc,
             u_dc_v: self.x[UDC],
             speed_rad_s: self.x[WM],
-            torque_nm: motor::torque_nm(m, psi_s, i_s),
+            torque_nm,
             brake_on: self.brake_on,
             hw_break: self.hw_break.is_some(),
+            duty_abc: self.period_avg.0,
+            u_ab_v: self.period_avg.1,
         }
     }
 
@@ -220,7 +282,28 @@ impl Plant {
         }
     }
 
+    /// The stator flux while the stator is open: the one the rotor induces (motor), none
+    /// (RL load).
+    fn open_flux(&self, x: &State) -> [f64; 2] {
+        match self.params.load {
+            Load::Motor => {
+                let m = &self.params.motor;
+                let k = m.lm_h / m.lr_h();
+                [k * x[PRA], k * x[PRB]]
+            }
+            Load::Rl { .. } => [0.0, 0.0],
+        }
+    }
+
     fn stator(&self, x: &State) -> ([f64; 2], [f64; 2]) {
+        if let Load::Rl { l_h, .. } = self.params.load {
+            // The RL load's flux is L i per phase (alpha-beta).
+            if self.open {
+                return ([0.0, 0.0], [0.0, 0.0]);
+            }
+            let l = l_h.max(1e-9);
+            return ([x[PSA] / l, x[PSB] / l], [x[PSA], x[PSB]]);
+        }
         if self.open {
             let m = &self.params.motor;
             let k = m.lm_h / m.lr_h();
@@ -291,10 +374,9 @@ impl Plant {
             }
         } else if self.open {
             // Leaving the open state: the stator flux is the one the rotor induces (is = 0).
-            let m = &self.params.motor;
-            let k = m.lm_h / m.lr_h();
-            self.x[PSA] = k * self.x[PRA];
-            self.x[PSB] = k * self.x[PRB];
+            let [a, b] = self.open_flux(&self.x);
+            self.x[PSA] = a;
+            self.x[PSB] = b;
             self.open = false;
         }
         let fracs = [
@@ -321,21 +403,24 @@ impl Plant {
             }
         }
         if self.open {
-            let m = &self.params.motor;
-            let k = m.lm_h / m.lr_h();
-            self.x[PSA] = k * self.x[PRA];
-            self.x[PSB] = k * self.x[PRB];
+            let [a, b] = self.open_flux(&self.x);
+            self.x[PSA] = a;
+            self.x[PSB] = b;
         }
         self.angle_rad += h * 0.5 * (x0[WM] + self.x[WM]);
+        let u = 0.5 * (x0[UDC] + self.x[UDC]);
+        let acc = &mut self.period_acc;
+        for (a, f) in acc.0.iter_mut().zip(fracs) {
+            *a += h * f;
+        }
+        acc.1 += h * (fracs[0] - fracs[1]) * u;
+        acc.2 += h;
         if self.brake_on {
             let u = 0.5 * (x0[UDC] + self.x[UDC]);
             self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
         }
         let o = self.outputs();
-        let levels = self
-            .params
-            .comparators
-            .levels(o.i_abc_a[0], o.i_abc_a[1], o.u_dc_v);
+        let levels = self.comparators.levels(o.i_abc_a, o.u_dc_v);
         for (k, cause) in BreakCause::ALL.into_iter().enumerate() {
             // The break input is edge-triggered: it latches on the comparator's rising edge.
             if levels[k] && !self.comparator_levels[k] {
@@ -352,7 +437,23 @@ impl Plant {
         let udc = x[UDC];
         let wr = f64::from(m.pole_pairs) * x[WM];
         let mut dx = [0.0; 6];
-        let (te, i_dc_inv) = if self.open {
+        let (te, i_dc_inv) = if let Load::Rl { r_ohm, .. } = p.load {
+            if self.open {
+                (0.0, 0.0)
+            } else {
+                let (i_s, _) = self.stator(x);
+                let v_ab = motor::clarke(legs_to_motor([
+                    fracs[0] * udc,
+                    fracs[1] * udc,
+                    fracs[2] * udc,
+                ]));
+                dx[PSA] = v_ab[0] - r_ohm * i_s[0];
+                dx[PSB] = v_ab[1] - r_ohm * i_s[1];
+                let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
+                let i_dc = fracs[0] * i_abc[0] + fracs[1] * i_abc[1] + fracs[2] * i_abc[2];
+                (0.0, i_dc)
+            }
+        } else if self.open {
             // is = 0: ir = ψr / Lr.
             let lr = m.lr_h();
             dx[PRA] = -m.rr_ohm * x[PRA] / lr - wr * x[PRB];
@@ -377,7 +478,7 @@ impl Plant {
             let i_dc = fracs[0] * i_abc[0] + fracs[1] * i_abc[1] + fracs[2] * i_abc[2];
             (motor::torque_nm(m, f.psi_s, c.i_s), i_dc)
         };
-        dx[WM] = if m.locked_rotor {
+        dx[WM] = if m.locked_rotor || matches!(p.load, Load::Rl { .. }) {
             0.0
         } else {
             (te - motor::load_torque_nm(m, x[WM])) / m.inertia_kgm2

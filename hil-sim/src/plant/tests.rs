@@ -9,9 +9,9 @@ fn stiff_rig() -> RigParams {
     RigParams {
         supply_r_ohm: 1e-3,
         dc_capacitor_f: 1.0,
-        comparators: Comparators {
-            oc_hw_a: 1e3,
-            ov_hw_v: 1e3,
+        hw_defaults: HwDefaults {
+            oc_hw_a: 9.99,
+            ov_hw_v: 45.0,
         },
         ..RigParams::default()
     }
@@ -97,7 +97,7 @@ fn dynamic_model_matches_equivalent_circuit_within_1_percent() {
 fn supply_cannot_sink_so_regeneration_charges_the_capacitor() {
     let mut rig = RigParams::default();
     rig.motor.locked_rotor = true;
-    rig.comparators.ov_hw_v = 1000.0;
+    rig.hw_defaults.ov_hw_v = 45.0;
     let mut plant = Plant::new(rig);
     // Above synchronous speed: generating.
     plant.set_speed_rad_s(1.2 * 2.0 * PI * 25.0 / 2.0);
@@ -132,15 +132,16 @@ fn motoring_draws_from_the_supply_and_accelerates() {
 fn hardware_comparator_breaks_and_outputs_float() {
     let mut rig = RigParams::default();
     rig.motor.locked_rotor = true;
-    rig.comparators.oc_hw_a = 2.0;
+    rig.hw_defaults.oc_hw_a = 2.0;
     let mut plant = Plant::new(rig);
     let mut peak: f64 = 0.0;
     drive_sine(&mut plant, 50.0, 1.0, 62_500, 200_000_000, |p, _| {
         let i = p.outputs().i_abc_a;
-        peak = peak.max(i[0].abs()).max(i[1].abs());
+        peak = peak.max(i[0]).max(i[1]).max(i[2]);
     });
     assert_eq!(plant.take_break(), Some(BreakCause::Overcurrent));
-    // The break acts within one integration step: hardly any overshoot.
+    // The break acts within one integration step: hardly any overshoot of the positive
+    // half-wave the board's comparators watch.
     assert!(peak < 2.1, "peak {peak}");
     // Long after the break the current has decayed through the diodes.
     let o = plant.outputs();
@@ -148,6 +149,49 @@ fn hardware_comparator_breaks_and_outputs_float() {
     // An all-off command re-arms the break input.
     plant.start_period(62_500, GateCommand::OFF);
     assert!(plant.hw_break().is_none());
+}
+
+#[test]
+fn the_rl_load_variant_is_a_star_rl() {
+    // Leg 1 at a DC duty d against legs 2 and 3 low: i_a = d Udc / (R + R/2) after L/R.
+    let rig = RigParams {
+        load: Load::Rl {
+            r_ohm: 10.0,
+            l_h: 0.02,
+        },
+        ..stiff_rig()
+    };
+    let mut plant = Plant::new(rig);
+    let cmd = GateCommand {
+        legs: [Leg::Duty(0.5), Leg::Duty(0.0), Leg::Duty(0.0)],
+        dead_time_ns: 0,
+    };
+    for _ in 0..2000 {
+        plant.start_period(100_000, cmd);
+        plant.advance(100_000);
+    }
+    let o = plant.outputs();
+    let expect = 0.5 * 30.0 / 15.0;
+    assert!((o.i_abc_a[0] - expect).abs() < 0.01, "{o:?}");
+    assert!((o.i_abc_a[1] + expect / 2.0).abs() < 0.01, "{o:?}");
+    assert_eq!((o.speed_rad_s, o.torque_nm), (0.0, 0.0));
+    // Period averages: the leg duties and the line voltage a-b.
+    assert!((o.duty_abc[0] - 0.5).abs() < 1e-9 && o.duty_abc[1] == 0.0);
+    assert!((o.u_ab_v - 15.0).abs() < 0.01, "{o:?}");
+    // Sine at 50 Hz, m = 1: |Z| = |10 + j 6.28| = 11.8 ohm, 15 V peak per phase.
+    let mut plant = Plant::new(rig);
+    let mut peak: f64 = 0.0;
+    drive_sine(&mut plant, 50.0, 1.0, 20_000, 200_000_000, |p, t| {
+        if t > 100_000_000 {
+            peak = peak.max(p.outputs().i_abc_a[0]);
+        }
+    });
+    let z = (10.0f64).hypot(2.0 * PI * 50.0 * 0.02);
+    assert!(
+        (peak - 15.0 / z).abs() < 0.02,
+        "peak {peak} vs {}",
+        15.0 / z
+    );
 }
 
 #[test]

@@ -137,3 +137,27 @@ fn asm_writes_the_eeprom_image_and_disasm_reads_it_back() {
     let out = bin().arg("asm").arg(&bad).output().unwrap();
     assert!(!out.status.success());
 }
+
+#[test]
+fn a_drive_stack_underflow_is_refused_with_its_text_line() {
+    // SN1 needs frequency, amplitude and phase: with two values the motor would never
+    // turn (issue 15 item 9).
+    let bad = tmp("sn1.plc");
+    std::fs::write(
+        &bad,
+        "; two values only\n000 LD K00 0500\n001 LD K01 0000\n002 SN1\n",
+    )
+    .unwrap();
+    for cmd in ["run", "asm"] {
+        let out = bin().arg(cmd).arg(&bad).output().unwrap();
+        assert!(!out.status.success(), "{cmd}");
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert!(
+            err.contains("sn1.plc:4:5: SN1 needs 3 values on the stack, only 2 loaded"),
+            "{err}"
+        );
+    }
+    // disasm prints it anyway (it is text, not a run).
+    let out = bin().arg("disasm").arg(&bad).output().unwrap();
+    assert!(out.status.success());
+}

@@ -7,8 +7,14 @@ mod common;
 
 mod brake_and_determinism;
 mod cli;
+mod examples_on_rig;
+mod hw_comparators;
 mod keypad;
+mod lab;
 mod link_latency;
 mod motor_program;
+mod overmodulation;
+mod reversal;
 mod shipped_scenarios;
 mod trips;
+mod warnings;

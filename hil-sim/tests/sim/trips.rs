@@ -144,3 +144,25 @@ fn the_plc_lcd_shows_a_lost_link_within_100_ms() {
         );
     }
 }
+
+/// The source's alternative IR boost `dU= 0512` (4.2, `dU=` example) in the motor example:
+/// half the peak phase voltage (7.5 V of 15 V) as a boost drives the 1.95 ohm stator
+/// toward 3.8 A at standstill: `OC` (I> 2 A) as soon as the outputs come on at fmn. The
+/// computed `=dU` (Rs 1.95, Uc 30, Iz 0.5: dU = 67, 0.98 V) starts fine.
+/// (drive-core.md "Readings of the source": why the scale is kept.)
+#[test]
+fn the_sources_du_512_alternative_trips_oc_at_the_start() {
+    let program = MOTOR_PLC.replace("010 =dU ", "010 dU= K21 0512 ;");
+    assert_ne!(program, MOTOR_PLC);
+    let r = run_text(&program, START_50HZ, 1.5);
+    let t_trip = single_trip(&r, 1);
+    let t_on = r
+        .samples
+        .iter()
+        .find(|x| x.pwm_on)
+        .map(t_s)
+        .expect("outputs came on");
+    assert!(t_trip - t_on < 0.05, "on at {t_on}, trip at {t_trip}");
+    let r = run_text(MOTOR_PLC, START_50HZ, 1.5);
+    assert!(r.faults.is_empty());
+}

@@ -189,9 +189,22 @@ mod tests {
             udc_dv: 450,
             imax_ca: 999,
             com: 1023,
+            oc_hw_ca: 999,
+            ov_hw_v: 45,
             ..Default::default()
         };
-        assert!(roundtrip(DriveMsg::Status(s)) <= 26);
+        assert!(roundtrip(DriveMsg::Status(s)) <= 24);
+        // With a warning: the largest status. The retransmission timeout's 140 byte times
+        // hold a largest PLC frame (99), this status (32) and an ack (9).
+        let w = DriveStatus {
+            warning: Some(crate::link::DriveWarning::PwfClamped {
+                line: 149,
+                requested: -32768,
+                applied_hz: 20000,
+            }),
+            ..s
+        };
+        assert!(roundtrip(DriveMsg::Status(w)) <= 32);
         let data = heapless::Vec::from_slice(&[0xFF; 64]).unwrap();
         assert!(
             roundtrip(PlcMsg::DownloadChunk {

@@ -7,7 +7,8 @@
 use serde::{Deserialize, Serialize};
 
 /// Protocol version stated in the handshake; bump on any incompatible wire change.
-pub const PROTOCOL_VERSION: u16 = 1;
+/// 2: the status carries the hardware thresholds and the drive's run-time warning.
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Most Q writes carried by one frame (a scan that writes more sends several frames).
 pub const MAX_Q_PER_FRAME: usize = 8;
@@ -100,6 +101,61 @@ pub struct DriveStatus {
     pub imax_ca: i16,
     /// Auxiliary ADC channel (`COM`), 10-bit counts.
     pub com: u16,
+    /// Hardware overcurrent threshold in effect (`I>>`, or the board's default), 0.01 A:
+    /// the PLC's `IHW`.
+    pub oc_hw_ca: i16,
+    /// Hardware overvoltage threshold in effect (`U>>`, or the board's default), V: the
+    /// PLC's `UHW`.
+    pub ov_hw_v: i16,
+    /// The drive's run-time warning while it lasts (none: `None`).
+    pub warning: Option<DriveWarning>,
+}
+
+/// A run-time warning of the drive: nothing latched, the drive goes on. Sent in every
+/// status while it lasts; the PLC shows it on the LCD status line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DriveWarning {
+    /// `PWF Qxx` on drive line `line` asks for `requested` Hz, outside the drive's range
+    /// (488..=20000 Hz): the drive switches at `applied_hz`.
+    PwfClamped {
+        line: u8,
+        requested: i16,
+        applied_hz: u16,
+    },
+}
+
+impl DriveWarning {
+    /// Short text for the LCD status line and hil-sim's `warn` column (at most 18
+    /// characters: the status row adds `W:`), e.g. `PWF 488Hz @ 000`.
+    pub fn short(&self) -> heapless::String<18> {
+        use core::fmt::Write;
+        let mut s = heapless::String::new();
+        match *self {
+            DriveWarning::PwfClamped {
+                line, applied_hz, ..
+            } => {
+                let _ = write!(s, "PWF {applied_hz}Hz @ {line:03}");
+            }
+        }
+        s
+    }
+}
+
+impl core::fmt::Display for DriveWarning {
+    /// The long form, e.g. `line 000: PWF asks for 0 Hz, outside 488..20000 Hz: switching at 488 Hz`.
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            DriveWarning::PwfClamped {
+                line,
+                requested,
+                applied_hz,
+            } => write!(
+                f,
+                "line {line:03}: PWF asks for {requested} Hz, outside 488..20000 Hz: switching at {applied_hz} Hz"
+            ),
+        }
+    }
 }
 
 /// Why the drive refused a downloaded section.
@@ -142,6 +198,7 @@ pub fn verify_kind_code(kind: &crate::program::VerifyErrorKind) -> u8 {
         K::OperandOutOfRange { .. } => 7,
         K::ConstantOutOfRange { .. } => 8,
         K::ConstantWithoutK { .. } => 9,
+        K::StackUnderflow { .. } => 10,
     }
 }
 

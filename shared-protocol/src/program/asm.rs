@@ -13,10 +13,16 @@
 //!   constant, then the verifier's operand/constant rules.
 //! * [`assemble_into`] leaves `out` **unchanged** on error: the whole text is checked
 //!   first, and `out` is only cleared and filled once nothing can fail.
+//! * [`assemble`] checks what a line alone can break (the text format, program.md 2, whose
+//!   own example is a fragment). [`assemble_runnable`] also runs the whole-program
+//!   verifier ([`super::verify`], e.g. the drive section's stack depth) and places its
+//!   error at the text line of the offending program line, column of its mnemonic: what
+//!   `hil-sim run`/`asm` use, so that a program the PLC would refuse at RUN is refused
+//!   when it is read.
 
 use super::model::{Instruction, Mnemonic, Operand, Program, Section, LINES};
 use super::operand::OperandClass;
-use super::verify::{operand_set, verify_line, VerifyErrorKind};
+use super::verify::{operand_set, verify, verify_line, VerifyError, VerifyErrorKind};
 
 /// A piece of the offending text, cut to fit (no allocation).
 pub type Token = heapless::String<16>;
@@ -223,6 +229,7 @@ pub fn parse_operand(s: &str) -> Option<Operand> {
 struct Parsed {
     number: u16,
     number_col: u32,
+    mnemonic_col: u32,
     instruction: Instruction,
 }
 
@@ -355,6 +362,7 @@ fn parse_line(text: &str, line: u32) -> Result<Option<Parsed>, AsmError> {
     Ok(Some(Parsed {
         number,
         number_col: num.col,
+        mnemonic_col: mn.col,
         instruction,
     }))
 }
@@ -364,11 +372,19 @@ fn text_lines(text: &str) -> impl Iterator<Item = (u32, &str)> {
     (1u32..).zip(text.split('\n'))
 }
 
-/// The text line that first defines program line `number` (for the duplicate message).
-fn first_definition(text: &str, number: u16) -> u32 {
+/// The text line that first defines program line `number` (for the duplicate message),
+/// and the column of its mnemonic.
+fn definition(text: &str, number: u16) -> (u32, u32) {
     text_lines(text)
-        .find(|(n, l)| matches!(parse_line(l, *n), Ok(Some(p)) if p.number == number))
-        .map_or(0, |(n, _)| n)
+        .find_map(|(n, l)| match parse_line(l, n) {
+            Ok(Some(p)) if p.number == number => Some((n, p.mnemonic_col)),
+            _ => None,
+        })
+        .unwrap_or((0, 0))
+}
+
+fn first_definition(text: &str, number: u16) -> u32 {
+    definition(text, number).0
 }
 
 /// Assemble a whole `.plc` text into a new program.
@@ -376,6 +392,23 @@ pub fn assemble(text: &str) -> Result<Program, AsmError> {
     let mut p = Program::default();
     assemble_into(text, &mut p)?;
     Ok(p)
+}
+
+/// Assemble a whole `.plc` text and run the whole-program verifier on it: `Ok` is a
+/// program the PLC starts. The verifier's error is placed at the text line of the
+/// offending program line ([`locate`]).
+pub fn assemble_runnable(text: &str) -> Result<Program, AsmError> {
+    let p = assemble(text)?;
+    verify(&p).map_err(|e| locate(text, &e))?;
+    Ok(p)
+}
+
+/// A verifier error of the program assembled from `text`, at the text line that defines
+/// the program line and the column of its mnemonic (line 0, column 0 when no text line
+/// defines it).
+pub fn locate(text: &str, e: &VerifyError) -> AsmError {
+    let (line, col) = definition(text, e.line);
+    err(line, col, AsmErrorKind::Verify(e.kind))
 }
 
 /// Assemble into an existing program (no 6 KB temporary on the stack). On error `out` is
@@ -501,8 +534,8 @@ mod tests {
             "1:9: LDC needs a bit operand (D, O, B, RDY, FLB), K00 is an int"
         );
         assert_eq!(
-            e("003 PWF K00 0499"),
-            "1:13: constant 0499 out of range for PWF (0500-9999)"
+            e("003 PWF K00 0487"),
+            "1:13: constant 0487 out of range for PWF (0488-9999)"
         );
         assert_eq!(
             e("150 DIV K00 0000"),

@@ -13,7 +13,7 @@
 //! | 13-0  | constant | 0..=9999; must be 0 unless the operand is `K` |
 //!
 //! Named operand codes (kind 7): 0 `COM`, 1 `VLT`, 2 `AMP`, 3 `PW1`, 4 `PW3`, 5 `PW5`,
-//! 6 `FRQ`, 7 `UDC`, 8 `IMX`, 9 `FLT`, 10 `DIR`, 11 `RDY`, 12 `FLB`.
+//! 6 `FRQ`, 7 `UDC`, 8 `IMX`, 9 `FLT`, 10 `DIR`, 11 `RDY`, 12 `FLB`, 13 `IHW`, 14 `UHW`.
 //!
 //! Example: `LD K00 0100` = `01 A0 00 64`; `150 LET B03` = `0B 60 C0 00`.
 //!
@@ -40,7 +40,7 @@ const CONSTANT_MASK: u32 = 0x3FFF;
 const INDEX_MAX: u32 = 99;
 
 /// Named operands by their code (kind 7).
-const NAMED: [Operand; 13] = [
+const NAMED: [Operand; 15] = [
     Operand::Com,
     Operand::Vlt,
     Operand::Amp,
@@ -54,6 +54,8 @@ const NAMED: [Operand; 13] = [
     Operand::Dir,
     Operand::Rdy,
     Operand::Flb,
+    Operand::Ihw,
+    Operand::Uhw,
 ];
 
 /// Why bytes are not a line.
@@ -240,10 +242,18 @@ mod tests {
             decode_line(&[0x01, 0x39, 0x00, 0x00]),
             Err(DecodeError::Index(100))
         );
-        // Named code 13.
+        // Named code 13 is IHW; 15 is the first unused one.
         assert_eq!(
             decode_line(&[0x01, 0xE3, 0x40, 0x00]),
-            Err(DecodeError::UnknownNamedOperand(13))
+            Ok(Instruction {
+                mnemonic: Mnemonic::Ld,
+                operand: Some(Operand::Ihw),
+                constant: 0
+            })
+        );
+        assert_eq!(
+            decode_line(&[0x01, 0xE3, 0xC0, 0x00]),
+            Err(DecodeError::UnknownNamedOperand(15))
         );
         // K00 with constant 10000.
         assert_eq!(

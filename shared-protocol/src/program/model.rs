@@ -105,11 +105,15 @@ pub enum Mnemonic {
     Fjm = 57,
     Fmx = 58,
     Frv = 59,
+    /// `I>>`: hardware overcurrent threshold (the source's current trimmers), 0.01 A.
+    IMaxHw = 60,
+    /// `U>>`: hardware overvoltage threshold (the source's DC-link trimmer), V.
+    UMaxHw = 61,
 }
 
 impl Mnemonic {
     /// All mnemonics, in the order the editor offers them.
-    pub const ALL: [Mnemonic; 49] = [
+    pub const ALL: [Mnemonic; 51] = [
         Mnemonic::Ld,
         Mnemonic::Ldc,
         Mnemonic::Wr,
@@ -155,6 +159,8 @@ impl Mnemonic {
         Mnemonic::UMax,
         Mnemonic::UMin,
         Mnemonic::IMax,
+        Mnemonic::IMaxHw,
+        Mnemonic::UMaxHw,
         Mnemonic::Fmn,
         Mnemonic::Fjm,
         Mnemonic::Fmx,
@@ -224,6 +230,8 @@ impl Mnemonic {
             Mnemonic::Fjm => "fjm",
             Mnemonic::Fmx => "fmx",
             Mnemonic::Frv => "frv",
+            Mnemonic::IMaxHw => "I>>",
+            Mnemonic::UMaxHw => "U>>",
         }
     }
 }
@@ -272,6 +280,10 @@ pub enum Operand {
     Rdy,
     /// Extension: any fault latched (bit, LD/LDC only).
     Flb,
+    /// Extension: hardware overcurrent threshold in effect (`I>>`), 0.01 A (int, read-only).
+    Ihw,
+    /// Extension: hardware overvoltage threshold in effect (`U>>`), V (int, read-only).
+    Uhw,
 }
 
 /// One program line's instruction.

@@ -29,11 +29,13 @@ pub enum OperandClass {
     Dir,
     Rdy,
     Flb,
+    Ihw,
+    Uhw,
 }
 
 impl OperandClass {
     /// Every class, in editor order.
-    pub const ALL: [OperandClass; 19] = [
+    pub const ALL: [OperandClass; 21] = [
         OperandClass::D,
         OperandClass::O,
         OperandClass::B,
@@ -53,6 +55,8 @@ impl OperandClass {
         OperandClass::Dir,
         OperandClass::Rdy,
         OperandClass::Flb,
+        OperandClass::Ihw,
+        OperandClass::Uhw,
     ];
 
     /// How many operands the class holds (`D` 8: D00-D07; named operands 1).
@@ -115,6 +119,8 @@ impl OperandClass {
             OperandClass::Dir => "DIR",
             OperandClass::Rdy => "RDY",
             OperandClass::Flb => "FLB",
+            OperandClass::Ihw => "IHW",
+            OperandClass::Uhw => "UHW",
         }
     }
 
@@ -151,6 +157,8 @@ impl OperandClass {
             OperandClass::Dir => Operand::Dir,
             OperandClass::Rdy => Operand::Rdy,
             OperandClass::Flb => Operand::Flb,
+            OperandClass::Ihw => Operand::Ihw,
+            OperandClass::Uhw => Operand::Uhw,
         }
     }
 
@@ -183,6 +191,8 @@ impl Operand {
             Operand::Dir => OperandClass::Dir,
             Operand::Rdy => OperandClass::Rdy,
             Operand::Flb => OperandClass::Flb,
+            Operand::Ihw => OperandClass::Ihw,
+            Operand::Uhw => OperandClass::Uhw,
         }
     }
 

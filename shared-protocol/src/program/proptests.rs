@@ -82,7 +82,15 @@ proptest! {
         text in "([0-9]{1,4}[ \t]+[A-Za-z=/<>]{1,4}([ \t]+[A-Za-z]{1,3}[0-9]{0,3})?([ \t]+[0-9]{1,5})?[ \t]*(;.*)?\r?\n){0,8}",
     ) {
         if let Ok(p) = assemble(&text) {
-            prop_assert_eq!(verify(&p), Ok(()));
+            // Line rules hold; only a whole-section rule (the drive stack) can fail.
+            match verify(&p) {
+                Ok(()) => prop_assert!(assemble_runnable(&text).is_ok()),
+                Err(e) => {
+                    let underflow = matches!(e.kind, VerifyErrorKind::StackUnderflow { .. });
+                    prop_assert!(underflow, "{:?}", e);
+                    prop_assert!(assemble_runnable(&text).is_err());
+                }
+            }
         }
     }
 }

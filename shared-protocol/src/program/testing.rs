@@ -20,7 +20,28 @@ use super::model::{
     PLC_FIRST_LINE,
 };
 use super::operand::OperandClass;
-use super::verify::{constant_range, mnemonics_for, operands_for};
+use super::verify::{constant_range, drive_stack_step, mnemonics_for, operands_for};
+
+/// Makes a drive section's stack use valid: every line that would need more values than
+/// the cycle has loaded before it (program.md 4.1, the verifier's stack check) becomes
+/// `LD K00 0000`. Generated programs stay otherwise random.
+pub fn fix_drive_stack(lines: &mut [Option<Instruction>]) {
+    let mut depth = 0u8;
+    for slot in lines.iter_mut().take(DRIVE_LINES) {
+        let Some(i) = slot else { continue };
+        depth = match drive_stack_step(depth, i.mnemonic) {
+            Ok(d) => d,
+            Err(_) => {
+                *i = Instruction {
+                    mnemonic: Mnemonic::Ld,
+                    operand: Some(Operand::K(0)),
+                    constant: 0,
+                };
+                drive_stack_step(depth, Mnemonic::Ld).unwrap_or(depth)
+            }
+        };
+    }
+}
 
 /// A valid instruction for `section`, with a constant when the operand is `K`.
 pub fn instruction(section: Section) -> impl Strategy<Value = Instruction> {
@@ -83,6 +104,7 @@ pub fn program(max_lines: usize) -> impl Strategy<Value = Program> {
                 *slot = Some(i);
             }
         }
+        fix_drive_stack(&mut p.lines);
         p
     })
 }
@@ -96,6 +118,7 @@ pub fn program_in(section: Section, max_lines: usize) -> impl Strategy<Value = P
                 *slot = Some(i);
             }
         }
+        fix_drive_stack(&mut p.lines);
         p
     })
 }
@@ -110,6 +133,7 @@ pub fn drive_section(max_lines: usize) -> impl Strategy<Value = DriveSection> {
                     *slot = Some(i);
                 }
             }
+            fix_drive_stack(&mut d.lines);
             d
         },
     )

@@ -11,13 +11,22 @@
 //! * `WR`/`WRC` write `O`, `B`, `Q` (never `D`, `A`, `K` or read-only operands).
 //! * Every 4-digit constant is 0000-9999 unless the instruction needs more: `DIV` needs
 //!   1-9999 (a constant divisor of 0 is a program error, a `Q` divisor of 0 is the run-time
-//!   warning), drive `PWF` 0500-9999 Hz, `PI` limit 0001-9999, `Uc=` 0001-9999 (divisor
+//!   warning), drive `PWF` 0488-9999 Hz (the source's 488 Hz minimum), `PI` limit 0001-9999, `Uc=` 0001-9999 (divisor
 //!   of `=dU`), `dU=` 0000-1023, `U>` 0001-9999 (0 would brake permanently), `I>`
-//!   0001-9999 (0 would trip at once), `fjm` 0001-9999 (divisor of the V/f ratio), `fmx`
+//!   0001-9999 (0 would trip at once), `I>>` 0001-0999 and `U>>` 0001-0045 (the hardware
+//!   comparator thresholds: within the sensors' full scale, +-10 A and 45 V), `fjm` 0001-9999 (divisor of the V/f ratio), `fmx`
 //!   0001-9999. `Rs=`, `Iz=`, `U<` (0 = no undervoltage trip), `fmn`, `frv` and timers
 //!   (0.1 s units, 0000-9999 = 0-999.9 s) take 0000-9999.
 //! * A constant on a line without a `K` operand must be 0 (the text format has no column
 //!   for it).
+//! * The drive section's int stack (program.md 4.1) is tracked line by line
+//!   ([`drive_stack_use`]): each 1 ms cycle starts counting from 0 values, `LD` adds one
+//!   (at most 5 are kept), `PI` needs four and leaves one, `SN1` needs three, `SN2`/`SN3`
+//!   and `WR` need one. The first line that needs more values than the cycle has loaded
+//!   before it is the error [`VerifyErrorKind::StackUnderflow`]: such a section would read
+//!   zeros or the previous cycle's leftovers (a `SN1` with two values never turns the
+//!   motor). There are no jumps in the drive section, so this static count is exactly
+//!   what every cycle does.
 
 use core::ops::RangeInclusive;
 
@@ -46,6 +55,8 @@ const PLC_LD: OperandSet = OperandSet::of(&[
     C::Dir,
     C::Rdy,
     C::Flb,
+    C::Ihw,
+    C::Uhw,
 ]);
 const PLC_WR: OperandSet = OperandSet::of(&[C::O, C::B, C::Q]);
 const B_ONLY: OperandSet = OperandSet::of(&[C::B]);
@@ -96,6 +107,8 @@ pub fn operand_set(m: Mnemonic, section: Section) -> Option<OperandSet> {
             | M::UMax
             | M::UMin
             | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
             | M::Fmn
             | M::Fjm
             | M::Fmx
@@ -176,15 +189,70 @@ pub fn constant_range(
     }
     let min = match (section, m) {
         (Section::Plc, M::Div) => 1,
-        (Section::Drive, M::Pwf) => 500,
-        (Section::Drive, M::Pi | M::UcSet | M::UMax | M::IMax | M::Fjm | M::Fmx) => 1,
+        (Section::Drive, M::Pwf) => 488,
+        (
+            Section::Drive,
+            M::Pi | M::UcSet | M::UMax | M::IMax | M::IMaxHw | M::UMaxHw | M::Fjm | M::Fmx,
+        ) => 1,
         _ => 0,
     };
     let max = match (section, m) {
         (Section::Drive, M::DuSet) => 1023,
+        (Section::Drive, M::IMaxHw) => I_MAX_HW_LIMIT,
+        (Section::Drive, M::UMaxHw) => U_MAX_HW_LIMIT,
         _ => CONSTANT_MAX,
     };
     Some(min..=max)
+}
+
+/// Largest `I>>` (0.01 A): the current sensors' full scale is +-10 A (drive.md
+/// "Measurements"), so a comparator threshold at or above it could never be reached.
+pub const I_MAX_HW_LIMIT: u16 = 999;
+/// Largest `U>>` (V): the DC-link sensor's full scale is 45 V.
+pub const U_MAX_HW_LIMIT: u16 = 45;
+
+/// Depth of the drive section's int stack (program.md 4.1).
+pub const DRIVE_STACK_DEPTH: u8 = 5;
+
+/// How a drive-section instruction uses the int stack: values it needs on the stack
+/// (read or popped), values it pops, values it pushes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StackUse {
+    pub needs: u8,
+    pub pops: u8,
+    pub pushes: u8,
+}
+
+/// The stack use of a drive-section mnemonic (program.md 4.2).
+pub const fn drive_stack_use(m: Mnemonic) -> StackUse {
+    let (needs, pops, pushes) = match m {
+        Mnemonic::Ld => (0, 0, 1),
+        Mnemonic::Wr | Mnemonic::Sn2 | Mnemonic::Sn3 => (1, 0, 0),
+        Mnemonic::Sn1 => (3, 0, 0),
+        Mnemonic::Pi => (4, 4, 1),
+        _ => (0, 0, 0),
+    };
+    StackUse {
+        needs,
+        pops,
+        pushes,
+    }
+}
+
+/// The number of values loaded in this cycle after a drive instruction, from the number
+/// before it (at most [`DRIVE_STACK_DEPTH`]); `Err(depth)` when the instruction needs
+/// more than `depth`.
+pub const fn drive_stack_step(depth: u8, m: Mnemonic) -> Result<u8, u8> {
+    let u = drive_stack_use(m);
+    if depth < u.needs {
+        return Err(depth);
+    }
+    let after = depth - u.pops + u.pushes;
+    Ok(if after > DRIVE_STACK_DEPTH {
+        DRIVE_STACK_DEPTH
+    } else {
+        after
+    })
 }
 
 /// Why a line may not run.
@@ -227,6 +295,13 @@ pub enum VerifyErrorKind {
     },
     /// A non-zero constant on a line without a `K` operand.
     ConstantWithoutK { value: u16 },
+    /// A drive instruction needs more values on the int stack than the section has loaded
+    /// before it in the 1 ms cycle.
+    StackUnderflow {
+        mnemonic: Mnemonic,
+        needs: u8,
+        loaded: u8,
+    },
 }
 
 struct ClassList(OperandSet);
@@ -270,6 +345,7 @@ impl VerifyErrorKind {
             VerifyErrorKind::OperandOutOfRange { .. } => "operand range",
             VerifyErrorKind::ConstantOutOfRange { .. } => "constant range",
             VerifyErrorKind::ConstantWithoutK { .. } => "constant w/o K",
+            VerifyErrorKind::StackUnderflow { .. } => "stack underflow",
         }
     }
 }
@@ -334,6 +410,18 @@ impl core::fmt::Display for VerifyErrorKind {
                 mnemonic.text(),
                 min,
                 max
+            ),
+            VerifyErrorKind::StackUnderflow {
+                mnemonic,
+                needs,
+                loaded,
+            } => write!(
+                f,
+                "{} needs {} value{} on the stack, only {} loaded before it in this cycle",
+                mnemonic.text(),
+                needs,
+                if needs == 1 { "" } else { "s" },
+                loaded
             ),
             VerifyErrorKind::ConstantWithoutK { value } => write!(
                 f,
@@ -411,15 +499,27 @@ pub fn verify_line(line: u16, i: &Instruction) -> Result<(), VerifyErrorKind> {
 fn first_error<'a>(
     lines: impl Iterator<Item = (u16, &'a Option<Instruction>)>,
 ) -> Result<(), VerifyError> {
+    let mut depth = 0u8;
     for (line, slot) in lines {
         if let Some(i) = slot {
             verify_line(line, i).map_err(|kind| VerifyError { line, kind })?;
+            if line < PLC_FIRST_LINE {
+                depth = drive_stack_step(depth, i.mnemonic).map_err(|loaded| VerifyError {
+                    line,
+                    kind: VerifyErrorKind::StackUnderflow {
+                        mnemonic: i.mnemonic,
+                        needs: drive_stack_use(i.mnemonic).needs,
+                        loaded,
+                    },
+                })?;
+            }
         }
     }
     Ok(())
 }
 
-/// Check a whole program; the error names the first bad line (ascending).
+/// Check a whole program; the error names the first bad line (ascending). Besides each
+/// line's own rules this tracks the drive section's stack ([`drive_stack_step`]).
 pub fn verify(p: &Program) -> Result<(), VerifyError> {
     first_error((0u16..).zip(p.lines.iter()))
 }
@@ -472,14 +572,22 @@ mod tests {
     fn editor_order_and_counts() {
         let ld: std::vec::Vec<_> = operands_for(Mnemonic::Ld, Section::Plc).collect();
         assert_eq!(ld.first(), Some(&Some(Operand::D(0))));
-        assert_eq!(ld.last(), Some(&Some(Operand::Flb)));
-        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 10 named.
-        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 10);
+        assert_eq!(ld.last(), Some(&Some(Operand::Uhw)));
+        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 12 named.
+        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 12);
         let not: std::vec::Vec<_> = operands_for(Mnemonic::Not, Section::Plc).collect();
         assert_eq!(not, std::vec![None]);
         assert_eq!(operands_for(Mnemonic::Pwf, Section::Plc).count(), 0);
         assert_eq!(mnemonics_for(Section::Plc).count(), 29);
-        assert_eq!(mnemonics_for(Section::Drive).count(), 22);
+        assert_eq!(mnemonics_for(Section::Drive).count(), 24);
+        assert_eq!(
+            constant_range(Mnemonic::IMaxHw, Section::Drive, Some(Operand::K(0))),
+            Some(1..=999)
+        );
+        assert_eq!(
+            constant_range(Mnemonic::UMaxHw, Section::Drive, Some(Operand::K(0))),
+            Some(1..=45)
+        );
     }
 
     #[test]
@@ -487,7 +595,7 @@ mod tests {
         let k = Some(Operand::K(0));
         assert_eq!(
             constant_range(Mnemonic::Pwf, Section::Drive, k),
-            Some(500..=9999)
+            Some(488..=9999)
         );
         assert_eq!(
             constant_range(Mnemonic::DuSet, Section::Drive, k),
@@ -547,7 +655,7 @@ mod tests {
             E::OperandOutOfRange { .. }
         ));
         assert!(matches!(
-            e(5, Mnemonic::Pwf, Some(Operand::K(0)), 499),
+            e(5, Mnemonic::Pwf, Some(Operand::K(0)), 487),
             E::ConstantOutOfRange { .. }
         ));
         assert!(matches!(
@@ -585,10 +693,10 @@ mod tests {
             msg(VerifyErrorKind::ConstantOutOfRange {
                 mnemonic: Mnemonic::Pwf,
                 value: 100,
-                min: 500,
+                min: 488,
                 max: 9999
             }),
-            "constant 0100 out of range for PWF (0500-9999)"
+            "constant 0100 out of range for PWF (0488-9999)"
         );
         let err = VerifyError {
             line: 7,
@@ -631,10 +739,74 @@ mod tests {
                 max: 0,
             },
             VerifyErrorKind::ConstantWithoutK { value: 1 },
+            VerifyErrorKind::StackUnderflow {
+                mnemonic: Mnemonic::Sn1,
+                needs: 3,
+                loaded: 0,
+            },
         ];
         for k in kinds {
             assert!(k.short().len() <= 16, "{}", k.short());
         }
+    }
+
+    #[test]
+    fn drive_stack_depth_is_tracked_line_by_line() {
+        use crate::program::{assemble, assemble_runnable};
+        let k = |v| Some(Operand::K(v));
+        let mut d = DriveSection::default();
+        // SN1 with only two values: the motor would never turn.
+        d.lines[0] = Some(ins(Mnemonic::Ld, k(0), 500));
+        d.lines[1] = Some(ins(Mnemonic::Ld, k(1), 0));
+        d.lines[2] = Some(ins(Mnemonic::Sn1, None, 0));
+        let e = verify_drive(&d).unwrap_err();
+        assert_eq!(e.line, 2);
+        assert_eq!(
+            e.kind,
+            VerifyErrorKind::StackUnderflow {
+                mnemonic: Mnemonic::Sn1,
+                needs: 3,
+                loaded: 2
+            }
+        );
+        assert_eq!(
+            std::format!("{e}"),
+            "line 002: SN1 needs 3 values on the stack, only 2 loaded before it in this cycle"
+        );
+        // A third value before it: fine (the frequency, then the amplitude, the phase).
+        d.lines[0] = None;
+        d.lines[5] = Some(ins(Mnemonic::Ld, k(0), 500));
+        d.lines[6] = Some(ins(Mnemonic::Ld, k(0), 500));
+        d.lines[7] = Some(ins(Mnemonic::Ld, k(0), 0));
+        d.lines[8] = Some(ins(Mnemonic::Sn1, None, 0));
+        d.lines[1] = None;
+        d.lines[2] = None;
+        assert_eq!(verify_drive(&d), Ok(()));
+        // PI needs four; it leaves one (enough for a WR or SN2, not for SN1).
+        let ok = "000 LD K00 0000\n001 LD K01 2000\n002 LD Q00\n003 LD K02 0500\n\
+                  004 PI K03 1000\n005 WR Q00\n006 WR PW1\n";
+        assert!(assemble_runnable(ok).is_ok());
+        let p = crate::program::Program::default();
+        assert_eq!(verify(&p), Ok(()));
+        let bad = "; ramp\n000 LD K01 2000\n001 LD Q00\n002 LD K02 0500\n003  PI K03 1000\n";
+        // The text format alone is fine; the program does not run.
+        assert!(assemble(bad).is_ok());
+        let e = assemble_runnable(bad).unwrap_err();
+        assert_eq!(
+            std::format!("{e}"),
+            "5:6: PI needs 4 values on the stack, only 3 loaded before it in this cycle"
+        );
+        // Five loads are the most the stack keeps; the count saturates.
+        let mut depth = 0;
+        for _ in 0..7 {
+            depth = drive_stack_step(depth, Mnemonic::Ld).unwrap();
+        }
+        assert_eq!(depth, DRIVE_STACK_DEPTH);
+        assert_eq!(drive_stack_step(depth, Mnemonic::Pi), Ok(2));
+        assert_eq!(drive_stack_step(0, Mnemonic::Wr), Err(0));
+        // The PLC section has its own bit stack: not counted.
+        let plc = "150 LD D00\n151 WR O00\n";
+        assert!(assemble_runnable(plc).is_ok());
     }
 
     #[test]

@@ -1,0 +1,314 @@
+//! The hardware trip comparators, described once. The board layer configures the G431's
+//! comparators, their threshold DACs and TIM1's break input from this table
+//! (`board/hw_protection.rs`), and hil-sim's comparator model evaluates the same table
+//! against the simulated signals, so the simulator trips exactly where the board does.
+//!
+//! Why only one half-wave per phase (RM0440, STM32G431: COMP1-COMP4, no window mode):
+//! each comparator's non-inverting input is one of two pins (COMP1 PA1/PB1, COMP2
+//! PA7/PA3, COMP3 PA0/PC1, COMP4 PB0/PE7) and its inverting input a DAC channel, a VREFINT
+//! fraction or one of two other pins (COMP1 PA4/PA0, COMP2 PA5/PA2, COMP3 PF1/PC0, COMP4
+//! PE8/PB2). On the B-G431B-ESC1 the phase currents are on PA1 (U), PA7 (V) and PB0 (W)
+//! and the DC link on PA0: each phase signal reaches exactly one comparator input, so one
+//! threshold per phase, and a window (both half-waves, the source's two trimmers per
+//! phase) would need the signal on two comparators. What the board can do, and does:
+//! the positive half-wave of all three phases (COMP1, COMP2, COMP4) and the DC link
+//! (COMP3). `docs/drive-core.md` "Hardware comparators" lists the faults only the software
+//! `I>` check catches.
+//!
+//! Thresholds are in the ADC counts of the signal (the comparator sees the same pin as
+//! the ADC, and DAC and ADC share VREF+), from the program's `I>>` (0.01 A) and `U>>` (V)
+//! or the board's defaults ([`crate::DriveConfig`]). A second board profile (e.g. the
+//! OPAMPs in PGA mode feeding the comparators) is a second [`BoardProfile`] constant.
+
+use shared_protocol::units::{CentiAmps, Volts};
+
+use crate::measure::CURRENT_ZERO_COUNTS;
+use crate::measure::{udc_counts_at_volts, ADC_FULL_COUNTS, CURRENT_FULL_CENTIAMPS};
+use crate::protection::HwBreak;
+
+/// The analog signal at a comparator's non-inverting input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Signal {
+    /// Phase current of inverter leg 1 (a), 2 (b), 3 (c), in the ADC scale of
+    /// `measure` (2048 = 0 A, +-10 A full scale).
+    CurrentA,
+    CurrentB,
+    CurrentC,
+    /// DC-link voltage (0..45 V full scale).
+    DcLink,
+}
+
+/// When the comparator output is high (trip).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Direction {
+    /// Signal above the threshold (output polarity not inverted).
+    Above,
+    /// Signal below the threshold (output polarity inverted).
+    Below,
+}
+
+/// Which setting sets the threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Threshold {
+    /// `I>>`: +threshold for [`Direction::Above`], -threshold for [`Direction::Below`].
+    OcHw,
+    /// `U>>`.
+    OvHw,
+}
+
+/// A DAC output the comparators can take as their inverting input.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DacChannel {
+    Dac1Ch1,
+    Dac1Ch2,
+    Dac3Ch1,
+    Dac3Ch2,
+}
+
+impl DacChannel {
+    pub const ALL: [DacChannel; 4] = [
+        DacChannel::Dac1Ch1,
+        DacChannel::Dac1Ch2,
+        DacChannel::Dac3Ch1,
+        DacChannel::Dac3Ch2,
+    ];
+
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// One comparator of the board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct ComparatorSpec {
+    /// COMP instance, 1..=4.
+    pub comp: u8,
+    /// Its non-inverting input pin (documentation; the board's `pins.rs` binds it).
+    pub inp: &'static str,
+    pub signal: Signal,
+    pub direction: Direction,
+    pub threshold: Threshold,
+    /// Its inverting input.
+    pub dac: DacChannel,
+}
+
+impl ComparatorSpec {
+    /// The fault its break raises.
+    pub const fn cause(&self) -> HwBreak {
+        match self.threshold {
+            Threshold::OcHw => HwBreak::Overcurrent,
+            Threshold::OvHw => HwBreak::Overvoltage,
+        }
+    }
+
+    /// COMPx_CSR.INMSEL for its DAC (RM0440 "COMP inverting input" table): 0b100 is
+    /// DAC3 CH1 for COMP1/COMP3 and DAC3 CH2 for COMP2/COMP4; 0b101 is DAC1 CH1 for
+    /// COMP1/COMP3/COMP4 and DAC1 CH2 for COMP2. `None`: that DAC cannot reach it.
+    pub const fn inmsel(&self) -> Option<u8> {
+        use DacChannel as D;
+        match (self.comp, self.dac) {
+            (1 | 3, D::Dac3Ch1) | (2 | 4, D::Dac3Ch2) => Some(0b100),
+            (1 | 3 | 4, D::Dac1Ch1) | (2, D::Dac1Ch2) => Some(0b101),
+            _ => None,
+        }
+    }
+
+    /// Output polarity inverted (COMPx_CSR.POLARITY): a trip below the threshold.
+    pub const fn inverted(&self) -> bool {
+        matches!(self.direction, Direction::Below)
+    }
+
+    /// The DAC value (12-bit, ADC counts of its signal) for these thresholds.
+    pub fn dac_counts(&self, t: HwThresholds) -> u16 {
+        let counts = match self.threshold {
+            Threshold::OcHw => {
+                let d = (i32::from(t.oc_hw.0) * CURRENT_ZERO_COUNTS + CURRENT_FULL_CENTIAMPS / 2)
+                    / CURRENT_FULL_CENTIAMPS;
+                match self.direction {
+                    Direction::Above => CURRENT_ZERO_COUNTS + d,
+                    Direction::Below => CURRENT_ZERO_COUNTS - d,
+                }
+            }
+            Threshold::OvHw => {
+                udc_counts_at_volts(u32::from(t.ov_hw.0.max(0) as u16)).min(ADC_FULL_COUNTS) as i32
+            }
+        };
+        counts.clamp(0, ADC_FULL_COUNTS as i32) as u16
+    }
+
+    /// The comparator output for a signal of `signal_counts` (ADC counts, not quantised)
+    /// against `dac` counts (ideal comparator; the board's 20 mV hysteresis is ~25 counts
+    /// on the way back, which only delays the release).
+    pub fn trips(&self, signal_counts: f64, dac: u16) -> bool {
+        match self.direction {
+            Direction::Above => signal_counts > f64::from(dac),
+            Direction::Below => signal_counts < f64::from(dac),
+        }
+    }
+}
+
+/// A drive board's comparators.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct BoardProfile {
+    pub name: &'static str,
+    pub comparators: &'static [ComparatorSpec],
+}
+
+/// B-G431B-ESC1 (phase currents at the OPAMP inputs PA1, PA7, PB0; DC link on PA0) with
+/// the core's source scaling: the positive half-wave of each phase, and the DC link.
+pub const B_G431B_ESC1: BoardProfile = BoardProfile {
+    name: "B-G431B-ESC1",
+    comparators: &[
+        ComparatorSpec {
+            comp: 1,
+            inp: "PA1",
+            signal: Signal::CurrentA,
+            direction: Direction::Above,
+            threshold: Threshold::OcHw,
+            dac: DacChannel::Dac3Ch1,
+        },
+        ComparatorSpec {
+            comp: 2,
+            inp: "PA7",
+            signal: Signal::CurrentB,
+            direction: Direction::Above,
+            threshold: Threshold::OcHw,
+            dac: DacChannel::Dac3Ch2,
+        },
+        ComparatorSpec {
+            comp: 3,
+            inp: "PA0",
+            signal: Signal::DcLink,
+            direction: Direction::Above,
+            threshold: Threshold::OvHw,
+            dac: DacChannel::Dac1Ch1,
+        },
+        // DAC3 CH2 is shared with COMP2: the same I>> threshold.
+        ComparatorSpec {
+            comp: 4,
+            inp: "PB0",
+            signal: Signal::CurrentC,
+            direction: Direction::Above,
+            threshold: Threshold::OcHw,
+            dac: DacChannel::Dac3Ch2,
+        },
+    ],
+};
+
+/// The hardware thresholds in effect.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct HwThresholds {
+    /// `I>>`, 0.01 A.
+    pub oc_hw: CentiAmps,
+    /// `U>>`, V.
+    pub ov_hw: Volts,
+}
+
+/// The value of each DAC channel ([`DacChannel::index`]); `None` for a channel no
+/// comparator uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct DacValues(pub [Option<u16>; 4]);
+
+impl DacValues {
+    pub fn get(&self, ch: DacChannel) -> Option<u16> {
+        self.0.get(ch.index()).copied().flatten()
+    }
+}
+
+/// The DAC values a profile needs for these thresholds. Comparators sharing a channel
+/// must agree on its value (unit-tested for every profile); the first one sets it.
+pub fn dac_values(profile: &BoardProfile, t: HwThresholds) -> DacValues {
+    let mut v = [None; 4];
+    for spec in profile.comparators {
+        if let Some(slot) = v.get_mut(spec.dac.index()) {
+            if slot.is_none() {
+                *slot = Some(spec.dac_counts(t));
+            }
+        }
+    }
+    DacValues(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measure::current_centiamps;
+
+    fn t(oc: i16, ov: i16) -> HwThresholds {
+        HwThresholds {
+            oc_hw: CentiAmps(oc),
+            ov_hw: Volts(ov),
+        }
+    }
+
+    #[test]
+    fn the_esc1_table_is_what_rm0440_allows() {
+        let p = &B_G431B_ESC1;
+        for (k, spec) in p.comparators.iter().enumerate() {
+            assert!((1..=4).contains(&spec.comp), "G431: COMP1-COMP4");
+            assert!(spec.inmsel().is_some(), "{spec:?}: DAC not reachable");
+            // COMPx_INP0 pins of the G431 (RM0440; INP1 is PB1/PA3/PC1/PE7).
+            let inp0 = ["PA1", "PA7", "PA0", "PB0"][usize::from(spec.comp - 1)];
+            assert_eq!(spec.inp, inp0);
+            // One spec per comparator.
+            assert!(p.comparators[..k].iter().all(|o| o.comp != spec.comp));
+        }
+        // Comparators sharing a DAC channel need the same value for any thresholds.
+        for oc in [1, 150, 300, 999] {
+            for ov in [1, 40, 45] {
+                let th = t(oc, ov);
+                for a in p.comparators {
+                    for b in p.comparators {
+                        if a.dac == b.dac {
+                            assert_eq!(a.dac_counts(th), b.dac_counts(th), "{a:?} {b:?}");
+                        }
+                    }
+                }
+            }
+        }
+        // Both causes are watched; each sensed phase's positive half-wave.
+        assert!(p
+            .comparators
+            .iter()
+            .any(|s| s.cause() == HwBreak::Overvoltage));
+        for sig in [Signal::CurrentA, Signal::CurrentB, Signal::CurrentC] {
+            assert!(p
+                .comparators
+                .iter()
+                .any(|s| s.signal == sig && s.direction == Direction::Above));
+        }
+    }
+
+    #[test]
+    fn thresholds_in_adc_counts() {
+        let p = &B_G431B_ESC1;
+        let v = dac_values(p, t(300, 40));
+        // 3.00 A = 614.4 counts above 2048; 40 V = 91 * 40 counts.
+        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(2662));
+        assert_eq!(v.get(DacChannel::Dac3Ch2), Some(2662));
+        assert_eq!(v.get(DacChannel::Dac1Ch1), Some(3640));
+        assert_eq!(v.get(DacChannel::Dac1Ch2), None);
+        assert!(current_centiamps(2662).0 >= 299);
+        // Full scale: clamped to the DAC's range.
+        let v = dac_values(p, t(999, 45));
+        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(4094));
+        assert_eq!(v.get(DacChannel::Dac1Ch1), Some(4095));
+        // A "below" comparator (another profile) mirrors the threshold around 0 A.
+        let below = ComparatorSpec {
+            direction: Direction::Below,
+            ..p.comparators[0]
+        };
+        assert_eq!(below.dac_counts(t(300, 40)), 2048 - 614);
+        assert!(below.inverted());
+        assert!(below.trips(1400.0, 1434) && !below.trips(1500.0, 1434));
+        assert!(p.comparators[0].trips(2663.0, 2662) && !p.comparators[0].trips(2662.0, 2662));
+    }
+}

@@ -1,0 +1,95 @@
+//! The hardware trip levels as drive settings (`I>>`, `U>>`, the source's trimmers) and the
+//! board's comparators as they are (issue 15 items 3 and 4): on the B-G431B-ESC1 the
+//! positive half-wave of each phase and the DC link; a negative half-wave is the software
+//! check's (`I>`).
+
+use super::common::*;
+
+const COM_MONITOR: &str = include_str!("../../../shared-protocol/programs/com_monitor.plc");
+
+#[test]
+fn the_trimmer_levels_are_settings_the_plc_reads() {
+    // com_monitor sets I>> 2.50 A and U>> 38 V and shows COM, VLT, IHW, UHW.
+    let r = run_text(
+        COM_MONITOR,
+        "[[event]]\nat_s = 0\nset = { AUX = 682 }\n",
+        0.5,
+    );
+    assert!(r.faults.is_empty());
+    let end = r.samples.last().unwrap();
+    assert_eq!(end.lcd, [Some(682), Some(300), Some(250), Some(38)]);
+    assert!(
+        r.lcd.row(2).contains("250") && r.lcd.row(2).contains("38"),
+        "{}",
+        r.lcd.framed()
+    );
+    // Without I>>/U>> the board's defaults are in effect: the rig's [plant] values.
+    let plc_only: String = COM_MONITOR
+        .lines()
+        .filter(|l| !l.starts_with("00"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let r = run_text(&plc_only, "", 0.5);
+    assert_eq!(r.samples.last().unwrap().lcd[2..], [Some(300), Some(40)]);
+    let r = run_text(&plc_only, "[plant]\noc_hw_a = 1.5\nov_hw_v = 36.0\n", 0.5);
+    assert_eq!(r.samples.last().unwrap().lcd[2..], [Some(150), Some(36)]);
+}
+
+#[test]
+fn i_hw_in_the_program_sets_the_comparator() {
+    // The motor example with a 1.20 A hardware level: a locked rotor trips OC_HW (code 2),
+    // below the software I> of 2.00 A, on the positive half-wave near 1.2 A.
+    let program = format!("{MOTOR_PLC}\n026 I>> K21 0120\n");
+    let scen = "[plant]\nlocked_rotor = true\n[[event]]\nat_s = 0\nset = { A00 = 980, A01 = 500 }\n[[event]]\nat_s = 0.2\npress = \"D00\"\n";
+    let r = run_text(&program, scen, 2.0);
+    assert_eq!(r.faults.iter().map(|f| f.code).collect::<Vec<_>>(), vec![2]);
+    let t = r.faults[0].t_ns;
+    let before: Vec<_> = r.samples.iter().filter(|x| x.t_ns < t).collect();
+    let peak_pos = before
+        .iter()
+        .flat_map(|x| x.i_abc_a)
+        .fold(f64::NEG_INFINITY, f64::max);
+    assert!(peak_pos < 1.25, "peak {peak_pos}");
+}
+
+/// Direct duties on the three legs (0.1 %), no software `I>` unless `i_max` is given.
+fn direct(duty: [u16; 3], i_max: Option<u16>) -> String {
+    let mut p = String::new();
+    for (k, (d, pw)) in duty.iter().zip(["PW1", "PW3", "PW5"]).enumerate() {
+        p += &format!(
+            "{:03} LD K{:02} {d:04}\n{:03} WR {pw}\n",
+            2 * k,
+            k,
+            2 * k + 1
+        );
+    }
+    if let Some(i) = i_max {
+        p += &format!("006 I> K05 {i:04}\n");
+    }
+    p
+}
+
+#[test]
+fn a_positive_half_wave_on_the_unsampled_phase_c_trips_in_hardware() {
+    // Leg 3 at 40 % against legs 1 and 2 low: +4.1 A in phase c, -2.05 A in a and b. The
+    // software never sees phase c; COMP4 (PB0) does.
+    let r = run_text(&direct([0, 0, 400], None), "", 0.5);
+    assert_eq!(r.faults.iter().map(|f| f.code).collect::<Vec<_>>(), vec![2]);
+    let t = r.faults[0].t_ns;
+    let last = r.samples.iter().rev().find(|x| x.t_ns < t).unwrap();
+    assert!(last.i_abc_a[2] > 2.5 && last.i_abc_a[0] < 0.0, "{last:?}");
+}
+
+#[test]
+fn a_negative_half_wave_is_the_software_checks() {
+    // Legs 2 and 3 at 40 % against leg 1 low: -4.1 A in phase a, +2.05 A in b and c. No
+    // comparator sees it (the G431 has no window on phase a's pin).
+    let r = run_text(&direct([0, 400, 400], None), "", 0.5);
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
+    let end = r.samples.last().unwrap();
+    assert!(end.i_abc_a[0] < -3.5, "{end:?}");
+    assert!(end.i_abc_a[1] < 3.0 && end.i_abc_a[2] < 3.0);
+    // With I> 2.00 A the software check takes it (code 1, OC).
+    let r = run_text(&direct([0, 400, 400], Some(200)), "", 0.5);
+    assert_eq!(r.faults.iter().map(|f| f.code).collect::<Vec<_>>(), vec![1]);
+}
