@@ -16,18 +16,16 @@ at_s = 0.3
 press = "D00"
 "#;
 
-/// The motor program with the software limit I> above the hardware comparator (3 A), and
-/// a large IR boost so that a locked rotor draws more than 3 A.
-fn motor_with_high_i_limit() -> String {
-    MOTOR_PLC
-        .replace("016 I>  K11 0200", "016 I>  K11 0500")
-        .replace("010 =dU ", "010 dU= K15 0400 ;")
+/// The motor program with the hardware comparators' level `I>>` at 1.2 A, below the
+/// software limit `I>` (2 A): the DAC values come from the downloaded section.
+fn motor_with_low_hw_limit() -> String {
+    MOTOR_PLC.replace("025 frv K20 0200", "025 frv K20 0200\n026 I>> K21 0120")
 }
 
 #[test]
 fn a_comparator_break_latches_the_outputs_off_with_oc_hw() {
     let scen = format!("[plant]\nlocked_rotor = true\n{START_50HZ}");
-    let mut sim = emu(&motor_with_high_i_limit(), &scen);
+    let mut sim = emu(&motor_with_low_hw_limit(), &scen);
     let mut samples = Vec::new();
     sim.run_until(ns(3.0), |s| samples.push(s.clone()));
     let codes: Vec<u8> = sim.faults().iter().map(|f| f.code).collect();
@@ -43,6 +41,14 @@ fn a_comparator_break_latches_the_outputs_off_with_oc_hw() {
         .iter()
         .filter(|s| s.t_ns > t_trip + ns(0.05))
         .all(|s| s.i_abc_a.iter().all(|i| i.abs() < 0.05)));
+    // Before the trip no phase exceeded the level by more than what one PWM period of a
+    // locked rotor adds (the comparators are sampled twice per period).
+    let peak = samples
+        .iter()
+        .filter(|s| s.t_ns < t_trip)
+        .flat_map(|s| s.i_abc_a)
+        .fold(0.0f64, f64::max);
+    assert!(peak > 1.1 && peak < 1.4, "peak before the trip {peak} A");
     let tim1 = sim.drive().soc().tim1().expect("TIM1").gate();
     assert!(!tim1.moe, "MOE set again after the break");
 }
