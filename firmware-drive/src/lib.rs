@@ -18,6 +18,7 @@ pub mod drive;
 pub mod link;
 pub mod measure;
 pub mod modulator;
+pub mod power_port;
 pub mod protection;
 pub mod reversal;
 pub mod sine;
