@@ -245,7 +245,7 @@ impl ZeroCalibration {
             return Ok(None);
         }
         let n = self.samples;
-        let mean = |s: u32| ((s + n / 2) / n) as i32;
+        let mean = |s: u32| (s.saturating_add(n / 2) / n) as i32;
         Ok(Some([mean(self.sum[0]), mean(self.sum[1])]))
     }
 }
