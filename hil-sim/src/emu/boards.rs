@@ -124,23 +124,25 @@ pub fn gate_command(g: &GateState) -> (u64, GateCommand) {
     (period_ns, GateCommand { legs, dead_time_ns })
 }
 
-/// Volts on a current-sense pin for a phase current (source scaling: 2048 counts at 0 A,
-/// ±10 A full scale, `plant::sensors`).
+/// The sensors of the emulated drive board (the source's, `plant::sensors`).
+const SCALING: &firmware_drive::measure::SensorScaling = &firmware_drive::measure::SOURCE_SCALING;
+
+/// Volts on a current-sense pin for a phase current.
 pub fn current_volts(i_a: f64) -> f64 {
-    let mid = f64::from(1u16 << (sensors::ADC_BITS - 1));
-    let counts = mid + i_a * mid / sensors::CURRENT_FULL_SCALE_A;
+    let counts = sensors::current_signal_counts(SCALING, i_a);
     (counts / f64::from(sensors::ADC_MAX) * VREF).clamp(0.0, VREF)
 }
 
 /// The phase current a current-sense pin voltage stands for (inverse of [`current_volts`]).
 pub fn volts_current(v: f64) -> f64 {
-    let mid = f64::from(1u16 << (sensors::ADC_BITS - 1));
-    (v / VREF * f64::from(sensors::ADC_MAX) - mid) * sensors::CURRENT_FULL_SCALE_A / mid
+    let counts = v / VREF * f64::from(sensors::ADC_MAX);
+    (counts - f64::from(SCALING.current_zero_counts)) * 1000.0
+        / f64::from(SCALING.current_millicounts_per_amp)
 }
 
 /// Volts on the DC-link pin.
 pub fn udc_volts(u: f64) -> f64 {
-    (u / sensors::UDC_FULL_SCALE_V * VREF).clamp(0.0, VREF)
+    (sensors::udc_signal_counts(SCALING, u) / f64::from(sensors::ADC_MAX) * VREF).clamp(0.0, VREF)
 }
 
 /// The drive board (B-G431B-ESC1 with the source's sensors).
@@ -359,11 +361,7 @@ mod tests {
         for i in [-9.0, -1.234, 0.0, 0.5, 3.0, 9.9] {
             let v = current_volts(i);
             let counts = (v / VREF * f64::from(sensors::ADC_MAX)).round() as u16;
-            assert_eq!(
-                counts,
-                sensors::current_counts(&firmware_drive::measure::SOURCE_SCALING, i),
-                "{i} A"
-            );
+            assert_eq!(counts, sensors::current_counts(SCALING, i), "{i} A");
             assert!((volts_current(v) - i).abs() < 1e-9);
         }
         assert_eq!(pin_id("PC13"), Some((2, 13)));

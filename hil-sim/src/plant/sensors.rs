@@ -24,10 +24,6 @@ use firmware_drive::measure::{FrontEnd, SensorScaling};
 pub const ADC_BITS: u32 = 12;
 /// Largest ADC count.
 pub const ADC_MAX: u16 = (1 << ADC_BITS) - 1;
-/// Current that reads full scale (either sign).
-pub const CURRENT_FULL_SCALE_A: f64 = 10.0;
-/// DC-link voltage that reads full scale.
-pub const UDC_FULL_SCALE_V: f64 = 45.0;
 
 /// One conversion of the three channels the drive reads every PWM period.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
