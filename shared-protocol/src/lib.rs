@@ -18,4 +18,6 @@
 
 pub mod link;
 pub mod program;
+pub mod rate_limit;
+pub mod supervision;
 pub mod units;

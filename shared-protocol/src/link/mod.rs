@@ -3,6 +3,7 @@
 //! * [`frame`]: COBS framing with a 0x00 delimiter, CRC-32C, frame header (seq, ack).
 //! * [`message`]: every message of both directions (postcard + serde).
 //! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.
+//! * [`pump`]: the loop between a UART and an endpoint (boards and hil-sim), with deadlines.
 //! * [`session`]: what both endpoints share (frame reader, transmit window, sequencing,
 //!   stall and loss timers, counters, encoding of what goes out).
 //! * [`plc::PlcLink`] and [`drive::DriveLink`]: the two endpoint state machines; the
@@ -19,6 +20,7 @@ pub mod frame;
 pub mod message;
 pub mod pair;
 pub mod plc;
+pub mod pump;
 pub mod reliable;
 pub mod session;
 
