@@ -417,6 +417,12 @@ impl<E: Eeprom> PlcApp<E> {
         n
     }
 
+    /// The UART reported a line error: the link drops the frame being received and
+    /// counts it (`LinkStats::line_errors`).
+    pub fn on_line_error(&mut self) {
+        self.link.line_error();
+    }
+
     /// Link timers and the RUN sequence without transmitting (`poll_tx` does this too):
     /// for a board whose transmit path is driven only by UART interrupts.
     pub fn tick(&mut self, now: Micros) {

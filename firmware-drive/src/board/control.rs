@@ -53,6 +53,7 @@ pub async fn run() {
         });
         #[cfg(feature = "dwt-cycles")]
         super::cycles::record_tick(start);
+        super::link::kick_if_due();
         if causes.iter().all(|(_, present)| !present) {
             power_stage::rearm_break_irq();
         }

@@ -6,6 +6,7 @@ use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::{
     AdcSample, DriveConfig, DriveCore, DriveStatus, HwBreak, PwmCommand, PwmTiming, ResetCause,
 };
+use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
 
@@ -14,6 +15,7 @@ use super::DriveMcu;
 /// The drive board.
 pub struct DriveBoard {
     app: DriveApp,
+    pump: Pump,
     timer_clock_hz: u32,
 }
 
@@ -27,6 +29,7 @@ impl DriveBoard {
         DriveBoard {
             timer_clock_hz: cfg.timer_clock_hz,
             app: DriveApp::new(cfg, ResetCause::PowerOn, link_cfg),
+            pump: Pump::new(MAX_IDLE_US),
         }
     }
 
@@ -59,15 +62,18 @@ impl DriveMcu for DriveBoard {
         self.app.hardware_break(cause, active);
     }
 
-    fn uart_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.app.on_rx(bytes, now);
+    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
+        let p = self.pump.pass(&mut self.app, rx, tx_room, now);
         self.drain();
+        p
     }
 
-    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        let n = self.app.poll_tx(now, out);
-        self.drain();
-        n
+    fn link_tx(&self) -> &[u8] {
+        self.pump.tx()
+    }
+
+    fn link_timeout(&self) -> Option<Micros> {
+        self.app.poll_timeout()
     }
 
     fn pwm_timing(&self) -> PwmTiming {

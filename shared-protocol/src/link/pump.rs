@@ -73,6 +73,10 @@ pub fn is_due(deadline: Option<Micros>, now: Micros) -> bool {
     deadline.is_some_and(|d| d <= now)
 }
 
+/// The longest a board's link task waits between passes with no deadline due: it
+/// reports itself alive every pass, and the watchdog supervisor checks every 20 ms.
+pub const MAX_IDLE_US: u64 = 10_000;
+
 /// Line errors are logged at most this often (the count in between is carried).
 pub const LINE_ERROR_LOG_US: u64 = 1_000_000;
 
