@@ -3,9 +3,8 @@
 
 use firmware_drive::app::DriveApp;
 use firmware_drive::comparators::{BoardProfile, DacValues};
-use firmware_drive::{
-    AdcSample, DriveConfig, DriveCore, DriveStatus, HwBreak, PwmCommand, PwmTiming, ResetCause,
-};
+use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
+use firmware_drive::{AdcSample, DriveConfig, DriveCore, DriveStatus, PwmTiming, ResetCause};
 use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
@@ -49,7 +48,7 @@ impl DriveBoard {
 
 impl DriveMcu for DriveBoard {
     #[inline]
-    fn pwm_isr(&mut self, adc: &AdcSample) -> PwmCommand {
+    fn pwm_isr(&mut self, adc: &AdcSample) -> PeriodAction {
         self.app.pwm_period(adc)
     }
 
@@ -58,8 +57,12 @@ impl DriveMcu for DriveBoard {
         self.drain();
     }
 
-    fn break_input(&mut self, cause: HwBreak, active: bool) {
-        self.app.hardware_break(cause, active);
+    fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
+        self.app.break_fired(levels)
+    }
+
+    fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
+        self.app.break_poll(levels)
     }
 
     fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
