@@ -115,9 +115,10 @@ pub trait SharedEndpoint {
 /// The link task's loop: never returns. Each board wraps it in its own
 /// `#[embassy_executor::task]` (tasks cannot be generic).
 ///
-/// The receiving and the transmitting half of a pass run in separate calls of
-/// [`SharedEndpoint::with`], so that neither holds the board's lock for both (the
-/// drive's lock masks the PWM interrupt; `dwt-cycles` measures each).
+/// The three parts of a pass (receive, transmit, the application's reaction) run in
+/// separate calls of [`SharedEndpoint::with`], so that none holds the board's lock for
+/// all (the drive's lock masks the PWM interrupt; `dwt-cycles` measures the first two),
+/// and the reaction runs after the pass's frame was written.
 pub async fn run<S: SharedEndpoint>(mut port: LinkPort, shared: S) -> ! {
     let mut pump = Pump::new(MAX_IDLE_US);
     let mut rx_buf = [0u8; 64];
@@ -160,6 +161,12 @@ pub async fn run<S: SharedEndpoint>(mut port: LinkPort, shared: S) -> ! {
             if let Err(e) = port.tx.write(tx).await {
                 defmt::warn!("link: tx error {}", e);
             }
+        }
+        // The application's reaction to what arrived, once the frame (an acknowledgement,
+        // say) is out: a slow one (the PLC's EEPROM fault log) never delays it.
+        let t = now();
+        if let Some(w) = shared.with(|ep| pump.service(ep, t)) {
+            wake = w;
         }
     }
 }

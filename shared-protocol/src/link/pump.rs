@@ -35,6 +35,18 @@ pub trait LinkEndpoint {
     fn poll_timeout(&self) -> Option<Micros>;
     /// The UART reported a line error (framing, noise, overrun, parity).
     fn line_error(&mut self);
+    /// The application's reaction to what the link delivered (events: a fault report
+    /// to log, a download result to act on). The pump calls it after the pass's frame
+    /// was handed out, and the boards after that frame was written: a slow reaction (the
+    /// PLC's EEPROM fault log takes tens of ms) then never holds back the acknowledgement
+    /// of the message that caused it. An endpoint whose reaction happens in `on_rx`
+    /// delays the acknowledgement by the reaction's time; longer than the peer's link
+    /// timeout, the peer drops the session and delivers its unacknowledged reports again
+    /// in the next, which are reacted to again: the livelock the emulator showed after a
+    /// drive watchdog reset. The default does nothing (the bare link endpoints).
+    fn service(&mut self, now: Micros) {
+        let _ = now;
+    }
 }
 
 impl LinkEndpoint for super::plc::PlcLink {
@@ -130,7 +142,11 @@ impl Pump {
         now: Micros,
     ) -> Pass {
         self.receive(ep, rx, now);
-        self.transmit(ep, tx_room, now)
+        let p = self.transmit(ep, tx_room, now);
+        Pass {
+            wake_at: self.service(ep, now),
+            ..p
+        }
     }
 
     /// The receiving half of [`Self::pass`], for a board that wants the two halves in
@@ -159,14 +175,27 @@ impl Pump {
             ep.poll_tx(now, &mut []);
         }
         self.end = self.len.min(self.start.saturating_add(tx_room));
-        let idle = Micros(now.0.saturating_add(self.max_idle_us));
-        let wake_at = match ep.poll_timeout() {
-            Some(d) => d.max(now).min(idle),
-            None => idle,
-        };
         Pass {
             tx_len: self.end - self.start,
-            wake_at,
+            wake_at: self.wake_at(ep, now),
+        }
+    }
+
+    /// The third part of [`Self::pass`], for a board that runs it after writing
+    /// [`Self::tx`] to the UART: the application's reaction
+    /// ([`LinkEndpoint::service`]). Returns the next deadline, which the reaction may
+    /// have moved (e.g. a command it queued: at once).
+    pub fn service<E: LinkEndpoint + ?Sized>(&mut self, ep: &mut E, now: Micros) -> Micros {
+        ep.service(now);
+        self.wake_at(ep, now)
+    }
+
+    /// The endpoint's deadline, not before `now` and not after the idle bound.
+    fn wake_at<E: LinkEndpoint + ?Sized>(&self, ep: &E, now: Micros) -> Micros {
+        let idle = Micros(now.0.saturating_add(self.max_idle_us));
+        match ep.poll_timeout() {
+            Some(d) => d.max(now).min(idle),
+            None => idle,
         }
     }
 

@@ -307,3 +307,43 @@ fn is_due_compares_with_now() {
     assert!(is_due(Some(Micros(5)), Micros(5)));
     assert!(!is_due(Some(Micros(6)), Micros(5)));
 }
+
+/// Records the order of the pump's calls; its reaction queues a frame.
+#[derive(Default)]
+struct Order {
+    calls: Vec<&'static str>,
+    queued: bool,
+}
+
+impl LinkEndpoint for Order {
+    fn on_rx(&mut self, _: &[u8], _: Micros) {
+        self.calls.push("rx");
+    }
+    fn poll_tx(&mut self, _: Micros, out: &mut [u8]) -> usize {
+        if out.is_empty() {
+            return 0;
+        }
+        self.calls.push("tx");
+        out[..3].copy_from_slice(b"ack");
+        3
+    }
+    fn poll_timeout(&self) -> Option<Micros> {
+        self.queued.then_some(Micros(0))
+    }
+    fn line_error(&mut self) {}
+    fn service(&mut self, _: Micros) {
+        self.calls.push("service");
+        self.queued = true;
+    }
+}
+
+#[test]
+fn the_reaction_runs_after_the_frame_is_handed_out_and_moves_the_deadline() {
+    let mut ep = Order::default();
+    let mut pump = Pump::new(MAX_IDLE_US);
+    let p = pump.pass(&mut ep, b"x", MAX_WIRE_FRAME, Micros(500));
+    assert_eq!(ep.calls, ["rx", "tx", "service"]);
+    assert_eq!(pump.tx(), b"ack");
+    // What the reaction queued is due at once, not at the idle bound.
+    assert_eq!(p.wake_at, Micros(500));
+}
