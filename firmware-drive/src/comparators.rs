@@ -22,8 +22,8 @@
 
 use shared_protocol::units::{CentiAmps, Volts};
 
-use crate::measure::CURRENT_ZERO_COUNTS;
 use crate::measure::{udc_counts_at_volts, ADC_FULL_COUNTS, CURRENT_FULL_CENTIAMPS};
+use crate::measure::{FrontEnd, SensorScaling, CURRENT_ZERO_COUNTS, ESC1_SCALING, SOURCE_SCALING};
 use crate::protection::HwBreak;
 
 /// The analog signal at a comparator's non-inverting input.
@@ -95,6 +95,9 @@ pub struct ComparatorSpec {
     pub threshold: Threshold,
     /// Its inverting input.
     pub dac: DacChannel,
+    /// The comparator sees the ADC's signal divided by this: 1 when it watches the ADC's
+    /// own pin, 16 when it watches the input of a PGA of gain 16 with VINM grounded.
+    pub input_divider: u16,
 }
 
 impl ComparatorSpec {
@@ -123,22 +126,37 @@ impl ComparatorSpec {
         matches!(self.direction, Direction::Below)
     }
 
-    /// The DAC value (12-bit, ADC counts of its signal) for these thresholds.
-    pub fn dac_counts(&self, t: HwThresholds) -> u16 {
-        let counts = match self.threshold {
+    /// The DAC value (12-bit counts at the comparator's input) for these thresholds on a
+    /// front end with its calibration. An overcurrent comparator watches the positive
+    /// half-wave: above +`I>>` on a non-inverting front end, below it on an inverting one;
+    /// `direction` says which way the signal at the pin goes.
+    pub fn dac_counts(&self, t: HwThresholds, fe: &FrontEnd) -> u16 {
+        let raw = match self.threshold {
             Threshold::OcHw => {
                 let d = (i32::from(t.oc_hw.0) * CURRENT_ZERO_COUNTS + CURRENT_FULL_CENTIAMPS / 2)
                     / CURRENT_FULL_CENTIAMPS;
-                match self.direction {
-                    Direction::Above => CURRENT_ZERO_COUNTS + d,
-                    Direction::Below => CURRENT_ZERO_COUNTS - d,
-                }
+                let rising = fe.scaling().current_millicounts_per_amp > 0;
+                let positive = matches!(self.direction, Direction::Above) == rising;
+                let canonical = if positive {
+                    CURRENT_ZERO_COUNTS + d
+                } else {
+                    CURRENT_ZERO_COUNTS - d
+                };
+                fe.raw_current_counts(canonical)
             }
             Threshold::OvHw => {
-                udc_counts_at_volts(u32::from(t.ov_hw.0.max(0) as u16)).min(ADC_FULL_COUNTS) as i32
+                let c = udc_counts_at_volts(u32::from(t.ov_hw.0.max(0) as u16));
+                fe.raw_udc_counts(c).min(ADC_FULL_COUNTS + 1) as i32
             }
         };
-        counts.clamp(0, ADC_FULL_COUNTS as i32) as u16
+        // At the comparator's input a count can stand for several of the ADC's (the PGA
+        // input: 16): round to the safe side, so that the trip is at or below the setting.
+        let div = i32::from(self.input_divider.max(1));
+        let q = match self.direction {
+            Direction::Above => raw.div_euclid(div),
+            Direction::Below => (raw + div - 1).div_euclid(div),
+        };
+        q.clamp(0, ADC_FULL_COUNTS as i32) as u16
     }
 
     /// The comparator output for a signal of `signal_counts` (ADC counts, not quantised)
@@ -158,12 +176,16 @@ impl ComparatorSpec {
 pub struct BoardProfile {
     pub name: &'static str,
     pub comparators: &'static [ComparatorSpec],
+    /// How the currents and the DC link reach the ADC.
+    pub scaling: SensorScaling,
 }
 
-/// B-G431B-ESC1 (phase currents at the OPAMP inputs PA1, PA7, PB0; DC link on PA0) with
-/// the core's source scaling: the positive half-wave of each phase, and the DC link.
-pub const B_G431B_ESC1: BoardProfile = BoardProfile {
-    name: "B-G431B-ESC1",
+/// The source's sensors (+-10 A around 1.65 V, 0-45 V) on the ESC1's pins (a carrier board
+/// with the ESC1's shunt network removed from PA1, PA7, PB0): the positive half-wave of
+/// each phase, and the DC link. Cargo feature `source-sensors` of the image.
+pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
+    name: "source sensors on B-G431B-ESC1 pins",
+    scaling: SOURCE_SCALING,
     comparators: &[
         ComparatorSpec {
             comp: 1,
@@ -172,6 +194,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             direction: Direction::Above,
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch1,
+            input_divider: 1,
         },
         ComparatorSpec {
             comp: 2,
@@ -180,6 +203,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             direction: Direction::Above,
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
+            input_divider: 1,
         },
         ComparatorSpec {
             comp: 3,
@@ -188,6 +212,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             direction: Direction::Above,
             threshold: Threshold::OvHw,
             dac: DacChannel::Dac1Ch1,
+            input_divider: 1,
         },
         // DAC3 CH2 is shared with COMP2: the same I>> threshold.
         ComparatorSpec {
@@ -197,6 +222,58 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             direction: Direction::Above,
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
+            input_divider: 1,
+        },
+    ],
+};
+
+/// The bare B-G431B-ESC1 (review D4). The ADC reads the OPAMPs' outputs (PGA, gain 16,
+/// [`ESC1_SCALING`]); the comparators watch the OPAMPs' inputs PA1, PA7, PB0, the only
+/// pins of the three phases that reach COMP1/2/4 (OPAMP1/2 outputs PA2/PA6 reach no
+/// comparator; OPAMP3's PB1 reaches COMP1 only), as ST's motor-control SDK does for this
+/// board. The signal there falls 1.71 mV/A from 0.103 V: 2.13 DAC counts per ampere, so
+/// `I>>` acts in steps of about 0.47 A (at the step at or below the setting), on the
+/// positive half-wave (signal below the threshold). DC link on PA0 through the 0.0962
+/// divider (full scale 34.3 V: `U>>` above it cannot trip).
+pub const B_G431B_ESC1: BoardProfile = BoardProfile {
+    name: "B-G431B-ESC1",
+    scaling: ESC1_SCALING,
+    comparators: &[
+        ComparatorSpec {
+            comp: 1,
+            inp: "PA1",
+            signal: Signal::CurrentA,
+            direction: Direction::Below,
+            threshold: Threshold::OcHw,
+            dac: DacChannel::Dac3Ch1,
+            input_divider: 16,
+        },
+        ComparatorSpec {
+            comp: 2,
+            inp: "PA7",
+            signal: Signal::CurrentB,
+            direction: Direction::Below,
+            threshold: Threshold::OcHw,
+            dac: DacChannel::Dac3Ch2,
+            input_divider: 16,
+        },
+        ComparatorSpec {
+            comp: 3,
+            inp: "PA0",
+            signal: Signal::DcLink,
+            direction: Direction::Above,
+            threshold: Threshold::OvHw,
+            dac: DacChannel::Dac1Ch1,
+            input_divider: 1,
+        },
+        ComparatorSpec {
+            comp: 4,
+            inp: "PB0",
+            signal: Signal::CurrentC,
+            direction: Direction::Below,
+            threshold: Threshold::OcHw,
+            dac: DacChannel::Dac3Ch2,
+            input_divider: 16,
         },
     ],
 };
@@ -225,12 +302,12 @@ impl DacValues {
 
 /// The DAC values a profile needs for these thresholds. Comparators sharing a channel
 /// must agree on its value (unit-tested for every profile); the first one sets it.
-pub fn dac_values(profile: &BoardProfile, t: HwThresholds) -> DacValues {
+pub fn dac_values(profile: &BoardProfile, t: HwThresholds, fe: &FrontEnd) -> DacValues {
     let mut v = [None; 4];
     for spec in profile.comparators {
         if let Some(slot) = v.get_mut(spec.dac.index()) {
             if slot.is_none() {
-                *slot = Some(spec.dac_counts(t));
+                *slot = Some(spec.dac_counts(t, fe));
             }
         }
     }
@@ -250,8 +327,14 @@ mod tests {
     }
 
     #[test]
-    fn the_esc1_table_is_what_rm0440_allows() {
-        let p = &B_G431B_ESC1;
+    fn the_tables_are_what_rm0440_allows() {
+        for p in [&SOURCE_SENSORS, &B_G431B_ESC1] {
+            table_is_what_rm0440_allows(p);
+        }
+    }
+
+    fn table_is_what_rm0440_allows(p: &BoardProfile) {
+        let fe = FrontEnd::new(p.scaling);
         for (k, spec) in p.comparators.iter().enumerate() {
             assert!((1..=4).contains(&spec.comp), "G431: COMP1-COMP4");
             assert!(spec.inmsel().is_some(), "{spec:?}: DAC not reachable");
@@ -268,29 +351,37 @@ mod tests {
                 for a in p.comparators {
                     for b in p.comparators {
                         if a.dac == b.dac {
-                            assert_eq!(a.dac_counts(th), b.dac_counts(th), "{a:?} {b:?}");
+                            assert_eq!(a.dac_counts(th, &fe), b.dac_counts(th, &fe), "{a:?} {b:?}");
                         }
                     }
                 }
             }
         }
-        // Both causes are watched; each sensed phase's positive half-wave.
+        // Both causes are watched; each phase's positive half-wave (the signal rises with
+        // the current on a non-inverting front end, falls on an inverting one).
         assert!(p
             .comparators
             .iter()
             .any(|s| s.cause() == HwBreak::Overvoltage));
+        let rising = p.scaling.current_millicounts_per_amp > 0;
+        let positive = if rising {
+            Direction::Above
+        } else {
+            Direction::Below
+        };
         for sig in [Signal::CurrentA, Signal::CurrentB, Signal::CurrentC] {
             assert!(p
                 .comparators
                 .iter()
-                .any(|s| s.signal == sig && s.direction == Direction::Above));
+                .any(|s| s.signal == sig && s.direction == positive));
         }
     }
 
     #[test]
     fn thresholds_in_adc_counts() {
-        let p = &B_G431B_ESC1;
-        let v = dac_values(p, t(300, 40));
+        let p = &SOURCE_SENSORS;
+        let fe = FrontEnd::new(p.scaling);
+        let v = dac_values(p, t(300, 40), &fe);
         // 3.00 A = 614.4 counts above 2048; 40 V = 91 * 40 counts.
         assert_eq!(v.get(DacChannel::Dac3Ch1), Some(2662));
         assert_eq!(v.get(DacChannel::Dac3Ch2), Some(2662));
@@ -298,7 +389,7 @@ mod tests {
         assert_eq!(v.get(DacChannel::Dac1Ch2), None);
         assert!(current_centiamps(2662).0 >= 299);
         // Full scale: clamped to the DAC's range.
-        let v = dac_values(p, t(999, 45));
+        let v = dac_values(p, t(999, 45), &fe);
         assert_eq!(v.get(DacChannel::Dac3Ch1), Some(4094));
         assert_eq!(v.get(DacChannel::Dac1Ch1), Some(4095));
         // A "below" comparator (another profile) mirrors the threshold around 0 A.
@@ -306,9 +397,28 @@ mod tests {
             direction: Direction::Below,
             ..p.comparators[0]
         };
-        assert_eq!(below.dac_counts(t(300, 40)), 2048 - 614);
+        assert_eq!(below.dac_counts(t(300, 40), &fe), 2048 - 614);
         assert!(below.inverted());
         assert!(below.trips(1400.0, 1434) && !below.trips(1500.0, 1434));
         assert!(p.comparators[0].trips(2663.0, 2662) && !p.comparators[0].trips(2662.0, 2662));
+    }
+
+    #[test]
+    fn esc1_thresholds_follow_the_calibrated_zero_at_the_pga_input() {
+        let p = &B_G431B_ESC1;
+        let mut fe = FrontEnd::new(p.scaling);
+        // 3 A: 102 counts below the zero at the ADC, /16 at the PGA input.
+        let v = dac_values(p, t(300, 30), &fe);
+        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(122));
+        assert_eq!(v.get(DacChannel::Dac3Ch2), Some(122));
+        // 30 V on the 34.3 V range.
+        assert_eq!(v.get(DacChannel::Dac1Ch1), Some(3582));
+        // A zero calibrated 32 counts higher moves the threshold 2 counts up.
+        fe.calibrate([2080, 2080]);
+        let v = dac_values(p, t(300, 30), &fe);
+        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(124));
+        // Above the 34.3 V range the overvoltage comparator can never trip: clamped.
+        let v = dac_values(p, t(300, 40), &fe);
+        assert_eq!(v.get(DacChannel::Dac1Ch1), Some(4095));
     }
 }

@@ -1,6 +1,6 @@
 //! Build-time/board-time configuration of the drive core (not part of the user program).
 
-use crate::comparators::{BoardProfile, B_G431B_ESC1};
+use crate::comparators::{BoardProfile, SOURCE_SENSORS};
 
 /// Why the MCU last started; the board reads it from the reset flags (RCC_CSR). A
 /// watchdog reset is reported as fault `WDG` after boot. Shared with the PLC board:
@@ -26,10 +26,9 @@ pub struct DriveConfig {
     pub min_max_injection: bool,
     /// Switching frequency before the program's `PWF` has run, Hz.
     pub default_pwm_hz: u16,
-    /// Boot self-test: a phase-current channel must read within this many counts of
-    /// 2048 (0 A) while the PWM is off.
-    pub current_offset_tolerance_counts: u16,
-    /// The board's hardware comparators (which signal, direction, DAC).
+    /// The board: its comparators (which signal, direction, DAC) and how its sensors
+    /// scale (`measure::SensorScaling`). The image uses `SOURCE_SENSORS` until the ESC1
+    /// OPAMP front end is bound in the board layer (`docs/drive-core.md`, "Board profiles").
     pub board: &'static BoardProfile,
     /// Hardware overcurrent threshold while the program sets no `I>>` (the source's
     /// trimmer as delivered), 0.01 A.
@@ -47,8 +46,7 @@ impl Default for DriveConfig {
             min_pulse_counts: 4,
             min_max_injection: false,
             default_pwm_hz: 16_000,
-            current_offset_tolerance_counts: 205,
-            board: &B_G431B_ESC1,
+            board: &SOURCE_SENSORS,
             oc_hw_default_centiamps: 300,
             ov_hw_default_volts: 40,
         }

@@ -21,6 +21,7 @@ use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Volts};
 use crate::comparators::{dac_values, DacValues, HwThresholds};
 use crate::config::{DriveConfig, ResetCause};
 use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, PeakTracker};
+use crate::measure::{FrontEnd, ZeroCalibration};
 use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
@@ -195,8 +196,9 @@ pub struct DriveCore {
     last: AdcSample,
     peak: PeakTracker,
     hw_break_active: [bool; 2],
-    boot_samples: u32,
-    boot_offset_bad: bool,
+    /// The board's analog front end, calibrated at the end of BOOT.
+    front_end: FrontEnd,
+    zero_cal: ZeroCalibration,
     events: Deque<DriveEvent, EVENT_QUEUE>,
     events_lost: u16,
     /// The hardware thresholds in effect and their DAC values (updated at download).
@@ -230,8 +232,8 @@ impl DriveCore {
             last: AdcSample::default(),
             peak: PeakTracker::default(),
             hw_break_active: [false; 2],
-            boot_samples: 0,
-            boot_offset_bad: false,
+            front_end: FrontEnd::new(cfg.board.scaling),
+            zero_cal: ZeroCalibration::default(),
             events: Deque::new(),
             events_lost: 0,
             hw: HwThresholds {
@@ -315,7 +317,7 @@ impl DriveCore {
     /// download).
     fn update_hw_thresholds(&mut self) {
         self.hw = self.compute_hw_thresholds();
-        self.dacs = dac_values(self.cfg.board, self.hw);
+        self.dacs = dac_values(self.cfg.board, self.hw, &self.front_end);
     }
 
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
@@ -480,7 +482,11 @@ impl DriveCore {
 
     /// The PWM interrupt: measurements, software trips and the duties for the next period.
     #[inline]
-    pub fn pwm_period(&mut self, s: &AdcSample) -> PwmCommand {
+    pub fn pwm_period(&mut self, raw: &AdcSample) -> PwmCommand {
+        if self.state == DriveState::Boot {
+            self.zero_cal.add(raw, &self.cfg.board.scaling);
+        }
+        let s = &self.front_end.canonical(raw);
         self.last = *s;
         let abs_i = s.abs_current_counts();
         self.peak.record(abs_i);
@@ -493,13 +499,7 @@ impl DriveCore {
             brake,
         };
         match self.state {
-            DriveState::Boot => {
-                self.boot_samples = self.boot_samples.saturating_add(1);
-                if abs_i > u32::from(self.cfg.current_offset_tolerance_counts) {
-                    self.boot_offset_bad = true;
-                }
-                return off(false);
-            }
+            DriveState::Boot => return off(false),
             DriveState::Idle | DriveState::Run => {
                 if self.limits.overcurrent(abs_i) {
                     self.trip(FaultCode::Oc);
@@ -613,7 +613,16 @@ impl DriveCore {
             && SINE_Q15.get(256) == Some(&32767)
             && SINE_Q15.get(768) == Some(&-32767);
         let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2;
-        let offsets_ok = !(self.boot_samples > 0 && self.boot_offset_bad);
+        let offsets_ok = match self.zero_cal.result() {
+            Ok(Some(zero)) => {
+                self.front_end.calibrate(zero);
+                // The comparators' thresholds follow the calibrated zero.
+                self.update_hw_thresholds();
+                true
+            }
+            Ok(None) => true,
+            Err(()) => false,
+        };
         if !(table_ok && timing_ok && offsets_ok) {
             self.trip(FaultCode::Boot);
         } else if self.reset_cause == ResetCause::Watchdog {

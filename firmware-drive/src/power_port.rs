@@ -193,7 +193,7 @@ impl BreakMonitor {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::comparators::B_G431B_ESC1;
+    use crate::comparators::SOURCE_SENSORS;
 
     #[derive(Debug, Clone, Copy, PartialEq, Eq)]
     enum Op {
@@ -394,7 +394,7 @@ mod tests {
 
     #[test]
     fn break_attribution_release_and_rearm() {
-        let b = &B_G431B_ESC1;
+        let b = &SOURCE_SENSORS;
         let mut m = BreakMonitor::default();
         // COMP3 is the DC link: overvoltage.
         let r = m.fired(b, levels(&[3]));

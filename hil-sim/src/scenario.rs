@@ -48,6 +48,9 @@ pub struct PlantKeys {
     // Additions (hil-sim docs): the rest of the rig.
     /// `"motor"` (default) or `"rl"`: a star RL load instead of the motor.
     pub load: Option<LoadKind>,
+    /// `"source"` (default: the source's sensors, +-10 A and 0-45 V) or `"esc1"` (the bare
+    /// B-G431B-ESC1's shunts, PGA and divider, and its comparators).
+    pub board: Option<BoardKind>,
     pub load_r_ohm: Option<f64>,
     pub load_l_h: Option<f64>,
     pub supply_r_ohm: Option<f64>,
@@ -66,6 +69,23 @@ pub struct PlantKeys {
 pub enum LoadKind {
     Motor,
     Rl,
+}
+
+/// `[plant] board`: the drive board's analog front end and comparators.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BoardKind {
+    Source,
+    Esc1,
+}
+
+impl BoardKind {
+    pub fn profile(self) -> &'static firmware_drive::comparators::BoardProfile {
+        match self {
+            BoardKind::Source => &firmware_drive::comparators::SOURCE_SENSORS,
+            BoardKind::Esc1 => &firmware_drive::comparators::B_G431B_ESC1,
+        }
+    }
 }
 
 /// `[link]`.
@@ -257,6 +277,9 @@ impl Scenario {
         }
         if let Some(v) = positive("plant.inertia_kgm2", p.inertia_kgm2)? {
             rig.motor.inertia_kgm2 = v;
+        }
+        if let Some(b) = p.board {
+            rig.board = b.profile();
         }
         if let Some(v) = positive("plant.oc_hw_a", p.oc_hw_a)? {
             rig.hw_defaults.oc_hw_a = v;

@@ -140,6 +140,7 @@ pub fn drive_config(rig: &RigParams) -> DriveConfig {
     DriveConfig {
         oc_hw_default_centiamps: t.oc_hw.0 as u16,
         ov_hw_default_volts: t.ov_hw.0 as u16,
+        board: rig.board,
         ..DriveConfig::default()
     }
 }

@@ -359,7 +359,11 @@ mod tests {
         for i in [-9.0, -1.234, 0.0, 0.5, 3.0, 9.9] {
             let v = current_volts(i);
             let counts = (v / VREF * f64::from(sensors::ADC_MAX)).round() as u16;
-            assert_eq!(counts, sensors::current_counts(i), "{i} A");
+            assert_eq!(
+                counts,
+                sensors::current_counts(&firmware_drive::measure::SOURCE_SCALING, i),
+                "{i} A"
+            );
             assert!((volts_current(v) - i).abs() < 1e-9);
         }
         assert_eq!(pin_id("PC13"), Some((2, 13)));

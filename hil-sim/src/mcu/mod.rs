@@ -60,7 +60,8 @@ pub trait DriveMcu {
             oc_hw: shared_protocol::units::CentiAmps(c.oc_hw_default_centiamps as i16),
             ov_hw: shared_protocol::units::Volts(c.ov_hw_default_volts as i16),
         };
-        firmware_drive::comparators::dac_values(self.board(), t)
+        let fe = firmware_drive::measure::FrontEnd::new(self.board().scaling);
+        firmware_drive::comparators::dac_values(self.board(), t, &fe)
     }
 }
 

@@ -14,6 +14,7 @@ pub use inverter::{GateCommand, Leg, PwmMode};
 pub use motor::MotorParams;
 pub use sensors::{AdcSample, Comparators, HwDefaults};
 
+use firmware_drive::comparators::BoardProfile;
 use firmware_drive::power_port::ComparatorLevels;
 
 use inverter::Conn;
@@ -82,6 +83,9 @@ pub struct RigParams {
     /// `I>>`/`U>>`).
     pub hw_defaults: HwDefaults,
     pub pwm_mode: PwmMode,
+    /// The drive board: its sensors' scaling and its comparators (scenario `[plant]
+    /// board = "source"` (default) or `"esc1"`).
+    pub board: &'static BoardProfile,
 }
 
 impl Default for RigParams {
@@ -98,6 +102,7 @@ impl Default for RigParams {
                 ov_hw_v: 40.0,
             },
             pwm_mode: PwmMode::Averaged,
+            board: &firmware_drive::comparators::SOURCE_SENSORS,
         }
     }
 }
@@ -174,10 +179,7 @@ impl Plant {
             tau_ns: 0,
             hw_break: false,
             break_flag: false,
-            comparators: Comparators::new(
-                firmware_drive::DriveConfig::default().board,
-                params.hw_defaults.thresholds(),
-            ),
+            comparators: Comparators::new(params.board, params.hw_defaults.thresholds()),
             comparator_levels: ComparatorLevels::default(),
             angle_rad: 0.0,
             period_acc: ([0.0; 3], 0.0, 0.0),
@@ -294,10 +296,11 @@ impl Plant {
     /// What the drive's ADC converts now.
     pub fn adc_sample(&self) -> AdcSample {
         let o = self.outputs();
+        let sc = &self.params.board.scaling;
         AdcSample {
-            i_a_counts: sensors::current_counts(o.i_abc_a[0]),
-            i_b_counts: sensors::current_counts(o.i_abc_a[1]),
-            u_dc_counts: sensors::udc_counts(o.u_dc_v),
+            i_a_counts: sensors::current_counts(sc, o.i_abc_a[0]),
+            i_b_counts: sensors::current_counts(sc, o.i_abc_a[1]),
+            u_dc_counts: sensors::udc_counts(sc, o.u_dc_v),
         }
     }
 

@@ -1,14 +1,16 @@
 //! Current and voltage sensors with the drive's 12-bit ADC, and the hardware comparators.
 //!
-//! The scaling is the source hardware's (drive.md, "Measurements"): phase currents ±10 A
-//! full scale around mid-scale, DC link 0..45 V. The drive core converts counts back
-//! with the same constants, so a quantisation step is 10 A / 2048 ≈ 4.9 mA and
-//! 45 V / 4095 ≈ 11 mV.
+//! The scaling is the drive board profile's (`firmware_drive::measure::SensorScaling`):
+//! by default the source hardware's (drive.md, "Measurements": phase currents ±10 A full
+//! scale around mid-scale, DC link 0..45 V; a step is 10 A / 2048 ≈ 4.9 mA and
+//! 45 V / 4095 ≈ 11 mV), with `[plant] board = "esc1"` the bare B-G431B-ESC1's (shunt,
+//! PGA gain 16, inverting: -34.03 counts/A, 29 mA per step; DC link 0..34.3 V).
 //!
 //! The comparators are the board's, from the drive core's own table
 //! (`firmware_drive::comparators`: which signal, which direction, which DAC) with the DAC
 //! values the drive core computes from the program's `I>>`/`U>>` (or the board defaults):
-//! on the B-G431B-ESC1 the positive half-wave of each of the three phases and the DC link.
+//! the positive half-wave of each of the three phases and the DC link (on the ESC1 at the
+//! PGA inputs, before the gain).
 //! The simulator trips exactly where the board does, not on |i|.
 
 use firmware_drive::comparators::{dac_values, BoardProfile, DacValues, HwThresholds, Signal};
@@ -16,8 +18,7 @@ use firmware_drive::power_port::ComparatorLevels;
 use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
 use shared_protocol::units::{CentiAmps, Volts};
 
-#[cfg(test)]
-use firmware_drive::comparators::B_G431B_ESC1;
+use firmware_drive::measure::{FrontEnd, SensorScaling};
 
 /// ADC resolution of the drive MCU.
 pub const ADC_BITS: u32 = 12;
@@ -42,26 +43,35 @@ fn quantise(x: f64) -> u16 {
     c as u16
 }
 
+/// The ADC reading of a phase current on a board with sensors `sc`, not quantised.
+pub fn current_signal_counts(sc: &SensorScaling, i_a: f64) -> f64 {
+    f64::from(sc.current_zero_counts) + i_a * f64::from(sc.current_millicounts_per_amp) / 1000.0
+}
+
+/// The ADC reading of the DC-link voltage, not quantised.
+pub fn udc_signal_counts(sc: &SensorScaling, u_v: f64) -> f64 {
+    u_v * 10.0 / f64::from(sc.udc_full_decivolts.max(1)) * f64::from(ADC_MAX)
+}
+
 /// ADC counts of a phase current.
-pub fn current_counts(i_a: f64) -> u16 {
-    let mid = f64::from(1u16 << (ADC_BITS - 1));
-    quantise(mid + i_a * mid / CURRENT_FULL_SCALE_A)
+pub fn current_counts(sc: &SensorScaling, i_a: f64) -> u16 {
+    quantise(current_signal_counts(sc, i_a))
 }
 
 /// ADC counts of the DC-link voltage.
-pub fn udc_counts(u_v: f64) -> u16 {
-    quantise(u_v / UDC_FULL_SCALE_V * f64::from(ADC_MAX))
+pub fn udc_counts(sc: &SensorScaling, u_v: f64) -> u16 {
+    quantise(udc_signal_counts(sc, u_v))
 }
 
-/// Current a count stands for (the inverse the drive applies).
-pub fn counts_to_current(c: u16) -> f64 {
-    let mid = f64::from(1u16 << (ADC_BITS - 1));
-    (f64::from(c) - mid) * CURRENT_FULL_SCALE_A / mid
+/// Current a count stands for (the inverse the drive applies, at the nominal zero).
+pub fn counts_to_current(sc: &SensorScaling, c: u16) -> f64 {
+    (f64::from(c) - f64::from(sc.current_zero_counts)) * 1000.0
+        / f64::from(sc.current_millicounts_per_amp)
 }
 
 /// Voltage a count stands for.
-pub fn counts_to_udc(c: u16) -> f64 {
-    f64::from(c) * UDC_FULL_SCALE_V / f64::from(ADC_MAX)
+pub fn counts_to_udc(sc: &SensorScaling, c: u16) -> f64 {
+    f64::from(c) * f64::from(sc.udc_full_decivolts) / 10.0 / f64::from(ADC_MAX)
 }
 
 /// The board's default hardware thresholds (the source's trimmers as delivered): the drive
@@ -96,7 +106,7 @@ impl Comparators {
     pub fn new(board: &'static BoardProfile, t: HwThresholds) -> Self {
         Comparators {
             board,
-            dacs: dac_values(board, t),
+            dacs: dac_values(board, t, &FrontEnd::new(board.scaling)),
         }
     }
 
@@ -108,12 +118,15 @@ impl Comparators {
             let Some(dac) = self.dacs.get(spec.dac) else {
                 continue;
             };
-            let counts = match spec.signal {
-                Signal::CurrentA => current_signal_counts(i_abc[0]),
-                Signal::CurrentB => current_signal_counts(i_abc[1]),
-                Signal::CurrentC => current_signal_counts(i_abc[2]),
-                Signal::DcLink => udc_signal_counts(u_dc),
+            let sc = &self.board.scaling;
+            let adc_counts = match spec.signal {
+                Signal::CurrentA => current_signal_counts(sc, i_abc[0]),
+                Signal::CurrentB => current_signal_counts(sc, i_abc[1]),
+                Signal::CurrentC => current_signal_counts(sc, i_abc[2]),
+                Signal::DcLink => udc_signal_counts(sc, u_dc),
             };
+            // A comparator on a PGA's input sees the signal before the gain.
+            let counts = adc_counts / f64::from(spec.input_divider.max(1));
             if let Some(l) = out.0.get_mut(usize::from(spec.comp.saturating_sub(1))) {
                 *l = spec.trips(counts, dac);
             }
@@ -122,35 +135,77 @@ impl Comparators {
     }
 }
 
-/// A phase current in ADC counts, not quantised (what the comparator sees).
-pub fn current_signal_counts(i_a: f64) -> f64 {
-    let mid = f64::from(1u16 << (ADC_BITS - 1));
-    mid + i_a * mid / CURRENT_FULL_SCALE_A
-}
-
-/// The DC-link voltage in ADC counts, not quantised.
-pub fn udc_signal_counts(u_v: f64) -> f64 {
-    u_v / UDC_FULL_SCALE_V * f64::from(ADC_MAX)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    use firmware_drive::comparators::{B_G431B_ESC1, SOURCE_SENSORS};
+    use firmware_drive::measure::{ESC1_SCALING, SOURCE_SCALING};
+
     #[test]
     fn current_scaling_is_mid_scale_and_saturates() {
-        assert_eq!(current_counts(0.0), 2048);
-        assert_eq!(current_counts(10.0), 4095);
-        assert_eq!(current_counts(-10.0), 0);
-        assert_eq!(current_counts(50.0), 4095);
-        assert!((counts_to_current(current_counts(1.234)) - 1.234).abs() < 0.003);
+        let sc = &SOURCE_SCALING;
+        assert_eq!(current_counts(sc, 0.0), 2048);
+        assert_eq!(current_counts(sc, 10.0), 4095);
+        assert_eq!(current_counts(sc, -10.0), 0);
+        assert_eq!(current_counts(sc, 50.0), 4095);
+        assert!((counts_to_current(sc, current_counts(sc, 1.234)) - 1.234).abs() < 0.003);
     }
 
     #[test]
     fn voltage_scaling_covers_0_to_45_v() {
-        assert_eq!(udc_counts(0.0), 0);
-        assert_eq!(udc_counts(45.0), 4095);
-        assert!((counts_to_udc(udc_counts(30.0)) - 30.0).abs() < 0.006);
+        let sc = &SOURCE_SCALING;
+        assert_eq!(udc_counts(sc, 0.0), 0);
+        assert_eq!(udc_counts(sc, 45.0), 4095);
+        assert!((counts_to_udc(sc, udc_counts(sc, 30.0)) - 30.0).abs() < 0.006);
+    }
+
+    #[test]
+    fn the_esc1_front_end_inverts_and_spans_60_amps_and_34_volts() {
+        let sc = &ESC1_SCALING;
+        assert_eq!(current_counts(sc, 0.0), 2048);
+        // -34.03 counts per ampere: +2 A reads 68 counts below the zero.
+        assert_eq!(current_counts(sc, 2.0), 2048 - 68);
+        assert_eq!(current_counts(sc, -60.2), 4095);
+        assert_eq!(udc_counts(sc, 34.3), 4095);
+        assert!((counts_to_udc(sc, udc_counts(sc, 24.0)) - 24.0).abs() < 0.005);
+        assert!((counts_to_current(sc, current_counts(sc, 5.0)) - 5.0).abs() < 0.02);
+    }
+
+    #[test]
+    fn the_esc1_comparators_watch_the_pga_inputs_in_steps_of_half_an_amp() {
+        let t = HwDefaults {
+            oc_hw_a: 3.0,
+            ov_hw_v: 30.0,
+        }
+        .thresholds();
+        let c = Comparators::new(&B_G431B_ESC1, t);
+        // The PGA input: 2048/16 = 128 counts at 0 A, -2.13 counts per ampere; 3 A is
+        // 6.4 counts below: the DAC holds 122 (2.8 A), the trip is below it.
+        assert_eq!(
+            c.dacs.get(firmware_drive::comparators::DacChannel::Dac3Ch1),
+            Some(122)
+        );
+        for phase in 0..3 {
+            let mut i = [-1.0; 3];
+            i[phase] = 3.0;
+            assert_eq!(c.levels(i, 24.0).causes(c.board), [true, false], "{phase}");
+            i[phase] = 2.6;
+            assert_eq!(c.levels(i, 24.0).causes(c.board), [false, false], "{phase}");
+        }
+        // Negative currents raise the signal: no trip.
+        assert_eq!(
+            c.levels([-8.0, 4.0, 4.0], 24.0).causes(c.board),
+            [true, false],
+            "phase b and c at +4 A"
+        );
+        assert_eq!(
+            c.levels([-2.5, 1.25, 1.25], 24.0).causes(c.board),
+            [false, false]
+        );
+        // The DC link at 30 V of the 34.3 V range.
+        assert_eq!(c.levels([0.0; 3], 30.2).causes(c.board), [false, true]);
+        assert_eq!(c.levels([0.0; 3], 29.8).causes(c.board), [false, false]);
     }
 
     #[test]
@@ -160,7 +215,7 @@ mod tests {
             ov_hw_v: 40.0,
         }
         .thresholds();
-        let c = Comparators::new(&B_G431B_ESC1, t);
+        let c = Comparators::new(&SOURCE_SENSORS, t);
         // Each phase's positive half-wave trips, on any of the three phases.
         assert_eq!(
             c.levels([3.05, -1.5, -1.55], 30.0).causes(c.board),
