@@ -82,9 +82,6 @@ fn a_link_cut_trips_link_within_50_ms() {
 }
 
 #[test]
-#[ignore = "review D11 open: after the drive's watchdog reset the real PLC never completes the \
-            re-download (link lost/connected every ~60 ms; fix on branch issue14-link, not \
-            merged yet); run with --ignored"]
 fn a_late_watchdog_feed_resets_the_drive_and_the_plc_shows_wdg() {
     let mut sim = emu(MOTOR_PLC, START_50HZ);
     sim.run_until(ns(1.5), |_| {});
