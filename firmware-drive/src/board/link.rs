@@ -1,7 +1,7 @@
 //! The drive's link task: `board_common::link` (USART1 on PB6/PB7, the core's pump) over
 //! the shared drive application. Nothing here decides anything.
 
-use board_common::link::{self as common, LinkPins, LinkPort, SharedEndpoint};
+use board_common::link::{self as common, LinkPort, SharedEndpoint};
 use firmware_drive::app::DriveApp;
 use shared_protocol::link::pump::is_due;
 
@@ -10,16 +10,7 @@ use crate::pins::Link;
 
 /// Opens the link USART at `baud`.
 pub fn open(l: Link, baud: u32) -> LinkPort {
-    common::open(
-        LinkPins {
-            usart: l.usart,
-            tx: l.tx,
-            rx: l.rx,
-            tx_dma: l.tx_dma,
-            rx_dma: l.rx_dma,
-        },
-        baud,
-    )
+    common::open(l, baud)
 }
 
 /// Each access is one critical section (the PWM interrupt shares the application).

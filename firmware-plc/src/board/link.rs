@@ -1,7 +1,7 @@
 //! The PLC's link task: `board_common::link` (USART1 on PA9/PA10, the core's pump) over the
 //! shared PLC application. Nothing here decides anything.
 
-use board_common::link::{self as common, LinkPins, LinkPort, SharedEndpoint};
+use board_common::link::{self as common, LinkPort, SharedEndpoint};
 use shared_protocol::link::pump::is_due;
 
 use super::shared::{self, App, SharedApp};
@@ -9,16 +9,7 @@ use crate::pins::Link;
 
 /// Opens the link USART at `baud`.
 pub fn open(l: Link, baud: u32) -> LinkPort {
-    common::open(
-        LinkPins {
-            usart: l.usart,
-            tx: l.tx,
-            rx: l.rx,
-            tx_dma: l.tx_dma,
-            rx_dma: l.rx_dma,
-        },
-        baud,
-    )
+    common::open(l, baud)
 }
 
 struct Shared(SharedApp);
