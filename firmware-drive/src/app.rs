@@ -140,6 +140,12 @@ impl DriveApp {
         n
     }
 
+    /// The UART reported a line error: the link drops the frame being received and
+    /// counts it (`LinkStats::line_errors`).
+    pub fn on_line_error(&mut self) {
+        self.link.line_error();
+    }
+
     /// The 1 ms tick: link supervision, the core's state machine and drive section,
     /// fault reports and the status frame.
     pub fn tick_1ms(&mut self, now: Micros) {

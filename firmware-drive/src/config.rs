@@ -2,16 +2,10 @@
 
 use crate::comparators::{BoardProfile, SOURCE_SENSORS};
 
-/// Why the MCU last started; the board reads it from the reset flags (RCC_CSR).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum ResetCause {
-    PowerOn,
-    /// The independent watchdog restarted the MCU: reported as fault `WDG` after boot.
-    Watchdog,
-    /// Any other reset (pin, software): treated like power-on.
-    Other,
-}
+/// Why the MCU last started; the board reads it from the reset flags (RCC_CSR). A
+/// watchdog reset is reported as fault `WDG` after boot. Shared with the PLC board:
+/// `shared_protocol::supervision`.
+pub use shared_protocol::supervision::ResetCause;
 
 /// Board and safety parameters. `Default` is the B-G431B-ESC1 / NUCLEO-G431RB setup.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -66,13 +66,7 @@ pub struct Protection {
 }
 
 /// The PLC link USART with its DMA channels.
-pub struct Link {
-    pub usart: Peri<'static, p::USART1>,
-    pub tx: Peri<'static, p::PB6>,
-    pub rx: Peri<'static, p::PB7>,
-    pub tx_dma: Peri<'static, p::DMA1_CH1>,
-    pub rx_dma: Peri<'static, p::DMA1_CH2>,
-}
+pub type Link = board_common::link::LinkPins<Peri<'static, p::PB6>, Peri<'static, p::PB7>>;
 
 /// Everything else the drive binds.
 pub struct Misc {

@@ -92,6 +92,10 @@ pub struct PlcApp<E: Eeprom> {
     run_slot: Option<u8>,
     out: ScanOutputs,
     newest_fault: Option<u8>,
+    /// Fault reports received and not yet written to the EEPROM log (code, PLC s): the
+    /// write takes tens of ms, so the link pump does it after the report's
+    /// acknowledgement went out ([`PlcApp::log_faults`]).
+    unlogged: heapless::Deque<(u8, u32), UNLOGGED>,
     warning: Option<vm::Warning>,
     /// The stored fault log, newest first (read at power-up, kept up to date).
     fault_log: heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
@@ -103,6 +107,10 @@ pub struct PlcApp<E: Eeprom> {
     /// Time from one scan to the next, for the link's quiet window.
     scan_period_us: u64,
 }
+
+/// Fault reports waiting for their EEPROM log entry (more in one pass means a storm; the
+/// oldest then goes unlogged).
+const UNLOGGED: usize = 4;
 
 /// Margin kept between the end of a heartbeat sent after a scan and the next scan.
 const QUIET_MARGIN_US: u64 = 50;
@@ -143,6 +151,7 @@ impl<E: Eeprom> PlcApp<E> {
             run_slot: None,
             out: ScanOutputs::default(),
             newest_fault: None,
+            unlogged: heapless::Deque::new(),
             warning: None,
             fault_log: heapless::Vec::new(),
             q_sent: [None; Q_COUNT],
@@ -403,18 +412,57 @@ impl<E: Eeprom> PlcApp<E> {
 
     /// Bytes from the UART.
     pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
+        self.link_rx(bytes, now);
+        self.log_faults();
+    }
+
+    /// [`Self::on_rx`] without the fault log's EEPROM writes ([`Self::log_faults`]): for
+    /// the link pump (`crate::link`).
+    pub(crate) fn link_rx(&mut self, bytes: &[u8], now: Micros) {
         self.link.receive(bytes, now);
         self.service(now);
+    }
+
+    /// [`Self::poll_tx`] without the fault log's EEPROM writes: for the link pump.
+    pub(crate) fn link_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        self.service(now);
+        let n = self.link.poll_transmit(now, out);
+        self.service(now);
+        n
+    }
+
+    /// Writes the fault reports received since the last call to the EEPROM log (tens of
+    /// ms on the board: I2C and page write cycles). The link pump calls it after the
+    /// pass's frame went out, so that the reports' acknowledgement never waits for it:
+    /// delayed beyond the drive's link timeout, the drive would deliver the reports again
+    /// in its next session, and they would be logged again, forever.
+    pub fn log_faults(&mut self) {
+        if self.unlogged.is_empty() {
+            return;
+        }
+        let mut failed = false;
+        while let Some((code, s)) = self.unlogged.pop_front() {
+            failed |= self.storage.log_fault(code, u64::from(s) * 1000).is_err();
+        }
+        if failed {
+            self.editor.notify(Notice::Text("FAULT LOG ERROR"));
+        }
+        self.reload_fault_log();
     }
 
     /// The next frame for the UART (0 = nothing now); `out` must hold
     /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes. Also runs the link's timers and
     /// the RUN sequence: call it at least every millisecond.
     pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        self.service(now);
-        let n = self.link.poll_transmit(now, out);
-        self.service(now);
+        let n = self.link_tx(now, out);
+        self.log_faults();
         n
+    }
+
+    /// The UART reported a line error: the link drops the frame being received and
+    /// counts it (`LinkStats::line_errors`).
+    pub fn on_line_error(&mut self) {
+        self.link.line_error();
     }
 
     /// Link timers and the RUN sequence without transmitting (`poll_tx` does this too):
@@ -422,6 +470,7 @@ impl<E: Eeprom> PlcApp<E> {
     pub fn tick(&mut self, now: Micros) {
         self.link.tick(now);
         self.service(now);
+        self.log_faults();
     }
 
     fn service(&mut self, now: Micros) {
@@ -456,11 +505,12 @@ impl<E: Eeprom> PlcApp<E> {
                 PlcEvent::DriveFault { code, .. } => {
                     self.newest_fault = Some(code);
                     // The PLC's clock, not the drive's: the log's timestamps must be
-                    // comparable across drive reboots.
-                    match self.storage.log_fault(code, now.0 / 1000) {
-                        Ok(_) => self.reload_fault_log(),
-                        Err(_) => self.editor.notify(Notice::Text("FAULT LOG ERROR")),
+                    // comparable across drive reboots. Written by `log_faults`.
+                    if self.unlogged.is_full() {
+                        self.unlogged.pop_front();
                     }
+                    let s = u32::try_from(now.0 / 1_000_000).unwrap_or(u32::MAX);
+                    let _ = self.unlogged.push_back((code, s));
                 }
             }
         }

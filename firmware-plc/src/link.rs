@@ -3,7 +3,35 @@
 //! the name the PLC firmware uses. See `shared-protocol/docs/link.md`.
 
 pub use shared_protocol::link::plc::{CommandError, PlcEvent, PlcLink, PlcLinkState, PLC_WINDOW};
+pub use shared_protocol::link::pump::{LinkEndpoint, Pump};
 pub use shared_protocol::link::{
     fault_name, fault_text, DownloadResult, DriveState, DriveStatus, LinkConfig, LinkStats,
     RejectReason, MAX_WIRE_FRAME, PROTOCOL_VERSION,
 };
+
+use crate::app::PlcApp;
+use crate::storage::Eeprom;
+use shared_protocol::units::Micros;
+
+/// The PLC application is what the link pump serves (board and hil-sim): the RUN sequence
+/// sees the link's events as they happen (a download's acceptance sends RUN in the same
+/// pass). The slow reaction, writing a drive fault to the EEPROM log (tens of ms of I2C
+/// and write cycles), is the pump's [`LinkEndpoint::service`], after the pass's frame
+/// (the report's acknowledgement) is on its way.
+impl<E: Eeprom> LinkEndpoint for PlcApp<E> {
+    fn on_rx(&mut self, bytes: &[u8], now: Micros) {
+        self.link_rx(bytes, now);
+    }
+    fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        self.link_tx(now, out)
+    }
+    fn service(&mut self, _now: Micros) {
+        self.log_faults();
+    }
+    fn poll_timeout(&self) -> Option<Micros> {
+        self.link().poll_timeout()
+    }
+    fn line_error(&mut self) {
+        self.on_line_error();
+    }
+}

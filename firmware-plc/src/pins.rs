@@ -73,13 +73,7 @@ pub struct Bus {
 }
 
 /// The drive link USART with its DMA channels.
-pub struct Link {
-    pub usart: Peri<'static, p::USART1>,
-    pub tx: Peri<'static, p::PA9>,
-    pub rx: Peri<'static, p::PA10>,
-    pub tx_dma: Peri<'static, p::DMA1_CH1>,
-    pub rx_dma: Peri<'static, p::DMA1_CH2>,
-}
+pub type Link = board_common::link::LinkPins<Peri<'static, p::PA9>, Peri<'static, p::PA10>>;
 
 /// Everything else the PLC binds.
 pub struct Misc {

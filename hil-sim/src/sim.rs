@@ -14,6 +14,7 @@ use firmware_drive::{AdcSample, DriveConfig};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::channel::{Channel, Impairments};
+use shared_protocol::link::pump::is_due;
 use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
@@ -90,7 +91,8 @@ pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
     /// Drive TX -> PLC RX.
     to_plc: Channel,
     cut: bool,
-    /// Wake-ups when a busy UART becomes free: [PLC, drive].
+    /// The link tasks' next passes (their pumps' deadlines, or a busy UART becoming free
+    /// with a frame due): [PLC, drive].
     tx_wake_ns: [Option<u64>; 2],
     // PWM timer.
     pwm_epoch_ns: u64,
@@ -140,6 +142,19 @@ pub fn drive_config(rig: &RigParams) -> DriveConfig {
         ov_hw_default_volts: t.ov_hw.0 as u16,
         board: rig.board,
         ..DriveConfig::default()
+    }
+}
+
+/// Every byte that has arrived on `wire` by `now`.
+fn receive_all(wire: &mut Channel, now: Micros) -> Vec<u8> {
+    let mut all = Vec::new();
+    let mut buf = [0u8; 64];
+    loop {
+        let n = wire.receive(now, &mut buf);
+        if n == 0 {
+            return all;
+        }
+        all.extend_from_slice(buf.get(..n).unwrap_or(&[]));
     }
 }
 
@@ -299,28 +314,15 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
             self.to_drive.set_cut(true);
             self.to_plc.set_cut(true);
         }
-        let mut plc_link = false;
-        let mut drive_link = false;
-        let mut buf = [0u8; 64];
-        loop {
-            let n = self.to_drive.receive(now, &mut buf);
-            if n == 0 {
-                break;
-            }
-            self.drive.uart_rx(buf.get(..n).unwrap_or(&[]), now);
-            drive_link = true;
-        }
-        loop {
-            let n = self.to_plc.receive(now, &mut buf);
-            if n == 0 {
-                break;
-            }
-            self.plc.uart_rx(buf.get(..n).unwrap_or(&[]), now);
-            plc_link = true;
-        }
+        // What each UART received: the link task wakes on it (the boards' ring-buffered
+        // RX wakes on an idle line or half a ring; bytes are handed over as they arrive
+        // here, which is never later).
+        let drive_rx = receive_all(&mut self.to_drive, now);
+        let plc_rx = receive_all(&mut self.to_plc, now);
         if t >= self.next_pwm_ns {
             self.pwm_event(t);
         }
+        let mut app_ran = [false; 2];
         if t >= self.next_drive_tick_ns {
             // The board's 1 ms task: comparator levels to the break monitor, then the tick.
             let report = self.drive.break_poll(self.plant.comparator_levels());
@@ -329,7 +331,7 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
             }
             self.drive.tick_1ms(now);
             self.next_drive_tick_ns += MS_NS;
-            drive_link = true;
+            app_ran[1] = true;
             let f = self.drive.status().fault.map_or(0, |f| f.code());
             if f != 0 && f != self.last_fault {
                 self.faults.push(FaultRecord { t_ns: t, code: f });
@@ -339,28 +341,26 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         if t >= self.next_plc_tick_ns {
             self.plc.tick_1ms(now);
             self.next_plc_tick_ns += MS_NS;
-            plc_link = true;
+            app_ran[0] = true;
         }
         if t >= self.next_scan_ns {
             self.plc.scan(&self.pins, now);
             self.next_scan_ns += self.scenario.scan_time_ns;
-            plc_link = true;
+            app_ran[0] = true;
         }
-        for side in 0..2 {
-            if self.tx_wake_ns[side].is_some_and(|w| w <= t) {
-                self.tx_wake_ns[side] = None;
-                if side == 0 {
-                    plc_link = true;
-                } else {
-                    drive_link = true;
-                }
-            }
+        // A link task passes when bytes arrived, at its pump's deadline (or when its line
+        // became free with a frame due), or when the application task that just ran left
+        // something due (the boards' tasks kick it then: `pump::is_due`).
+        let woken = self.tx_wake_ns.map(|w| w.is_some_and(|w| w <= t));
+        let kick = [
+            app_ran[0] && is_due(self.plc.link_timeout(), now),
+            app_ran[1] && is_due(self.drive.link_timeout(), now),
+        ];
+        if !plc_rx.is_empty() || woken[0] || kick[0] {
+            self.link_pass(0, &plc_rx, t);
         }
-        if plc_link {
-            self.transmit(0, now);
-        }
-        if drive_link {
-            self.transmit(1, now);
+        if !drive_rx.is_empty() || woken[1] || kick[1] {
+            self.link_pass(1, &drive_rx, t);
         }
         if t >= self.next_sample_ns {
             let s = self.sample(t);
@@ -369,35 +369,36 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         }
     }
 
-    /// Lets side 0 (PLC) or 1 (drive) hand a frame to its UART if the line is free. While
-    /// the line is busy the application is still polled (with no room for a frame) so
-    /// that its timers run, and woken again when the line is free.
-    fn transmit(&mut self, side: usize, now: Micros) {
-        let mut out = [0u8; MAX_WIRE_FRAME];
-        let idle = if side == 0 {
-            self.to_drive.is_idle(now)
-        } else {
-            self.to_plc.is_idle(now)
-        };
-        let room: &mut [u8] = if idle { &mut out } else { &mut [] };
-        let n = if side == 0 {
-            self.plc.uart_tx(now, room)
-        } else {
-            self.drive.uart_tx(now, room)
-        };
+    /// One pass of side 0's (PLC) or 1's (drive) link pump, as the board's link task runs
+    /// it: the received bytes in, a frame out if the line is free (the boards' DMA
+    /// transmitter takes a whole frame once the previous one is out), and the next
+    /// wake-up: the pump's deadline, or the moment the line is free when something is due
+    /// now but the line is busy.
+    fn link_pass(&mut self, side: usize, rx: &[u8], t: u64) {
+        let now = Micros(t / 1000);
         let chan = if side == 0 {
             &mut self.to_drive
         } else {
             &mut self.to_plc
         };
-        if !idle {
-            self.tx_wake_ns[side] = Some(chan.free_at().0 * 1000);
-            return;
+        let room = if chan.is_idle(now) { MAX_WIRE_FRAME } else { 0 };
+        let (pass, tx) = if side == 0 {
+            let p = self.plc.link_pass(rx, room, now);
+            (p, self.plc.link_tx())
+        } else {
+            let p = self.drive.link_pass(rx, room, now);
+            (p, self.drive.link_tx())
+        };
+        if !tx.is_empty() {
+            chan.send(tx, now);
         }
-        if n > 0 {
-            chan.send(out.get(..n).unwrap_or(&[]), now);
-            self.tx_wake_ns[side] = Some(chan.free_at().0 * 1000);
+        let mut wake = pass.wake_at.0.saturating_mul(1000);
+        if wake <= t && !chan.is_idle(now) {
+            wake = chan.free_at().0.saturating_mul(1000);
         }
+        // Never the same instant again (a pump that asks for "now" and sends nothing
+        // would otherwise stop virtual time).
+        self.tx_wake_ns[side] = Some(wake.max(t + 1));
     }
 
     fn apply(&mut self, action: &Action, now: Micros) {

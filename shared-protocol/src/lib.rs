@@ -20,4 +20,6 @@
 
 pub mod link;
 pub mod program;
+pub mod rate_limit;
+pub mod supervision;
 pub mod units;

@@ -50,6 +50,7 @@ pub async fn run() {
         });
         #[cfg(feature = "dwt-cycles")]
         super::cycles::record_tick(start);
+        super::link::kick_if_due();
         if rearm == Some(true) {
             power_stage::rearm_break_irq();
         }

@@ -8,7 +8,6 @@
 //! before any code could set MOE.
 
 pub mod analog;
-pub mod clocks;
 pub mod control;
 #[cfg(feature = "dwt-cycles")]
 pub mod cycles;
@@ -17,12 +16,21 @@ pub mod hw_protection;
 pub mod link;
 pub mod power_stage;
 pub mod pwm_isr;
-pub mod reset_cause;
 pub mod shared;
-pub mod supervisor;
+
+/// The watchdog supervisor (`board_common::supervisor`), with this board's name for its
+/// main task's alive bit.
+pub mod supervisor {
+    /// Alive bit of the 1 ms control task.
+    pub use board_common::supervisor::TASK_MAIN as TASK_CONTROL;
+    pub use board_common::supervisor::*;
+}
+
+use board_common::clocks;
 
 use embassy_executor::Spawner;
 use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::interrupt::{self, InterruptExt};
 use firmware_drive::app::DriveApp;
 use firmware_drive::config::DriveConfig;
 use shared_protocol::link::LinkConfig;
@@ -39,17 +47,7 @@ pub async fn start(spawner: Spawner) {
     static HW: StaticCell<hw_protection::HwProtection> = StaticCell::new();
     static PWM: StaticCell<power_stage::Tim1Pwm> = StaticCell::new();
 
-    let cause = reset_cause::take();
-    let p = embassy_stm32::init(clocks::config());
-    defmt::info!(
-        "{=str} {=str} boot: {} MHz, reset cause {}",
-        IMAGE,
-        env!("CARGO_PKG_VERSION"),
-        clocks::SYSCLK_HZ / 1_000_000,
-        cause
-    );
-    #[cfg(feature = "dwt-cycles")]
-    cycles::enable();
+    let (p, cause) = board_common::boot::init(IMAGE, env!("CARGO_PKG_VERSION"));
 
     let cfg = DriveConfig::default();
     if cfg.timer_clock_hz != clocks::SYSCLK_HZ {
@@ -73,6 +71,10 @@ pub async fn start(spawner: Spawner) {
         ),
         app.core().comparator_dacs(),
     ));
+    // Below TIM1 (review D13), as everything else is (`board_common::boot`).
+    for irq in [interrupt::COMP1_2_3, interrupt::COMP4] {
+        irq.set_priority(board_common::boot::BACKGROUND);
+    }
     ANALOG.init(analog::init(board.analog));
     PWM.init(power_stage::init(board.power, timing, min_dead_counts));
     let brake = Output::new(board.misc.brake, Level::Low, Speed::Low);
@@ -94,8 +96,11 @@ pub async fn start(spawner: Spawner) {
     );
 
     let port = link::open(board.link, link_cfg.baud);
-    spawner
-        .spawn(supervisor::run(board.misc.iwdg, board.misc.led.into()).expect("spawn supervisor"));
+    let tasks = supervisor::TASK_LINK | supervisor::TASK_CONTROL;
+    spawner.spawn(
+        board_common::supervisor::run(board.misc.iwdg, board.misc.led.into(), tasks)
+            .expect("spawn supervisor"),
+    );
     spawner.spawn(link::run(port).expect("spawn link"));
     spawner.spawn(control::run().expect("spawn control"));
 }

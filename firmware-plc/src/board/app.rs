@@ -79,6 +79,7 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
             out.outputs
         });
         io.outputs.write(image);
+        super::link::kick_if_due(app);
         if let Some(l) = io.lcd.as_mut() {
             if let Err(e) = l.refresh(&screen) {
                 defmt::warn!("lcd: {}, running without it", e);

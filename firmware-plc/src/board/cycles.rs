@@ -1,41 +1,28 @@
 //! `dwt-cycles`: DWT cycle counts of one pass of the application task (I/O sampling, PLC
-//! scan, outputs, LCD), logged once a second (bring-up figures, 170 cycles = 1 us).
+//! scan, outputs, LCD) and of the link task's critical sections, logged once a second
+//! (bring-up figures, 170 cycles = 1 us). The counters are `board_common::cycles`.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+pub use board_common::cycles::now;
+use board_common::cycles::{CycleStat, EverySecond, LINK_RX, LINK_TX};
 
-static SCAN_MAX: AtomicU32 = AtomicU32::new(0);
-static SCAN_LAST: AtomicU32 = AtomicU32::new(0);
-static TICKS: AtomicU32 = AtomicU32::new(0);
-
-/// Starts the cycle counter.
-pub fn enable() {
-    // SAFETY: only DCB/DWT are touched, and nothing else in the firmware uses them.
-    let mut cp = unsafe { cortex_m::Peripherals::steal() };
-    cp.DCB.enable_trace();
-    cp.DWT.enable_cycle_counter();
-}
-
-/// Current cycle count.
-#[inline(always)]
-pub fn now() -> u32 {
-    cortex_m::peripheral::DWT::cycle_count()
-}
+static SCAN: CycleStat = CycleStat::new();
+static SECOND: EverySecond = EverySecond::new();
 
 /// Records one scan that started at `start`.
 #[inline(always)]
 pub fn record_scan(start: u32) {
-    let c = now().wrapping_sub(start);
-    SCAN_LAST.store(c, Ordering::Relaxed);
-    SCAN_MAX.fetch_max(c, Ordering::Relaxed);
+    SCAN.record(start);
 }
 
-/// Called every millisecond; logs and resets the maximum once a second.
+/// Called every millisecond; logs and resets the maxima once a second.
 pub fn report_every_second() {
-    if TICKS.fetch_add(1, Ordering::Relaxed) % 1000 == 999 {
+    SECOND.tick(|| {
         defmt::info!(
-            "dwt: scan last {} max {} cycles",
-            SCAN_LAST.load(Ordering::Relaxed),
-            SCAN_MAX.swap(0, Ordering::Relaxed)
-        );
-    }
+            "dwt: scan last {} max {} cycles; link rx max {} tx max {}",
+            SCAN.last(),
+            SCAN.take_max(),
+            LINK_RX.take_max(),
+            LINK_TX.take_max()
+        )
+    });
 }

@@ -1,91 +1,37 @@
-//! The drive link: USART1, 115200 8N1, TX and RX on DMA (RX into a ring buffer so no byte is
-//! lost while the task is busy).
+//! The PLC's link task: `board_common::link` (USART1 on PA9/PA10, the core's pump) over the
+//! shared PLC application. Nothing here decides anything.
 
-use embassy_stm32::mode::Async;
-use embassy_stm32::usart::{
-    self, Config, DataBits, Parity, RingBufferedUartRx, StopBits, Uart, UartTx,
-};
-use embassy_stm32::{bind_interrupts, dma, peripherals};
-use embassy_time::{with_timeout, Duration};
-use static_cell::StaticCell;
+use board_common::link::{self as common, LinkPort, SharedEndpoint};
+use shared_protocol::link::pump::is_due;
 
-use shared_protocol::link::MAX_WIRE_FRAME;
-
-use super::{shared, supervisor};
+use super::shared::{self, App, SharedApp};
 use crate::pins::Link;
 
-/// RX ring size: 22 ms of line time at 115200 baud, far more than one task period.
-const RX_RING_BYTES: usize = 256;
-/// Longest wait for bytes: the endpoint's timers and transmit queue need a poll every
-/// millisecond.
-const POLL: Duration = Duration::from_millis(1);
-
-bind_interrupts!(struct Irqs {
-    USART1 => usart::InterruptHandler<peripherals::USART1>;
-    DMA1_CHANNEL1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
-    DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
-});
-
-/// Opened link halves.
-pub struct LinkPort {
-    pub tx: UartTx<'static, Async>,
-    pub rx: RingBufferedUartRx<'static>,
+/// Opens the link USART at `baud`.
+pub fn open(l: Link, baud: u32) -> LinkPort {
+    common::open(l, baud)
 }
 
-/// Opens the USART 8N1 at the link configuration's baud rate (115200 by default).
-pub fn open(l: Link, baud: u32) -> LinkPort {
-    static RX_RING: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
-    let mut config = Config::default();
-    config.baudrate = baud;
-    config.data_bits = DataBits::DataBits8;
-    config.parity = Parity::ParityNone;
-    config.stop_bits = StopBits::STOP1;
-    let uart = match Uart::new(l.usart, l.rx, l.tx, l.tx_dma, l.rx_dma, Irqs, config) {
-        Ok(uart) => uart,
-        Err(e) => defmt::panic!("link USART config rejected: {}", e),
-    };
-    let (tx, rx) = uart.split();
-    LinkPort {
-        tx,
-        rx: rx.into_ring_buffered(RX_RING.init([0; RX_RING_BYTES])),
+struct Shared(SharedApp);
+
+impl SharedEndpoint for Shared {
+    type Endpoint = App;
+    fn with<R>(&self, f: impl FnOnce(&mut App) -> R) -> Option<R> {
+        Some(shared::with(self.0, f))
     }
 }
 
-/// Moves bytes between the USART and the application's link endpoint: received bytes go in
-/// as they arrive, and the endpoint is polled for frames (and its timers) at least every
-/// millisecond.
+/// Moves bytes between the USART and the application's link endpoint.
 #[embassy_executor::task]
-pub async fn run(mut port: LinkPort, app: shared::SharedApp) {
-    let mut rx_buf = [0u8; 64];
-    let mut frame = [0u8; MAX_WIRE_FRAME];
-    let mut was_up = false;
-    loop {
-        supervisor::alive(supervisor::TASK_LINK);
-        match with_timeout(POLL, port.rx.read(&mut rx_buf)).await {
-            Ok(Ok(n)) => {
-                let bytes = rx_buf.get(..n).unwrap_or(&[]);
-                shared::with(app, |a| a.on_rx(bytes, shared::now()));
-            }
-            Ok(Err(e)) => defmt::warn!("link: rx error {}", e),
-            Err(_timeout) => {}
-        }
-        // At most one frame per pass, then RX again: a go-back-N window of download frames
-        // is about 50 ms of line time at 115200 baud, longer than the link timeout, so
-        // sending it all before reading the acks made the download time out forever.
-        let n = shared::with(app, |a| a.poll_tx(shared::now(), &mut frame));
-        if let Some(bytes) = frame.get(..n).filter(|b| !b.is_empty()) {
-            if let Err(e) = port.tx.write(bytes).await {
-                defmt::warn!("link: tx error {}", e);
-            }
-        }
-        let up = shared::with(app, |a| a.link().is_up());
-        if up != was_up {
-            if up {
-                defmt::info!("link: up");
-            } else {
-                defmt::warn!("link: down");
-            }
-            was_up = up;
-        }
+pub async fn run(port: LinkPort, app: SharedApp) {
+    common::run(port, Shared(app)).await
+}
+
+/// Wakes the link task when the application has something due (e.g. the Q writes of the
+/// scan that just ran); the task otherwise sleeps until the deadline it knew.
+pub fn kick_if_due(app: SharedApp) {
+    let deadline = shared::with(app, |a| a.link().poll_timeout());
+    if is_due(deadline, shared::now()) {
+        common::kick();
     }
 }

@@ -3,7 +3,6 @@
 
 pub mod analog;
 pub mod app;
-pub mod clocks;
 #[cfg(feature = "dwt-cycles")]
 pub mod cycles;
 pub mod eeprom;
@@ -13,9 +12,15 @@ pub mod keypad;
 pub mod lcd;
 pub mod link;
 pub mod outputs;
-pub mod reset_cause;
 pub mod shared;
-pub mod supervisor;
+
+/// The watchdog supervisor (`board_common::supervisor`), with this board's name for its
+/// main task's alive bit.
+pub mod supervisor {
+    /// Alive bit of the application task (scan loop).
+    pub use board_common::supervisor::TASK_MAIN as TASK_SCAN;
+    pub use board_common::supervisor::*;
+}
 
 use embassy_executor::Spawner;
 use shared_protocol::link::LinkConfig;
@@ -27,17 +32,7 @@ pub const IMAGE: &str = "firmware-plc";
 
 /// Brings the board up and starts every task.
 pub async fn start(spawner: Spawner) {
-    let cause = reset_cause::take();
-    let p = embassy_stm32::init(clocks::config());
-    defmt::info!(
-        "{=str} {=str} boot: {} MHz, reset cause {}",
-        IMAGE,
-        env!("CARGO_PKG_VERSION"),
-        clocks::SYSCLK_HZ / 1_000_000,
-        cause
-    );
-    #[cfg(feature = "dwt-cycles")]
-    cycles::enable();
+    let (p, _cause) = board_common::boot::init(IMAGE, env!("CARGO_PKG_VERSION"));
     let board = pins::split(p);
     // Outputs off before anything else can take time.
     let outputs = outputs::DigitalOutputs::new(board.outputs);
@@ -67,8 +62,11 @@ pub async fn start(spawner: Spawner) {
     let app = shared::install(eeprom::I2cEeprom::new(bus), link_cfg);
     defmt::info!("application up: {}", shared::with(app, |a| a.run_state()));
 
-    spawner
-        .spawn(supervisor::run(board.misc.iwdg, board.misc.led.into()).expect("spawn supervisor"));
+    let tasks = supervisor::TASK_LINK | supervisor::TASK_SCAN;
+    spawner.spawn(
+        board_common::supervisor::run(board.misc.iwdg, board.misc.led.into(), tasks)
+            .expect("spawn supervisor"),
+    );
     spawner.spawn(link::run(port, app).expect("spawn link"));
     spawner.spawn(app::run(io, app).expect("spawn app"));
 }

@@ -60,6 +60,8 @@ struct Wire {
     lost: u64,
     rng: u64,
     ber: f64,
+    /// The next this many characters arrive with a framing error (injected by a test).
+    force_framing: u32,
     /// The frames on this wire, decoded for the record.
     reader: FrameReader,
 }
@@ -71,6 +73,7 @@ impl Wire {
             lost: 0,
             rng: seed | 1,
             ber,
+            force_framing: 0,
             reader: FrameReader::new(),
         }
     }
@@ -89,6 +92,10 @@ impl Wire {
     /// error rate; a flipped start or stop bit is a framing error.
     fn impair(&mut self, data: u16) -> RxByte {
         let mut b = RxByte::clean(data);
+        if self.force_framing > 0 {
+            self.force_framing -= 1;
+            b.framing_error = true;
+        }
         if self.ber <= 0.0 {
             return b;
         }
@@ -268,6 +275,17 @@ impl EmuSim {
             (self.to_drive.delivered, self.to_drive.lost),
             (self.to_plc.delivered, self.to_plc.lost),
         ]
+    }
+
+    /// The next `chars` characters from the PLC to the drive (`to_drive`) or back arrive
+    /// with a framing error (a stop bit read low: noise on the line).
+    pub fn inject_framing_errors(&mut self, to_drive: bool, chars: u32) {
+        let wire = if to_drive {
+            &mut self.to_drive
+        } else {
+            &mut self.to_plc
+        };
+        wire.force_framing = chars;
     }
 
     /// Cuts (or reconnects) both wires of the link.

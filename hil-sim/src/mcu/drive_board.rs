@@ -5,6 +5,7 @@ use firmware_drive::app::DriveApp;
 use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
 use firmware_drive::{AdcSample, DriveConfig, DriveCore, DriveStatus, PwmTiming, ResetCause};
+use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
 
@@ -13,6 +14,7 @@ use super::DriveMcu;
 /// The drive board.
 pub struct DriveBoard {
     app: DriveApp,
+    pump: Pump,
     timer_clock_hz: u32,
 }
 
@@ -26,6 +28,7 @@ impl DriveBoard {
         DriveBoard {
             timer_clock_hz: cfg.timer_clock_hz,
             app: DriveApp::new(cfg, ResetCause::PowerOn, link_cfg),
+            pump: Pump::new(MAX_IDLE_US),
         }
     }
 
@@ -62,15 +65,18 @@ impl DriveMcu for DriveBoard {
         self.app.break_poll(levels)
     }
 
-    fn uart_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.app.on_rx(bytes, now);
+    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
+        let p = self.pump.pass(&mut self.app, rx, tx_room, now);
         self.drain();
+        p
     }
 
-    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        let n = self.app.poll_tx(now, out);
-        self.drain();
-        n
+    fn link_tx(&self) -> &[u8] {
+        self.pump.tx()
+    }
+
+    fn link_timeout(&self) -> Option<Micros> {
+        self.app.poll_timeout()
     }
 
     fn pwm_timing(&self) -> PwmTiming {

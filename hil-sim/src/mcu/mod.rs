@@ -13,6 +13,7 @@ pub mod plc_board;
 use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
 use firmware_drive::{AdcSample, DriveStatus, PwmTiming};
+use shared_protocol::link::pump::Pass;
 use shared_protocol::units::Micros;
 
 pub use drive_board::DriveBoard;
@@ -30,10 +31,16 @@ pub trait DriveMcu {
     fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport;
     /// Every 1 ms before the tick: the comparators at `levels` (release, re-arm).
     fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport;
-    /// Bytes the UART received.
-    fn uart_rx(&mut self, bytes: &[u8], now: Micros);
-    /// The UART can take a frame: the next one to send (length, 0 = none).
-    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize;
+    /// One pass of the board's link task: the core's pump
+    /// (`shared_protocol::link::pump::Pump::pass`) over the application, exactly as the
+    /// board runs it. `rx`: bytes received since the last pass; `tx_room`: what the line
+    /// takes now. [`Self::link_tx`] then holds the bytes for the line.
+    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass;
+    /// The bytes the last [`Self::link_pass`] handed out.
+    fn link_tx(&self) -> &[u8];
+    /// The application's next link deadline (`poll_timeout`): the board's tasks wake the
+    /// link task when it has come.
+    fn link_timeout(&self) -> Option<Micros>;
     /// TIM1 setup the board's init programs (later changes come as [`PeriodAction`]s).
     fn pwm_timing(&self) -> PwmTiming;
     /// The timer's kernel clock.
@@ -120,8 +127,10 @@ pub trait PlcMcu {
     fn scan(&mut self, pins: &PlcPins, now: Micros);
     /// A keypad key went down or up.
     fn key(&mut self, key: char, down: bool, now: Micros);
-    fn uart_rx(&mut self, bytes: &[u8], now: Micros);
-    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize;
+    /// See [`DriveMcu::link_pass`].
+    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass;
+    fn link_tx(&self) -> &[u8];
+    fn link_timeout(&self) -> Option<Micros>;
     /// Output pins O00..O05, bit n = On.
     fn outputs(&self) -> u8;
     /// The PLC's copy of Qn.

@@ -5,6 +5,7 @@
 use firmware_plc::app::{Alerts, PlcApp, RunState, RunStatus};
 use firmware_plc::editor::{Editor, Key, Screen};
 use firmware_plc::storage::MemEeprom;
+use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
@@ -26,6 +27,8 @@ pub struct PlcBoard {
     /// redraws at once, as the board does, so the LCD shows it within the 100 ms of
     /// link.md instead of waiting for the periodic refresh.
     drawn_alerts: Option<Alerts>,
+    /// The board's link pump (its link task's state).
+    pump: Pump,
 }
 
 impl PlcBoard {
@@ -40,6 +43,7 @@ impl PlcBoard {
             lcd_fields: [None; 4],
             last_render_us: None,
             drawn_alerts: None,
+            pump: Pump::new(MAX_IDLE_US),
         };
         b.render(now);
         b
@@ -113,12 +117,16 @@ impl PlcMcu for PlcBoard {
         }
     }
 
-    fn uart_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.app.on_rx(bytes, now);
+    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
+        self.pump.pass(&mut self.app, rx, tx_room, now)
     }
 
-    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        self.app.poll_tx(now, out)
+    fn link_tx(&self) -> &[u8] {
+        self.pump.tx()
+    }
+
+    fn link_timeout(&self) -> Option<Micros> {
+        self.app.poll_timeout()
     }
 
     fn outputs(&self) -> u8 {

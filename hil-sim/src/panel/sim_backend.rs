@@ -11,6 +11,7 @@ use std::collections::VecDeque;
 use firmware_plc::editor::{Key, Screen};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
+use shared_protocol::link::pump::Pass;
 use shared_protocol::link::LinkConfig;
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
@@ -66,11 +67,14 @@ impl PlcMcu for PanelPlc {
     fn key(&mut self, key: char, down: bool, now: Micros) {
         self.inner.key(key, down, now);
     }
-    fn uart_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.inner.uart_rx(bytes, now);
+    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
+        self.inner.link_pass(rx, tx_room, now)
     }
-    fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        self.inner.uart_tx(now, out)
+    fn link_tx(&self) -> &[u8] {
+        self.inner.link_tx()
+    }
+    fn link_timeout(&self) -> Option<Micros> {
+        self.inner.link_timeout()
     }
     fn outputs(&self) -> u8 {
         self.inner.outputs()

@@ -39,3 +39,34 @@ fn the_download_completes_and_the_drive_runs() {
     let gap_ms = g431_emu::time::cycles_to_ns(sim.plc().soc().iwdg().longest_gap) / 1_000_000;
     assert!(gap_ms < 50, "PLC watchdog feed gap {gap_ms} ms");
 }
+
+/// Review D12: a line error (here a framing error: a stop bit read low) is counted and
+/// logged by both link tasks, reception goes on with the next character (embassy's
+/// ring-buffered RX stops on an error until restarted), and the link stays up: no LINK
+/// trip, the drive keeps running.
+#[test]
+fn a_framing_error_is_counted_and_reception_goes_on() {
+    let mut sim = emu(MOTOR_PLC, MOTOR_TOML);
+    sim.run_until(ns(1.0), |_| {});
+    assert_eq!(sim.status().map(|s| s.state), Some(DriveState::Run));
+    let faults_before = sim.faults().len();
+    let drive_log_from = sim.drive().log().len();
+    let plc_log_from = sim.plc().log().len();
+    sim.inject_framing_errors(true, 3);
+    sim.inject_framing_errors(false, 3);
+    sim.run_until(ns(1.5), |_| {});
+    let text = |lines: &[g431_emu::log::LogLine]| {
+        lines
+            .iter()
+            .map(|l| l.to_string())
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    let drive_log = text(&sim.drive().log()[drive_log_from..]);
+    let plc_log = text(&sim.plc().log()[plc_log_from..]);
+    assert!(drive_log.contains("line error"), "drive log:\n{drive_log}");
+    assert!(plc_log.contains("line error"), "PLC log:\n{plc_log}");
+    assert!(!drive_log.contains("LinkLost"), "drive log:\n{drive_log}");
+    assert_eq!(sim.faults().len(), faults_before, "{:?}", sim.faults());
+    assert_eq!(sim.status().map(|s| s.state), Some(DriveState::Run));
+}

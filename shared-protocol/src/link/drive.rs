@@ -7,13 +7,13 @@
 //! after each `receive`.
 
 use super::config::LinkConfig;
-use super::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
+use super::frame::{Frame, MAX_WIRE_FRAME};
 use super::message::{
     verify_kind_code, DownloadResult, DriveMsg, DriveStatus, PlcMsg, RejectReason, MAX_Q_PER_FRAME,
     PROTOCOL_VERSION,
 };
 use super::plc::section_crc;
-use super::reliable::{Arrival, RxSeq, StallDetector, TxWindow, STALL_TIMEOUTS};
+use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::LinkStats;
 use crate::program::{decode_slot, verify_drive, DriveSection, DRIVE_LINES, LINE_BYTES};
 use crate::units::Micros;
@@ -79,43 +79,30 @@ struct DownloadRx {
 
 /// The drive endpoint.
 pub struct DriveLink {
-    cfg: LinkConfig,
+    s: Session<DriveMsg, DRIVE_WINDOW>,
     state: DriveLinkState,
     session: Option<u8>,
     hello_reply: Option<u8>,
-    reader: FrameReader,
-    tx: TxWindow<DriveMsg, DRIVE_WINDOW>,
-    rx: RxSeq,
-    stall: StallDetector,
     /// A reliable message was applied in this session.
     session_used: bool,
     pending: heapless::Deque<DriveMsg, PENDING>,
     events: heapless::Deque<DriveEvent, EVENTS>,
-    last_rx: Micros,
-    ack_owed: bool,
     status: DriveStatus,
     last_status: Option<(DriveStatus, Micros)>,
     download: DownloadRx,
     program: Option<DriveSection>,
-    stats: LinkStats,
 }
 
 impl DriveLink {
     pub fn new(cfg: LinkConfig) -> Self {
         DriveLink {
-            cfg,
+            s: Session::new(cfg),
             state: DriveLinkState::Down,
             session: None,
             hello_reply: None,
-            reader: FrameReader::new(),
-            tx: TxWindow::new(),
-            rx: RxSeq::default(),
-            stall: StallDetector::default(),
             session_used: false,
             pending: heapless::Deque::new(),
             events: heapless::Deque::new(),
-            last_rx: Micros(0),
-            ack_owed: false,
             status: DriveStatus::default(),
             last_status: None,
             download: DownloadRx {
@@ -126,12 +113,11 @@ impl DriveLink {
                 active: false,
             },
             program: None,
-            stats: LinkStats::default(),
         }
     }
 
     pub fn config(&self) -> &LinkConfig {
-        &self.cfg
+        self.s.config()
     }
 
     pub fn state(&self) -> DriveLinkState {
@@ -143,10 +129,13 @@ impl DriveLink {
     }
 
     pub fn stats(&self) -> LinkStats {
-        LinkStats {
-            retransmits: self.tx.retransmits(),
-            ..self.stats
-        }
+        self.s.stats()
+    }
+
+    /// The UART reported a line error: the frame being received is dropped, the error
+    /// counted ([`LinkStats::line_errors`]).
+    pub fn line_error(&mut self) {
+        self.s.line_error();
     }
 
     pub fn poll_event(&mut self) -> Option<DriveEvent> {
@@ -178,13 +167,8 @@ impl DriveLink {
     /// Bytes received from the UART, in order.
     pub fn receive(&mut self, bytes: &[u8], now: Micros) {
         for &b in bytes {
-            match self.reader.push::<PlcMsg>(b) {
-                None => {}
-                Some(Err(_)) => self.stats.frames_bad = self.stats.frames_bad.saturating_add(1),
-                Some(Ok(frame)) => {
-                    self.stats.frames_ok = self.stats.frames_ok.saturating_add(1);
-                    self.on_frame(frame, now);
-                }
+            if let Some(frame) = self.s.read_byte::<PlcMsg>(b) {
+                self.on_frame(frame, now);
             }
         }
         self.tick(now);
@@ -205,31 +189,18 @@ impl DriveLink {
         if self.state != DriveLinkState::Up {
             return;
         }
-        self.last_rx = now;
-        self.tx.on_ack(f.ack);
+        self.s.peer_frame(f.ack, now);
         if !f.msg.is_reliable() {
             return;
         }
-        self.ack_owed = true;
         // Room for the largest message's events, so nothing applied is ever lost.
         let room = self.events.capacity() - self.events.len() > MAX_Q_PER_FRAME;
-        if self.rx.classify(f.seq) != Arrival::New {
-            self.stats.duplicates = self.stats.duplicates.saturating_add(1);
-            let rto = self.cfg.rto_us();
-            if self
-                .stall
-                .ignored(now, 2 * rto, STALL_TIMEOUTS * self.cfg.drive_timeout_us)
-            {
-                self.lose();
-            }
-            return;
+        let timeout = self.s.config().drive_timeout_us;
+        match self.s.reliable(f.seq, room, now, timeout) {
+            Reliable::Apply => self.session_used = true,
+            Reliable::Drop => return,
+            Reliable::Stalled => return self.lose(),
         }
-        if !room {
-            return;
-        }
-        self.stall.progress();
-        self.session_used = true;
-        self.rx.advance();
         match f.msg {
             PlcMsg::QWrite(writes) => {
                 for q in writes {
@@ -286,16 +257,12 @@ impl DriveLink {
         }
         self.session = Some(session);
         self.session_used = false;
-        self.stall.progress();
         self.state = DriveLinkState::Up;
-        self.last_rx = now;
-        self.rx.reset();
-        self.ack_owed = false;
         self.last_status = None;
         self.download.active = false;
         // Reports not yet acknowledged go out again in the new session, oldest first.
         let mut carried: heapless::Vec<DriveMsg, DRIVE_WINDOW> = heapless::Vec::new();
-        for m in self.tx.reset() {
+        for m in self.s.start(now) {
             let _ = carried.push(m);
         }
         for m in carried.into_iter().rev() {
@@ -388,17 +355,40 @@ impl DriveLink {
     /// Run the timers (also done by `receive` and `poll_transmit`).
     pub fn tick(&mut self, now: Micros) {
         if self.state == DriveLinkState::Up
-            && now.0.saturating_sub(self.last_rx.0) > self.cfg.drive_timeout_us
+            && self.s.timed_out(now, self.s.config().drive_timeout_us)
         {
             self.lose();
         }
+    }
+
+    /// When [`Self::poll_transmit`] must be called next if nothing is received meanwhile
+    /// (quinn-proto's `poll_timeout`): a handshake reply, a status change, an ack or a
+    /// queued report at once ([`AT_ONCE`]); otherwise the status period, the
+    /// retransmission timeout or the link-loss timer, whichever comes first. `None` while
+    /// the link is down with nothing to answer: only a received `Hello` changes that.
+    pub fn poll_timeout(&self) -> Option<Micros> {
+        if self.hello_reply.is_some() {
+            return Some(AT_ONCE);
+        }
+        if self.state != DriveLinkState::Up {
+            return None;
+        }
+        let now_due = self.s.ack_owed() || (!self.pending.is_empty() && !self.s.window_full());
+        let status = match self.last_status {
+            _ if now_due => AT_ONCE,
+            None => AT_ONCE,
+            Some((s, _)) if s.state != self.status.state || s.fault != self.status.fault => AT_ONCE,
+            Some((_, t)) => Micros(t.0.saturating_add(self.s.config().status_us)),
+        };
+        let loss = self.s.loss_deadline(self.s.config().drive_timeout_us);
+        earliest(Some(status.min(loss)), self.s.window_deadline())
     }
 
     fn lose(&mut self) {
         self.state = DriveLinkState::Down;
         self.session = None;
         self.download.active = false;
-        self.stats.link_losses = self.stats.link_losses.saturating_add(1);
+        self.s.count_loss();
         self.push_event(DriveEvent::LinkLost);
     }
 
@@ -414,62 +404,39 @@ impl DriveLink {
                 version: PROTOCOL_VERSION,
                 session,
             };
-            return self.send(0, msg, true, now, out);
+            return self.s.send(msg, true, now, out);
         }
         if self.state != DriveLinkState::Up {
             return 0;
         }
-        while !self.tx.is_full() {
+        while !self.s.window_full() {
             let Some(m) = self.pending.pop_front() else {
                 break;
             };
-            if let Err(m) = self.tx.push(m) {
+            if let Err(m) = self.s.push(m) {
                 let _ = self.pending.push_front(m);
                 break;
             }
         }
-        let ack = self.rx.ack();
-        if let Some((seq, msg)) = self.tx.next_to_send(now, self.cfg.rto_us()) {
-            let frame = Frame { seq, ack, msg };
-            return match encode_frame(&frame, false, out) {
-                Ok(n) => self.sent(n, now),
-                Err(_) => 0,
-            };
+        let n = self.s.send_reliable(now, out);
+        if n > 0 {
+            return n;
         }
         let status_due = match self.last_status {
             None => true,
             Some((s, t)) => {
                 s.state != self.status.state
                     || s.fault != self.status.fault
-                    || now.0.saturating_sub(t.0) >= self.cfg.status_us
+                    || now.0.saturating_sub(t.0) >= self.s.config().status_us
             }
         };
         if status_due {
             self.last_status = Some((self.status, now));
-            return self.send(0, DriveMsg::Status(self.status), false, now, out);
+            return self.s.send(DriveMsg::Status(self.status), false, now, out);
         }
-        if self.ack_owed {
-            return self.send(0, DriveMsg::Ack, false, now, out);
+        if self.s.ack_owed() {
+            return self.s.send(DriveMsg::Ack, false, now, out);
         }
         0
-    }
-
-    fn send(&mut self, seq: u8, msg: DriveMsg, lead: bool, now: Micros, out: &mut [u8]) -> usize {
-        let frame = Frame {
-            seq,
-            ack: self.rx.ack(),
-            msg,
-        };
-        match encode_frame(&frame, lead, out) {
-            Ok(n) => self.sent(n, now),
-            Err(_) => 0,
-        }
-    }
-
-    fn sent(&mut self, n: usize, _now: Micros) -> usize {
-        self.ack_owed = false;
-        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
-        self.stats.bytes_sent = self.stats.bytes_sent.saturating_add(n as u64);
-        n
     }
 }

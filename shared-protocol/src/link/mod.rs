@@ -3,6 +3,9 @@
 //! * [`frame`]: COBS framing with a 0x00 delimiter, CRC-32C, frame header (seq, ack).
 //! * [`message`]: every message of both directions (postcard + serde).
 //! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.
+//! * [`pump`]: the loop between a UART and an endpoint (boards and hil-sim), with deadlines.
+//! * [`session`]: what both endpoints share (frame reader, transmit window, sequencing,
+//!   stall and loss timers, counters, encoding of what goes out).
 //! * [`plc::PlcLink`] and [`drive::DriveLink`]: the two endpoint state machines; the
 //!   firmware crates re-export them as `firmware_plc::link` and `firmware_drive::link`.
 //! * [`channel`]: a byte-timed, impaired in-memory UART for tests, benchmarks and hil-sim.
@@ -17,7 +20,9 @@ pub mod frame;
 pub mod message;
 pub mod pair;
 pub mod plc;
+pub mod pump;
 pub mod reliable;
+pub mod session;
 
 pub use config::LinkConfig;
 pub use drive::{DriveEvent, DriveLink, DriveLinkState};
@@ -46,4 +51,7 @@ pub struct LinkStats {
     pub frames_sent: u32,
     pub bytes_sent: u64,
     pub link_losses: u32,
+    /// Line errors the UART reported (framing, noise, overrun, parity): each one drops
+    /// the frame being received.
+    pub line_errors: u32,
 }

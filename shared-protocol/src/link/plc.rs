@@ -5,12 +5,12 @@
 //! drain [`PlcLink::poll_event`].
 
 use super::config::LinkConfig;
-use super::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
+use super::frame::{Frame, MAX_WIRE_FRAME};
 use super::message::{
     DownloadResult, DriveMsg, DriveStatus, PlcMsg, QValue, CHUNK_BYTES, MAX_Q_PER_FRAME,
     PROTOCOL_VERSION,
 };
-use super::reliable::{Arrival, RxSeq, StallDetector, TxWindow, STALL_TIMEOUTS};
+use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::{LinkStats, Q_COUNT};
 use crate::program::{encode_slot, DriveSection, DRIVE_LINES, LINE_BYTES};
 use crate::units::Micros;
@@ -91,59 +91,43 @@ impl Pending {
 
 /// The PLC endpoint.
 pub struct PlcLink {
-    cfg: LinkConfig,
+    s: Session<PlcMsg, PLC_WINDOW>,
     state: PlcLinkState,
     session: u8,
     last_hello: Option<Micros>,
-    reader: FrameReader,
-    tx: TxWindow<PlcMsg, PLC_WINDOW>,
-    rx: RxSeq,
-    stall: StallDetector,
     pending: heapless::Vec<Pending, PENDING>,
     q_shadow: [Option<i16>; Q_COUNT],
     direction: Option<bool>,
     section: [u8; SECTION_BYTES],
     section_crc: u32,
     download_active: bool,
-    last_rx: Micros,
-    last_tx: Micros,
     /// Until then the caller issues no command (see [`PlcLink::quiet_for`]).
     quiet_until: Option<Micros>,
-    ack_owed: bool,
     events: heapless::Deque<PlcEvent, EVENTS>,
     status: Option<(DriveStatus, Micros)>,
-    stats: LinkStats,
 }
 
 impl PlcLink {
     pub fn new(cfg: LinkConfig) -> Self {
         PlcLink {
-            cfg,
+            s: Session::new(cfg),
             state: PlcLinkState::Connecting,
             session: 1,
             last_hello: None,
-            reader: FrameReader::new(),
-            tx: TxWindow::new(),
-            rx: RxSeq::default(),
-            stall: StallDetector::default(),
             pending: heapless::Vec::new(),
             q_shadow: [None; Q_COUNT],
             direction: None,
             section: [0; SECTION_BYTES],
             section_crc: 0,
             download_active: false,
-            last_rx: Micros(0),
-            last_tx: Micros(0),
             quiet_until: None,
-            ack_owed: false,
             events: heapless::Deque::new(),
             status: None,
-            stats: LinkStats::default(),
         }
     }
 
     pub fn config(&self) -> &LinkConfig {
-        &self.cfg
+        self.s.config()
     }
 
     /// Start session numbering from `seed` (e.g. the power-cycle count), so that a PLC
@@ -171,15 +155,18 @@ impl PlcLink {
     }
 
     pub fn stats(&self) -> LinkStats {
-        LinkStats {
-            retransmits: self.tx.retransmits(),
-            ..self.stats
-        }
+        self.s.stats()
+    }
+
+    /// The UART reported a line error: the frame being received is dropped, the error
+    /// counted ([`LinkStats::line_errors`]).
+    pub fn line_error(&mut self) {
+        self.s.line_error();
     }
 
     /// Commands not yet acknowledged (queued or in flight).
     pub fn unacknowledged(&self) -> usize {
-        self.pending.len() + self.tx.len()
+        self.pending.len() + self.s.in_flight()
     }
 
     /// Whether a download was started and its result has not arrived yet.
@@ -294,13 +281,8 @@ impl PlcLink {
     /// Bytes received from the UART, in order.
     pub fn receive(&mut self, bytes: &[u8], now: Micros) {
         for &b in bytes {
-            match self.reader.push::<DriveMsg>(b) {
-                None => {}
-                Some(Err(_)) => self.stats.frames_bad = self.stats.frames_bad.saturating_add(1),
-                Some(Ok(frame)) => {
-                    self.stats.frames_ok = self.stats.frames_ok.saturating_add(1);
-                    self.on_frame(frame, now);
-                }
+            if let Some(frame) = self.s.read_byte::<DriveMsg>(b) {
+                self.on_frame(frame, now);
             }
         }
         self.tick(now);
@@ -330,27 +312,14 @@ impl PlcLink {
         if self.state != PlcLinkState::Up {
             return;
         }
-        self.last_rx = now;
-        self.tx.on_ack(f.ack);
-        let reliable = f.msg.is_reliable();
-        if reliable {
-            self.ack_owed = true;
-            if self.rx.classify(f.seq) != Arrival::New {
-                self.stats.duplicates = self.stats.duplicates.saturating_add(1);
-                let rto = self.cfg.rto_us();
-                if self
-                    .stall
-                    .ignored(now, 2 * rto, STALL_TIMEOUTS * self.cfg.plc_timeout_us)
-                {
-                    self.lose();
-                }
-                return;
+        self.s.peer_frame(f.ack, now);
+        if f.msg.is_reliable() {
+            let timeout = self.s.config().plc_timeout_us;
+            match self.s.reliable(f.seq, !self.events.is_full(), now, timeout) {
+                Reliable::Apply => {}
+                Reliable::Drop => return,
+                Reliable::Stalled => return self.lose(),
             }
-            if self.events.is_full() {
-                return;
-            }
-            self.stall.progress();
-            self.rx.advance();
         }
         match f.msg {
             DriveMsg::Status(s) => self.status = Some((s, now)),
@@ -378,11 +347,9 @@ impl PlcLink {
 
     fn connect(&mut self, now: Micros) {
         self.state = PlcLinkState::Up;
-        self.last_rx = now;
-        self.rx.reset();
-        self.stall.progress();
-        self.ack_owed = false;
-        for _ in self.tx.reset() {}
+        // What was in flight belonged to the old session: the Q values and the direction
+        // go again below, the rest was reported dropped at the loss.
+        for _ in self.s.start(now) {}
         self.pending.clear();
         for (addr, v) in self.q_shadow.iter().enumerate() {
             if let Some(value) = *v {
@@ -401,8 +368,8 @@ impl PlcLink {
     fn lose(&mut self) {
         let dropped = self.pending.iter().filter(|p| !p.is_q()).count()
             + self
-                .tx
-                .reset()
+                .s
+                .take_in_flight()
                 .filter(|m| !matches!(m, PlcMsg::QWrite(_)))
                 .count();
         self.pending.clear();
@@ -412,7 +379,7 @@ impl PlcLink {
         self.session = self.session.wrapping_add(1);
         self.last_hello = None;
         self.status = None;
-        self.stats.link_losses = self.stats.link_losses.saturating_add(1);
+        self.s.count_loss();
         self.push_event(PlcEvent::LinkLost {
             dropped: dropped as u16,
         });
@@ -420,11 +387,48 @@ impl PlcLink {
 
     /// Run the timers (also done by `receive` and `poll_transmit`).
     pub fn tick(&mut self, now: Micros) {
-        if self.state == PlcLinkState::Up
-            && now.0.saturating_sub(self.last_rx.0) > self.cfg.plc_timeout_us
-        {
+        if self.state == PlcLinkState::Up && self.s.timed_out(now, self.s.config().plc_timeout_us) {
             self.lose();
         }
+    }
+
+    /// When [`Self::poll_transmit`] must be called next if nothing is received meanwhile
+    /// (quinn-proto's `poll_timeout`): the `Hello` retry, the retransmission timeout, the
+    /// heartbeat (early inside a quiet window) or the link-loss timer, whichever comes
+    /// first. A deadline not after the present ([`AT_ONCE`]) means: now. Always `Some`.
+    pub fn poll_timeout(&self) -> Option<Micros> {
+        let cfg = self.s.config();
+        let retry = match self.state {
+            PlcLinkState::Up => return self.up_timeout(),
+            PlcLinkState::Connecting => cfg.hello_retry_us,
+            PlcLinkState::Incompatible { .. } => cfg.incompatible_retry_us,
+        };
+        Some(
+            self.last_hello
+                .map_or(AT_ONCE, |t| Micros(t.0.saturating_add(retry))),
+        )
+    }
+
+    fn up_timeout(&self) -> Option<Micros> {
+        let cfg = self.s.config();
+        if self.s.ack_owed() || (!self.pending.is_empty() && !self.s.window_full()) {
+            return Some(AT_ONCE);
+        }
+        let last = self.s.last_tx().0;
+        let mut heartbeat = last.saturating_add(cfg.heartbeat_us);
+        let early = last.saturating_add(cfg.heartbeat_us.saturating_sub(HEARTBEAT_EARLY_US));
+        let heartbeat_us = HEARTBEAT_WIRE_BYTES * cfg.byte_time_ns() / 1000;
+        if self
+            .quiet_until
+            .is_some_and(|q| early.saturating_add(heartbeat_us) <= q.0)
+        {
+            heartbeat = heartbeat.min(early);
+        }
+        let timers = earliest(
+            Some(self.s.loss_deadline(cfg.plc_timeout_us)),
+            Some(Micros(heartbeat)),
+        );
+        earliest(timers, self.s.window_deadline())
     }
 
     /// The next frame to send, written to `out`; returns its length, 0 when there is
@@ -438,9 +442,9 @@ impl PlcLink {
         match self.state {
             PlcLinkState::Connecting | PlcLinkState::Incompatible { .. } => {
                 let period = if self.state == PlcLinkState::Connecting {
-                    self.cfg.hello_retry_us
+                    self.s.config().hello_retry_us
                 } else {
-                    self.cfg.incompatible_retry_us
+                    self.s.config().incompatible_retry_us
                 };
                 let due = self
                     .last_hello
@@ -453,7 +457,7 @@ impl PlcLink {
                     version: PROTOCOL_VERSION,
                     session: self.session,
                 };
-                self.send(0, msg, true, now, out)
+                self.s.send(msg, true, now, out)
             }
             PlcLinkState::Up => self.transmit_up(now, out),
         }
@@ -461,23 +465,19 @@ impl PlcLink {
 
     fn transmit_up(&mut self, now: Micros, out: &mut [u8]) -> usize {
         self.fill_window();
-        let rto = self.cfg.rto_us();
-        let ack = self.rx.ack();
-        if let Some((seq, msg)) = self.tx.next_to_send(now, rto) {
-            let frame = Frame { seq, ack, msg };
-            return match encode_frame(&frame, false, out) {
-                Ok(n) => self.sent(n, now),
-                Err(_) => 0,
-            };
+        let n = self.s.send_reliable(now, out);
+        if n > 0 {
+            return n;
         }
-        let since = now.0.saturating_sub(self.last_tx.0);
-        let heartbeat_us = HEARTBEAT_WIRE_BYTES * self.cfg.byte_time_ns() / 1000;
+        let cfg = *self.s.config();
+        let since = now.0.saturating_sub(self.s.last_tx().0);
+        let heartbeat_us = HEARTBEAT_WIRE_BYTES * cfg.byte_time_ns() / 1000;
         let fits_quiet = self
             .quiet_until
             .is_some_and(|q| now.0.saturating_add(heartbeat_us) <= q.0);
-        let early = self.cfg.heartbeat_us.saturating_sub(HEARTBEAT_EARLY_US);
-        if self.ack_owed || since >= self.cfg.heartbeat_us || (fits_quiet && since >= early) {
-            return self.send(0, PlcMsg::Heartbeat, false, now, out);
+        let early = cfg.heartbeat_us.saturating_sub(HEARTBEAT_EARLY_US);
+        if self.s.ack_owed() || since >= cfg.heartbeat_us || (fits_quiet && since >= early) {
+            return self.s.send(PlcMsg::Heartbeat, false, now, out);
         }
         0
     }
@@ -489,29 +489,9 @@ impl PlcLink {
         self.quiet_until = Some(Micros(now.0.saturating_add(quiet_us)));
     }
 
-    fn send(&mut self, seq: u8, msg: PlcMsg, lead: bool, now: Micros, out: &mut [u8]) -> usize {
-        let frame = Frame {
-            seq,
-            ack: self.rx.ack(),
-            msg,
-        };
-        match encode_frame(&frame, lead, out) {
-            Ok(n) => self.sent(n, now),
-            Err(_) => 0,
-        }
-    }
-
-    fn sent(&mut self, n: usize, now: Micros) -> usize {
-        self.ack_owed = false;
-        self.last_tx = now;
-        self.stats.frames_sent = self.stats.frames_sent.saturating_add(1);
-        self.stats.bytes_sent = self.stats.bytes_sent.saturating_add(n as u64);
-        n
-    }
-
     /// Move waiting commands into the window, turning runs of Q writes into one frame.
     fn fill_window(&mut self) {
-        while !self.tx.is_full() {
+        while !self.s.window_full() {
             if self.pending.is_empty() {
                 return;
             }
@@ -548,7 +528,7 @@ impl PlcLink {
                 }
                 Pending::DownloadEnd => PlcMsg::DownloadEnd,
             };
-            if self.tx.push(msg).is_err() {
+            if self.s.push(msg).is_err() {
                 return;
             }
         }

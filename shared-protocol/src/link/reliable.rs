@@ -6,6 +6,7 @@
 //! The sender keeps at most `W` unacknowledged messages and, when the oldest has waited
 //! for one retransmission timeout, sends all of them again from the oldest.
 
+use super::session::AT_ONCE;
 use crate::units::Micros;
 
 struct Entry<M> {
@@ -113,6 +114,20 @@ impl<M, const W: usize> TxWindow<M, W> {
         e.sent_at = Some(now);
         self.cursor = cursor + 1;
         Some((e.seq, &e.msg))
+    }
+
+    /// When [`Self::next_to_send`] next returns something: [`AT_ONCE`] while a message
+    /// was never sent, the oldest one's retransmission time otherwise; `None` when empty.
+    pub fn next_deadline(&self, rto_us: u64) -> Option<Micros> {
+        if self.cursor < self.entries.len() {
+            return Some(AT_ONCE);
+        }
+        match self.entries.front() {
+            Some(Entry {
+                sent_at: Some(t), ..
+            }) => Some(Micros(t.0.saturating_add(rto_us))),
+            _ => None,
+        }
     }
 
     /// Whether [`Self::next_to_send`] would return something now.

@@ -7,7 +7,7 @@ use embassy_stm32::rcc::{
 };
 use embassy_stm32::Config;
 
-/// Core clock the whole board layer assumes (TIM1 counts at this rate: APB2 prescaler 1).
+/// Core clock both board layers assume (the drive's TIM1 counts at this rate: APB2 prescaler 1).
 pub const SYSCLK_HZ: u32 = 170_000_000;
 
 /// The embassy configuration for 170 MHz.

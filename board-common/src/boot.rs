@@ -1,0 +1,29 @@
+//! The boot sequence both images start with.
+
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::Peripherals;
+use shared_protocol::supervision::ResetCause;
+
+use crate::{banner, clocks, reset_cause};
+
+/// NVIC priority of every interrupt except the drive's TIM1 (P0): DMA, the link USART,
+/// the embassy time driver (TIM4), the comparators. TIM1's update and break interrupts
+/// then preempt all of them (review D13). The PLC has no TIM1 interrupt; the same
+/// priorities there cost nothing.
+pub const BACKGROUND: Priority = Priority::P2;
+
+/// Reads the reset cause, starts embassy at 170 MHz with the DMA interrupts (the G4's DMA1/DMA2 are embassy's `bdma`) at
+/// [`BACKGROUND`], lowers the time driver's TIM4 to [`BACKGROUND`] (embassy-stm32 0.6
+/// enables it at P0 and has no setting for it), prints the boot line and, with
+/// `dwt-cycles`, starts the cycle counter.
+pub fn init(image: &str, version: &str) -> (Peripherals, ResetCause) {
+    let cause = reset_cause::take();
+    let mut config = clocks::config();
+    config.bdma_interrupt_priority = BACKGROUND;
+    let p = embassy_stm32::init(config);
+    interrupt::TIM4.set_priority(BACKGROUND);
+    banner::boot(image, version, cause);
+    #[cfg(feature = "dwt-cycles")]
+    crate::cycles::enable();
+    (p, cause)
+}

@@ -1,0 +1,172 @@
+//! The link UART (USART1, 8N1, TX and RX on DMA1 CH1/CH2, RX into a ring buffer) and the
+//! task glue around the core's link pump (`shared_protocol::link::pump`).
+//!
+//! The task only does I/O: it waits for received bytes, the pump's deadline or a
+//! [`kick`] (whichever comes first), hands the bytes to the pump, and writes what the pump
+//! hands out. When to send, how much, when to wake, how errors are counted and how often
+//! they are logged: all of that is the pump's, host-tested, and hil-sim runs the same
+//! pump.
+//!
+//! Review D12:
+//! * RX has the internal pull-up: with the peer unplugged or unpowered a floating RX pin
+//!   would read a storm of framing and noise errors.
+//! * A line error (framing, noise, overrun, parity) restarts reception at once. In
+//!   embassy-stm32 0.6 the USART interrupt stops the RX DMA on an error and the pending
+//!   `read()` returns the error after `stop_uart()`; the next `read()` only restarts when
+//!   it finds the status flags clean, and returns `Overrun` without restarting if a byte
+//!   arrived meanwhile, so every byte until a clean check was lost. `start_uart()` right
+//!   after the error clears the ring and re-enables the DMA request and the error
+//!   interrupt, so reception goes on with the next byte.
+//! * Errors are counted by the endpoint (`LinkStats::line_errors`) and logged at most
+//!   once a second with the count (`Pump::line_error`).
+
+use embassy_futures::select::{select, Either};
+use embassy_stm32::interrupt::InterruptExt;
+use embassy_stm32::mode::Async;
+use embassy_stm32::usart::{
+    self, Config, DataBits, Parity, RingBufferedUartRx, StopBits, Uart, UartTx,
+};
+use embassy_stm32::{bind_interrupts, dma, interrupt, peripherals, Peri};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::signal::Signal;
+use embassy_time::with_deadline;
+use shared_protocol::link::pump::{LinkEndpoint, Pump, MAX_IDLE_US};
+use shared_protocol::link::MAX_WIRE_FRAME;
+use shared_protocol::units::Micros;
+use static_cell::StaticCell;
+
+use crate::supervisor;
+use crate::time::{instant, now};
+
+/// RX ring size: 22 ms of line time at 115200 baud, more than a frame's write (the task
+/// awaits it) plus a pass.
+const RX_RING_BYTES: usize = 256;
+
+bind_interrupts!(struct Irqs {
+    USART1 => usart::InterruptHandler<peripherals::USART1>;
+    DMA1_CHANNEL1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
+    DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
+});
+
+/// The link's peripherals (pins are the board's: `pins.rs`).
+pub struct LinkPins<Tx, Rx> {
+    pub usart: Peri<'static, peripherals::USART1>,
+    pub tx: Tx,
+    pub rx: Rx,
+    pub tx_dma: Peri<'static, peripherals::DMA1_CH1>,
+    pub rx_dma: Peri<'static, peripherals::DMA1_CH2>,
+}
+
+/// Opened link halves.
+pub struct LinkPort {
+    pub tx: UartTx<'static, Async>,
+    pub rx: RingBufferedUartRx<'static>,
+}
+
+/// Opens the USART 8N1 at `baud` with the RX pull-up, and puts its interrupts (and its
+/// DMA channels') below TIM1 ([`crate::boot::BACKGROUND`]).
+pub fn open<Tx, Rx>(l: LinkPins<Peri<'static, Tx>, Peri<'static, Rx>>, baud: u32) -> LinkPort
+where
+    Tx: usart::TxPin<peripherals::USART1>,
+    Rx: usart::RxPin<peripherals::USART1>,
+{
+    static RX_RING: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
+    let mut config = Config::default();
+    config.baudrate = baud;
+    config.data_bits = DataBits::DataBits8;
+    config.parity = Parity::ParityNone;
+    config.stop_bits = StopBits::STOP1;
+    config.rx_pull = embassy_stm32::gpio::Pull::Up;
+    let uart = match Uart::new(l.usart, l.rx, l.tx, l.tx_dma, l.rx_dma, Irqs, config) {
+        Ok(uart) => uart,
+        Err(e) => defmt::panic!("link USART config rejected: {}", e),
+    };
+    for irq in [
+        interrupt::USART1,
+        interrupt::DMA1_CHANNEL1,
+        interrupt::DMA1_CHANNEL2,
+    ] {
+        irq.set_priority(crate::boot::BACKGROUND);
+    }
+    let (tx, rx) = uart.split();
+    LinkPort {
+        tx,
+        rx: rx.into_ring_buffered(RX_RING.init([0; RX_RING_BYTES])),
+    }
+}
+
+static KICK: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+
+/// Wakes the link task for a pass now (the application queued something to send).
+/// Call it when `shared_protocol::link::pump::is_due` says the endpoint's deadline has
+/// come: the task otherwise sleeps until the deadline it knew.
+pub fn kick() {
+    KICK.signal(());
+}
+
+/// How the link task reaches the endpoint the board shares with its other tasks.
+pub trait SharedEndpoint {
+    type Endpoint: LinkEndpoint;
+    /// Runs `f` on the endpoint (inside whatever lock the board uses); `None` when it is
+    /// not there yet.
+    fn with<R>(&self, f: impl FnOnce(&mut Self::Endpoint) -> R) -> Option<R>;
+}
+
+/// The link task's loop: never returns. Each board wraps it in its own
+/// `#[embassy_executor::task]` (tasks cannot be generic).
+///
+/// The three parts of a pass (receive, transmit, the application's reaction) run in
+/// separate calls of [`SharedEndpoint::with`], so that none holds the board's lock for
+/// all (the drive's lock masks the PWM interrupt; `dwt-cycles` measures the first two),
+/// and the reaction runs after the pass's frame was written.
+pub async fn run<S: SharedEndpoint>(mut port: LinkPort, shared: S) -> ! {
+    let mut pump = Pump::new(MAX_IDLE_US);
+    let mut rx_buf = [0u8; 64];
+    let mut wake = now();
+    loop {
+        supervisor::alive(supervisor::TASK_LINK);
+        let read = with_deadline(instant(wake), port.rx.read(&mut rx_buf));
+        let n = match select(read, KICK.wait()).await {
+            Either::First(Ok(Ok(n))) => n,
+            Either::First(Ok(Err(e))) => {
+                // Reception goes on with the next byte (see the module doc).
+                port.rx.start_uart();
+                let t = now();
+                if let Some(Some(count)) = shared.with(|ep| pump.line_error(ep, t)) {
+                    defmt::warn!("link: {=u32} line error(s), the last {}", count, e);
+                }
+                0
+            }
+            Either::First(Err(_)) | Either::Second(()) => 0,
+        };
+        let rx = rx_buf.get(..n).unwrap_or(&[]);
+        if !rx.is_empty() {
+            let t = now();
+            #[cfg(feature = "dwt-cycles")]
+            let start = crate::cycles::now();
+            shared.with(|ep| pump.receive(ep, rx, t));
+            #[cfg(feature = "dwt-cycles")]
+            crate::cycles::LINK_RX.record(start);
+        }
+        let t = now();
+        #[cfg(feature = "dwt-cycles")]
+        let start = crate::cycles::now();
+        // The transmitter is free here (the last write was awaited): a whole frame fits.
+        let pass = shared.with(|ep| pump.transmit(ep, MAX_WIRE_FRAME, t));
+        #[cfg(feature = "dwt-cycles")]
+        crate::cycles::LINK_TX.record(start);
+        wake = pass.map_or(Micros(t.0 + MAX_IDLE_US), |p| p.wake_at);
+        let tx = pump.tx();
+        if !tx.is_empty() {
+            if let Err(e) = port.tx.write(tx).await {
+                defmt::warn!("link: tx error {}", e);
+            }
+        }
+        // The application's reaction to what arrived, once the frame (an acknowledgement,
+        // say) is out: a slow one (the PLC's EEPROM fault log) never delays it.
+        let t = now();
+        if let Some(w) = shared.with(|ep| pump.service(ep, t)) {
+            wake = w;
+        }
+    }
+}

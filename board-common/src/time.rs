@@ -1,0 +1,14 @@
+//! The monotonic clock the cores take (embassy-time's, 1 MHz ticks).
+
+use embassy_time::Instant;
+use shared_protocol::units::Micros;
+
+/// Microseconds since boot.
+pub fn now() -> Micros {
+    Micros(Instant::now().as_micros())
+}
+
+/// The embassy instant of a core deadline.
+pub fn instant(t: Micros) -> Instant {
+    Instant::from_micros(t.0)
+}
