@@ -833,6 +833,7 @@ fn storage_short(e: StorageError) -> &'static str {
         StorageError::TooBig => "TOO BIG",
         StorageError::VerifyFailed => "VERIFY ERR",
         StorageError::Eeprom(_) => "EEPROM ERR",
+        StorageError::Busy => "EEPROM BUSY",
     }
 }
 
