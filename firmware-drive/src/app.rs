@@ -6,8 +6,13 @@
 //! | UART bytes received (DMA/idle-line interrupt) | [`DriveApp::on_rx`] |
 //! | UART transmitter free, and at least every 1 ms | [`DriveApp::poll_tx`] |
 //! | every 1 ms | [`DriveApp::tick_1ms`] |
-//! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`] |
-//! | TIM1 break input fired / released | [`DriveApp::hardware_break`] |
+//! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`], then [`PeriodAction::apply`] |
+//! | TIM1 break interrupt | [`DriveApp::break_fired`] |
+//! | every 1 ms, before `tick_1ms` | [`DriveApp::break_poll`] |
+//!
+//! The board passes what the registers say (ADC counts, comparator levels) and performs
+//! what comes back over its [`PowerPort`](crate::power_port::PowerPort); hil-sim does the
+//! same over its plant, so both run the same decisions.
 //!
 //! What it adds to the two parts:
 //! * Commands from the PLC are applied to the core as soon as their frame is received
@@ -30,6 +35,7 @@ use shared_protocol::units::Micros;
 use crate::config::{DriveConfig, ResetCause};
 use crate::drive::{CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, PwmCommand};
 use crate::measure::AdcSample;
+use crate::power_port::{BreakMonitor, BreakReport, ComparatorLevels, PeriodAction};
 use crate::protection::{FaultCode, HwBreak};
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
@@ -66,15 +72,21 @@ pub struct DriveApp {
     link: DriveLink,
     unreported: heapless::Deque<u8, UNREPORTED>,
     events: heapless::Deque<AppEvent, APP_EVENTS>,
+    /// The timing TIM1 is programmed with (the last one a [`PeriodAction`] carried).
+    programmed: PwmTiming,
+    breaks: BreakMonitor,
 }
 
 impl DriveApp {
     pub fn new(core: DriveConfig, reset_cause: ResetCause, link: LinkConfig) -> Self {
+        let core = DriveCore::new(core, reset_cause);
         DriveApp {
-            core: DriveCore::new(core, reset_cause),
+            programmed: core.pwm_timing(),
+            core,
             link: DriveLink::new(link),
             unreported: heapless::Deque::new(),
             events: heapless::Deque::new(),
+            breaks: BreakMonitor::default(),
         }
     }
 
@@ -95,9 +107,10 @@ impl DriveApp {
         self.core.status()
     }
 
-    /// What TIM1 must be programmed with now.
+    /// What TIM1 is programmed with: at start-up, what the board's init writes; later,
+    /// the last timing a [`PeriodAction`] carried.
     pub fn pwm_timing(&self) -> PwmTiming {
-        self.core.pwm_timing()
+        self.programmed
     }
 
     /// Oldest event not yet taken (the queue keeps the newest 32).
@@ -160,19 +173,43 @@ impl DriveApp {
         self.link.set_status(wire_status(&self.core.status()));
     }
 
-    /// The PWM interrupt: measurements, trips, duties.
+    /// The PWM interrupt: measurements and trips in, what the power stage does this period
+    /// out (perform it with [`PeriodAction::apply`]).
     #[inline]
-    pub fn pwm_period(&mut self, adc: &AdcSample) -> PwmCommand {
-        self.core.pwm_period(adc)
+    pub fn pwm_period(&mut self, adc: &AdcSample) -> PeriodAction {
+        let cmd: PwmCommand = self.core.pwm_period(adc);
+        let wanted = self.core.pwm_timing();
+        let action = PeriodAction::from_command(&cmd, &self.programmed, &wanted);
+        if action.timing.is_some() {
+            self.programmed = wanted;
+        }
+        action
     }
 
-    /// The TIM1 break input (hardware overcurrent/overvoltage comparators).
-    pub fn hardware_break(&mut self, cause: HwBreak, active: bool) {
-        if active {
-            self.core.hardware_break(cause);
-        } else {
-            self.core.hardware_break_released(cause);
+    /// The TIM1 break interrupt with the comparators at `levels` (the hardware has
+    /// already opened every switch; the board has cleared the flag and masked the
+    /// interrupt): the causes are latched as faults.
+    pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
+        let report = self.breaks.fired(self.core.config().board, levels);
+        for (cause, fired) in HwBreak::ALL.into_iter().zip(report.fired) {
+            if fired {
+                self.core.hardware_break(cause);
+            }
         }
+        report
+    }
+
+    /// Every millisecond, with the comparators at `levels`: causes whose comparators went
+    /// low are released (the fault stays latched until ACK); `rearm` tells the board to
+    /// clear the break flag and unmask the break interrupt.
+    pub fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
+        let report = self.breaks.poll(self.core.config().board, levels);
+        for (cause, released) in HwBreak::ALL.into_iter().zip(report.released) {
+            if released {
+                self.core.hardware_break_released(cause);
+            }
+        }
+        report
     }
 
     fn command(&mut self, command: DriveCommand) {

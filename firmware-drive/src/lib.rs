@@ -1,5 +1,7 @@
 //! Drive MCU core: everything the drive does, as synchronous sans-IO state machines.
 #![cfg_attr(not(test), no_std)]
+// The cores touch no registers: `unsafe` belongs to the board binaries only.
+#![forbid(unsafe_code)]
 #![cfg_attr(
     not(test),
     deny(
@@ -18,6 +20,7 @@ pub mod drive;
 pub mod link;
 pub mod measure;
 pub mod modulator;
+pub mod power_port;
 pub mod protection;
 pub mod reversal;
 pub mod sine;

@@ -87,6 +87,9 @@ pub enum HwBreak {
 }
 
 impl HwBreak {
+    /// In the order of [`crate::power_port::BreakReport`]'s arrays.
+    pub const ALL: [HwBreak; 2] = [HwBreak::Overcurrent, HwBreak::Overvoltage];
+
     pub const fn fault(self) -> FaultCode {
         match self {
             HwBreak::Overcurrent => FaultCode::OcHw,

@@ -1,6 +1,6 @@
 //! The drive-section interpreter (program.md 4.1-4.2): lines 000-149, in order, once per
 //! millisecond. It only computes *what* to output (frequency, amplitude, phase offsets,
-//! leg modes, switching frequency, protection limits); [`crate::core`] turns that into
+//! leg modes, switching frequency, protection limits); [`crate::drive`] turns that into
 //! modulator parameters and the interrupt does the rest.
 //!
 //! Decisions where program.md is silent (also in `docs/drive-core.md`):

@@ -1,5 +1,7 @@
 //! PLC MCU core: everything the PLC does, as synchronous sans-IO state machines.
 #![cfg_attr(not(test), no_std)]
+// The cores touch no registers: `unsafe` belongs to the board binaries only.
+#![forbid(unsafe_code)]
 #![cfg_attr(
     not(test),
     deny(

@@ -25,7 +25,8 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 use unicorn_engine::unicorn_const::{Arch, HookType, MemType, Mode, Prot};
-use unicorn_engine::{ArmCpuModel, RegisterARM, Unicorn};
+pub use unicorn_engine::RegisterARM;
+use unicorn_engine::{ArmCpuModel, Unicorn};
 
 use crate::periph::rcc::ResetKind;
 use crate::scs::{exc, fault};
@@ -275,12 +276,6 @@ impl Cpu {
             let s = uc.get_data_mut();
             if s.now >= s.deadline {
                 // Stopping here leaves the PC at this block, not yet executed.
-                if std::env::var("G431_TRACE").is_ok() {
-                    eprintln!(
-                        "block stop at {addr:#x} size {size} now {} dl {}",
-                        s.now, s.deadline
-                    );
-                }
                 let _ = uc.emu_stop();
                 return;
             }
@@ -402,6 +397,21 @@ impl Cpu {
     /// Reads a core register.
     pub fn reg(&self, r: RegisterARM) -> u32 {
         rd(&self.uc, r)
+    }
+
+    /// Writes a core register as a debugger does (DCRSR/DCRDR) while the core is halted;
+    /// `PC` sets where it resumes. Tests use it to put the core where the hardware can end
+    /// up (a stack pointer past the bottom of RAM after an overflow, a jump into nowhere).
+    /// Ignored while the core runs.
+    pub fn write_reg(&mut self, r: RegisterARM, v: u32) {
+        if self.state != CpuState::Halted {
+            return;
+        }
+        if r == RegisterARM::PC {
+            self.pc = v & !1;
+        } else {
+            wr(&mut self.uc, r, v);
+        }
     }
 
     /// Sites of SEV/WFI/CPSIE/MSR the CPU watches (for tests).
@@ -774,17 +784,6 @@ impl Cpu {
         let start = self.pc;
         let r = self.uc.emu_start(u64::from(start | 1), 0, 0, 0);
         self.pc = rd(&self.uc, RegisterARM::PC);
-        if std::env::var("G431_TRACE").is_ok() {
-            eprintln!(
-                "step {start:#010x} -> {:#010x} r={r:?} now={} wfe={} udf={} intr={:?} unmapped={:?}",
-                self.pc,
-                self.now(),
-                self.hooks.wfe.get(),
-                self.hooks.udf.get(),
-                self.hooks.intr.get(),
-                self.hooks.unmapped.get()
-            );
-        }
         let at = self.now();
         if self.pc >= 0xF000_0000 && self.pc != LOCKUP_PC {
             // A branch to EXC_RETURN (Handler mode raised EXCEPTION_EXIT, or Thread-mode

@@ -139,7 +139,9 @@ pub fn locate(addr: u32) -> Option<(&'static Peripheral, u32)> {
             let regs = p.registers.as_ref()?;
             let base = u32::try_from(p.address).ok()?;
             let len = block_len(regs.ir, regs.block);
-            (addr >= base && addr < base + len).then_some((p, addr - base))
+            // Blocks near the top of the address space (the core's) must not overflow.
+            let off = addr.checked_sub(base).filter(|off| *off < len)?;
+            Some((p, off))
         })
         // Overlapping blocks (COMP1..4 live inside SYSCFG's page): the nearest base wins.
         .min_by_key(|(_, off)| *off)

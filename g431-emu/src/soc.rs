@@ -1007,6 +1007,12 @@ impl Soc {
                 }
             }
         }
+        // The reset ends LOCKUP and clears SYSCFG_CFGR2's enables: the timers' system break
+        // input falls (the comparator and BKIN inputs are the outside world's and stay).
+        let (k, now) = (self.wired.tim1, self.now);
+        if let Some(tim) = self.model_mut::<TimAdv>(k) {
+            tim.set_system_break(false, now);
+        }
         for k in 0..self.slots.len() {
             self.refresh(k);
         }
@@ -1645,6 +1651,35 @@ mod tests {
         s.bus_write(0x4002_102C, 4, 1);
         s.bus_write(0x4002_102C, 4, 0);
         assert_eq!(s.bus_read(0x4800_0014, 4), 0);
+    }
+
+    #[test]
+    fn lockup_breaks_tim1_only_until_the_reset() {
+        const APB2ENR: u32 = 0x4002_1060;
+        const TIM1_BDTR: u32 = 0x4001_2C44;
+        const SYSCFG_CFGR2: u32 = 0x4001_001C;
+        const BKE_MOE: u32 = (1 << 12) | (1 << 15);
+        let mut s = soc();
+        const BKP: u32 = 1 << 13;
+        let start = |s: &mut Soc| {
+            // SYSCFGEN, TIM1EN; BKIN (low, not wired) active high, i.e. inactive.
+            s.bus_write(APB2ENR, 4, 1 | (1 << 11));
+            s.bus_write(TIM1_BDTR, 4, BKE_MOE | BKP);
+        };
+        start(&mut s);
+        assert_eq!(s.bus_read(TIM1_BDTR, 4) & BKE_MOE, BKE_MOE);
+        // Without CLL the LOCKUP signal does not reach the timer.
+        s.lockup(true);
+        assert_eq!(s.bus_read(TIM1_BDTR, 4) & BKE_MOE, BKE_MOE);
+        s.system_reset(crate::periph::rcc::ResetKind::Software);
+        start(&mut s);
+        s.bus_write(SYSCFG_CFGR2, 4, crate::periph::syscfg::cfgr2::CLL);
+        s.lockup(true);
+        assert_eq!(s.bus_read(TIM1_BDTR, 4) & BKE_MOE, 1 << 12, "MOE cleared");
+        // The watchdog's reset ends the lockup: the restarted image can set MOE again.
+        s.system_reset(crate::periph::rcc::ResetKind::Watchdog);
+        start(&mut s);
+        assert_eq!(s.bus_read(TIM1_BDTR, 4) & BKE_MOE, BKE_MOE);
     }
 
     #[test]

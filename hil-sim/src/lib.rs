@@ -5,7 +5,6 @@
 //! * [`emu`]: the same runs on the real firmware images, in an emulator of both boards.
 //! * [`panel`]: the interactive front panel (`hil-sim panel`).
 //! * [`sim`]: the virtual-time scheduler joining them with the UART wires.
-//! * [`seams`]: one trait per simulated peripheral (what the scheduler needs of a model).
 //! * [`scenario`]: scenario files; [`record`]: the CSV; [`plot`]: the PNG;
 //!   [`run`]: one whole run as the CLI does it; [`latency`]: `WR Q` latency end to end;
 //!   [`lab`]: the source's lab chapter (ramp times, current ripple), `docs/lab.md`.
@@ -22,8 +21,8 @@ pub mod plot;
 pub mod record;
 pub mod run;
 pub mod scenario;
-pub mod seams;
 pub mod sim;
+pub mod tim1;
 
 use std::path::Path;
 

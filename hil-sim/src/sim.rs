@@ -10,7 +10,7 @@
 //! sample), so a run is a pure function of its inputs and the seed.
 
 use anyhow::{Context, Result};
-use firmware_drive::{AdcSample, DriveConfig, HwBreak, PwmCommand};
+use firmware_drive::{AdcSample, DriveConfig};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::channel::{Channel, Impairments};
@@ -19,9 +19,9 @@ use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins, Warnings};
-use crate::plant::{BreakCause, Comparators, GateCommand, Leg, Plant, PlantOutputs, RigParams};
+use crate::plant::{Comparators, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
-use crate::seams::{Rig, UartWire};
+use crate::tim1::SimTim1;
 
 const MS_NS: u64 = 1_000_000;
 
@@ -75,14 +75,9 @@ impl Default for RunOptions {
 }
 
 /// The whole rig in virtual time.
-pub struct Simulation<
-    D: DriveMcu = DriveBoard,
-    P: PlcMcu = PlcBoard,
-    R: Rig = Plant,
-    W: UartWire = Channel,
-> {
+pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
     now_ns: u64,
-    plant: R,
+    plant: Plant,
     plant_ns: u64,
     drive: D,
     plc: P,
@@ -91,9 +86,9 @@ pub struct Simulation<
     pins: PlcPins,
     aux_counts: u16,
     /// PLC TX -> drive RX.
-    to_drive: W,
+    to_drive: Channel,
     /// Drive TX -> PLC RX.
-    to_plc: W,
+    to_plc: Channel,
     cut: bool,
     /// Wake-ups when a busy UART becomes free: [PLC, drive].
     tx_wake_ns: [Option<u64>; 2],
@@ -102,9 +97,8 @@ pub struct Simulation<
     pwm_k: u64,
     pwm_key: (u16, u16),
     next_pwm_ns: u64,
-    pending_gate: GateCommand,
-    last_cmd: PwmCommand,
-    break_active: [bool; 2],
+    /// The drive's TIM1 registers (the firmware's power port writes them).
+    tim1: SimTim1,
     next_drive_tick_ns: u64,
     next_plc_tick_ns: u64,
     next_scan_ns: u64,
@@ -153,7 +147,7 @@ fn timer_period_ns(epoch: u64, k: u64, ticks: u64, f_tim: u32) -> u64 {
     epoch + ((u128::from(k) * u128::from(ticks) * 1_000_000_000) / f) as u64
 }
 
-impl<D: DriveMcu, P: PlcMcu> Simulation<D, P, Plant, Channel> {
+impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
     /// The given boards on the default models: [`Plant`] with the scenario's rig, and
     /// [`Channel`] wires with its link settings (bit errors seeded from `opts.seed`, the
     /// drive-to-PLC direction from a derived seed).
@@ -168,21 +162,20 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P, Plant, Channel> {
         let plant = Plant::new(scenario.rig);
         Simulation::with_parts(drive, plc, plant, to_drive, to_plc, scenario, opts)
     }
-}
 
-impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
-    /// Any models behind the seams (`crate::seams`). `to_drive` carries the PLC's
-    /// transmissions, `to_plc` the drive's.
+    /// The given boards, plant and wires. `to_drive` carries the PLC's transmissions,
+    /// `to_plc` the drive's.
     pub fn with_parts(
         drive: D,
         plc: P,
-        plant: R,
-        to_drive: W,
-        to_plc: W,
+        plant: Plant,
+        to_drive: Channel,
+        to_plc: Channel,
         scenario: Scenario,
         opts: RunOptions,
     ) -> Self {
         let timing = drive.pwm_timing();
+        let tim1 = SimTim1::new(timing, drive.timer_clock_hz());
         Simulation {
             now_ns: 0,
             plant,
@@ -200,15 +193,7 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             pwm_k: 0,
             pwm_key: (timing.arr, timing.psc),
             next_pwm_ns: 0,
-            pending_gate: GateCommand::OFF,
-            last_cmd: PwmCommand {
-                enable: false,
-                leg_enable: [false; 3],
-                duty: [0; 3],
-                period_counts: timing.arr,
-                brake: false,
-            },
-            break_active: [false; 2],
+            tim1,
             next_drive_tick_ns: MS_NS,
             next_plc_tick_ns: MS_NS,
             next_scan_ns: 0,
@@ -224,7 +209,7 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
         self.now_ns
     }
 
-    pub fn plant(&self) -> &R {
+    pub fn plant(&self) -> &Plant {
         &self.plant
     }
 
@@ -336,6 +321,11 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             self.pwm_event(t);
         }
         if t >= self.next_drive_tick_ns {
+            // The board's 1 ms task: comparator levels to the break monitor, then the tick.
+            let report = self.drive.break_poll(self.plant.comparator_levels());
+            if report.rearm {
+                self.tim1.rearm_break(&mut self.plant);
+            }
             self.drive.tick_1ms(now);
             self.next_drive_tick_ns += MS_NS;
             drive_link = true;
@@ -437,28 +427,22 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             board: self.drive.board(),
             dacs: self.drive.comparator_dacs(),
         };
-        if comparators != self.plant.comparators() {
+        if comparators != *self.plant.comparators() {
             self.plant.set_comparators(comparators);
         }
-        // Break input first: the hardware has already opened the switches.
-        if let Some(c) = self.plant.take_break() {
-            let k = cause_index(c);
-            self.break_active[k] = true;
-            self.drive.break_input(hw_break(c), true);
+        // The break interrupt first (it outranks the update interrupt): the hardware has
+        // already opened the switches.
+        if self.tim1.break_irq_pending(&self.plant) {
+            self.tim1.take_break(&mut self.plant);
+            let _ = self.drive.break_fired(self.plant.comparator_levels());
         }
-        let levels = self.plant.comparator_levels();
-        for c in BreakCause::ALL {
-            let k = cause_index(c);
-            if self.break_active[k] && !levels[k] {
-                self.break_active[k] = false;
-                self.drive.break_input(hw_break(c), false);
-            }
-        }
-        let timing = self.drive.pwm_timing();
-        let f_tim = self.drive.timer_clock_hz();
+        // The update event: the preloaded timing and compares take effect.
+        self.tim1.update();
+        let timing = *self.tim1.timing();
+        let f_tim = self.tim1.timer_clock_hz();
         let key = (timing.arr, timing.psc);
         if key != self.pwm_key {
-            // The firmware reprograms TIM1: the new period starts now.
+            // A new PSC/ARR: the new period starts at this update.
             self.pwm_key = key;
             self.pwm_epoch_ns = t;
             self.pwm_k = 0;
@@ -467,38 +451,17 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
         self.pwm_k += 1;
         self.next_pwm_ns = timer_period_ns(self.pwm_epoch_ns, self.pwm_k, ticks, f_tim);
         let period_ns = self.next_pwm_ns - t;
-        // The duties written in the last interrupt were preloaded: they start now.
-        self.plant.start_period(period_ns, self.pending_gate);
-        let s = self.plant.convert();
+        self.plant.start_period(period_ns, self.tim1.gate());
+        let s = self.plant.adc_sample();
         let adc = AdcSample {
             i_a: s.i_a_counts,
             i_b: s.i_b_counts,
             u_dc: s.u_dc_counts,
             aux: self.aux_counts,
         };
-        let cmd = self.drive.pwm_isr(&adc);
-        self.plant.set_brake(cmd.brake);
-        let dead_ns =
-            (u64::from(timing.dead_time_counts) * 1_000_000_000).div_ceil(u64::from(f_tim.max(1)));
-        let gate = if cmd.enable {
-            let n = f64::from(cmd.period_counts.max(1));
-            let mut legs = [Leg::Off; 3];
-            for ((leg, d), on) in legs.iter_mut().zip(cmd.duty).zip(cmd.leg_enable) {
-                if on {
-                    *leg = Leg::Duty(f64::from(d) / n);
-                }
-            }
-            GateCommand {
-                legs,
-                dead_time_ns: dead_ns,
-            }
-        } else {
-            // Clearing MOE acts at once, not at the next update.
-            self.plant.set_command(GateCommand::OFF);
-            GateCommand::OFF
-        };
-        self.pending_gate = gate;
-        self.last_cmd = cmd;
+        // The update interrupt: the firmware's action over the same port order as TIM1's.
+        let action = self.drive.pwm_isr(&adc);
+        action.apply(&mut self.tim1.port(&mut self.plant));
     }
 
     fn sample(&self, t: u64) -> Sample {
@@ -513,7 +476,7 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             f_cmd_hz: f64::from(st.f_applied.0) / 10.0,
             dir: if st.reverse { -1 } else { 1 },
             m: f64::from(st.modulation_permille) / 1000.0,
-            pwm_on: self.last_cmd.enable && !o.hw_break,
+            pwm_on: self.tim1.moe() && !o.hw_break,
             fault: st.fault.map_or(0, |f| f.code()),
             u_dc_v: o.u_dc_v,
             i_abc_a: o.i_abc_a,
@@ -528,19 +491,5 @@ impl<D: DriveMcu, P: PlcMcu, R: Rig, W: UartWire> Simulation<D, P, R, W> {
             u_ab_v: o.u_ab_v,
             warn: self.plc.warnings(),
         }
-    }
-}
-
-fn cause_index(c: BreakCause) -> usize {
-    match c {
-        BreakCause::Overcurrent => 0,
-        BreakCause::Overvoltage => 1,
-    }
-}
-
-fn hw_break(c: BreakCause) -> HwBreak {
-    match c {
-        BreakCause::Overcurrent => HwBreak::Overcurrent,
-        BreakCause::Overvoltage => HwBreak::Overvoltage,
     }
 }

@@ -6,6 +6,8 @@
 //!
 //! `no_std`, no allocation, never panics on any input.
 #![cfg_attr(not(test), no_std)]
+// The cores touch no registers: `unsafe` belongs to the board binaries only.
+#![forbid(unsafe_code)]
 #![cfg_attr(
     not(test),
     deny(

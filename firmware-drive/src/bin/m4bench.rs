@@ -18,7 +18,12 @@ mod target {
 
     use defmt_rtt as _;
     use embassy_stm32 as _;
-    use panic_probe as _;
+
+    /// The bench never panics; m4count stops at the fault if it did.
+    #[panic_handler]
+    fn panic(_: &core::panic::PanicInfo) -> ! {
+        cortex_m::asm::udf()
+    }
 
     use firmware_drive::{AdcSample, DriveCommand, DriveConfig, DriveCore, ResetCause};
     use shared_protocol::program::assemble_into;

@@ -1,6 +1,7 @@
-//! The 1 ms task: the application's millisecond tick (link supervision, drive section, state
-//! machine, status), the release of hardware trips, and the defmt log of the application's
-//! events.
+//! The 1 ms task: the comparator levels to the application's break monitor (release and
+//! re-arming are its decisions), the application's millisecond tick (link supervision,
+//! drive section, state machine, status), the threshold DACs it asks for, and the defmt
+//! log of the application's events.
 
 use embassy_time::{Duration, Ticker};
 use firmware_drive::app::AppEvent;
@@ -20,21 +21,16 @@ const EVENTS_PER_TICK: usize = 32;
 #[embassy_executor::task]
 pub async fn run() {
     let mut ticker = Ticker::every(PERIOD);
-    let board = firmware_drive::config::DriveConfig::default().board;
     // The threshold DACs as written at start-up (the core's defaults).
     let mut dacs = shared::with(|s| s.app.core().comparator_dacs());
     loop {
         ticker.next().await;
-        let causes = hw_protection::active(board);
+        let levels = hw_protection::levels();
         let mut events: Vec<AppEvent, EVENTS_PER_TICK> = Vec::new();
         #[cfg(feature = "dwt-cycles")]
         let start = super::cycles::now();
-        shared::with(|s| {
-            for (cause, present) in causes {
-                if !present {
-                    s.app.hardware_break(cause, false);
-                }
-            }
+        let rearm = shared::with(|s| {
+            let rearm = s.app.break_poll(levels).rearm;
             s.app.tick_1ms(shared::now());
             // A download may have changed I>>/U>>: write the core's new DAC values.
             let now = s.app.core().comparator_dacs();
@@ -50,10 +46,11 @@ pub async fn run() {
                     None => break,
                 }
             }
+            rearm
         });
         #[cfg(feature = "dwt-cycles")]
         super::cycles::record_tick(start);
-        if causes.iter().all(|(_, present)| !present) {
+        if rearm == Some(true) {
             power_stage::rearm_break_irq();
         }
         for e in events {

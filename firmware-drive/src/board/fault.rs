@@ -1,10 +1,23 @@
-//! Panic and HardFault: the power stage goes off before anything else.
+//! Panics, fatal errors and HardFault: the power stage goes off before anything else,
+//! before any logging (review D7).
 //!
-//! panic-probe prints the panic message over defmt and then executes `udf`, which lands in
-//! the HardFault handler below; `defmt::panic!`/`unwrap!`/`assert!` come through
-//! [`defmt_panic`] first. Both force MOE off and the seven power outputs (six gates, brake)
-//! low as plain GPIO through the PAC. The core then halts for a debugger, or spins until
-//! the independent watchdog restarts the MCU, which the core reports as fault `WDG`.
+//! * `core::panic!` (an `expect`, an embassy/PAC assertion, an index out of range) reaches
+//!   [`panic`], this image's own `#[panic_handler]`: outputs off, then the message over
+//!   defmt, then [`halt`].
+//! * The board's own fatal checks call [`fatal`]: the same order.
+//! * `defmt::panic!`/`unwrap!` inside embassy log their message first and then reach
+//!   [`defmt_panic`]; with RTT in non-blocking mode (`disable-blocking-mode`, review D8)
+//!   that log costs a few microseconds, never a wait for the probe.
+//! * A HardFault turns the outputs off in [`HardFault`]. A lockup (a fault while the
+//!   HardFault handler cannot run, e.g. a stack overflow) never reaches software: SYSCFG
+//!   routes it to TIM1's break in hardware (`power_stage::route_system_faults_to_break`).
+//!
+//! [`halt`] then stops for a debugger (`bkpt`; TIM1 is frozen with its outputs disabled,
+//! review D1) or, without one, resets the MCU at once: the reset cause reads as a software
+//! reset and the core reports it. It does not wait for the watchdog, which may not have
+//! been started yet (a panic during start-up).
+
+use core::panic::PanicInfo;
 
 use cortex_m_rt::{exception, ExceptionFrame};
 
@@ -21,24 +34,40 @@ fn safe_state() {
 fn halt() -> ! {
     // C_DEBUGEN: a debugger is attached (probe-rs then prints the backtrace).
     const DHCSR: *const u32 = 0xE000_EDF0 as *const u32;
-    // SAFETY: DHCSR is a read-only-safe core debug register, always mapped.
+    // SAFETY: DHCSR is a core debug register, always mapped and readable.
     let debugger = unsafe { core::ptr::read_volatile(DHCSR) } & 1 != 0;
     if debugger {
         cortex_m::asm::bkpt();
     }
-    loop {
-        cortex_m::asm::nop();
-    }
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+/// A check of the board layer failed: outputs off, the reason logged, halt.
+pub fn fatal(reason: &'static str) -> ! {
+    cortex_m::interrupt::disable();
+    safe_state();
+    defmt::error!("fatal: {=str}", reason);
+    halt()
+}
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    cortex_m::interrupt::disable();
+    safe_state();
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    halt()
 }
 
 #[exception]
 unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
     safe_state();
+    defmt::error!("HardFault");
     halt()
 }
 
 #[defmt::panic_handler]
 fn defmt_panic() -> ! {
+    cortex_m::interrupt::disable();
     safe_state();
-    panic_probe::hard_fault()
+    halt()
 }

@@ -18,7 +18,7 @@ use embassy_stm32::mode::Blocking;
 use embassy_stm32::peripherals::{COMP1, COMP2, COMP3, COMP4, PA0, PA1, PA7};
 use embassy_stm32::{bind_interrupts, pac, Peri};
 use firmware_drive::comparators::{BoardProfile, ComparatorSpec, DacChannel, DacValues};
-use firmware_drive::protection::HwBreak;
+use firmware_drive::power_port::ComparatorLevels;
 
 use crate::pins::Protection;
 
@@ -43,7 +43,7 @@ pub struct HwProtection {
 /// input pins are checked against RM0440 by the core's unit tests).
 fn spec(board: &BoardProfile, comp: u8) -> ComparatorSpec {
     let Some(s) = board.comparators.iter().find(|s| s.comp == comp) else {
-        defmt::panic!("board profile has no COMP{}", comp);
+        super::fault::fatal("board profile lacks a comparator");
     };
     *s
 }
@@ -54,7 +54,7 @@ fn config(s: &ComparatorSpec) -> Config {
     let inverting_input = match s.inmsel() {
         Some(0b100) => InvertingInput::Dac1,
         Some(0b101) => InvertingInput::Dac2,
-        _ => defmt::panic!("COMP{}: its DAC cannot reach it", s.comp),
+        _ => super::fault::fatal("a comparator's DAC cannot reach it"),
     };
     Config {
         hysteresis: Hysteresis::Hyst20M,
@@ -137,22 +137,14 @@ pub fn break_comparators(board: &BoardProfile) -> heapless::Vec<usize, 7> {
         .collect()
 }
 
-/// Which hardware causes are present now (comparator outputs, after polarity).
-pub fn active(board: &BoardProfile) -> [(HwBreak, bool); 2] {
-    let mut oc = false;
-    let mut ov = false;
-    for s in board.comparators {
-        let regs = match s.comp {
-            1 => pac::COMP1,
-            2 => pac::COMP2,
-            3 => pac::COMP3,
-            _ => pac::COMP4,
-        };
-        let high = regs.csr().read().value();
-        match s.cause() {
-            HwBreak::Overcurrent => oc |= high,
-            HwBreak::Overvoltage => ov |= high,
-        }
+/// The comparator outputs now (COMPx_CSR.VALUE, after polarity), index = COMPx - 1.
+pub fn levels() -> ComparatorLevels {
+    let mut l = ComparatorLevels::default();
+    for (out, regs) in
+        l.0.iter_mut()
+            .zip([pac::COMP1, pac::COMP2, pac::COMP3, pac::COMP4])
+    {
+        *out = regs.csr().read().value();
     }
-    [(HwBreak::Overcurrent, oc), (HwBreak::Overvoltage, ov)]
+    l
 }

@@ -52,11 +52,9 @@ pub async fn start(spawner: Spawner) {
     cycles::enable();
 
     let cfg = DriveConfig::default();
-    defmt::assert_eq!(
-        cfg.timer_clock_hz,
-        clocks::SYSCLK_HZ,
-        "TIM1 clock differs from the core's"
-    );
+    if cfg.timer_clock_hz != clocks::SYSCLK_HZ {
+        fault::fatal("TIM1 clock differs from the core's");
+    }
     let link_cfg = LinkConfig::default();
     let app = DriveApp::new(cfg, cause, link_cfg);
     let timing = app.pwm_timing();
@@ -81,10 +79,10 @@ pub async fn start(spawner: Spawner) {
     shared::install(shared::Shared {
         app,
         brake,
-        timing,
         min_dead_counts,
     });
     power_stage::arm_break(&hw_protection::break_comparators(cfg.board));
+    power_stage::route_system_faults_to_break();
     pwm_isr::enable();
     defmt::info!(
         "TIM1: PSC {} ARR {} DTG {=u8:#x} ({} counts), {} mHz",

@@ -8,14 +8,17 @@
 //! embassy-stm32 0.6's `ComplementaryPwm` rounds the centre-aligned period itself and takes
 //! the dead time as raw ticks; it is used only to claim the pins and clock the timer.
 
+use embassy_stm32::gpio::{Level, Output};
 use embassy_stm32::gpio::{OutputType, Pull, Speed};
 use embassy_stm32::pac;
+use embassy_stm32::pac::timer::regs::SrAdv;
 use embassy_stm32::pac::timer::vals::{Bkp, Cms, Mms2, Ocm, Ossi, Ossr};
 use embassy_stm32::peripherals::TIM1;
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::complementary_pwm::{ComplementaryPwm, ComplementaryPwmPin};
 use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig};
+use firmware_drive::power_port::PowerPort;
 use firmware_drive::timing::{decode_dtg, PwmTiming};
 
 use crate::pins::PowerStage;
@@ -56,6 +59,13 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
     outputs_off();
     let t = pac::TIM1;
     t.cr1().modify(|w| w.set_cen(false));
+    // Review D1: a halted core (breakpoint, probe-rs halt) stops TIM1's counter, and a
+    // stopped advanced timer disables its outputs as if MOE were cleared (RM0440 "Debug
+    // mode"): no frozen duty cycle keeps driving DC into two windings.
+    pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
+    // Review D17: the dead time (BDTR.DTG) is preloaded and changes at the update event,
+    // with PSC and ARR, never in mid-period (DTR2.DTPE, RM0440 29.4.28).
+    t.dtr2().modify(|w| w.set_dtpe(true));
     t.bdtr().modify(|w| {
         w.set_ossi(Ossi::IDLE_LEVEL);
         w.set_ossr(Ossr::IDLE_LEVEL);
@@ -105,7 +115,7 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
         t.ccr(ch).write(|w| w.set_ccr(0));
     }
     t.egr().write(|w| w.set_ug(true));
-    t.sr().write(|w| w.0 = 0);
+    t.sr().write_value(SrAdv(0));
     t.dier().modify(|w| w.set_uie(true));
     t.cr1().modify(|w| w.set_cen(true));
     Tim1Pwm { _pwm: pwm }
@@ -113,6 +123,7 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
 
 /// Arms break input 1 (active high, fed by the comparators) with automatic output enable
 /// off: a break clears MOE in hardware and it stays cleared until software sets it again.
+/// MOE is 0 here (`init`), so the read-modify-write of BDTR cannot set it.
 pub fn arm_break(comparators: &[usize]) {
     let t = pac::TIM1;
     t.af1().modify(|w| {
@@ -123,72 +134,122 @@ pub fn arm_break(comparators: &[usize]) {
         }
     });
     t.bdtr().modify(|w| {
+        w.set_moe(false);
         w.set_bkp(0, Bkp::ACTIVE_HIGH);
         w.set_aoe(false);
         w.set_bke(0, true);
     });
-    t.sr().modify(|w| w.set_bif(0, false));
+    clear_flags(break_flags());
     t.dier().modify(|w| w.set_bie(true));
 }
 
-/// Programs PSC, ARR, CH4's trigger point and the dead time for `timing`, after checking
-/// that the dead time the DTG code really gives is at least the power stage's minimum.
-/// A violation is a bug in the timing computation: it panics, and the panic path turns the
-/// outputs off.
-pub fn apply_timing(timing: &PwmTiming, min_dead_counts: u32) {
+/// Review D7: routes the Cortex-M4 LOCKUP, the PVD, SRAM parity errors and flash double
+/// ECC errors to TIM1's system break (SYSCFG_CFGR2 CLL/PVDL/SPL/ECCL, RM0440 Table
+/// "TIMx break interconnect"): a stack overflow that locks the core up (flip-link puts the
+/// stack at the bottom of RAM) opens every switch in hardware, without software. The PVD
+/// is enabled first at 2.8 V falling (PWR_CR2 PLS = 101): a sagging 3.3 V supply opens the
+/// switches before the logic misbehaves. The bits are write-once until reset.
+pub fn route_system_faults_to_break() {
+    pac::PWR.cr2().modify(|w| {
+        w.set_pls(0b101);
+        w.set_pvde(true);
+    });
+    pac::SYSCFG.cfgr2().modify(|w| {
+        w.set_cll(true);
+        w.set_pvdl(true);
+        w.set_spl(true);
+        w.set_eccl(true);
+    });
+}
+
+/// Programs PSC, ARR, CH4's trigger point and the dead time for `timing` (all preloaded:
+/// they take effect together at the next update), after checking that the dead time the
+/// DTG code really gives is at least the power stage's minimum. A violation is a bug in
+/// the timing computation: the power stage goes off and the firmware stops (`fault`).
+/// Called only with MOE = 0 ([`PowerPort::set_timing`]'s contract), so the
+/// read-modify-write of BDTR cannot set MOE again (review D9).
+fn apply_timing(timing: &PwmTiming, min_dead_counts: u32) {
     let realised = u32::from(decode_dtg(timing.dtg));
-    defmt::assert!(
-        realised >= min_dead_counts && realised == u32::from(timing.dead_time_counts),
-        "dead time {} counts (DTG {=u8:#x}) below the minimum {}",
-        realised,
-        timing.dtg,
-        min_dead_counts
-    );
+    if realised < min_dead_counts || realised != u32::from(timing.dead_time_counts) {
+        super::fault::fatal("dead time below the power stage's minimum");
+    }
     let t = pac::TIM1;
     t.psc().write_value(timing.psc);
     t.arr().write(|w| w.set_arr(timing.arr));
     t.ccr(3).write(|w| w.set_ccr(timing.arr.saturating_sub(1)));
-    t.bdtr().modify(|w| w.set_dtg(timing.dtg));
+    t.bdtr().modify(|w| {
+        w.set_moe(false);
+        w.set_dtg(timing.dtg);
+    });
 }
 
-/// Writes the three compare values (preloaded: they take effect at the next valley).
+/// The break flags of both break inputs (BIF, B2IF).
+fn break_flags() -> SrAdv {
+    let mut m = SrAdv(0);
+    m.set_bif(0, true);
+    m.set_bif(1, true);
+    m
+}
+
+/// Clears the flags of `mask` and no other (TIM SR flags are rc_w0: writing 1 leaves a
+/// flag as it is, a read-modify-write would clear flags set in between; review D9).
 #[inline(always)]
-pub fn write_duties(duty: [u16; 3]) {
-    let t = pac::TIM1;
-    for (ch, d) in duty.into_iter().enumerate() {
-        t.ccr(ch).write(|w| w.set_ccr(d));
+fn clear_flags(mask: SrAdv) {
+    pac::TIM1.sr().write_value(SrAdv(!mask.0));
+}
+
+/// TIM1 and the brake chopper's gate as the core's [`PowerPort`]: one register access per
+/// method, no decisions (the order is `PeriodAction::apply`'s).
+pub struct Tim1Port<'a> {
+    pub brake: &'a mut Output<'static>,
+    /// Fewest dead-time counts the power stage accepts (checked on every timing write).
+    pub min_dead_counts: u32,
+}
+
+impl PowerPort for Tim1Port<'_> {
+    #[inline(always)]
+    fn outputs_off(&mut self) {
+        outputs_off();
     }
-}
 
-/// Which legs switch (CCxE and CCxNE of CH1-3 together); the core turns a sine leg off
-/// below `fmn` while a direct leg keeps switching. A leg that is off has both outputs
-/// disabled: not driven by the timer, held low by the pins' pull-downs and the gate
-/// driver's, so both of its switches are open. Written only when it changes.
-#[inline(always)]
-pub fn set_legs(on: [bool; 3]) {
-    let t = pac::TIM1;
-    let ccer = t.ccer().read();
-    if (0..3)
-        .zip(on)
-        .any(|(ch, o)| ccer.cce(ch) != o || ccer.ccne(ch) != o)
-    {
-        t.ccer().modify(|w| {
+    #[inline(always)]
+    fn break_pending(&self) -> bool {
+        pac::TIM1.sr().read().0 & break_flags().0 != 0
+    }
+
+    fn set_timing(&mut self, t: &PwmTiming) {
+        apply_timing(t, self.min_dead_counts);
+    }
+
+    #[inline(always)]
+    fn set_compares(&mut self, ccr: [u16; 3]) {
+        let t = pac::TIM1;
+        for (ch, c) in ccr.into_iter().enumerate() {
+            t.ccr(ch).write(|w| w.set_ccr(c));
+        }
+    }
+
+    /// CCxE and CCxNE of CH1-3 together. A leg that is off has both outputs disabled:
+    /// with OSSR = 1 they sit at their inactive (low) level, so both switches are open.
+    #[inline(always)]
+    fn set_legs(&mut self, on: [bool; 3]) {
+        pac::TIM1.ccer().modify(|w| {
             for (ch, o) in (0..3).zip(on) {
                 w.set_cce(ch, o);
                 w.set_ccne(ch, o);
             }
         });
     }
-}
 
-/// MOE on, unless a break is pending: the hardware refuses MOE while the break input is
-/// active, and a break that has already ended must still reach the core (break interrupt)
-/// before the outputs may come back.
-#[inline(always)]
-pub fn outputs_on() {
-    let t = pac::TIM1;
-    if !t.sr().read().bif(0) {
-        t.bdtr().modify(|w| w.set_moe(true));
+    /// The hardware ignores it while the break input is active (RM0440 29.3.18).
+    #[inline(always)]
+    fn outputs_on(&mut self) {
+        pac::TIM1.bdtr().modify(|w| w.set_moe(true));
+    }
+
+    #[inline(always)]
+    fn set_brake(&mut self, on: bool) {
+        self.brake.set_level(Level::from(on));
     }
 }
 
@@ -198,36 +259,34 @@ pub fn outputs_off() {
     pac::TIM1.bdtr().modify(|w| w.set_moe(false));
 }
 
-/// Whether the update flag is set; clears it.
+/// Whether the update flag is set; clears it (and only it).
 #[inline(always)]
 pub fn take_update() -> bool {
-    let t = pac::TIM1;
-    let set = t.sr().read().uif();
+    let set = pac::TIM1.sr().read().uif();
     if set {
-        t.sr().modify(|w| w.set_uif(false));
+        let mut m = SrAdv(0);
+        m.set_uif(true);
+        clear_flags(m);
     }
     set
 }
 
-/// Whether the break flag is set; clears it and masks the break interrupt (the flag would
-/// set again at once while the comparator stays high) until [`rearm_break_irq`].
+/// Whether a break flag is set; clears the break flags and masks the break interrupt
+/// (the flag sets again at once while a comparator stays high) until [`rearm_break_irq`].
 pub fn take_break() -> bool {
     let t = pac::TIM1;
-    let set = t.sr().read().bif(0);
+    let set = t.sr().read().0 & break_flags().0 != 0;
     if set {
         t.dier().modify(|w| w.set_bie(false));
-        t.sr().modify(|w| w.set_bif(0, false));
+        clear_flags(break_flags());
     }
     set
 }
 
-/// Unmasks the break interrupt again once no comparator is high.
+/// Clears the break flags and unmasks the break interrupt (the core's `BreakReport::rearm`).
 pub fn rearm_break_irq() {
-    let t = pac::TIM1;
-    if !t.dier().read().bie() {
-        t.sr().modify(|w| w.set_bif(0, false));
-        t.dier().modify(|w| w.set_bie(true));
-    }
+    clear_flags(break_flags());
+    pac::TIM1.dier().modify(|w| w.set_bie(true));
 }
 
 /// The panic/HardFault path: MOE off through the PAC (a no-op if TIM1 was never clocked).

@@ -12,7 +12,6 @@ use embassy_stm32::gpio::Output;
 use embassy_sync::blocking_mutex::CriticalSectionMutex;
 use embassy_time::Instant;
 use firmware_drive::app::DriveApp;
-use firmware_drive::timing::PwmTiming;
 use shared_protocol::units::Micros;
 use static_cell::StaticCell;
 
@@ -22,8 +21,6 @@ pub struct Shared {
     pub app: DriveApp,
     /// Brake chopper gate, written by the PWM interrupt.
     pub brake: Output<'static>,
-    /// TIM1 timing currently programmed.
-    pub timing: PwmTiming,
     /// Fewest dead-time counts the power stage accepts.
     pub min_dead_counts: u32,
 }

@@ -272,7 +272,7 @@ pub mod plc_pins {
     /// Keypad rows R0..R3 (driven low one at a time) and columns C0..C3.
     pub const ROWS: [(u8, u8); 4] = [(0, 6), (0, 7), (1, 6), (1, 7)];
     pub const COLS: [(u8, u8); 4] = [(2, 2), (2, 3), (2, 4), (2, 5)];
-    /// The keypad's layout: KEYS[row][col].
+    /// The keypad's layout: `KEYS[row][col]`.
     pub const KEYS: [[char; 4]; 4] = [
         ['1', '2', '3', 'A'],
         ['4', '5', '6', 'B'],

@@ -3,9 +3,8 @@
 
 use firmware_drive::app::DriveApp;
 use firmware_drive::comparators::{BoardProfile, DacValues};
-use firmware_drive::{
-    AdcSample, DriveConfig, DriveCore, DriveStatus, HwBreak, PwmCommand, PwmTiming, ResetCause,
-};
+use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
+use firmware_drive::{AdcSample, DriveConfig, DriveCore, DriveStatus, PwmTiming, ResetCause};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
 
@@ -46,7 +45,7 @@ impl DriveBoard {
 
 impl DriveMcu for DriveBoard {
     #[inline]
-    fn pwm_isr(&mut self, adc: &AdcSample) -> PwmCommand {
+    fn pwm_isr(&mut self, adc: &AdcSample) -> PeriodAction {
         self.app.pwm_period(adc)
     }
 
@@ -55,8 +54,12 @@ impl DriveMcu for DriveBoard {
         self.drain();
     }
 
-    fn break_input(&mut self, cause: HwBreak, active: bool) {
-        self.app.hardware_break(cause, active);
+    fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
+        self.app.break_fired(levels)
+    }
+
+    fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
+        self.app.break_poll(levels)
     }
 
     fn uart_rx(&mut self, bytes: &[u8], now: Micros) {

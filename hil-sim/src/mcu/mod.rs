@@ -11,7 +11,8 @@ pub mod lcd;
 pub mod plc_board;
 
 use firmware_drive::comparators::{BoardProfile, DacValues};
-use firmware_drive::{AdcSample, DriveStatus, HwBreak, PwmCommand, PwmTiming};
+use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
+use firmware_drive::{AdcSample, DriveStatus, PwmTiming};
 use shared_protocol::units::Micros;
 
 pub use drive_board::DriveBoard;
@@ -20,17 +21,20 @@ pub use plc_board::PlcBoard;
 
 /// The drive MCU.
 pub trait DriveMcu {
-    /// TIM1 update interrupt: the ADC conversion of this period in, the timer registers out.
-    fn pwm_isr(&mut self, adc: &AdcSample) -> PwmCommand;
+    /// TIM1 update interrupt: the ADC conversion of this period in, what the power stage
+    /// does out (performed over the simulator's TIM1, [`crate::tim1::SimTim1`]).
+    fn pwm_isr(&mut self, adc: &AdcSample) -> PeriodAction;
     /// The 1 ms system tick (drive section, state machine, link timers).
     fn tick_1ms(&mut self, now: Micros);
-    /// Break input: a comparator fired (`active`) or fell back below its threshold.
-    fn break_input(&mut self, cause: HwBreak, active: bool);
+    /// TIM1 break interrupt with the comparators at `levels`.
+    fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport;
+    /// Every 1 ms before the tick: the comparators at `levels` (release, re-arm).
+    fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport;
     /// Bytes the UART received.
     fn uart_rx(&mut self, bytes: &[u8], now: Micros);
     /// The UART can take a frame: the next one to send (length, 0 = none).
     fn uart_tx(&mut self, now: Micros, out: &mut [u8]) -> usize;
-    /// TIM1 setup the firmware programs now.
+    /// TIM1 setup the board's init programs (later changes come as [`PeriodAction`]s).
     fn pwm_timing(&self) -> PwmTiming;
     /// The timer's kernel clock.
     fn timer_clock_hz(&self) -> u32;

@@ -12,7 +12,9 @@ pub mod sensors;
 
 pub use inverter::{GateCommand, Leg, PwmMode};
 pub use motor::MotorParams;
-pub use sensors::{AdcSample, BreakCause, Comparators, HwDefaults};
+pub use sensors::{AdcSample, Comparators, HwDefaults};
+
+use firmware_drive::power_port::ComparatorLevels;
 
 use inverter::Conn;
 
@@ -117,7 +119,8 @@ pub struct PlantOutputs {
     pub speed_rad_s: f64,
     pub torque_nm: f64,
     pub brake_on: bool,
-    /// Hardware break latched (outputs forced off).
+    /// The break input has cleared MOE (outputs forced off) and software has not set it
+    /// again.
     pub hw_break: bool,
     /// Leg voltages as fractions of the DC link, averaged over the last complete PWM
     /// period (a floating leg counts at the rail its diodes clamp it to).
@@ -138,14 +141,16 @@ pub struct Plant {
     period_ns: u64,
     /// Time into the current PWM period (switching model).
     tau_ns: u64,
-    /// Latched hardware break: all legs float until the drive sends an all-off command.
-    hw_break: Option<BreakCause>,
-    /// A break that fired and was not yet collected by [`Plant::take_break`].
-    break_event: Option<BreakCause>,
+    /// TIM1's break input cleared MOE: all legs float until software sets MOE again
+    /// ([`Plant::release_break`]), which it cannot while a comparator is high.
+    hw_break: bool,
+    /// TIM1_SR.BIF: set while the break input is active, cleared by software only once
+    /// it is not.
+    break_flag: bool,
     /// The board's comparators (table and DAC values from the drive core).
     comparators: Comparators,
-    /// Comparator outputs after the last step: [overcurrent, overvoltage].
-    comparator_levels: [bool; 2],
+    /// Comparator outputs after the last step.
+    comparator_levels: ComparatorLevels,
     /// Mechanical angle, rad (for plots and tests of reversal).
     angle_rad: f64,
     /// Integrals over the running PWM period: leg fractions, line voltage a-b, time (s).
@@ -167,13 +172,13 @@ impl Plant {
             brake_on: false,
             period_ns: 100_000,
             tau_ns: 0,
-            hw_break: None,
-            break_event: None,
+            hw_break: false,
+            break_flag: false,
             comparators: Comparators::new(
                 firmware_drive::DriveConfig::default().board,
                 params.hw_defaults.thresholds(),
             ),
-            comparator_levels: [false; 2],
+            comparator_levels: ComparatorLevels::default(),
             angle_rad: 0.0,
             period_acc: ([0.0; 3], 0.0, 0.0),
             period_avg: ([0.0; 3], 0.0),
@@ -202,12 +207,8 @@ impl Plant {
         self.set_command(cmd);
     }
 
-    /// Changes the gate command now, inside the period (outputs disabled by software).
+    /// Changes the gate command now, inside the period (MOE or an output enable written).
     pub fn set_command(&mut self, cmd: GateCommand) {
-        if !cmd.any_driven() {
-            // The drive has seen the break and turned its outputs off: re-arm (MOE).
-            self.hw_break = None;
-        }
         self.cmd = cmd;
     }
 
@@ -215,13 +216,30 @@ impl Plant {
         self.brake_on = on;
     }
 
-    /// A hardware break that fired since the last call.
-    pub fn take_break(&mut self) -> Option<BreakCause> {
-        self.break_event.take()
+    /// TIM1_SR.BIF.
+    pub fn break_flag(&self) -> bool {
+        self.break_flag
     }
 
-    /// Comparator outputs now: [overcurrent, overvoltage].
-    pub fn comparator_levels(&self) -> [bool; 2] {
+    /// Software clears BIF: it stays set while the break input is active (RM0440).
+    pub fn clear_break_flag(&mut self) {
+        self.break_flag = self.break_input_active();
+    }
+
+    /// A comparator is high: the break input is active.
+    pub fn break_input_active(&self) -> bool {
+        self.comparator_levels.0.iter().any(|l| *l)
+    }
+
+    /// Software set MOE with the break input inactive: the legs follow the gates again.
+    pub fn release_break(&mut self) {
+        if !self.break_input_active() {
+            self.hw_break = false;
+        }
+    }
+
+    /// Comparator outputs now, as COMPx_CSR.VALUE reads.
+    pub fn comparator_levels(&self) -> ComparatorLevels {
         self.comparator_levels
     }
 
@@ -235,7 +253,8 @@ impl Plant {
         self.comparators = c;
     }
 
-    pub fn hw_break(&self) -> Option<BreakCause> {
+    /// The break input has cleared MOE.
+    pub fn hw_break(&self) -> bool {
         self.hw_break
     }
 
@@ -266,7 +285,7 @@ impl Plant {
             speed_rad_s: self.x[WM],
             torque_nm,
             brake_on: self.brake_on,
-            hw_break: self.hw_break.is_some(),
+            hw_break: self.hw_break,
             duty_abc: self.period_avg.0,
             u_ab_v: self.period_avg.1,
         }
@@ -340,7 +359,7 @@ impl Plant {
                 let step = (seg * (k + 1)) / n - (seg * k) / n;
                 self.step(step, conns);
                 done += step;
-                if self.hw_break.is_some() && conns.iter().any(|c| matches!(c, Conn::Frac(_))) {
+                if self.hw_break && conns.iter().any(|c| matches!(c, Conn::Frac(_))) {
                     // The break forces every leg off at once: finish the segment floating.
                     break;
                 }
@@ -351,7 +370,7 @@ impl Plant {
     }
 
     fn conns(&self) -> [Conn; 3] {
-        if self.hw_break.is_some() {
+        if self.hw_break {
             return [Conn::Float; 3];
         }
         match self.params.pwm_mode {
@@ -420,15 +439,13 @@ impl Plant {
             self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
         }
         let o = self.outputs();
-        let levels = self.comparators.levels(o.i_abc_a, o.u_dc_v);
-        for (k, cause) in BreakCause::ALL.into_iter().enumerate() {
-            // The break input is edge-triggered: it latches on the comparator's rising edge.
-            if levels[k] && !self.comparator_levels[k] {
-                self.hw_break = Some(cause);
-                self.break_event = Some(cause);
-            }
+        self.comparator_levels = self.comparators.levels(o.i_abc_a, o.u_dc_v);
+        // The comparators are ORed into the break input (active high, level-sensitive):
+        // while one is high, MOE is cleared and BIF set.
+        if self.break_input_active() {
+            self.hw_break = true;
+            self.break_flag = true;
         }
-        self.comparator_levels = levels;
     }
 
     fn deriv(&self, x: &State, fracs: [f64; 3]) -> State {

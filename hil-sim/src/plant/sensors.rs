@@ -12,7 +12,7 @@
 //! The simulator trips exactly where the board does, not on |i|.
 
 use firmware_drive::comparators::{dac_values, BoardProfile, DacValues, HwThresholds, Signal};
-use firmware_drive::protection::HwBreak;
+use firmware_drive::power_port::ComparatorLevels;
 use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
 use shared_protocol::units::{CentiAmps, Volts};
 
@@ -64,15 +64,6 @@ pub fn counts_to_udc(c: u16) -> f64 {
     f64::from(c) * UDC_FULL_SCALE_V / f64::from(ADC_MAX)
 }
 
-/// Why the hardware break input fired.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum BreakCause {
-    /// A phase current beyond the comparator threshold (drive fault OC_HW).
-    Overcurrent,
-    /// DC link beyond the comparator threshold (drive fault OV_HW).
-    Overvoltage,
-}
-
 /// The board's default hardware thresholds (the source's trimmers as delivered): the drive
 /// uses them while the program sets no `I>>`/`U>>` (scenario `[plant] oc_hw_a`, `ov_hw_v`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -110,9 +101,9 @@ impl Comparators {
     }
 
     /// Comparator outputs for phase currents `i_abc` (inverter legs 1-3) and the DC link,
-    /// ORed per cause: [overcurrent, overvoltage].
-    pub fn levels(&self, i_abc: [f64; 3], u_dc: f64) -> [bool; 2] {
-        let mut out = [false; 2];
+    /// as COMPx_CSR.VALUE reads (index = COMPx - 1).
+    pub fn levels(&self, i_abc: [f64; 3], u_dc: f64) -> ComparatorLevels {
+        let mut out = ComparatorLevels::default();
         for spec in self.board.comparators {
             let Some(dac) = self.dacs.get(spec.dac) else {
                 continue;
@@ -123,11 +114,8 @@ impl Comparators {
                 Signal::CurrentC => current_signal_counts(i_abc[2]),
                 Signal::DcLink => udc_signal_counts(u_dc),
             };
-            if spec.trips(counts, dac) {
-                match spec.cause() {
-                    HwBreak::Overcurrent => out[0] = true,
-                    HwBreak::Overvoltage => out[1] = true,
-                }
+            if let Some(l) = out.0.get_mut(usize::from(spec.comp.saturating_sub(1))) {
+                *l = spec.trips(counts, dac);
             }
         }
         out
@@ -143,10 +131,6 @@ pub fn current_signal_counts(i_a: f64) -> f64 {
 /// The DC-link voltage in ADC counts, not quantised.
 pub fn udc_signal_counts(u_v: f64) -> f64 {
     u_v / UDC_FULL_SCALE_V * f64::from(ADC_MAX)
-}
-
-impl BreakCause {
-    pub const ALL: [BreakCause; 2] = [BreakCause::Overcurrent, BreakCause::Overvoltage];
 }
 
 #[cfg(test)]
@@ -178,15 +162,36 @@ mod tests {
         .thresholds();
         let c = Comparators::new(&B_G431B_ESC1, t);
         // Each phase's positive half-wave trips, on any of the three phases.
-        assert_eq!(c.levels([3.05, -1.5, -1.55], 30.0), [true, false]);
-        assert_eq!(c.levels([-1.5, 3.05, -1.55], 30.0), [true, false]);
-        assert_eq!(c.levels([-1.5, -1.55, 3.05], 30.0), [true, false]);
+        assert_eq!(
+            c.levels([3.05, -1.5, -1.55], 30.0).causes(c.board),
+            [true, false]
+        );
+        assert_eq!(
+            c.levels([-1.5, 3.05, -1.55], 30.0).causes(c.board),
+            [true, false]
+        );
+        assert_eq!(
+            c.levels([-1.5, -1.55, 3.05], 30.0).causes(c.board),
+            [true, false]
+        );
         // A negative half-wave alone does not (no window on the G431's four comparators):
         // -5 A on phase a with +2.5 A on b and c is the software check's (I>).
-        assert_eq!(c.levels([-5.0, 2.5, 2.5], 30.0), [false, false]);
+        assert_eq!(
+            c.levels([-5.0, 2.5, 2.5], 30.0).causes(c.board),
+            [false, false]
+        );
         // Beyond -2 x the threshold another phase exceeds +threshold (sum zero).
-        assert_eq!(c.levels([-6.2, 3.1, 3.1], 30.0), [true, false]);
-        assert_eq!(c.levels([0.0, 0.0, 0.0], 40.05), [false, true]);
-        assert_eq!(c.levels([2.9, 2.9, -5.8], 39.9), [false, false]);
+        assert_eq!(
+            c.levels([-6.2, 3.1, 3.1], 30.0).causes(c.board),
+            [true, false]
+        );
+        assert_eq!(
+            c.levels([0.0, 0.0, 0.0], 40.05).causes(c.board),
+            [false, true]
+        );
+        assert_eq!(
+            c.levels([2.9, 2.9, -5.8], 39.9).causes(c.board),
+            [false, false]
+        );
     }
 }

@@ -9,5 +9,6 @@ mod common;
 mod boot;
 mod link;
 mod motor;
+mod power_stage;
 mod storage;
 mod trips;

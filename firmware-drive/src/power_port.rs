@@ -1,0 +1,413 @@
+//! The power stage as the core drives it: one [`PeriodAction`] per PWM period, performed by
+//! [`PeriodAction::apply`] over a small [`PowerPort`], so that the order of the register
+//! writes is decided here, once, and host-tested; the board implements the port with
+//! TIM1's registers, hil-sim with its plant. The break input's attribution, release and
+//! re-arming are core decisions too ([`BreakMonitor`]), taking the comparator levels the
+//! board reads.
+//!
+//! The rules `apply` keeps (tested with a recording port):
+//! * outputs go off first whenever they are not to be on, before anything else is written;
+//! * MOE is never set while a break is pending (the break flag not yet taken by the break
+//!   interrupt, or the break input still active: RM0440 "MOE cannot be set while the break
+//!   input is active"), and a break that arrives between that check and the write of MOE
+//!   (a pulse shorter than the write, which the hardware then does not block) takes the
+//!   outputs off again at once: the flag is checked once more after MOE is set;
+//! * compares are never above ARR + 1 of the timing in effect;
+//! * a timer change (PSC/ARR/dead time) is written with the outputs off, and they stay off
+//!   for that period: they come back at the next period, once the new timing is in effect.
+
+use crate::comparators::BoardProfile;
+use crate::drive::PwmCommand;
+use crate::protection::HwBreak;
+use crate::timing::PwmTiming;
+
+/// What the core needs of the power stage's registers.
+pub trait PowerPort {
+    /// MOE = 0: all six switches to their inactive level, at once.
+    fn outputs_off(&mut self);
+    /// A break is pending (the break flag set, or the break input active): MOE cannot be
+    /// set.
+    fn break_pending(&self) -> bool;
+    /// PSC, ARR, the ADC trigger point and the dead time (all preloaded: from the next
+    /// update event).
+    fn set_timing(&mut self, t: &PwmTiming);
+    /// CCR1-3 (preloaded).
+    fn set_compares(&mut self, ccr: [u16; 3]);
+    /// Per leg: its two switches follow their compare (CCxE = CCxNE = 1) or stay open.
+    fn set_legs(&mut self, on: [bool; 3]);
+    /// MOE = 1.
+    fn outputs_on(&mut self);
+    /// The brake chopper's switch.
+    fn set_brake(&mut self, on: bool);
+}
+
+/// The power stage for one PWM period.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct PeriodAction {
+    /// Outputs on (MOE) this period.
+    pub enable: bool,
+    /// Legs that switch (all false when `enable` is false).
+    pub legs: [bool; 3],
+    /// CCR1-3, at most ARR + 1 of the timing in effect.
+    pub ccr: [u16; 3],
+    /// A new timing to program (the outputs stay off for this period).
+    pub timing: Option<PwmTiming>,
+    pub brake: bool,
+}
+
+impl PeriodAction {
+    /// The action for the core's command `cmd`, given the timing TIM1 is programmed with
+    /// (`programmed`) and the one the core wants (`wanted`).
+    pub fn from_command(cmd: &PwmCommand, programmed: &PwmTiming, wanted: &PwmTiming) -> Self {
+        let timing = (programmed != wanted).then_some(*wanted);
+        let max = wanted.arr.saturating_add(1);
+        let enable = cmd.enable && timing.is_none();
+        PeriodAction {
+            enable,
+            legs: if enable { cmd.leg_enable } else { [false; 3] },
+            ccr: cmd.ccr().map(|c| c.min(max)),
+            timing,
+            brake: cmd.brake,
+        }
+    }
+
+    /// Performs the action in the one order the module documents.
+    pub fn apply(&self, port: &mut impl PowerPort) {
+        if !self.enable {
+            port.outputs_off();
+        }
+        if let Some(t) = &self.timing {
+            port.set_timing(t);
+        }
+        port.set_compares(self.ccr);
+        if self.enable {
+            port.set_legs(self.legs);
+            if port.break_pending() {
+                port.outputs_off();
+            } else {
+                port.outputs_on();
+                if port.break_pending() {
+                    port.outputs_off();
+                }
+            }
+        }
+        port.set_brake(self.brake);
+    }
+}
+
+/// The comparator outputs as the board reads them (COMPx value after polarity),
+/// index = comparator number - 1 (COMP1..COMP7).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct ComparatorLevels(pub [bool; 7]);
+
+impl ComparatorLevels {
+    /// Which causes the high comparators of `board` stand for: [overcurrent, overvoltage].
+    pub fn causes(&self, board: &BoardProfile) -> [bool; 2] {
+        let mut out = [false; 2];
+        for s in board.comparators {
+            let high = self
+                .0
+                .get(usize::from(s.comp.saturating_sub(1)))
+                .copied()
+                .unwrap_or(false);
+            if high {
+                match s.cause() {
+                    HwBreak::Overcurrent => out[0] = true,
+                    HwBreak::Overvoltage => out[1] = true,
+                }
+            }
+        }
+        out
+    }
+}
+
+/// What the break monitor tells the core and the board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct BreakReport {
+    /// Causes to latch now (a break fired): [overcurrent, overvoltage].
+    pub fired: [bool; 2],
+    /// Causes whose comparators went low: [overcurrent, overvoltage].
+    pub released: [bool; 2],
+    /// No comparator is high any more: the board may unmask the break interrupt again
+    /// (it was masked when the break fired, since the flag sets again at once while the
+    /// input stays active).
+    pub rearm: bool,
+}
+
+/// Attribution, release and re-arming of the hardware break.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BreakMonitor {
+    active: [bool; 2],
+    masked: bool,
+}
+
+impl BreakMonitor {
+    /// The break interrupt fired with the comparators at `levels` (the hardware has already
+    /// cleared MOE; the board has masked the interrupt). The causes whose comparators are
+    /// high are latched; if none is high any more (a pulse shorter than the interrupt's
+    /// latency), overcurrent is blamed, the faster and more dangerous cause.
+    pub fn fired(&mut self, board: &BoardProfile, levels: ComparatorLevels) -> BreakReport {
+        let mut causes = levels.causes(board);
+        if causes == [false, false] {
+            causes[0] = true;
+        }
+        for (a, c) in self.active.iter_mut().zip(causes) {
+            *a |= c;
+        }
+        self.masked = true;
+        BreakReport {
+            fired: causes,
+            released: [false; 2],
+            rearm: false,
+        }
+    }
+
+    /// Every millisecond with the comparators at `levels`: the latched causes whose
+    /// comparators are low are released (the fault stays latched until ACK; only the
+    /// "cause still present" check changes), and the interrupt is re-armed once none is
+    /// high.
+    pub fn poll(&mut self, board: &BoardProfile, levels: ComparatorLevels) -> BreakReport {
+        let high = levels.causes(board);
+        let mut released = [false; 2];
+        for ((a, r), h) in self.active.iter_mut().zip(released.iter_mut()).zip(high) {
+            if *a && !h {
+                *a = false;
+                *r = true;
+            }
+        }
+        let rearm = self.masked && high == [false, false];
+        if rearm {
+            self.masked = false;
+        }
+        BreakReport {
+            fired: [false; 2],
+            released,
+            rearm,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::comparators::B_G431B_ESC1;
+
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    enum Op {
+        Off,
+        Timing(u16),
+        Compares([u16; 3]),
+        Legs([bool; 3]),
+        On,
+        Brake(bool),
+    }
+
+    /// A port that records the writes and models MOE and a pending break as TIM1 does.
+    #[derive(Default)]
+    struct Recorder {
+        ops: Vec<Op>,
+        moe: bool,
+        break_pending: bool,
+        /// A break pulse arrives during the write of MOE.
+        break_during_moe_write: bool,
+        arr: u16,
+    }
+
+    impl PowerPort for Recorder {
+        fn outputs_off(&mut self) {
+            self.moe = false;
+            self.ops.push(Op::Off);
+        }
+        fn break_pending(&self) -> bool {
+            self.break_pending
+        }
+        fn set_timing(&mut self, t: &PwmTiming) {
+            assert!(!self.moe, "timer changed with the outputs on");
+            self.arr = t.arr;
+            self.ops.push(Op::Timing(t.arr));
+        }
+        fn set_compares(&mut self, ccr: [u16; 3]) {
+            assert!(
+                ccr.iter().all(|c| *c <= self.arr + 1),
+                "compare above ARR + 1: {ccr:?} (ARR {})",
+                self.arr
+            );
+            self.ops.push(Op::Compares(ccr));
+        }
+        fn set_legs(&mut self, on: [bool; 3]) {
+            self.ops.push(Op::Legs(on));
+        }
+        fn outputs_on(&mut self) {
+            assert!(!self.break_pending, "MOE set while a break is pending");
+            self.moe = true;
+            self.ops.push(Op::On);
+            if self.break_during_moe_write {
+                self.break_pending = true;
+            }
+        }
+        fn set_brake(&mut self, on: bool) {
+            self.ops.push(Op::Brake(on));
+        }
+    }
+
+    fn timing(arr: u16) -> PwmTiming {
+        PwmTiming {
+            arr,
+            ..PwmTiming::compute(170_000_000, 16_000, 1, 1000, 500)
+        }
+    }
+
+    fn cmd(enable: bool, duty: [u16; 3], period: u16) -> PwmCommand {
+        PwmCommand {
+            enable,
+            leg_enable: [enable; 3],
+            duty,
+            period_counts: period,
+            brake: false,
+        }
+    }
+
+    #[test]
+    fn running_period_writes_compares_legs_then_moe_then_brake() {
+        let t = timing(1000);
+        let mut p = Recorder {
+            arr: 1000,
+            ..Recorder::default()
+        };
+        PeriodAction::from_command(&cmd(true, [10, 500, 1000], 1000), &t, &t).apply(&mut p);
+        assert_eq!(
+            p.ops,
+            vec![
+                Op::Compares([10, 500, 1001]),
+                Op::Legs([true; 3]),
+                Op::On,
+                Op::Brake(false)
+            ]
+        );
+    }
+
+    #[test]
+    fn off_goes_first() {
+        let t = timing(1000);
+        let mut p = Recorder {
+            arr: 1000,
+            moe: true,
+            ..Recorder::default()
+        };
+        PeriodAction::from_command(&cmd(false, [0; 3], 1000), &t, &t).apply(&mut p);
+        assert_eq!(p.ops.first(), Some(&Op::Off));
+        assert!(!p.moe);
+    }
+
+    #[test]
+    fn no_moe_while_a_break_is_pending() {
+        let t = timing(1000);
+        let mut p = Recorder {
+            arr: 1000,
+            break_pending: true,
+            ..Recorder::default()
+        };
+        PeriodAction::from_command(&cmd(true, [500; 3], 1000), &t, &t).apply(&mut p);
+        assert!(!p.moe);
+        assert!(!p.ops.contains(&Op::On));
+    }
+
+    #[test]
+    fn a_break_during_the_moe_write_takes_the_outputs_off_again() {
+        let t = timing(1000);
+        let mut p = Recorder {
+            arr: 1000,
+            break_during_moe_write: true,
+            ..Recorder::default()
+        };
+        PeriodAction::from_command(&cmd(true, [500; 3], 1000), &t, &t).apply(&mut p);
+        assert!(!p.moe);
+        let on = p.ops.iter().position(|o| *o == Op::On);
+        let off = p.ops.iter().rposition(|o| *o == Op::Off);
+        assert!(on < off, "{:?}", p.ops);
+    }
+
+    #[test]
+    fn a_timer_change_is_written_with_the_outputs_off_and_they_stay_off_that_period() {
+        let (old, new) = (timing(1000), timing(400));
+        let mut p = Recorder {
+            arr: 1000,
+            moe: true,
+            ..Recorder::default()
+        };
+        // The command still refers to the old period: the compares are clamped to the new.
+        let a = PeriodAction::from_command(&cmd(true, [900, 100, 1000], 1000), &old, &new);
+        a.apply(&mut p);
+        assert_eq!(
+            p.ops,
+            vec![
+                Op::Off,
+                Op::Timing(400),
+                Op::Compares([401, 100, 401]),
+                Op::Brake(false)
+            ]
+        );
+        assert!(!p.moe);
+        // Next period, same timing: back on.
+        let mut p2 = Recorder {
+            arr: 400,
+            ..Recorder::default()
+        };
+        PeriodAction::from_command(&cmd(true, [300; 3], 400), &new, &new).apply(&mut p2);
+        assert!(p2.moe);
+    }
+
+    #[test]
+    fn any_command_keeps_the_rules() {
+        // Every combination of enable, break, a timing change and duties beyond ARR.
+        for enable in [false, true] {
+            for pending in [false, true] {
+                for change in [false, true] {
+                    for duty in [0u16, 1, 499, 500, 501, u16::MAX] {
+                        let old = timing(500);
+                        let new = if change { timing(300) } else { old };
+                        let mut p = Recorder {
+                            arr: 500,
+                            moe: true,
+                            break_pending: pending,
+                            ..Recorder::default()
+                        };
+                        PeriodAction::from_command(&cmd(enable, [duty; 3], 500), &old, &new)
+                            .apply(&mut p);
+                        assert_eq!(p.moe, enable && !pending && !change);
+                    }
+                }
+            }
+        }
+    }
+
+    fn levels(high: &[u8]) -> ComparatorLevels {
+        let mut l = ComparatorLevels::default();
+        for c in high {
+            l.0[usize::from(*c) - 1] = true;
+        }
+        l
+    }
+
+    #[test]
+    fn break_attribution_release_and_rearm() {
+        let b = &B_G431B_ESC1;
+        let mut m = BreakMonitor::default();
+        // COMP3 is the DC link: overvoltage.
+        let r = m.fired(b, levels(&[3]));
+        assert_eq!(r.fired, [false, true]);
+        // Still high: nothing released, not re-armed.
+        assert_eq!(m.poll(b, levels(&[3])), BreakReport::default());
+        let r = m.poll(b, levels(&[]));
+        assert_eq!(r.released, [false, true]);
+        assert!(r.rearm);
+        // Re-armed once only.
+        assert!(!m.poll(b, levels(&[])).rearm);
+        // COMP4 (phase W) is overcurrent; a pulse already gone blames overcurrent.
+        assert_eq!(m.fired(b, levels(&[4])).fired, [true, false]);
+        assert_eq!(m.fired(b, levels(&[])).fired, [true, false]);
+    }
+}

@@ -1,0 +1,208 @@
+//! TIM1 as hil-sim's drive board programs it: the registers the firmware's
+//! [`PowerPort`] writes (MOE, CCxE/CCxNE, preloaded CCR1-3, PSC/ARR/DTG), the update
+//! event that loads the preloads, and the break flag with its interrupt mask. The plant
+//! ([`Plant`]) holds what the hardware does asynchronously: the comparators, the break
+//! input clearing MOE, and the gates.
+//!
+//! The rules are RM0440's, as in `g431-emu`'s register model: compares, PSC, ARR and the
+//! dead time take effect at the update event; MOE and the output enables at once; MOE
+//! cannot be set while the break input is active; the break flag stays set while it is.
+
+use firmware_drive::power_port::PowerPort;
+use firmware_drive::PwmTiming;
+
+use crate::plant::{GateCommand, Leg, Plant};
+
+/// The timer's registers.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimTim1 {
+    /// PSC/ARR/DTG in effect (loaded at the last update event).
+    active: PwmTiming,
+    /// Written, loaded at the next update event.
+    preload: Option<PwmTiming>,
+    ccr_active: [u16; 3],
+    ccr_preload: [u16; 3],
+    legs: [bool; 3],
+    moe: bool,
+    /// BIE: the break interrupt is unmasked.
+    break_irq_enabled: bool,
+    timer_clock_hz: u32,
+}
+
+impl SimTim1 {
+    /// As the board's init leaves it: counting with `timing`, MOE = 0, all compares 0,
+    /// every leg enabled, the break interrupt unmasked.
+    pub fn new(timing: PwmTiming, timer_clock_hz: u32) -> Self {
+        SimTim1 {
+            active: timing,
+            preload: None,
+            ccr_active: [0; 3],
+            ccr_preload: [0; 3],
+            legs: [true; 3],
+            moe: false,
+            break_irq_enabled: true,
+            timer_clock_hz,
+        }
+    }
+
+    /// The update event: preloaded timing and compares take effect.
+    pub fn update(&mut self) {
+        if let Some(t) = self.preload.take() {
+            self.active = t;
+        }
+        self.ccr_active = self.ccr_preload;
+    }
+
+    pub fn timing(&self) -> &PwmTiming {
+        &self.active
+    }
+
+    pub fn timer_clock_hz(&self) -> u32 {
+        self.timer_clock_hz
+    }
+
+    pub fn moe(&self) -> bool {
+        self.moe
+    }
+
+    /// What the gates do under these registers (ignoring a break, which the plant applies).
+    pub fn gate(&self) -> GateCommand {
+        if !self.moe {
+            return GateCommand::OFF;
+        }
+        let n = f64::from(self.active.arr.max(1));
+        let mut legs = [Leg::Off; 3];
+        for ((leg, c), on) in legs.iter_mut().zip(self.ccr_active).zip(self.legs) {
+            if on {
+                *leg = Leg::Duty((f64::from(c) / n).min(1.0));
+            }
+        }
+        let f = u64::from(self.timer_clock_hz.max(1));
+        GateCommand {
+            legs,
+            dead_time_ns: (u64::from(self.active.dead_time_counts) * 1_000_000_000).div_ceil(f),
+        }
+    }
+
+    /// The break interrupt would run now: unmasked and the flag set.
+    pub fn break_irq_pending(&self, plant: &Plant) -> bool {
+        self.break_irq_enabled && plant.break_flag()
+    }
+
+    /// What the board's break handler does to the registers before it calls the
+    /// application: mask the interrupt, clear the flag.
+    pub fn take_break(&mut self, plant: &mut Plant) {
+        self.break_irq_enabled = false;
+        plant.clear_break_flag();
+    }
+
+    /// The application's `BreakReport::rearm`: clear the flag, unmask the interrupt.
+    pub fn rearm_break(&mut self, plant: &mut Plant) {
+        plant.clear_break_flag();
+        self.break_irq_enabled = true;
+    }
+
+    /// The firmware's power port on these registers and `plant`.
+    pub fn port<'a>(&'a mut self, plant: &'a mut Plant) -> SimPowerPort<'a> {
+        SimPowerPort { tim: self, plant }
+    }
+}
+
+/// [`PowerPort`] over [`SimTim1`] and the plant, as `firmware-drive`'s `Tim1Port` is over
+/// the real registers.
+pub struct SimPowerPort<'a> {
+    tim: &'a mut SimTim1,
+    plant: &'a mut Plant,
+}
+
+impl SimPowerPort<'_> {
+    /// MOE and the output enables act at once: the gates follow now.
+    fn drive_gates(&mut self) {
+        self.plant.set_command(self.tim.gate());
+    }
+}
+
+impl PowerPort for SimPowerPort<'_> {
+    fn outputs_off(&mut self) {
+        self.tim.moe = false;
+        self.drive_gates();
+    }
+
+    fn break_pending(&self) -> bool {
+        self.plant.break_flag() || self.plant.break_input_active()
+    }
+
+    fn set_timing(&mut self, t: &PwmTiming) {
+        self.tim.preload = Some(*t);
+    }
+
+    fn set_compares(&mut self, ccr: [u16; 3]) {
+        self.tim.ccr_preload = ccr;
+    }
+
+    fn set_legs(&mut self, on: [bool; 3]) {
+        self.tim.legs = on;
+        if self.tim.moe {
+            self.drive_gates();
+        }
+    }
+
+    fn outputs_on(&mut self) {
+        // RM0440 29.3.18: MOE cannot be set while the break input is active.
+        if self.plant.break_input_active() {
+            return;
+        }
+        self.tim.moe = true;
+        self.plant.release_break();
+        self.drive_gates();
+    }
+
+    fn set_brake(&mut self, on: bool) {
+        self.plant.set_brake(on);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plant::RigParams;
+    use firmware_drive::power_port::PeriodAction;
+    use firmware_drive::PwmCommand;
+
+    fn timing(pwf: u32) -> PwmTiming {
+        PwmTiming::compute(170_000_000, pwf, 1, 1000, 500)
+    }
+
+    fn run_cmd(duty: u16, arr: u16) -> PwmCommand {
+        PwmCommand {
+            enable: true,
+            leg_enable: [true; 3],
+            duty: [duty; 3],
+            period_counts: arr,
+            brake: false,
+        }
+    }
+
+    #[test]
+    fn compares_and_timing_wait_for_the_update_event_moe_acts_at_once() {
+        let t = timing(16_000);
+        let mut tim = SimTim1::new(t, 170_000_000);
+        let mut plant = Plant::new(RigParams::default());
+        PeriodAction::from_command(&run_cmd(t.arr / 2, t.arr), &t, &t)
+            .apply(&mut tim.port(&mut plant));
+        assert!(tim.moe());
+        // MOE is on, the compares of this period are still the old ones (0).
+        assert_eq!(tim.gate().legs, [Leg::Duty(0.0); 3]);
+        tim.update();
+        let half = f64::from(t.arr / 2) / f64::from(t.arr);
+        assert_eq!(tim.gate().legs, [Leg::Duty(half); 3]);
+        // A new timing: outputs off at once, the new ARR only after the update.
+        let t2 = timing(8_000);
+        PeriodAction::from_command(&run_cmd(t.arr / 2, t.arr), &t, &t2)
+            .apply(&mut tim.port(&mut plant));
+        assert!(!tim.moe());
+        assert_eq!(tim.timing().arr, t.arr);
+        tim.update();
+        assert_eq!(tim.timing().arr, t2.arr);
+    }
+}
