@@ -319,3 +319,36 @@ fn power_up_waits_for_a_write_cycle_left_running_by_a_reset() {
     assert_eq!(p, program(20, 5));
     assert_eq!(s.eeprom().busy_violations(), 0);
 }
+
+#[test]
+fn the_write_cycle_limit_counts_from_the_first_poll_not_from_the_slow_write_step() {
+    // On the board a step's time is taken before its transfer, and a page write takes
+    // about 7 ms at 100 kHz: the next step comes about 8 ms later, and the chip is then
+    // still busy for up to 5 ms. That must not count against the 10 ms limit.
+    let mut mem = MemEeprom::new();
+    mem.set_busy_polls(5);
+    let mut s = Storage::new(Counting::new(mem));
+    let mut p = program(200, 9);
+    s.queue(Job::Save { slot: 1 }).unwrap();
+    let mut t = 0u64;
+    let mut done = None;
+    while s.busy() {
+        let written = s.eeprom().inner.pages_written();
+        let step = s.step(Micros(t), &mut p);
+        t += if s.eeprom().inner.pages_written() > written {
+            8_000
+        } else {
+            1_000
+        };
+        if let Some(d) = step.done {
+            done = Some(d);
+        }
+    }
+    assert_eq!(
+        done,
+        Some(JobDone::Saved {
+            slot: 1,
+            result: Ok(1)
+        })
+    );
+}

@@ -335,14 +335,15 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
             }
             self.last_fault = f;
         }
+        if t >= self.next_scan_ns {
+            // The pins as they are now; the PLC samples them in its tick (raw levels).
+            self.plc.scan(&self.pins, now);
+            self.next_scan_ns += self.scenario.scan_time_ns;
+            plc_link = true;
+        }
         if t >= self.next_plc_tick_ns {
             self.plc.tick_1ms(now);
             self.next_plc_tick_ns += MS_NS;
-            plc_link = true;
-        }
-        if t >= self.next_scan_ns {
-            self.plc.scan(&self.pins, now);
-            self.next_scan_ns += self.scenario.scan_time_ns;
             plc_link = true;
         }
         for side in 0..2 {

@@ -5,7 +5,9 @@
 //! `ready` on later passes (review D5/D11).
 
 use embassy_stm32::i2c::Error as I2cError;
-use firmware_plc::storage::eeprom::{check_page_write, Eeprom, EepromError, EEPROM_BYTES};
+use firmware_plc::storage::eeprom::{
+    check_page_write, Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES,
+};
 
 use super::i2c_bus::SharedI2c;
 
@@ -32,10 +34,17 @@ impl Eeprom for I2cEeprom {
         if buf.is_empty() {
             return Ok(());
         }
-        self.bus
-            .borrow_mut()
-            .blocking_write_read(ADDRESS, &addr.to_be_bytes(), buf)
-            .map_err(|_| EepromError::Bus)
+        // One transaction per page at most (about 6.5 ms at 100 kHz): a longer one (the
+        // fault log's 256 bytes at power-up, 23 ms) would exceed the bus's transaction
+        // timeout (`i2c_bus::TRANSACTION_TIMEOUT_MS`). The storage jobs read a page or less.
+        let mut bus = self.bus.borrow_mut();
+        let mut at = addr;
+        for chunk in buf.chunks_mut(PAGE_BYTES) {
+            bus.blocking_write_read(ADDRESS, &at.to_be_bytes(), chunk)
+                .map_err(|_| EepromError::Bus)?;
+            at = at.wrapping_add(chunk.len() as u16);
+        }
+        Ok(())
     }
 
     fn start_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {

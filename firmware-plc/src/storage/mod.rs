@@ -152,8 +152,11 @@ pub struct Storage<E: Eeprom> {
     power_cycle: u32,
     queue: heapless::Deque<Job, QUEUE_JOBS>,
     active: Option<(Job, Phase)>,
-    /// When the last write was started, until the chip has been seen ready again.
-    writing_since: Option<Micros>,
+    /// A write cycle may be running: since when the chip has been polled busy (`None`
+    /// until the first poll). The limit counts from the first poll, not from the step
+    /// that made the write: on the board that step's time is taken before the transfer,
+    /// which itself takes about 7 ms at 100 kHz, and the write cycle starts at its STOP.
+    writing_since: Option<Option<Micros>>,
 }
 
 impl<E: Eeprom> Storage<E> {
@@ -249,9 +252,11 @@ impl<E: Eeprom> Storage<E> {
         let mut used_bus = false;
         if let Some(since) = self.writing_since {
             used_bus = true;
+            let since = since.unwrap_or(now);
             match self.eeprom.ready() {
                 Ok(true) => self.writing_since = None,
                 Ok(false) if now.0.saturating_sub(since.0) <= WRITE_CYCLE_LIMIT_US => {
+                    self.writing_since = Some(Some(since));
                     self.active = Some((job, phase));
                     return Step {
                         used_bus,
@@ -279,7 +284,7 @@ impl<E: Eeprom> Storage<E> {
         if access == Access::Write {
             // Even a failed write may have started a cycle: wait it out before the next
             // access of any job.
-            self.writing_since = Some(now);
+            self.writing_since = Some(None);
         }
         used_bus |= access != Access::None;
         match next {
@@ -356,7 +361,7 @@ impl<E: Eeprom> Storage<E> {
     ) -> Result<PowerUp, StorageError> {
         self.queue.clear();
         self.active = None;
-        self.writing_since = Some(clock());
+        self.writing_since = Some(None);
         let mut prog = Prog::Mut(program);
         // The record as stored, read through a job that changes nothing.
         let record = {
@@ -393,7 +398,8 @@ impl<E: Eeprom> Storage<E> {
 
     /// Waits (polling) until a write cycle that may be running has ended.
     fn wait_idle(&mut self, clock: &mut dyn FnMut() -> Micros) -> Result<(), StorageError> {
-        while let Some(since) = self.writing_since {
+        let since = clock();
+        while self.writing_since.is_some() {
             if self.eeprom.ready()? {
                 self.writing_since = None;
             } else if clock().0.saturating_sub(since.0) > WRITE_CYCLE_LIMIT_US {
