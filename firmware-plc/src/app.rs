@@ -11,6 +11,16 @@
 //! | a key pressed | [`PlcApp::key`] |
 //! | LCD refresh (e.g. every 100 ms) | [`PlcApp::render`] |
 //!
+//! A board (and hil-sim) calls [`PlcApp::tick_1ms`] every millisecond with the **raw** pin
+//! levels and key matrix: it debounces them, runs the scan at its cadence, steps the
+//! EEPROM jobs (one page per pass) and redraws the screen at its cadence. The calls above
+//! remain for tests and tools.
+//!
+//! Storage: saves, loads, the fault log and the boot record are queued as
+//! [`crate::storage::Job`]s and done one EEPROM page per `tick_1ms` (review D5): nothing
+//! ever stalls the board's executor, and a save is allowed in RUN. Only power-up
+//! ([`PlcApp::power_up`]) reads synchronously, before the watchdog runs.
+//!
 //! RUN (key `A`, [`PlcApp::run`], or power-up): verify the whole program (an error shows
 //! its line and nothing starts), wait for the link, download the drive section, wait for
 //! the drive's acceptance, then send RUN to the drive and start the VM in the same call.
@@ -32,8 +42,11 @@ use shared_protocol::link::{
 use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
 
+use crate::debounce::{Debouncer, KeyMatrix};
 use crate::editor::{Editor, Key, Notice, Page, Request, RunView, Screen, View, Warning};
-use crate::storage::{Eeprom, FaultEntry, Storage, FAULT_LOG_ENTRIES};
+use crate::storage::{
+    BootChange, Eeprom, FaultEntry, Job, JobDone, Storage, StorageError, FAULT_LOG_ENTRIES,
+};
 use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 
 /// Where RUN stands.
@@ -92,10 +105,6 @@ pub struct PlcApp<E: Eeprom> {
     run_slot: Option<u8>,
     out: ScanOutputs,
     newest_fault: Option<u8>,
-    /// Fault reports received and not yet written to the EEPROM log (code, PLC s): the
-    /// write takes tens of ms, so the link pump does it after the report's
-    /// acknowledgement went out ([`PlcApp::log_faults`]).
-    unlogged: heapless::Deque<(u8, u32), UNLOGGED>,
     warning: Option<vm::Warning>,
     /// The stored fault log, newest first (read at power-up, kept up to date).
     fault_log: heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
@@ -106,11 +115,62 @@ pub struct PlcApp<E: Eeprom> {
     drive_writes_q: u64,
     /// Time from one scan to the next, for the link's quiet window.
     scan_period_us: u64,
+    /// Digital inputs, debounced in [`PlcApp::tick_1ms`].
+    inputs: Debouncer<8>,
+    /// The keypad, debounced in [`PlcApp::tick_1ms`].
+    keys: KeyMatrix,
+    /// `tick_1ms` calls since power-up (scan and redraw cadence).
+    ticks: u32,
+    /// [`PlcApp::alerts`] at the last redraw.
+    drawn_alerts: Option<Alerts>,
+    /// A STOP the link refused (its command queue was full): retried on every link call
+    /// until it is queued, so STOP is never dropped.
+    stop_owed: bool,
+    /// The run state last reported in a [`Tick`] (changes made by the link calls
+    /// between ticks are reported by the next tick).
+    reported_run: RunState,
 }
 
-/// Fault reports waiting for their EEPROM log entry (more in one pass means a storm; the
-/// oldest then goes unlogged).
-const UNLOGGED: usize = 4;
+/// Digital inputs: a level must hold for 5 samples (5 ms at one `tick_1ms` per ms) to
+/// count; a shorter pulse never reaches the scan.
+pub const INPUT_DEBOUNCE_SAMPLES: u8 = 5;
+/// Keypad: a key must be stable for 10 full-matrix samples (10 ms) to count.
+pub const KEY_DEBOUNCE_SAMPLES: u8 = 10;
+/// The screen is redrawn every this many ticks (100 ms), and at once after a key or a
+/// change of [`Alerts`]; the LCD driver then sends the changed cells.
+pub const RENDER_TICKS: u32 = 100;
+
+/// The raw levels a board samples once per millisecond.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RawIo {
+    /// D00..D07 as read at the pins (bit n = Dn, 1 = on), not debounced.
+    pub digital: u8,
+    /// A00..A03, 10-bit counts.
+    pub analog: [u16; 4],
+    /// The key matrix as scanned (bit `4 * row + column` = pressed), not debounced.
+    pub keys: u16,
+}
+
+/// What one [`PlcApp::tick_1ms`] did, for the board to carry out and log.
+#[must_use]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tick {
+    /// The output image to write to O00..O05.
+    pub outputs: u8,
+    /// A scan ran in this tick (its warning, if any).
+    pub scanned: bool,
+    pub warning: Option<vm::Warning>,
+    /// The screen was redrawn: the LCD driver has cells to send.
+    pub redrawn: bool,
+    /// Debounced keys pressed in this tick (bit as in [`RawIo::keys`]).
+    pub keys_down: u16,
+    /// The storage job that finished in this tick.
+    pub storage: Option<JobDone>,
+    /// The storage step used the I2C bus.
+    pub storage_used_bus: bool,
+    /// The run state changed in this tick (from, to).
+    pub run_change: Option<(RunState, RunState)>,
+}
 
 /// Margin kept between the end of a heartbeat sent after a scan and the next scan.
 const QUIET_MARGIN_US: u64 = 50;
@@ -151,20 +211,36 @@ impl<E: Eeprom> PlcApp<E> {
             run_slot: None,
             out: ScanOutputs::default(),
             newest_fault: None,
-            unlogged: heapless::Deque::new(),
             warning: None,
             fault_log: heapless::Vec::new(),
             q_sent: [None; Q_COUNT],
             drive_writes_q: 0,
             scan_period_us: 1_000,
+            inputs: Debouncer::new(INPUT_DEBOUNCE_SAMPLES),
+            keys: KeyMatrix::new(KEY_DEBOUNCE_SAMPLES),
+            ticks: 0,
+            drawn_alerts: None,
+            reported_run: RunState::Stopped,
+            stop_owed: false,
         }
     }
 
     /// Power-up: loads the slot last run from the EEPROM and the fault log, and starts RUN
     /// when the boot record says the PLC was running. Call once, after `new_cold`.
     pub fn power_up(&mut self, now: Micros) {
+        let mut t = now.0;
+        let mut clock = || {
+            t += 1000;
+            Micros(t)
+        };
+        self.power_up_clocked(now, &mut clock);
+    }
+
+    /// [`PlcApp::power_up`] with the real clock that times the EEPROM's write cycles (the
+    /// board's: power-up runs synchronously before the watchdog is started).
+    pub fn power_up_clocked(&mut self, now: Micros, clock: &mut dyn FnMut() -> Micros) {
         let mut run_now = false;
-        match self.storage.power_up(&mut self.program) {
+        match self.storage.power_up_clocked(&mut self.program, clock) {
             Ok(p) => {
                 match p.loaded {
                     Some(Ok(report)) => {
@@ -286,7 +362,7 @@ impl<E: Eeprom> PlcApp<E> {
         }
         if self.run == RunState::Running {
             // A new RUN while running: stop both first, then start over.
-            let _ = self.link.stop();
+            self.send_stop();
         }
         self.run_slot = slot.or(self.run_slot);
         self.out = ScanOutputs::default();
@@ -298,11 +374,32 @@ impl<E: Eeprom> PlcApp<E> {
 
     /// STOP: the VM stops, the outputs go off, the drive is told to stop.
     pub fn stop(&mut self) {
-        let _ = self.link.stop();
+        self.send_stop();
         self.run = RunState::Stopped;
         self.out = ScanOutputs::default();
-        if self.storage.set_run_state(self.run_slot, false).is_err() {
-            self.editor.notify(Notice::Text("EEPROM ERROR"));
+        self.queue_boot(false);
+    }
+
+    /// Hands STOP to the link. Refused with a full command queue: owed, and retried by
+    /// every later link call ([`PlcApp::service`]) until queued. Refused while the link
+    /// is down: nothing to send (the drive stops by itself on a lost link: `LINK`).
+    fn send_stop(&mut self) {
+        self.stop_owed = matches!(self.link.stop(), Err(CommandError::QueueFull));
+    }
+
+    /// Whether a STOP refused by a full link queue is still waiting to be queued.
+    pub fn stop_owed(&self) -> bool {
+        self.stop_owed
+    }
+
+    /// Queues the boot record's run state (a waiting change is replaced by this one).
+    fn queue_boot(&mut self, running: bool) {
+        let job = Job::Boot(BootChange::Run {
+            slot: self.run_slot,
+            running,
+        });
+        if self.storage.queue(job).is_err() {
+            self.editor.notify(Notice::Text("EEPROM BUSY"));
         }
     }
 
@@ -339,9 +436,7 @@ impl<E: Eeprom> PlcApp<E> {
         self.q_sent = [None; Q_COUNT];
         self.drive_writes_q = drive_written_q(&self.program);
         self.run = RunState::Running;
-        if self.storage.set_run_state(self.run_slot, true).is_err() {
-            self.editor.notify(Notice::Text("EEPROM ERROR"));
-        }
+        self.queue_boot(true);
     }
 
     /// One scan with the inputs sampled at its start; returns the outputs to write.
@@ -376,9 +471,13 @@ impl<E: Eeprom> PlcApp<E> {
             *sent = Some(value);
         }
         if let Some(rev) = out.rev_request {
+            // Remembered while the link is down and resent after each handshake; refused
+            // only with 96 commands waiting, and the program asks again every scan.
             let _ = self.link.set_direction(rev);
         }
         if out.ack_request {
+            // A program's ACK while the link is down has nothing to acknowledge: the
+            // drive's fault is read again after the reconnection.
             let _ = self.link.ack_fault();
         }
         // No command until the next scan: a heartbeat that is due soon goes now, so it is
@@ -412,50 +511,17 @@ impl<E: Eeprom> PlcApp<E> {
 
     /// Bytes from the UART.
     pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.link_rx(bytes, now);
-        self.log_faults();
-    }
-
-    /// [`Self::on_rx`] without the fault log's EEPROM writes ([`Self::log_faults`]): for
-    /// the link pump (`crate::link`).
-    pub(crate) fn link_rx(&mut self, bytes: &[u8], now: Micros) {
         self.link.receive(bytes, now);
         self.service(now);
-    }
-
-    /// [`Self::poll_tx`] without the fault log's EEPROM writes: for the link pump.
-    pub(crate) fn link_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        self.service(now);
-        let n = self.link.poll_transmit(now, out);
-        self.service(now);
-        n
-    }
-
-    /// Writes the fault reports received since the last call to the EEPROM log (tens of
-    /// ms on the board: I2C and page write cycles). The link pump calls it after the
-    /// pass's frame went out, so that the reports' acknowledgement never waits for it:
-    /// delayed beyond the drive's link timeout, the drive would deliver the reports again
-    /// in its next session, and they would be logged again, forever.
-    pub fn log_faults(&mut self) {
-        if self.unlogged.is_empty() {
-            return;
-        }
-        let mut failed = false;
-        while let Some((code, s)) = self.unlogged.pop_front() {
-            failed |= self.storage.log_fault(code, u64::from(s) * 1000).is_err();
-        }
-        if failed {
-            self.editor.notify(Notice::Text("FAULT LOG ERROR"));
-        }
-        self.reload_fault_log();
     }
 
     /// The next frame for the UART (0 = nothing now); `out` must hold
     /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes. Also runs the link's timers and
     /// the RUN sequence: call it at least every millisecond.
     pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        let n = self.link_tx(now, out);
-        self.log_faults();
+        self.service(now);
+        let n = self.link.poll_transmit(now, out);
+        self.service(now);
         n
     }
 
@@ -470,10 +536,12 @@ impl<E: Eeprom> PlcApp<E> {
     pub fn tick(&mut self, now: Micros) {
         self.link.tick(now);
         self.service(now);
-        self.log_faults();
     }
 
     fn service(&mut self, now: Micros) {
+        if self.stop_owed {
+            self.send_stop();
+        }
         while let Some(e) = self.link.poll_event() {
             match e {
                 PlcEvent::Connected => {}
@@ -505,12 +573,13 @@ impl<E: Eeprom> PlcApp<E> {
                 PlcEvent::DriveFault { code, .. } => {
                     self.newest_fault = Some(code);
                     // The PLC's clock, not the drive's: the log's timestamps must be
-                    // comparable across drive reboots. Written by `log_faults`.
-                    if self.unlogged.is_full() {
-                        self.unlogged.pop_front();
+                    // comparable across drive reboots. Queued: the job runs in
+                    // `tick_1ms`, one EEPROM page per tick, so the link pass that
+                    // received the report (and its acknowledgement) never waits for it.
+                    let entry = self.storage.fault_entry(code, now.0 / 1000);
+                    if self.storage.queue(Job::LogFault(entry)).is_err() {
+                        self.editor.notify(Notice::Text("FAULT LOG ERROR"));
                     }
-                    let s = u32::try_from(now.0 / 1_000_000).unwrap_or(u32::MAX);
-                    let _ = self.unlogged.push_back((code, s));
                 }
             }
         }
@@ -524,27 +593,28 @@ impl<E: Eeprom> PlcApp<E> {
         }
     }
 
-    /// A key of the keypad.
+    /// A key of the keypad (debounced; [`PlcApp::tick_1ms`] calls it).
     pub fn key(&mut self, key: Key, now: Micros) {
         let running = self.run != RunState::Stopped;
+        self.editor.set_program_use(self.storage.program_use());
         let Some(req) = self.editor.key(key, &mut self.program, running) else {
             return;
         };
         match req {
-            Request::Save(slot) => {
-                let notice = match self.storage.save(slot, &self.program) {
-                    Ok(_) => Notice::Saved { slot },
-                    Err(error) => Notice::SaveFailed { slot, error },
-                };
-                self.editor.notify(notice);
-            }
-            Request::Load(slot) => {
-                let notice = match self.storage.load(slot, &mut self.program) {
-                    Ok(r) => Notice::Loaded(r),
-                    Err(error) => Notice::LoadFailed { slot, error },
-                };
-                self.editor.notify(notice);
-            }
+            Request::Save(slot) => match self.storage.queue(Job::Save { slot }) {
+                Ok(()) => self.editor.notify(Notice::Text("SAVING...")),
+                Err(_) => self.editor.notify(Notice::SaveFailed {
+                    slot,
+                    error: StorageError::Busy,
+                }),
+            },
+            Request::Load(slot) => match self.storage.queue(Job::Load { slot }) {
+                Ok(()) => self.editor.notify(Notice::Text("LOADING...")),
+                Err(_) => self.editor.notify(Notice::LoadFailed {
+                    slot,
+                    error: StorageError::Busy,
+                }),
+            },
             Request::Run { slot } => self.run(slot, now),
             Request::Stop => self.stop(),
             Request::New => {}
@@ -556,13 +626,113 @@ impl<E: Eeprom> PlcApp<E> {
                 self.editor.notify(Notice::Text(text));
             }
             Request::ClearFaultLog => {
-                match self.storage.clear_fault_log() {
-                    Ok(()) => self.editor.notify(Notice::Text("FAULT LOG CLEARED")),
-                    Err(_) => self.editor.notify(Notice::Text("EEPROM ERROR")),
+                if self.storage.queue(Job::ClearFaultLog).is_err() {
+                    self.editor.notify(Notice::Text("EEPROM BUSY"));
                 }
                 self.newest_fault = None;
-                self.reload_fault_log();
             }
+        }
+    }
+
+    /// Moves the storage queue on by one EEPROM page (see [`Storage::step`]) and takes
+    /// the outcome of a finished job into the application. `tick_1ms` calls it; a board
+    /// without `tick_1ms` calls it once per pass.
+    pub fn step_storage(&mut self, now: Micros) -> crate::storage::Step {
+        let step = self.storage.step(now, &mut self.program);
+        if let Some(done) = step.done {
+            self.storage_done(done);
+        }
+        step
+    }
+
+    fn storage_done(&mut self, done: JobDone) {
+        match done {
+            JobDone::Saved { slot, result } => self.editor.notify(match result {
+                Ok(_) => Notice::Saved { slot },
+                Err(error) => Notice::SaveFailed { slot, error },
+            }),
+            JobDone::Loaded { slot, result } => self.editor.notify(match result {
+                Ok(r) => Notice::Loaded(r),
+                Err(error) => Notice::LoadFailed { slot, error },
+            }),
+            JobDone::FaultLogged { entry, result } => match result {
+                Ok(()) => {
+                    // The RAM copy follows the EEPROM's: newest first, the oldest drops.
+                    if self.fault_log.is_full() {
+                        let _ = self.fault_log.pop();
+                    }
+                    // Cannot fail: there is room now.
+                    let _ = self.fault_log.insert(0, entry);
+                }
+                Err(_) => self.editor.notify(Notice::Text("FAULT LOG ERROR")),
+            },
+            JobDone::FaultLogCleared { result } => match result {
+                Ok(()) => {
+                    self.fault_log.clear();
+                    self.editor.notify(Notice::Text("FAULT LOG CLEARED"));
+                }
+                Err(_) => self.editor.notify(Notice::Text("EEPROM ERROR")),
+            },
+            JobDone::BootWritten { result, .. } => {
+                if result.is_err() {
+                    self.editor.notify(Notice::Text("EEPROM ERROR"));
+                }
+            }
+        }
+    }
+
+    /// The board's 1 ms pass, with the pins as sampled (raw). In this order: debounce the
+    /// inputs and keys (a level counts after [`INPUT_DEBOUNCE_SAMPLES`] /
+    /// [`KEY_DEBOUNCE_SAMPLES`] equal samples), hand the pressed keys to the editor, run
+    /// the scan when due (every scan period, see [`PlcApp::set_scan_period_us`]), move the
+    /// storage queue on by one EEPROM page, and redraw `screen` every [`RENDER_TICKS`],
+    /// after a key, or when the [`Alerts`] change.
+    ///
+    /// A board that falls behind calls this once per pass, not once per missed
+    /// millisecond: debouncing then takes longer, never shorter.
+    pub fn tick_1ms(&mut self, now: Micros, raw: RawIo, screen: &mut Screen) -> Tick {
+        let digital = self.inputs.update(u32::from(raw.digital)) as u8;
+        let mut pressed: heapless::Vec<Key, 16> = heapless::Vec::new();
+        let mut keys_down = 0u16;
+        self.keys.update(raw.keys, &mut |e| {
+            if e.down {
+                if let Some(i) = Key::ALL.iter().position(|k| *k == e.key) {
+                    keys_down |= 1 << i;
+                }
+                // At most 16 keys: always fits.
+                let _ = pressed.push(e.key);
+            }
+        });
+        for k in &pressed {
+            self.key(*k, now);
+        }
+        let scan_ticks = u32::try_from(self.scan_period_us.div_ceil(1000).max(1)).unwrap_or(1);
+        let scanned = self.ticks.is_multiple_of(scan_ticks);
+        let mut warning = None;
+        if scanned {
+            let out = self.scan(digital, raw.analog, now);
+            warning = out.warning;
+        }
+        let step = self.step_storage(now);
+        let alerts = self.alerts();
+        let redrawn = !pressed.is_empty()
+            || self.ticks.is_multiple_of(RENDER_TICKS)
+            || self.drawn_alerts != Some(alerts);
+        if redrawn {
+            self.render(now, screen);
+            self.drawn_alerts = Some(alerts);
+        }
+        self.ticks = self.ticks.wrapping_add(1);
+        let reported = core::mem::replace(&mut self.reported_run, self.run);
+        Tick {
+            outputs: self.out.outputs,
+            scanned,
+            warning,
+            redrawn,
+            keys_down,
+            storage: step.done,
+            storage_used_bus: step.used_bus,
+            run_change: (reported != self.run).then_some((reported, self.run)),
         }
     }
 

@@ -13,8 +13,10 @@
 )]
 
 pub mod app;
+pub mod bus_recovery;
 pub mod debounce;
 pub mod editor;
 pub mod link;
+pub mod pace;
 pub mod storage;
 pub mod vm;

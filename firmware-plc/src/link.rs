@@ -15,18 +15,16 @@ use shared_protocol::units::Micros;
 
 /// The PLC application is what the link pump serves (board and hil-sim): the RUN sequence
 /// sees the link's events as they happen (a download's acceptance sends RUN in the same
-/// pass). The slow reaction, writing a drive fault to the EEPROM log (tens of ms of I2C
-/// and write cycles), is the pump's [`LinkEndpoint::service`], after the pass's frame
-/// (the report's acknowledgement) is on its way.
+/// pass). The slow reaction, writing a drive fault to the EEPROM log, is only queued
+/// here: the storage job runs in [`PlcApp::tick_1ms`], one EEPROM page per tick, so the
+/// report's acknowledgement never waits for it and [`LinkEndpoint::service`] has
+/// nothing to do.
 impl<E: Eeprom> LinkEndpoint for PlcApp<E> {
     fn on_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.link_rx(bytes, now);
+        PlcApp::on_rx(self, bytes, now);
     }
     fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        self.link_tx(now, out)
-    }
-    fn service(&mut self, _now: Micros) {
-        self.log_faults();
+        PlcApp::poll_tx(self, now, out)
     }
     fn poll_timeout(&self) -> Option<Micros> {
         self.link().poll_timeout()

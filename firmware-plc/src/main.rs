@@ -10,7 +10,7 @@ mod board;
 mod pins;
 
 #[cfg(target_os = "none")]
-use {defmt_rtt as _, panic_probe as _};
+use defmt_rtt as _;
 
 #[cfg(target_os = "none")]
 #[embassy_executor::main]

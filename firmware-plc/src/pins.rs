@@ -148,3 +148,17 @@ pub fn split(p: Peripherals) -> Board {
         },
     }
 }
+
+/// Drives Q0..Q5 (PB10..PB15) low as push-pull outputs, straight through the PAC, whatever
+/// the application is doing. Only for the panic and HardFault paths (`board::fault`): it
+/// takes no ownership and never fails. BSRR first, then MODER: no high glitch.
+pub fn force_outputs_low() {
+    use embassy_stm32::pac;
+    use embassy_stm32::pac::gpio::vals::Moder;
+    for pin in 10..=15 {
+        pac::GPIOB.bsrr().write(|w| w.set_br(pin, true));
+        pac::GPIOB
+            .moder()
+            .modify(|w| w.set_moder(pin, Moder::OUTPUT));
+    }
+}

@@ -80,6 +80,7 @@ impl Rig {
             if now.0 >= self.next_ms * 1000 {
                 self.next_ms += 1;
                 self.plc.scan(self.digital, self.analog, now);
+                let _ = self.plc.step_storage(now);
                 self.drive.tick_1ms(now);
             }
             if self.to_drive.is_idle(now) {
@@ -256,6 +257,23 @@ fn stop_turns_the_drive_off() {
 }
 
 #[test]
+fn stop_is_never_dropped_even_with_the_link_queue_full() {
+    let mut r = running_rig();
+    // Fill the link's command queue.
+    let mut queued = 0;
+    while r.plc.ack_fault().is_ok() {
+        queued += 1;
+        assert!(queued < 1000);
+    }
+    r.plc.stop();
+    assert!(r.plc.stop_owed(), "the full queue refused STOP at first");
+    r.run_for(200_000);
+    assert!(!r.plc.stop_owed());
+    assert_eq!(r.plc.run_state(), RunState::Stopped);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+}
+
+#[test]
 fn div0_warning_shows_on_the_run_screen() {
     let mut r = Rig::new(&format!("{PROGRAM}157 LD K00 0005\n158 DIV Q05\n"));
     r.run_for(20_000);
@@ -296,6 +314,8 @@ fn the_slot_last_run_runs_again_at_power_up() {
 
     // STOP is remembered too: the next power-up does not run.
     r2.plc.stop();
+    // The boot record is written by the storage queue, a page per millisecond.
+    r2.run_for(50_000);
     let image = r2.plc.storage().eeprom().image().to_vec();
     let p3 = PlcApp::new(MemEeprom::from_image(&image), cfg, 20, 4, Micros(0));
     assert_eq!(p3.run_state(), RunState::Stopped);

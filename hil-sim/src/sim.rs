@@ -338,14 +338,14 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
             }
             self.last_fault = f;
         }
+        if t >= self.next_scan_ns {
+            // The pins as they are now; the PLC samples them in its tick (raw levels).
+            self.plc.scan(&self.pins, now);
+            self.next_scan_ns += self.scenario.scan_time_ns;
+        }
         if t >= self.next_plc_tick_ns {
             self.plc.tick_1ms(now);
             self.next_plc_tick_ns += MS_NS;
-            app_ran[0] = true;
-        }
-        if t >= self.next_scan_ns {
-            self.plc.scan(&self.pins, now);
-            self.next_scan_ns += self.scenario.scan_time_ns;
             app_ran[0] = true;
         }
         // A link task passes when bytes arrived, at its pump's deadline (or when its line

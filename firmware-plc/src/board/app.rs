@@ -1,10 +1,16 @@
-//! The application task: every millisecond it samples the I/O, debounces it, hands key
-//! events and one scan to the application ([`firmware_plc::app::PlcApp`]), writes the
-//! output image and moves the LCD one step towards the application's screen.
+//! The application task: once per millisecond it samples the raw pins and key matrix,
+//! hands them to [`firmware_plc::app::PlcApp::tick_1ms`] (debouncing, scan, one EEPROM
+//! page of storage work, redraw: all core code), writes the output image and sends the
+//! LCD one changed cell.
+//!
+//! The pass schedule is [`Pacer`]: a late pass never replays the missed periods, and the
+//! task yields once per pass, so the link task and the supervisor always get their turn
+//! (review D5).
 
-use embassy_time::{Duration, Ticker};
-use firmware_plc::debounce::{Debouncer, KeyMatrix};
+use embassy_time::{Duration, Instant, Timer};
+use firmware_plc::app::RawIo;
 use firmware_plc::editor::Screen;
+use firmware_plc::pace::{Pacer, RetryTimer};
 
 use super::analog::AnalogInputs;
 use super::inputs::DigitalInputs;
@@ -15,13 +21,8 @@ use super::{shared, supervisor};
 
 /// Scan and I/O sampling period.
 pub const PERIOD: Duration = Duration::from_millis(1);
-/// Digital inputs: a level must hold for 5 samples (5 ms) to count.
-pub const INPUT_DEBOUNCE_SAMPLES: u8 = 5;
-/// Keypad: a key must be stable for 10 full-matrix samples (10 ms) to count.
-pub const KEY_DEBOUNCE_SAMPLES: u8 = 10;
-/// The application draws its screen every this many periods (100 ms); the LCD driver then
-/// sends the changed cells one per period.
-pub const RENDER_PERIODS: u32 = 100;
+/// A failed LCD is initialised again after this long (review D6/D14).
+pub const LCD_RETRY_US: u64 = 2_000_000;
 
 /// The I/O the application task owns.
 pub struct PlcIo {
@@ -30,63 +31,64 @@ pub struct PlcIo {
     pub analog: AnalogInputs,
     pub keypad: KeypadScanner,
     pub lcd: Option<Lcd>,
+    pub bus: super::i2c_bus::SharedI2c,
 }
 
 /// Runs the scan loop.
 #[embassy_executor::task]
 pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
-    let mut inputs = Debouncer::<8>::new(INPUT_DEBOUNCE_SAMPLES);
-    let mut keys = KeyMatrix::new(KEY_DEBOUNCE_SAMPLES);
     let mut screen = Screen::new(lcd::COLS, lcd::ROWS);
-    let mut ticks: u32 = 0;
-    let mut run_state = shared::with(app, |a| a.run_state());
-    // A change of these (link lost, fault, warning) redraws at once: link.md wants a lost
-    // link on the LCD within 100 ms, the periodic refresh alone could take 100 ms more.
-    let mut drawn_alerts = None;
-    let mut ticker = Ticker::every(PERIOD);
+    let mut pacer = Pacer::new(PERIOD.as_micros());
+    let mut lcd_retry = RetryTimer::new(LCD_RETRY_US);
+    if io.lcd.is_none() {
+        lcd_retry.failed(shared::now());
+    }
     loop {
-        ticker.next().await;
+        let due = pacer.next(shared::now());
+        Timer::at(Instant::from_micros(due.0)).await;
+        // A deadline already passed completes without yielding: yield anyway.
+        yield_now().await;
         #[cfg(feature = "dwt-cycles")]
         let start = super::cycles::now();
-        let digital = inputs.update(u32::from(io.inputs.sample())) as u8;
-        let analog = io.analog.sample();
-        let matrix = io.keypad.scan();
-        let image = shared::with(app, |app| {
-            let now = shared::now();
-            let mut key_down = false;
-            keys.update(matrix, &mut |e| {
-                defmt::debug!("key {} {}", e.key, if e.down { "down" } else { "up" });
-                if e.down {
-                    app.key(e.key, now);
-                    key_down = true;
-                }
-            });
-            let out = app.scan(digital, analog, now);
-            if let Some(w) = out.warning {
-                defmt::warn!("scan: {}", w);
-            }
-            // Redraw at once after a key or an alert change, as hil-sim's board does.
-            let alerts = app.alerts();
-            if key_down || ticks.is_multiple_of(RENDER_PERIODS) || drawn_alerts != Some(alerts) {
-                app.render(now, &mut screen);
-                drawn_alerts = Some(alerts);
-            }
-            let state = app.run_state();
-            if state != run_state {
-                defmt::info!("plc: {} -> {}", run_state, state);
-                run_state = state;
-            }
-            out.outputs
-        });
-        io.outputs.write(image);
+        let raw = RawIo {
+            digital: io.inputs.sample(),
+            analog: io.analog.sample(),
+            keys: io.keypad.scan(),
+        };
+        let now = shared::now();
+        let tick = shared::with(app, |a| a.tick_1ms(now, raw, &mut screen));
+        io.outputs.write(tick.outputs);
         super::link::kick_if_due(app);
-        if let Some(l) = io.lcd.as_mut() {
-            if let Err(e) = l.refresh(&screen) {
-                defmt::warn!("lcd: {}, running without it", e);
-                io.lcd = None;
-            }
+        if let Some(w) = tick.warning {
+            defmt::warn!("scan: {}", w);
         }
-        ticks = ticks.wrapping_add(1);
+        if tick.keys_down != 0 {
+            defmt::debug!("keys down {=u16:#x}", tick.keys_down);
+        }
+        if let Some((from, to)) = tick.run_change {
+            defmt::info!("plc: {} -> {}", from, to);
+        }
+        if let Some(done) = tick.storage {
+            defmt::info!("storage: {}", done);
+        }
+        match io.lcd.as_mut() {
+            Some(l) => {
+                if let Err(e) = l.refresh(&screen) {
+                    defmt::warn!("lcd: {}, retrying in {=u64} ms", e, LCD_RETRY_US / 1000);
+                    io.lcd = None;
+                    lcd_retry.failed(now);
+                }
+            }
+            None if lcd_retry.retry_due(now) => match Lcd::new(io.bus, false) {
+                Ok(l) => {
+                    defmt::info!("lcd: back");
+                    io.lcd = Some(l);
+                    lcd_retry.ok();
+                }
+                Err(_) => lcd_retry.failed(now),
+            },
+            None => {}
+        }
         #[cfg(feature = "dwt-cycles")]
         {
             super::cycles::record_scan(start);
@@ -94,4 +96,19 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
         }
         supervisor::alive(supervisor::TASK_SCAN);
     }
+}
+
+/// Returns `Pending` once (after waking itself), so that every other ready task runs.
+async fn yield_now() {
+    let mut yielded = false;
+    core::future::poll_fn(|cx| {
+        if yielded {
+            core::task::Poll::Ready(())
+        } else {
+            yielded = true;
+            cx.waker().wake_by_ref();
+            core::task::Poll::Pending
+        }
+    })
+    .await
 }

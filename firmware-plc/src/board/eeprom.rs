@@ -1,26 +1,18 @@
-//! The 24C256 behind the core's [`Eeprom`] seam (the same trait hil-sim's `MemEeprom`
-//! implements): random reads, page writes with ACK polling.
+//! The 24C256 behind the core's [`Eeprom`] port (the same trait hil-sim's `MemEeprom`
+//! implements): random reads, page writes that only latch the data, and one ACK poll per
+//! [`Eeprom::ready`]. No call here waits for the write cycle or feeds the watchdog: the
+//! storage core (`storage::job`) moves one page per pass of the application task and asks
+//! `ready` on later passes (review D5/D11).
 
-use embassy_stm32::pac::iwdg::vals::Key;
-use embassy_stm32::pac::IWDG;
-use embassy_time::{Duration, Instant};
+use embassy_stm32::i2c::Error as I2cError;
 use firmware_plc::storage::eeprom::{
-    check_page_write, Eeprom, EepromError, PAGE_BYTES, PAGE_WRITE_MS,
+    check_page_write, Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES,
 };
 
 use super::i2c_bus::SharedI2c;
 
 /// 7-bit address of the 24C256 with A2..A0 low.
 pub const ADDRESS: u8 = 0x50;
-/// ACK polling gives up after twice the datasheet's worst write cycle.
-const WRITE_CYCLE_LIMIT: Duration = Duration::from_millis(2 * PAGE_WRITE_MS as u64);
-
-/// A whole-program save or load is tens of page transfers in one blocking call of the
-/// storage core, during which the supervisor task cannot run: each transfer (at most about
-/// 10 ms) feeds the IWDG itself, so a hang inside one still resets the MCU.
-fn pet_watchdog() {
-    IWDG.kr().write(|w| w.set_key(Key::RESET));
-}
 
 /// The EEPROM on the shared bus.
 pub struct I2cEeprom {
@@ -36,15 +28,18 @@ impl I2cEeprom {
 impl Eeprom for I2cEeprom {
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EepromError> {
         let end = usize::from(addr).checked_add(buf.len());
-        if end.is_none_or(|e| e > firmware_plc::storage::eeprom::EEPROM_BYTES) {
+        if end.is_none_or(|e| e > EEPROM_BYTES) {
             return Err(EepromError::OutOfRange);
         }
+        if buf.is_empty() {
+            return Ok(());
+        }
+        // One transaction per page at most (about 6.5 ms at 100 kHz): a longer one (the
+        // fault log's 256 bytes at power-up, 23 ms) would exceed the bus's transaction
+        // timeout (`i2c_bus::TRANSACTION_TIMEOUT_MS`). The storage jobs read a page or less.
         let mut bus = self.bus.borrow_mut();
-        // Page-sized pieces (about 6 ms each at 100 kHz) so that a whole-program load keeps
-        // the watchdog fed between them.
         let mut at = addr;
         for chunk in buf.chunks_mut(PAGE_BYTES) {
-            pet_watchdog();
             bus.blocking_write_read(ADDRESS, &at.to_be_bytes(), chunk)
                 .map_err(|_| EepromError::Bus)?;
             at = at.wrapping_add(chunk.len() as u16);
@@ -52,25 +47,24 @@ impl Eeprom for I2cEeprom {
         Ok(())
     }
 
-    fn write_page(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {
+    fn start_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {
         check_page_write(addr, data.len())?;
         if data.is_empty() {
             return Ok(());
         }
-        let mut bus = self.bus.borrow_mut();
-        bus.blocking_write_vectored(ADDRESS, &[&addr.to_be_bytes(), data])
-            .map_err(|_| EepromError::Bus)?;
-        // The chip ignores its address until the write cycle ends: poll with the address
-        // bytes (a write that sets the address pointer, harmless).
-        let start = Instant::now();
-        loop {
-            pet_watchdog();
-            if bus.blocking_write(ADDRESS, &addr.to_be_bytes()).is_ok() {
-                return Ok(());
-            }
-            if start.elapsed() > WRITE_CYCLE_LIMIT {
-                return Err(EepromError::Bus);
-            }
+        self.bus
+            .borrow_mut()
+            .blocking_write_vectored(ADDRESS, &[&addr.to_be_bytes(), data])
+            .map_err(|_| EepromError::Bus)
+    }
+
+    fn ready(&mut self) -> Result<bool, EepromError> {
+        // The chip ignores its address until the write cycle ends. The poll writes the two
+        // address bytes of location 0 (it only sets the address pointer; harmless).
+        match self.bus.borrow_mut().blocking_write(ADDRESS, &[0, 0]) {
+            Ok(()) => Ok(true),
+            Err(I2cError::Nack) => Ok(false),
+            Err(_) => Err(EepromError::Bus),
         }
     }
 }

@@ -3,8 +3,12 @@
 //! Backpack wiring (the common one): P0 = RS, P1 = R/W, P2 = E, P3 = backlight,
 //! P4..P7 = D4..D7. The display mirrors the core's [`Screen`]: [`Lcd::refresh`] sends only the
 //! cells that differ from what the LCD shows, at most [`CELLS_PER_REFRESH`] per call, so
-//! one call blocks the application task for a bounded time (about 0.5 ms per cell at
-//! 100 kHz; a full 20 x 4 redraw takes about 0.1 s).
+//! one call blocks the application task for a bounded time. At 100 kHz one byte to the
+//! controller is 7 bytes on the bus (address + 3 per nibble: data, data|E, data, so that RS
+//! and D4-D7 are stable before E rises, tAS; review D14), about 0.63 ms: a cell next to the
+//! last one written costs 0.63 ms, a scattered cell 1.26 ms (goto + data), and putting the
+//! editor's cursor back another 0.63 ms. A full 20 x 4 redraw is 80 cells, one per pass
+//! of the application task: about 80 passes.
 
 use embassy_time::{block_for, Duration};
 use firmware_plc::editor::{Screen, MAX_COLS, MAX_ROWS};
@@ -19,15 +23,18 @@ pub const ROWS: u8 = 4;
 /// Cells written per [`Lcd::refresh`].
 pub const CELLS_PER_REFRESH: usize = 1;
 
+/// Wait after the clear command (review D14).
+const CLEAR_MS: u64 = 3;
+
 const RS: u8 = 1 << 0;
 const E: u8 = 1 << 2;
 const BACKLIGHT: u8 = 1 << 3;
 /// DDRAM address of each row's first cell (20 x 4 layout; the 16 x 2 uses the first two).
 const ROW_ADDR: [u8; 4] = [0x00, 0x40, 0x14, 0x54];
 
-/// Why the LCD did not take a write.
+/// Why the LCD did not take a write: the bus error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
-pub struct LcdError;
+pub struct LcdError(pub embassy_stm32::i2c::Error);
 
 /// The display and a copy of what it shows.
 pub struct Lcd {
@@ -41,7 +48,10 @@ pub struct Lcd {
 
 impl Lcd {
     /// Initialises the controller into 4-bit, 2-line mode, display on, cursor off, cleared.
-    pub fn new(bus: SharedI2c) -> Result<Self, LcdError> {
+    /// `cold`: just after power-on, wait the controller's 40 ms power-on time first (a retry
+    /// after an I2C error skips it, so that it blocks the application task for about 8 ms
+    /// only).
+    pub fn new(bus: SharedI2c, cold: bool) -> Result<Self, LcdError> {
         let mut lcd = Lcd {
             bus,
             shown: [[b' '; MAX_COLS]; MAX_ROWS],
@@ -50,7 +60,9 @@ impl Lcd {
             at: None,
         };
         // HD44780 datasheet, "initialising by instruction", 4-bit interface.
-        block_for(Duration::from_millis(50));
+        if cold {
+            block_for(Duration::from_millis(50));
+        }
         for wait_us in [4500, 150, 150] {
             lcd.nibble(0x30, 0)?;
             block_for(Duration::from_micros(wait_us));
@@ -59,7 +71,8 @@ impl Lcd {
         lcd.command(0x28)?; // 4-bit, 2 lines (also rows 3-4 of a 20x4), 5x8 font
         lcd.command(0x08)?; // display off
         lcd.command(0x01)?; // clear
-        block_for(Duration::from_millis(2));
+                            // 1.52 ms at 270 kHz, up to about 2.2 ms at the slowest oscillator (190 kHz).
+        block_for(Duration::from_millis(CLEAR_MS));
         lcd.command(0x06)?; // entry mode: increment, no shift
         lcd.command(0x0C)?; // display on, cursor off
         Ok(lcd)
@@ -69,21 +82,22 @@ impl Lcd {
         self.bus
             .borrow_mut()
             .blocking_write(ADDRESS, bytes)
-            .map_err(|_| LcdError)
+            .map_err(LcdError)
     }
 
-    /// One 4-bit transfer: the high nibble of `value` with the E pulse.
+    /// One 4-bit transfer: the high nibble of `value`, then E high, then E low, each one
+    /// PCF8574 write (90 µs apart at 100 kHz): RS and the data are stable before E rises
+    /// (tAS >= 40 ns) and after it falls.
     fn nibble(&mut self, value: u8, rs: u8) -> Result<(), LcdError> {
         let b = (value & 0xF0) | rs | BACKLIGHT;
-        self.write_raw(&[b | E, b])
+        self.write_raw(&[b, b | E, b])
     }
 
     fn byte(&mut self, value: u8, rs: u8) -> Result<(), LcdError> {
         let hi = (value & 0xF0) | rs | BACKLIGHT;
         let lo = (value << 4) | rs | BACKLIGHT;
-        // One I2C transaction per byte: E high/low for each nibble (the PCF8574 is slow
-        // enough that the E pulse and set-up times are met without delays).
-        self.write_raw(&[hi | E, hi, lo | E, lo])?;
+        // One I2C transaction per byte, each nibble as in `nibble`.
+        self.write_raw(&[hi, hi | E, hi, lo, lo | E, lo])?;
         Ok(())
     }
 

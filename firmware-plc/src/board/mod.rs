@@ -6,6 +6,7 @@ pub mod app;
 #[cfg(feature = "dwt-cycles")]
 pub mod cycles;
 pub mod eeprom;
+pub mod fault;
 pub mod i2c_bus;
 pub mod inputs;
 pub mod keypad;
@@ -37,13 +38,14 @@ pub async fn start(spawner: Spawner) {
     // Outputs off before anything else can take time.
     let outputs = outputs::DigitalOutputs::new(board.outputs);
     let bus = i2c_bus::open(board.bus);
-    let lcd = match lcd::Lcd::new(bus) {
+    let lcd = match lcd::Lcd::new(bus, true) {
         Ok(l) => Some(l),
         Err(e) => {
             defmt::warn!(
-                "lcd: no answer at {=u8:#x} ({}), running without it",
+                "lcd: no answer at {=u8:#x} ({}), retrying every {=u64} ms",
                 lcd::ADDRESS,
-                e
+                e,
+                app::LCD_RETRY_US / 1000
             );
             None
         }
@@ -54,6 +56,7 @@ pub async fn start(spawner: Spawner) {
         analog: analog::AnalogInputs::new(board.analog),
         keypad: keypad::KeypadScanner::new(board.keypad),
         lcd,
+        bus,
     };
     let link_cfg = LinkConfig::default();
     let port = link::open(board.link, link_cfg.baud);

@@ -43,7 +43,8 @@ fn build(
     link: LinkConfig,
 ) -> &'static mut App {
     let app = slot.write(PlcApp::new_cold(eeprom, link, lcd::COLS, lcd::ROWS));
-    app.power_up(now());
+    // The real clock times the EEPROM's write cycles (before the watchdog runs).
+    app.power_up_clocked(now(), &mut now);
     app
 }
 

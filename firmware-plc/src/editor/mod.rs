@@ -26,7 +26,7 @@ mod screen;
 pub use key::Key;
 pub use screen::{Screen, MAX_COLS, MAX_ROWS};
 
-use crate::storage::{FaultEntry, LoadReport, OtherCopy, StorageError, SLOTS};
+use crate::storage::{FaultEntry, LoadReport, OtherCopy, ProgramUse, StorageError, SLOTS};
 use core::fmt::Write;
 use shared_protocol::link::DriveState;
 use shared_protocol::program::{verify, Instruction, Program, Section, LINES, PLC_FIRST_LINE};
@@ -204,11 +204,14 @@ pub struct Editor {
     mode: Mode,
     message: Option<Message>,
     log_index: core::cell::Cell<u8>,
-    /// When the current message was first drawn (ms): with a fault or warning present it
-    /// gives way to them after [`pages::MESSAGE_MS`], so a message never hides a fault.
-    message_drawn_at: core::cell::Cell<Option<u32>>,
+    /// When the current message was first drawn (ms) and the alerts standing then: with a
+    /// fault or warning present it gives way to them after [`pages::MESSAGE_MS`], and at
+    /// once to an alert that came after it, so a message never hides a fault.
+    message_drawn_at: core::cell::Cell<Option<(u32, pages::AlertKey)>>,
     slot: Option<u8>,
     modified: bool,
+    /// How a storage job holds the program now (see [`Editor::set_program_use`]).
+    program_use: Option<ProgramUse>,
 }
 
 const LAST_LINE: u16 = LINES as u16 - 1;
@@ -242,7 +245,17 @@ impl Editor {
             message_drawn_at: core::cell::Cell::new(None),
             slot: None,
             modified: false,
+            program_use: None,
         }
+    }
+
+    /// How a queued or running storage job holds the program (the application sets it
+    /// before each key): while a save reads it or a load rewrites it, edits, NEW, save and
+    /// load are refused ("EEPROM BUSY"); RUN is refused only while a load rewrites it.
+    /// A save may start, and run, in RUN: it is done a page per pass and never
+    /// starves the link (review D5).
+    pub fn set_program_use(&mut self, u: Option<ProgramUse>) {
+        self.program_use = u;
     }
 
     /// A blank screen of this editor's size.
@@ -453,6 +466,10 @@ impl Editor {
         if running {
             return Some(Request::Stop);
         }
+        if self.program_use == Some(ProgramUse::Writes) {
+            self.set_message(format_args!("EEPROM BUSY"));
+            return None;
+        }
         match verify(program) {
             Ok(()) => Some(Request::Run { slot: self.slot() }),
             Err(e) => {
@@ -463,11 +480,21 @@ impl Editor {
         }
     }
 
+    /// Edits and loads: refused in RUN, and while a storage job holds the program.
     fn refuse_while_running(&mut self, running: bool) -> bool {
         if running {
             self.set_message(format_args!("STOP FIRST (A)"));
+            return true;
         }
-        running
+        self.refuse_while_storage_busy()
+    }
+
+    fn refuse_while_storage_busy(&mut self) -> bool {
+        if self.program_use.is_some() {
+            self.set_message(format_args!("EEPROM BUSY"));
+            return true;
+        }
+        false
     }
 
     fn prefix_key(
@@ -483,9 +510,8 @@ impl Editor {
         };
         match p {
             Prefix::Save if (1..=SLOTS).contains(&d) => {
-                // A save blocks the EEPROM bus for up to ~0.6 s; while the drive runs that
-                // would starve the link past the drive's 50 ms LINK timeout.
-                if self.refuse_while_running(running) {
+                // Allowed in RUN: the save runs a page per pass (review D5).
+                if self.refuse_while_storage_busy() {
                     return None;
                 }
                 Some(Request::Save(d))
@@ -833,6 +859,7 @@ fn storage_short(e: StorageError) -> &'static str {
         StorageError::TooBig => "TOO BIG",
         StorageError::VerifyFailed => "VERIFY ERR",
         StorageError::Eeprom(_) => "EEPROM ERR",
+        StorageError::Busy => "EEPROM BUSY",
     }
 }
 

@@ -103,14 +103,28 @@ fn any_alert(view: &View<'_>) -> bool {
     view.run.fault.is_some() || view.run.warning.is_some() || view.run.drive_warning.is_some()
 }
 
+/// Which alerts stand (the fault's code, a PLC warning, a drive warning): a change while a
+/// message is up is a new alert, shown at once.
+pub(super) type AlertKey = (Option<u8>, bool, bool);
+
+fn alert_key(view: &View<'_>) -> AlertKey {
+    (
+        view.run.fault,
+        view.run.warning.is_some(),
+        view.run.drive_warning.is_some(),
+    )
+}
+
 /// The prompt of a pending command or edit, or the transient message.
 fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
     let narrow = ed.cols < 20;
     if let Some(m) = &ed.message {
         let now = view.now_ms;
-        let drawn = ed.message_drawn_at.get().unwrap_or(now);
-        ed.message_drawn_at.set(Some(drawn));
-        if !any_alert(view) || now.wrapping_sub(drawn) < MESSAGE_MS {
+        let key = alert_key(view);
+        let (drawn, standing) = ed.message_drawn_at.get().unwrap_or((now, key));
+        ed.message_drawn_at.set(Some((drawn, standing)));
+        let new_alert = key != standing;
+        if !any_alert(view) || (now.wrapping_sub(drawn) < MESSAGE_MS && !new_alert) {
             push(s, format_args!("{m}"));
             return true;
         }

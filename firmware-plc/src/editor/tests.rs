@@ -1,5 +1,5 @@
 use super::*;
-use crate::storage::{OtherCopy, SlotCopy};
+use crate::storage::{OtherCopy, ProgramUse, SlotCopy};
 use shared_protocol::program::{mnemonics_for, verify_line, Mnemonic, Operand};
 
 fn press(ed: &mut Editor, p: &mut Program, running: bool, keys: &str) -> Vec<Request> {
@@ -454,17 +454,68 @@ fn a_message_gives_way_to_a_fault_but_stays_without_one() {
 }
 
 #[test]
-fn save_load_and_new_are_refused_while_running() {
+fn a_fault_arriving_while_a_message_is_up_shows_at_once() {
+    let mut ed = Editor::new(20, 4);
+    let p = Program::default();
+    ed.notify(Notice::Text("LOADED SLOT 1"));
+    let quiet = RunView::default();
+    assert_eq!(
+        draw(&ed, &p, quiet, &[], 0).row(3).trim_end(),
+        "LOADED SLOT 1"
+    );
+    // The drive restarts and reports WDG 500 ms after the message went up.
+    let faulted = RunView {
+        drive_state: DriveState::Fault,
+        fault: Some(7),
+        ..quiet
+    };
+    assert_eq!(
+        draw(&ed, &p, faulted, &[], 500).row(3).trim_end(),
+        "F7 watchdog reset"
+    );
+}
+
+#[test]
+fn load_and_new_are_refused_while_running_save_is_not() {
     let mut ed = Editor::new(20, 4);
     let mut p = Program::default();
     p.lines[150] = Some(ins(Mnemonic::Ld, Some(Operand::D(0)), 0));
     let before = p.clone();
-    for keys in ["C1", "D2", "D0"] {
+    for keys in ["D2", "D0"] {
         assert_eq!(press(&mut ed, &mut p, true, keys), vec![], "{keys}");
         assert_eq!(ed.message(), Some("STOP FIRST (A)"), "{keys}");
     }
     assert_eq!(p, before);
+    // A save runs a page per pass (review D5): allowed in RUN.
+    assert_eq!(press(&mut ed, &mut p, true, "C1"), vec![Request::Save(1)]);
     // Stopped, the same keys work.
+    assert_eq!(press(&mut ed, &mut p, false, "D2"), vec![Request::Load(2)]);
+}
+
+#[test]
+fn edits_save_and_load_wait_for_a_storage_job_holding_the_program() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[0] = Some(ins(Mnemonic::Ld, Some(Operand::K(1)), 1));
+    let before = p.clone();
+    for u in [ProgramUse::Reads, ProgramUse::Writes] {
+        ed.set_program_use(Some(u));
+        for keys in ["C1", "D2", "D0", "*1", "*3", "*0", "5"] {
+            assert_eq!(press(&mut ed, &mut p, false, keys), vec![], "{keys}");
+            assert_eq!(ed.message(), Some("EEPROM BUSY"), "{u:?} {keys}");
+        }
+        assert_eq!(p, before);
+    }
+    // RUN may start during a save (it does not change the program), not during a load.
+    ed.set_program_use(Some(ProgramUse::Writes));
+    assert_eq!(press(&mut ed, &mut p, false, "A"), vec![]);
+    assert_eq!(ed.message(), Some("EEPROM BUSY"));
+    ed.set_program_use(Some(ProgramUse::Reads));
+    assert!(matches!(
+        press(&mut ed, &mut p, false, "A")[..],
+        [Request::Run { .. }]
+    ));
+    ed.set_program_use(None);
     assert_eq!(press(&mut ed, &mut p, false, "C1"), vec![Request::Save(1)]);
 }
 

@@ -11,7 +11,7 @@ use super::slot::CRC32;
 
 const MAGIC: [u8; 2] = *b"BR";
 const VERSION: u8 = 1;
-const RECORD_BYTES: usize = 18;
+pub(crate) const RECORD_BYTES: usize = 18;
 const FLAG_RUN: u8 = 1;
 
 /// What the boot record holds.
@@ -29,7 +29,7 @@ pub struct BootRecord {
 }
 
 impl BootRecord {
-    fn to_bytes(self) -> [u8; RECORD_BYTES] {
+    pub(crate) fn to_bytes(self) -> [u8; RECORD_BYTES] {
         let s = self.seq.to_be_bytes();
         let p = self.power_cycles.to_be_bytes();
         let slot = self.last_run_slot.unwrap_or(0xFF);
@@ -46,7 +46,7 @@ impl BootRecord {
         out
     }
 
-    fn parse(b: &[u8; RECORD_BYTES]) -> Option<BootRecord> {
+    pub(crate) fn parse(b: &[u8; RECORD_BYTES]) -> Option<BootRecord> {
         let [m0, m1, ver, slot, flags, _, s0, s1, s2, s3, p0, p1, p2, p3, c0, c1, c2, c3] = *b;
         let body = b.get(..14)?;
         if [m0, m1] != MAGIC
@@ -64,31 +64,49 @@ impl BootRecord {
     }
 }
 
+/// Keeps the newer of the valid records read so far: feed it copy 0, then copy 1.
+pub(crate) fn keep_newest(
+    best: Option<(BootRecord, usize)>,
+    copy: usize,
+    bytes: &[u8; RECORD_BYTES],
+) -> Option<(BootRecord, usize)> {
+    match BootRecord::parse(bytes) {
+        Some(r) if best.is_none_or(|(old, _)| r.seq > old.seq) => Some((r, copy)),
+        _ => best,
+    }
+}
+
+/// Where the next write of `record` goes, given the newest record found: the copy not
+/// holding it, with the next sequence number (set in the returned record).
+pub(crate) fn next_write(
+    current: Option<(BootRecord, usize)>,
+    mut record: BootRecord,
+) -> (u16, BootRecord) {
+    let (seq, target) = match current {
+        Some((old, i)) => (old.seq.wrapping_add(1), 1 - i.min(1)),
+        None => (1, 0),
+    };
+    record.seq = seq;
+    (BOOT_ADDR.get(target).copied().unwrap_or(0), record)
+}
+
 /// The newest valid record and the index of the copy holding it.
 pub fn read<E: Eeprom>(e: &mut E) -> Result<Option<(BootRecord, usize)>, EepromError> {
     let mut best: Option<(BootRecord, usize)> = None;
     for (i, &addr) in BOOT_ADDR.iter().enumerate() {
         let mut b = [0u8; RECORD_BYTES];
         e.read(addr, &mut b)?;
-        if let Some(r) = BootRecord::parse(&b) {
-            if best.is_none_or(|(old, _)| r.seq > old.seq) {
-                best = Some((r, i));
-            }
-        }
+        best = keep_newest(best, i, &b);
     }
     Ok(best)
 }
 
-/// Write `record` (its `seq` is set here) into the copy not holding the newest one.
-pub fn write<E: Eeprom>(e: &mut E, mut record: BootRecord) -> Result<BootRecord, EepromError> {
-    let current = read(e)?;
-    let (seq, target) = match current {
-        Some((old, i)) => (old.seq.wrapping_add(1), 1 - i.min(1)),
-        None => (1, 0),
-    };
-    record.seq = seq;
-    let addr = BOOT_ADDR.get(target).copied().unwrap_or(0);
-    e.write_page(addr, &record.to_bytes())?;
+/// Write `record` (its `seq` is set here) into the copy not holding the newest one, and
+/// wait for the write cycle (synchronous: tools and tests; the firmware uses the job queue).
+pub fn write<E: Eeprom>(e: &mut E, record: BootRecord) -> Result<BootRecord, EepromError> {
+    let (addr, record) = next_write(read(e)?, record);
+    e.start_write(addr, &record.to_bytes())?;
+    super::slot::wait_ready(e)?;
     Ok(record)
 }
 

@@ -1,9 +1,10 @@
 //! The EEPROM seen by the storage code, and a RAM model of the 24C256 for tests and hil-sim.
 //!
-//! The trait is deliberately small (read anywhere, write within one page) so that the
-//! board layer can implement it over I2C with ACK polling, and so that the RAM model can
-//! inject the failures that matter: a power cut in the middle of a page write, and bit
-//! flips in stored data.
+//! The trait is deliberately small (read anywhere, latch a write within one page, ask
+//! whether the write cycle has ended) so that the board layer can implement it over I2C
+//! without waiting inside a call, and so that the RAM model can inject the failures that
+//! matter: a power cut in the middle of a page write, bit flips in stored data, and a
+//! chip that stays busy for a while after each write.
 
 /// Size of the 24C256 in bytes (32 KiB).
 pub const EEPROM_BYTES: usize = 32 * 1024;
@@ -27,22 +28,33 @@ pub enum EepromError {
 }
 
 /// A byte-addressed EEPROM with page writes (the 24C256 and compatible parts).
+///
+/// No call waits for the chip: after [`Eeprom::start_write`] the chip runs its write
+/// cycle (up to [`PAGE_WRITE_MS`]) and answers nothing until it has ended, so the caller
+/// asks [`Eeprom::ready`] (on later passes) before the next access. The storage code
+/// (`storage::job`) does exactly that; nothing else may access the chip in between.
 pub trait Eeprom {
-    /// Read `buf.len()` bytes starting at `addr`.
+    /// Read `buf.len()` bytes starting at `addr` (one bus transaction on hardware).
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EepromError>;
 
-    /// Write `data` starting at `addr`; all of it must lie within one
-    /// [`PAGE_BYTES`] page. Returns when the write cycle has ended (on hardware: ACK
-    /// polling, at most [`PAGE_WRITE_MS`]), so that the next access sees the data.
-    fn write_page(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError>;
+    /// Latch `data` at `addr` and start the write cycle; all of it must lie within one
+    /// [`PAGE_BYTES`] page. Returns as soon as the chip has taken the bytes.
+    fn start_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError>;
+
+    /// One non-blocking look: has the last write cycle ended? (On the 24C256: does the
+    /// chip acknowledge its address again; a NACK is `Ok(false)`, not an error.)
+    fn ready(&mut self) -> Result<bool, EepromError>;
 }
 
 impl<T: Eeprom + ?Sized> Eeprom for &mut T {
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EepromError> {
         (**self).read(addr, buf)
     }
-    fn write_page(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {
-        (**self).write_page(addr, data)
+    fn start_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {
+        (**self).start_write(addr, data)
+    }
+    fn ready(&mut self) -> Result<bool, EepromError> {
+        (**self).ready()
     }
 }
 
@@ -66,6 +78,11 @@ pub fn check_page_write(addr: u16, len: usize) -> Result<(), EepromError> {
 /// page write and every later write are lost and report [`EepromError::PowerLost`]) until
 /// [`MemEeprom::restore_power`]. That is the worst a real part does short of
 /// scrambling the page being written, and it lets a test stop a save at every single byte.
+///
+/// Write-cycle model: with [`MemEeprom::set_busy_polls`]`(n)`, the chip stays busy after
+/// each write until [`Eeprom::ready`] has been asked `n` times; an access while busy fails
+/// with [`EepromError::Bus`] (the chip NACKs) and is counted in
+/// [`MemEeprom::busy_violations`]. By default (`n = 0`) a write cycle ends at once.
 #[derive(Clone)]
 pub struct MemEeprom {
     bytes: [u8; EEPROM_BYTES],
@@ -74,6 +91,10 @@ pub struct MemEeprom {
     powered: bool,
     bytes_written: u32,
     pages_written: u32,
+    transfers: u32,
+    busy_polls: u32,
+    busy_left: u32,
+    busy_violations: u32,
 }
 
 impl Default for MemEeprom {
@@ -91,6 +112,10 @@ impl MemEeprom {
             powered: true,
             bytes_written: 0,
             pages_written: 0,
+            transfers: 0,
+            busy_polls: 0,
+            busy_left: 0,
+            busy_violations: 0,
         }
     }
 
@@ -113,10 +138,12 @@ impl MemEeprom {
         self.budget = Some(n);
     }
 
-    /// Power is back (a reboot): writes work again, the content is what was stored.
+    /// Power is back (a reboot): writes work again, the content is what was stored, and a
+    /// write cycle that was running is over.
     pub fn restore_power(&mut self) {
         self.budget = None;
         self.powered = true;
+        self.busy_left = 0;
     }
 
     /// Whether an armed power cut has happened.
@@ -140,24 +167,52 @@ impl MemEeprom {
     pub fn pages_written(&self) -> u32 {
         self.pages_written
     }
+
+    /// Reads and writes since creation (each one bus transaction on the board; `ready`
+    /// polls are not counted).
+    pub fn transfers(&self) -> u32 {
+        self.transfers
+    }
+
+    /// Each write cycle lasts until `ready` has been asked `n` times (see the type's docs).
+    pub fn set_busy_polls(&mut self, n: u32) {
+        self.busy_polls = n;
+    }
+
+    /// Reads or writes attempted while a write cycle was running.
+    pub fn busy_violations(&self) -> u32 {
+        self.busy_violations
+    }
+
+    fn check_idle(&mut self) -> Result<(), EepromError> {
+        if self.busy_left > 0 {
+            self.busy_violations = self.busy_violations.saturating_add(1);
+            return Err(EepromError::Bus);
+        }
+        Ok(())
+    }
 }
 
 impl Eeprom for MemEeprom {
     fn read(&mut self, addr: u16, buf: &mut [u8]) -> Result<(), EepromError> {
+        self.check_idle()?;
         let start = usize::from(addr);
         let src = start
             .checked_add(buf.len())
             .and_then(|end| self.bytes.get(start..end))
             .ok_or(EepromError::OutOfRange)?;
         buf.copy_from_slice(src);
+        self.transfers = self.transfers.saturating_add(1);
         Ok(())
     }
 
-    fn write_page(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {
+    fn start_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {
         check_page_write(addr, data.len())?;
+        self.check_idle()?;
         if !self.powered {
             return Err(EepromError::PowerLost);
         }
+        self.transfers = self.transfers.saturating_add(1);
         self.pages_written = self.pages_written.saturating_add(1);
         for (i, &b) in data.iter().enumerate() {
             if let Some(left) = self.budget.as_mut() {
@@ -172,7 +227,19 @@ impl Eeprom for MemEeprom {
             }
             self.bytes_written = self.bytes_written.saturating_add(1);
         }
+        self.busy_left = self.busy_polls;
         Ok(())
+    }
+
+    fn ready(&mut self) -> Result<bool, EepromError> {
+        if !self.powered {
+            return Err(EepromError::PowerLost);
+        }
+        if self.busy_left > 0 {
+            self.busy_left -= 1;
+            return Ok(false);
+        }
+        Ok(true)
     }
 }
 
@@ -183,9 +250,9 @@ mod tests {
     #[test]
     fn page_rule() {
         let mut e = MemEeprom::new();
-        assert_eq!(e.write_page(60, &[0; 8]), Err(EepromError::CrossesPage));
-        assert_eq!(e.write_page(64, &[1; 64]), Ok(()));
-        assert_eq!(e.write_page(32767, &[1, 2]), Err(EepromError::OutOfRange));
+        assert_eq!(e.start_write(60, &[0; 8]), Err(EepromError::CrossesPage));
+        assert_eq!(e.start_write(64, &[1; 64]), Ok(()));
+        assert_eq!(e.start_write(32767, &[1, 2]), Err(EepromError::OutOfRange));
         let mut b = [0u8; 3];
         e.read(63, &mut b).unwrap();
         assert_eq!(b, [0xFF, 1, 1]);
@@ -195,13 +262,29 @@ mod tests {
     fn power_cut_stops_mid_page() {
         let mut e = MemEeprom::new();
         e.cut_power_after(5);
-        assert_eq!(e.write_page(0, &[0; 8]), Err(EepromError::PowerLost));
-        assert_eq!(e.write_page(64, &[0; 8]), Err(EepromError::PowerLost));
+        assert_eq!(e.start_write(0, &[0; 8]), Err(EepromError::PowerLost));
+        assert_eq!(e.start_write(64, &[0; 8]), Err(EepromError::PowerLost));
         let mut b = [0u8; 8];
         e.read(0, &mut b).unwrap();
         assert_eq!(b, [0, 0, 0, 0, 0, 0xFF, 0xFF, 0xFF]);
         e.restore_power();
-        assert_eq!(e.write_page(0, &[7; 8]), Ok(()));
+        assert_eq!(e.start_write(0, &[7; 8]), Ok(()));
         assert_eq!(e.bytes_written(), 13);
+    }
+
+    #[test]
+    fn busy_write_cycle_refuses_access_until_polled_ready() {
+        let mut e = MemEeprom::new();
+        e.set_busy_polls(2);
+        e.start_write(0, &[1, 2]).unwrap();
+        let mut b = [0u8; 2];
+        assert_eq!(e.read(0, &mut b), Err(EepromError::Bus));
+        assert_eq!(e.busy_violations(), 1);
+        assert_eq!(e.ready(), Ok(false));
+        assert_eq!(e.ready(), Ok(false));
+        assert_eq!(e.ready(), Ok(true));
+        e.read(0, &mut b).unwrap();
+        assert_eq!(b, [1, 2]);
+        assert_eq!(e.transfers(), 2);
     }
 }

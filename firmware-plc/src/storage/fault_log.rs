@@ -7,7 +7,7 @@
 //! written. The ring has no head pointer to keep consistent: the newest entry is found
 //! from the timestamps (power cycles compared modulo 2^16).
 
-use super::eeprom::{Eeprom, EepromError};
+use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::{FAULT_ENTRY_BYTES, FAULT_LOG_ADDR, FAULT_LOG_ENTRIES};
 use crc::{Crc, CRC_16_IBM_3740};
 
@@ -28,7 +28,7 @@ pub struct FaultEntry {
 }
 
 impl FaultEntry {
-    fn to_bytes(self) -> [u8; FAULT_ENTRY_BYTES] {
+    pub(crate) fn to_bytes(self) -> [u8; FAULT_ENTRY_BYTES] {
         let p = self.power_cycle.to_be_bytes();
         let u = self.uptime_s.min(UPTIME_MAX_S).to_be_bytes();
         let body = [self.code, p[0], p[1], u[1], u[2], u[3]];
@@ -38,7 +38,7 @@ impl FaultEntry {
         ]
     }
 
-    fn parse(b: &[u8]) -> Option<FaultEntry> {
+    pub(crate) fn parse(b: &[u8]) -> Option<FaultEntry> {
         let [code, p0, p1, u0, u1, u2, c0, c1] = <[u8; FAULT_ENTRY_BYTES]>::try_from(b).ok()?;
         if code == 0 || code == 0xFF || CRC16.checksum(b.get(..6)?) != u16::from_be_bytes([c0, c1])
         {
@@ -70,27 +70,80 @@ fn read_ring<E: Eeprom>(e: &mut E) -> Result<Ring, EepromError> {
     Ok(ring)
 }
 
-/// Index of the newest entry: the valid entry whose successor round the ring is empty,
-/// damaged or older (ties in time go to the later position), the newest of those.
-fn newest(ring: &Ring) -> Option<usize> {
-    let mut best: Option<(usize, FaultEntry)> = None;
-    for (i, e) in ring.iter().enumerate() {
-        let Some(e) = e else { continue };
-        let next = ring.get((i + 1) % FAULT_LOG_ENTRIES).copied().flatten();
-        let is_end = next.is_none_or(|n| e.newer_than(&n));
-        if is_end && best.is_none_or(|(_, b)| e.newer_than(&b)) {
-            best = Some((i, *e));
-        }
-    }
-    best.map(|(i, _)| i)
+/// Finds the newest entry while the ring is read in order, entry 0 first, so that the
+/// ring never has to be held in RAM (the job queue reads it one page per pass).
+///
+/// The newest entry is the valid entry whose successor round the ring is empty, damaged
+/// or older (ties in time go to the later position), the newest of those.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct NewestFinder {
+    seen: usize,
+    first: Option<FaultEntry>,
+    prev: Option<FaultEntry>,
+    best: Option<(usize, FaultEntry)>,
 }
 
-/// Append one entry, overwriting the oldest when the log is full.
+impl NewestFinder {
+    fn judge(&mut self, i: usize, e: Option<FaultEntry>, next: Option<FaultEntry>) {
+        let Some(e) = e else { return };
+        let is_end = next.is_none_or(|n| e.newer_than(&n));
+        if is_end && self.best.is_none_or(|(_, b)| e.newer_than(&b)) {
+            self.best = Some((i, e));
+        }
+    }
+
+    /// The next entry of the ring (`None` = empty or damaged).
+    pub(crate) fn push(&mut self, e: Option<FaultEntry>) {
+        if self.seen == 0 {
+            self.first = e;
+        } else {
+            self.judge(self.seen - 1, self.prev, e);
+        }
+        self.prev = e;
+        self.seen += 1;
+    }
+
+    /// Feeds every entry of a chunk of raw ring bytes.
+    pub(crate) fn push_bytes(&mut self, raw: &[u8]) {
+        for chunk in raw.chunks(FAULT_ENTRY_BYTES) {
+            self.push(FaultEntry::parse(chunk));
+        }
+    }
+
+    /// Index of the newest entry, once the whole ring was pushed.
+    pub(crate) fn newest(mut self) -> Option<usize> {
+        if self.seen > 0 {
+            // The last entry's successor is the first, round the ring.
+            self.judge(self.seen - 1, self.prev, self.first);
+        }
+        self.best.map(|(i, _)| i)
+    }
+
+    /// Where the next entry goes: after the newest, or at 0 in an empty log.
+    pub(crate) fn append_addr(self) -> u16 {
+        let at = self.newest().map_or(0, |i| (i + 1) % FAULT_LOG_ENTRIES);
+        FAULT_LOG_ADDR + (at * FAULT_ENTRY_BYTES) as u16
+    }
+}
+
+/// Index of the newest entry (see [`NewestFinder`]).
+fn newest(ring: &Ring) -> Option<usize> {
+    let mut f = NewestFinder::default();
+    for e in ring {
+        f.push(*e);
+    }
+    f.newest()
+}
+
+/// Append one entry, overwriting the oldest when the log is full, and wait for the write
+/// cycle (synchronous: tools and tests; the firmware uses the job queue).
 pub fn append<E: Eeprom>(e: &mut E, entry: FaultEntry) -> Result<(), EepromError> {
-    let ring = read_ring(e)?;
-    let at = newest(&ring).map_or(0, |i| (i + 1) % FAULT_LOG_ENTRIES);
-    let addr = FAULT_LOG_ADDR + (at * FAULT_ENTRY_BYTES) as u16;
-    e.write_page(addr, &entry.to_bytes())
+    let mut raw = [0u8; FAULT_LOG_ENTRIES * FAULT_ENTRY_BYTES];
+    e.read(FAULT_LOG_ADDR, &mut raw)?;
+    let mut f = NewestFinder::default();
+    f.push_bytes(&raw);
+    e.start_write(f.append_addr(), &entry.to_bytes())?;
+    super::slot::wait_ready(e)
 }
 
 /// The stored entries, newest first, into `out` (cleared first).
@@ -113,15 +166,20 @@ pub fn read_all<E: Eeprom>(
     Ok(())
 }
 
-/// Erase the log (every entry becomes empty).
+/// Pages the log occupies.
+pub(crate) const LOG_PAGES: usize = FAULT_LOG_ENTRIES * FAULT_ENTRY_BYTES / PAGE_BYTES;
+
+/// Address of page `p` of the log.
+pub(crate) fn page_addr(p: usize) -> u16 {
+    FAULT_LOG_ADDR + (p * PAGE_BYTES) as u16
+}
+
+/// Erase the log (every entry becomes empty), waiting for each write cycle.
 pub fn clear<E: Eeprom>(e: &mut E) -> Result<(), EepromError> {
-    let blank = [0xFFu8; super::eeprom::PAGE_BYTES];
-    let pages = FAULT_LOG_ENTRIES * FAULT_ENTRY_BYTES / super::eeprom::PAGE_BYTES;
-    for p in 0..pages {
-        e.write_page(
-            FAULT_LOG_ADDR + (p * super::eeprom::PAGE_BYTES) as u16,
-            &blank,
-        )?;
+    let blank = [0xFFu8; PAGE_BYTES];
+    for p in 0..LOG_PAGES {
+        e.start_write(page_addr(p), &blank)?;
+        super::slot::wait_ready(e)?;
     }
     Ok(())
 }

@@ -10,23 +10,35 @@
 //!   power-up, and counts power-ups (the fault log's clock).
 //! * The fault log keeps the newest 32 faults.
 //!
-//! Everything is synchronous over the [`Eeprom`] trait; [`MemEeprom`] is the RAM model
-//! used by tests and hil-sim.
+//! The firmware queues every operation as a [`Job`] and moves it on one EEPROM page per
+//! pass with [`Storage::step`] (see [`job`]); the synchronous methods ([`Storage::save`],
+//! [`Storage::load`], ...) run the same jobs to the end, for power-up (before the
+//! watchdog runs), tools and tests. [`MemEeprom`] is the RAM model used by tests and
+//! hil-sim.
 
 pub mod boot;
 pub mod eeprom;
 pub mod fault_log;
 pub mod image;
+pub mod job;
 pub mod layout;
 pub mod slot;
 
 pub use boot::BootRecord;
 pub use eeprom::{Eeprom, EepromError, MemEeprom, EEPROM_BYTES, PAGE_BYTES};
 pub use fault_log::FaultEntry;
+pub use job::{BootChange, Job, JobDone, ProgramUse, Step, WRITE_CYCLE_LIMIT_US};
 pub use layout::{FAULT_LOG_ENTRIES, SLOTS};
 pub use slot::CopyError;
 
+use job::{Access, Phase, Prog};
 use shared_protocol::program::Program;
+use shared_protocol::units::Micros;
+
+/// Jobs that can wait in the queue besides the active one.
+pub const QUEUE_JOBS: usize = 8;
+/// Steps a synchronous operation may take before it gives up (a full save is about 400).
+const SYNC_STEP_LIMIT: u32 = 100_000;
 
 /// Why a storage operation failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,6 +56,9 @@ pub enum StorageError {
     /// The copy just written did not read back correctly (worn or failing EEPROM).
     VerifyFailed,
     Eeprom(EepromError),
+    /// Another job holds the EEPROM (the queue is full, or a synchronous operation was
+    /// asked for while jobs are queued).
+    Busy,
 }
 
 impl From<EepromError> for StorageError {
@@ -61,7 +76,7 @@ pub enum SlotCopy {
 }
 
 impl SlotCopy {
-    fn index(self) -> u8 {
+    pub(crate) fn index(self) -> u8 {
         match self {
             SlotCopy::A => 0,
             SlotCopy::B => 1,
@@ -125,10 +140,23 @@ pub struct PowerUp {
     pub run: bool,
 }
 
-/// The storage facade the application calls.
+/// Why a job was not queued.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct QueueFull;
+
+/// The storage facade the application calls: the EEPROM, the job queue and the job in
+/// progress.
 pub struct Storage<E: Eeprom> {
     eeprom: E,
     power_cycle: u32,
+    queue: heapless::Deque<Job, QUEUE_JOBS>,
+    active: Option<(Job, Phase)>,
+    /// A write cycle may be running: since when the chip has been polled busy (`None`
+    /// until the first poll). The limit counts from the first poll, not from the step
+    /// that made the write: on the board that step's time is taken before the transfer,
+    /// which itself takes about 7 ms at 100 kHz, and the write cycle starts at its STOP.
+    writing_since: Option<Option<Micros>>,
 }
 
 impl<E: Eeprom> Storage<E> {
@@ -136,6 +164,9 @@ impl<E: Eeprom> Storage<E> {
         Storage {
             eeprom,
             power_cycle: 0,
+            queue: heapless::Deque::new(),
+            active: None,
+            writing_since: None,
         }
     }
 
@@ -154,24 +185,229 @@ impl<E: Eeprom> Storage<E> {
         self.power_cycle
     }
 
-    /// Power-up: count the power cycle and load the slot last run into `program`.
+    /// Queue `job` behind the others (first in, first out). A boot-record change replaces
+    /// a boot-record change still waiting (the newest state is what must be stored).
+    pub fn queue(&mut self, job: Job) -> Result<(), QueueFull> {
+        if let Job::Boot(BootChange::Run { .. }) = job {
+            if let Some(waiting) = self
+                .queue
+                .iter_mut()
+                .find(|j| matches!(j, Job::Boot(BootChange::Run { .. })))
+            {
+                *waiting = job;
+                return Ok(());
+            }
+        }
+        self.queue.push_back(job).map_err(|_| QueueFull)
+    }
+
+    /// Whether any job is queued or running.
+    pub fn busy(&self) -> bool {
+        self.active.is_some() || !self.queue.is_empty()
+    }
+
+    /// The job in progress.
+    pub fn active_job(&self) -> Option<Job> {
+        self.active.as_ref().map(|(j, _)| *j)
+    }
+
+    /// Jobs in progress or queued, oldest first.
+    pub fn jobs(&self) -> impl Iterator<Item = Job> + '_ {
+        self.active_job()
+            .into_iter()
+            .chain(self.queue.iter().copied())
+    }
+
+    /// How the queued and running jobs hold the program: `Writes` while a load is
+    /// queued or running, else `Reads` while a save is.
+    pub fn program_use(&self) -> Option<ProgramUse> {
+        self.jobs().filter_map(|j| j.uses_program()).max()
+    }
+
+    /// Moves the queue on: at most one EEPROM transfer of at most one page (plus, before
+    /// it, one ready poll if a write cycle may still run). Call once per pass; `program`
+    /// is the application's (a save reads it, a load rewrites it).
+    pub fn step(&mut self, now: Micros, program: &mut Program) -> Step {
+        self.step_with(now, &mut Prog::Mut(program))
+    }
+
+    fn step_with(&mut self, now: Micros, prog: &mut Prog<'_>) -> Step {
+        let (job, phase) = match self.active.take() {
+            Some(a) => a,
+            None => {
+                let Some(job) = self.queue.pop_front() else {
+                    return Step::IDLE;
+                };
+                match job::start(job) {
+                    Ok(phase) => (job, phase),
+                    Err(e) => {
+                        return Step {
+                            used_bus: false,
+                            done: Some(JobDone::failed(job, e)),
+                        }
+                    }
+                }
+            }
+        };
+        let mut used_bus = false;
+        if let Some(since) = self.writing_since {
+            used_bus = true;
+            let since = since.unwrap_or(now);
+            match self.eeprom.ready() {
+                Ok(true) => self.writing_since = None,
+                Ok(false) if now.0.saturating_sub(since.0) <= WRITE_CYCLE_LIMIT_US => {
+                    self.writing_since = Some(Some(since));
+                    self.active = Some((job, phase));
+                    return Step {
+                        used_bus,
+                        done: None,
+                    };
+                }
+                Ok(false) => {
+                    self.writing_since = None;
+                    let e = StorageError::Eeprom(EepromError::Bus);
+                    return Step {
+                        used_bus,
+                        done: Some(JobDone::failed(job, e)),
+                    };
+                }
+                Err(e) => {
+                    self.writing_since = None;
+                    return Step {
+                        used_bus,
+                        done: Some(JobDone::failed(job, StorageError::Eeprom(e))),
+                    };
+                }
+            }
+        }
+        let (next, access) = job::advance(&mut self.eeprom, job, phase, prog);
+        if access == Access::Write {
+            // Even a failed write may have started a cycle: wait it out before the next
+            // access of any job.
+            self.writing_since = Some(None);
+        }
+        used_bus |= access != Access::None;
+        match next {
+            Ok(phase) => {
+                self.active = Some((job, phase));
+                Step {
+                    used_bus,
+                    done: None,
+                }
+            }
+            Err(done) => Step {
+                used_bus,
+                done: Some(done),
+            },
+        }
+    }
+
+    /// Runs `job` to the end, steps timed by `clock`. Refused while jobs are queued.
+    fn run(
+        &mut self,
+        job: Job,
+        prog: &mut Prog<'_>,
+        clock: &mut dyn FnMut() -> Micros,
+    ) -> Result<JobDone, StorageError> {
+        if self.busy() {
+            return Err(StorageError::Busy);
+        }
+        self.queue.push_back(job).map_err(|_| StorageError::Busy)?;
+        for _ in 0..SYNC_STEP_LIMIT {
+            let now = clock();
+            if let Some(done) = self.step_with(now, prog).done {
+                return Ok(done);
+            }
+        }
+        self.active = None;
+        self.writing_since = None;
+        Err(StorageError::Eeprom(EepromError::Bus))
+    }
+
+    /// [`Storage::run`] with a made-up clock that advances 1 ms per step: for the RAM
+    /// model, tools and tests.
+    fn run_sync(&mut self, job: Job, prog: &mut Prog<'_>) -> Result<JobDone, StorageError> {
+        let mut t = 0u64;
+        let mut clock = || {
+            t += 1000;
+            Micros(t)
+        };
+        self.run(job, prog, &mut clock)
+    }
+
+    /// Power-up: count the power cycle and load the slot last run into `program`, with a
+    /// fake clock (host use; see [`Storage::power_up_clocked`]).
+    pub fn power_up(&mut self, program: &mut Program) -> Result<PowerUp, StorageError> {
+        let mut t = 0u64;
+        let mut clock = || {
+            t += 1000;
+            Micros(t)
+        };
+        self.power_up_clocked(program, &mut clock)
+    }
+
+    /// Power-up: count the power cycle and load the slot last run into `program`,
+    /// synchronously (the board calls it before the watchdog runs), timing the EEPROM's
+    /// write cycles with `clock`. The chip may still be finishing a write cycle started
+    /// before a reset, so the first access waits for it.
     ///
     /// `run` is true only when the PLC was in RUN at power-off and the slot loaded
     /// cleanly or from its second copy; the caller starts RUN then (after verifying, as
     /// for any RUN).
-    pub fn power_up(&mut self, program: &mut Program) -> Result<PowerUp, StorageError> {
-        let record = boot::read(&mut self.eeprom)?.map(|(r, _)| r);
-        let mut record = record.unwrap_or_default();
-        record.power_cycles = record.power_cycles.wrapping_add(1);
-        let record = boot::write(&mut self.eeprom, record)?;
-        self.power_cycle = record.power_cycles;
-        let loaded = record.last_run_slot.map(|s| self.load(s, program));
+    pub fn power_up_clocked(
+        &mut self,
+        program: &mut Program,
+        clock: &mut dyn FnMut() -> Micros,
+    ) -> Result<PowerUp, StorageError> {
+        self.queue.clear();
+        self.active = None;
+        self.writing_since = Some(None);
+        let mut prog = Prog::Mut(program);
+        // The record as stored, read through a job that changes nothing.
+        let record = {
+            let mut best = None;
+            for (i, &addr) in layout::BOOT_ADDR.iter().enumerate() {
+                self.wait_idle(clock)?;
+                let mut b = [0u8; boot::RECORD_BYTES];
+                self.eeprom.read(addr, &mut b)?;
+                best = boot::keep_newest(best, i, &b);
+            }
+            best.map(|(r, _)| r)
+        };
+        let record = record.unwrap_or_default();
+        let count = record.power_cycles.wrapping_add(1);
+        self.power_cycle = count;
+        let done = self.run(Job::Boot(BootChange::PowerUp { count }), &mut prog, clock)?;
+        if let Some(e) = done.error() {
+            return Err(e);
+        }
+        let loaded = match record.last_run_slot {
+            Some(slot) => match self.run(Job::Load { slot }, &mut prog, clock)? {
+                JobDone::Loaded { result, .. } => Some(result),
+                _ => None,
+            },
+            None => None,
+        };
         let run = record.run_at_power_up && matches!(loaded, Some(Ok(_)));
         Ok(PowerUp {
-            power_cycle: record.power_cycles,
+            power_cycle: count,
             loaded,
             run,
         })
+    }
+
+    /// Waits (polling) until a write cycle that may be running has ended.
+    fn wait_idle(&mut self, clock: &mut dyn FnMut() -> Micros) -> Result<(), StorageError> {
+        let since = clock();
+        while self.writing_since.is_some() {
+            if self.eeprom.ready()? {
+                self.writing_since = None;
+            } else if clock().0.saturating_sub(since.0) > WRITE_CYCLE_LIMIT_US {
+                self.writing_since = None;
+                return Err(StorageError::Eeprom(EepromError::Bus));
+            }
+        }
+        Ok(())
     }
 
     /// Record that `slot` was started (`running` = true) or that the user stopped
@@ -181,33 +417,37 @@ impl<E: Eeprom> Storage<E> {
     /// or save) clears the run-at-power-up flag: after a power cut the PLC must not start
     /// an older program than the one that was running. The last slot is still loaded.
     pub fn set_run_state(&mut self, slot: Option<u8>, running: bool) -> Result<(), StorageError> {
-        let running = running && slot.is_some();
-        let mut record = boot::read(&mut self.eeprom)?
-            .map(|(r, _)| r)
-            .unwrap_or_default();
-        if let Some(s) = slot {
-            if !(1..=SLOTS).contains(&s) {
-                return Err(StorageError::NoSuchSlot(s));
-            }
+        let empty = Program::default();
+        let job = Job::Boot(BootChange::Run { slot, running });
+        match self.run_sync(job, &mut Prog::Ref(&empty))? {
+            JobDone::BootWritten { result, .. } => result,
+            _ => Err(StorageError::Busy),
         }
-        let want_slot = slot.or(record.last_run_slot);
-        if record.last_run_slot == want_slot && record.run_at_power_up == running {
-            // Nothing changes: spare the EEPROM a write.
-            return Ok(());
-        }
-        record.last_run_slot = want_slot;
-        record.run_at_power_up = running;
-        boot::write(&mut self.eeprom, record)?;
-        Ok(())
     }
 
     /// The boot record as stored (None on a fresh EEPROM).
     pub fn boot_record(&mut self) -> Result<Option<BootRecord>, StorageError> {
+        if self.busy() {
+            return Err(StorageError::Busy);
+        }
         Ok(boot::read(&mut self.eeprom)?.map(|(r, _)| r))
     }
 
-    fn addr(slot: u8, copy: SlotCopy) -> Result<u16, StorageError> {
-        layout::copy_addr(slot, copy.index()).ok_or(StorageError::NoSuchSlot(slot))
+    /// Save `program` into `slot` (power-fail safe; see the module docs).
+    pub fn save(&mut self, slot: u8, program: &Program) -> Result<u32, StorageError> {
+        match self.run_sync(Job::Save { slot }, &mut Prog::Ref(program))? {
+            JobDone::Saved { result, .. } => result,
+            _ => Err(StorageError::Busy),
+        }
+    }
+
+    /// Load `slot` into `program`. On error `program` is unchanged, except for a read
+    /// error or a damaged copy found in the middle of the transfer, which leaves it empty.
+    pub fn load(&mut self, slot: u8, program: &mut Program) -> Result<LoadReport, StorageError> {
+        match self.run_sync(Job::Load { slot }, &mut Prog::Mut(program))? {
+            JobDone::Loaded { result, .. } => result,
+            _ => Err(StorageError::Busy),
+        }
     }
 
     fn check(
@@ -215,88 +455,18 @@ impl<E: Eeprom> Storage<E> {
         slot: u8,
         copy: SlotCopy,
     ) -> Result<Result<slot::CopyHeader, CopyError>, StorageError> {
-        let addr = Self::addr(slot, copy)?;
+        let addr = layout::copy_addr(slot, copy.index()).ok_or(StorageError::NoSuchSlot(slot))?;
         match slot::check_copy(&mut self.eeprom, addr, slot) {
             Err(CopyError::Eeprom(e)) => Err(StorageError::Eeprom(e)),
             r => Ok(r),
         }
     }
 
-    /// Save `program` into `slot` (power-fail safe; see the module docs).
-    pub fn save(&mut self, slot: u8, program: &Program) -> Result<u32, StorageError> {
-        let a = self.check(slot, SlotCopy::A)?;
-        let b = self.check(slot, SlotCopy::B)?;
-        // The first copy written is the damaged one, else the older one (A on a tie).
-        let first = match (&a, &b) {
-            (Err(_), _) => SlotCopy::A,
-            (Ok(_), Err(_)) => SlotCopy::B,
-            (Ok(ha), Ok(hb)) if hb.generation < ha.generation => SlotCopy::B,
-            _ => SlotCopy::A,
-        };
-        let newest = [&a, &b]
-            .iter()
-            .filter_map(|r| r.as_ref().ok().map(|h| h.generation))
-            .max()
-            .unwrap_or(0);
-        let generation = newest.wrapping_add(1);
-        for copy in [first, first.other()] {
-            let addr = Self::addr(slot, copy)?;
-            match slot::write_copy(&mut self.eeprom, addr, slot, generation, program) {
-                Ok(_) => {}
-                Err(CopyError::Eeprom(e)) => return Err(StorageError::Eeprom(e)),
-                Err(_) => return Err(StorageError::TooBig),
-            }
-            match self.check(slot, copy)? {
-                Ok(h) if h.generation == generation => {}
-                _ => return Err(StorageError::VerifyFailed),
-            }
-        }
-        Ok(generation)
-    }
-
-    /// Load `slot` into `program`. On error `program` is unchanged, except for an EEPROM
-    /// read error in the middle of the transfer, which leaves it empty.
-    pub fn load(&mut self, slot: u8, program: &mut Program) -> Result<LoadReport, StorageError> {
-        let a = self.check(slot, SlotCopy::A)?;
-        let b = self.check(slot, SlotCopy::B)?;
-        let (used, h, other) = match (a, b) {
-            (Ok(ha), Ok(hb)) => {
-                let (used, h, other_gen) = if hb.generation > ha.generation {
-                    (SlotCopy::B, hb, ha.generation)
-                } else {
-                    (SlotCopy::A, ha, hb.generation)
-                };
-                let other = if other_gen == h.generation {
-                    OtherCopy::Same
-                } else {
-                    OtherCopy::Older
-                };
-                (used, h, other)
-            }
-            (Ok(ha), Err(e)) => (SlotCopy::A, ha, OtherCopy::Bad(e)),
-            (Err(e), Ok(hb)) => (SlotCopy::B, hb, OtherCopy::Bad(e)),
-            // A copy never written means no save of this slot ever completed (the first
-            // save writes both): whatever the other copy holds is a cut first save.
-            (Err(CopyError::NoHeader), Err(_)) | (Err(_), Err(CopyError::NoHeader)) => {
-                return Err(StorageError::Empty(slot))
-            }
-            (Err(_), Err(_)) => return Err(StorageError::Damaged(slot)),
-        };
-        let addr = Self::addr(slot, used)?;
-        slot::read_copy(&mut self.eeprom, addr, &h, program).map_err(|e| match e {
-            CopyError::Eeprom(e) => StorageError::Eeprom(e),
-            _ => StorageError::Damaged(slot),
-        })?;
-        Ok(LoadReport {
-            slot,
-            used,
-            generation: h.generation,
-            other,
-        })
-    }
-
-    /// What each slot holds (for the save/load prompts).
+    /// What each slot holds (for the save/load prompts; synchronous).
     pub fn slot_info(&mut self, slot: u8) -> Result<SlotInfo, StorageError> {
+        if self.busy() {
+            return Err(StorageError::Busy);
+        }
         let a = self.check(slot, SlotCopy::A)?;
         let b = self.check(slot, SlotCopy::B)?;
         let program = [a, b]
@@ -307,29 +477,43 @@ impl<E: Eeprom> Storage<E> {
         Ok(SlotInfo { slot, program })
     }
 
-    /// Log a fault that happened `uptime_ms` after this power-up.
-    pub fn log_fault(&mut self, code: u8, uptime_ms: u64) -> Result<FaultEntry, StorageError> {
-        let entry = FaultEntry {
+    /// The fault-log entry for a fault that happened `uptime_ms` after this power-up.
+    pub fn fault_entry(&self, code: u8, uptime_ms: u64) -> FaultEntry {
+        FaultEntry {
             code,
             power_cycle: self.power_cycle as u16,
             uptime_s: u32::try_from(uptime_ms / 1000).unwrap_or(u32::MAX),
-        };
-        fault_log::append(&mut self.eeprom, entry)?;
-        Ok(entry)
+        }
     }
 
-    /// The logged faults, newest first.
+    /// Log a fault that happened `uptime_ms` after this power-up (synchronous).
+    pub fn log_fault(&mut self, code: u8, uptime_ms: u64) -> Result<FaultEntry, StorageError> {
+        let entry = self.fault_entry(code, uptime_ms);
+        let empty = Program::default();
+        match self.run_sync(Job::LogFault(entry), &mut Prog::Ref(&empty))? {
+            JobDone::FaultLogged { result, .. } => result.map(|_| entry),
+            _ => Err(StorageError::Busy),
+        }
+    }
+
+    /// The logged faults, newest first (synchronous: power-up and tools).
     pub fn fault_log(
         &mut self,
         out: &mut heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
     ) -> Result<(), StorageError> {
+        if self.busy() {
+            return Err(StorageError::Busy);
+        }
         fault_log::read_all(&mut self.eeprom, out)?;
         Ok(())
     }
 
-    /// Erase the fault log.
+    /// Erase the fault log (synchronous).
     pub fn clear_fault_log(&mut self) -> Result<(), StorageError> {
-        fault_log::clear(&mut self.eeprom)?;
-        Ok(())
+        let empty = Program::default();
+        match self.run_sync(Job::ClearFaultLog, &mut Prog::Ref(&empty))? {
+            JobDone::FaultLogCleared { result } => result,
+            _ => Err(StorageError::Busy),
+        }
     }
 }

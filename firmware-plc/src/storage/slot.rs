@@ -1,7 +1,11 @@
 //! One copy of a stored program: header + sparse payload, streamed page by page.
 //!
-//! Streaming (never a whole-copy buffer) keeps the RAM cost at two pages, so the same
-//! code runs on the MCU and builds the off-board image in hil-sim.
+//! Streaming (never a whole-copy buffer) keeps the RAM cost at one page on the stack, so
+//! the same code runs on the MCU and builds the off-board image in hil-sim. The work is
+//! done by two steppers, [`CopyReader`] (check or load) and [`CopyWriter`], which touch
+//! at most one 64-byte page of the copy per call: the job queue (`storage::job`) calls
+//! them once per pass of the application task; the synchronous functions below
+//! ([`check_copy`], [`read_copy`], [`write_copy`]) run them to the end.
 //!
 //! Payload: runs of consecutive used lines, each `[first line: u16 BE][count: u8 1..=255]`
 //! followed by `count` lines in the 4-byte [`encode_line`] form, runs in ascending line
@@ -14,7 +18,9 @@ use super::layout::{COPY_HEADER_BYTES, PAYLOAD_MAX};
 use crc::{Crc, Digest, CRC_32_ISO_HDLC};
 use shared_protocol::program::{decode_line, encode_line, Instruction, Program, LINES, LINE_BYTES};
 
-pub(crate) const CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+/// CRC-32 (ISO-HDLC) of copies and boot records. A `static` (a constant table, not
+/// state) so that a running [`Digest`] can live in a stepper between calls.
+pub(crate) static CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 const MAGIC: [u8; 2] = *b"PG";
 const VERSION: u8 = 1;
 const RUN_MAX: usize = 255;
@@ -86,28 +92,86 @@ impl From<EepromError> for CopyError {
     }
 }
 
+/// The payload bytes of a program, produced one at a time and resumable, so that a page
+/// of the payload can be produced in one step and the next page in a later one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct PayloadCursor {
+    /// Line the next byte belongs to (or where the next run is looked for).
+    line: u16,
+    /// One past the last line of the current run.
+    run_end: u16,
+    /// Next byte of the run header (0..3; 3 = header done).
+    header: u8,
+    /// Next byte of the current line (0..LINE_BYTES).
+    byte: u8,
+}
+
+impl PayloadCursor {
+    pub(crate) const fn new() -> Self {
+        PayloadCursor {
+            line: 0,
+            run_end: 0,
+            header: 3,
+            byte: 0,
+        }
+    }
+
+    fn used(program: &Program, line: usize) -> bool {
+        program.lines.get(line).is_some_and(|l| l.is_some())
+    }
+
+    /// The next payload byte, `None` after the last one.
+    pub(crate) fn next(&mut self, program: &Program) -> Option<u8> {
+        if self.line >= self.run_end && self.header >= 3 {
+            // Start the next run of used lines.
+            let mut first = usize::from(self.line);
+            while first < LINES && !Self::used(program, first) {
+                first += 1;
+            }
+            if first >= LINES {
+                self.line = LINES as u16;
+                return None;
+            }
+            let mut count = 0usize;
+            while count < RUN_MAX && Self::used(program, first + count) {
+                count += 1;
+            }
+            self.line = first as u16;
+            self.run_end = (first + count) as u16;
+            self.header = 0;
+            self.byte = 0;
+        }
+        if self.header < 3 {
+            let [hi, lo] = self.line.to_be_bytes();
+            let b = match self.header {
+                0 => hi,
+                1 => lo,
+                _ => self.run_end.wrapping_sub(self.line) as u8,
+            };
+            self.header += 1;
+            return Some(b);
+        }
+        let encoded = program
+            .lines
+            .get(usize::from(self.line))
+            .copied()
+            .flatten()
+            .map(|i| encode_line(&i))?;
+        let b = encoded.get(usize::from(self.byte)).copied()?;
+        self.byte += 1;
+        if usize::from(self.byte) == LINE_BYTES {
+            self.byte = 0;
+            self.line += 1;
+        }
+        Some(b)
+    }
+}
+
 /// Calls `emit` with every payload byte of `program`, in order.
 fn for_each_payload_byte(program: &Program, mut emit: impl FnMut(u8)) {
-    let mut line = 0usize;
-    while line < LINES {
-        if program.lines.get(line).is_some_and(|l| l.is_none()) {
-            line += 1;
-            continue;
-        }
-        let mut count = 0usize;
-        while count < RUN_MAX && program.lines.get(line + count).is_some_and(|l| l.is_some()) {
-            count += 1;
-        }
-        let [a, b] = (line as u16).to_be_bytes();
-        emit(a);
+    let mut c = PayloadCursor::new();
+    while let Some(b) = c.next(program) {
         emit(b);
-        emit(count as u8);
-        for i in program.lines.iter().skip(line).take(count).flatten() {
-            for byte in encode_line(i) {
-                emit(byte);
-            }
-        }
-        line += count;
     }
 }
 
@@ -120,6 +184,7 @@ pub fn payload_size(program: &Program) -> (usize, u16) {
 }
 
 /// Incremental payload decoder: fed byte by byte, reports each decoded line.
+#[derive(Debug, Clone, Copy)]
 struct PayloadParser {
     state: ParseState,
     next_line: u16,
@@ -131,7 +196,7 @@ struct PayloadParser {
     failed: bool,
 }
 
-#[derive(Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum ParseState {
     FirstHi,
     FirstLo,
@@ -213,82 +278,278 @@ pub fn read_header<E: Eeprom>(e: &mut E, addr: u16) -> Result<CopyHeader, CopyEr
     CopyHeader::parse(&h).ok_or(CopyError::NoHeader)
 }
 
-/// Stream the payload of a copy through `f`, 64 bytes at a time.
-fn stream_payload<E: Eeprom>(
-    e: &mut E,
-    addr: u16,
-    len: usize,
-    mut f: impl FnMut(&[u8]),
-) -> Result<(), CopyError> {
-    let mut buf = [0u8; PAGE_BYTES];
-    let mut done = 0usize;
-    while done < len {
-        let n = (len - done).min(PAGE_BYTES);
-        let at = usize::from(addr) + COPY_HEADER_BYTES + done;
-        let at = u16::try_from(at).map_err(|_| EepromError::OutOfRange)?;
-        let chunk = buf.get_mut(..n).ok_or(CopyError::Format)?;
-        e.read(at, chunk)?;
-        f(chunk);
-        done += n;
-    }
-    Ok(())
+/// EEPROM address of byte `offset` of the copy at `addr`.
+fn at(addr: u16, offset: usize) -> Result<u16, CopyError> {
+    u16::try_from(usize::from(addr) + offset)
+        .map_err(|_| CopyError::Eeprom(EepromError::OutOfRange))
 }
 
-/// Check a copy completely (header, CRC, decodability) without touching any program.
-pub fn check_copy<E: Eeprom>(e: &mut E, addr: u16, slot: u8) -> Result<CopyHeader, CopyError> {
-    let h = read_header(e, addr)?;
-    if h.slot != slot {
-        return Err(CopyError::WrongSlot);
-    }
-    let header_bytes = h.to_bytes();
-    let mut digest: Digest<'_, u32> = CRC32.digest();
-    digest.update(header_bytes.get(..12).unwrap_or(&[]));
-    let mut parser = PayloadParser::new();
-    stream_payload(e, addr, usize::from(h.payload_len), |chunk| {
-        digest.update(chunk);
-        for &b in chunk {
-            parser.feed(b, |_, _| {});
+/// Checks a copy (header, CRC, decodability), or loads it into a program, one page of
+/// the copy per [`CopyReader::step`]. Page 0 holds the header and the first 48 payload
+/// bytes, page k the copy's bytes 64k..64k+63, as [`CopyWriter`] writes them.
+#[derive(Clone)]
+pub(crate) struct CopyReader {
+    addr: u16,
+    slot: u8,
+    /// The header, once page 0 has been read.
+    header: Option<CopyHeader>,
+    /// Next page of the copy to read.
+    page: u16,
+    digest: Digest<'static, u32>,
+    parser: PayloadParser,
+    /// Load: decoded lines go into the program (cleared before page 0).
+    load: bool,
+}
+
+impl CopyReader {
+    /// A check of the copy of `slot` at `addr`; the program is not touched.
+    pub(crate) fn check(addr: u16, slot: u8) -> Self {
+        CopyReader {
+            addr,
+            slot,
+            header: None,
+            page: 0,
+            digest: CRC32.digest(),
+            parser: PayloadParser::new(),
+            load: false,
         }
-    })?;
-    if digest.finalize() != h.crc {
-        return Err(CopyError::Crc);
     }
-    if !parser.finished_ok(h.lines) {
-        return Err(CopyError::Format);
-    }
-    Ok(h)
-}
 
-/// Read a copy already accepted by [`check_copy`] into `program` (cleared first). On a
-/// read error the program is left empty, never mixed.
-pub fn read_copy<E: Eeprom>(
-    e: &mut E,
-    addr: u16,
-    h: &CopyHeader,
-    program: &mut Program,
-) -> Result<(), CopyError> {
-    program.lines.fill(None);
-    let mut parser = PayloadParser::new();
-    let r = stream_payload(e, addr, usize::from(h.payload_len), |chunk| {
+    /// A load of the copy of `slot` at `addr` into the program (cleared at the first step,
+    /// left empty if the copy turns out bad or unreadable: never a mix).
+    pub(crate) fn load(addr: u16, slot: u8) -> Self {
+        CopyReader {
+            load: true,
+            ..Self::check(addr, slot)
+        }
+    }
+
+    /// Reads one page. `Ok(None)`: more pages to read; `Ok(Some(header))`: the copy is
+    /// complete and valid. With `load`, `program` must be given (else `CopyError::Format`).
+    pub(crate) fn step<E: Eeprom>(
+        &mut self,
+        e: &mut E,
+        mut program: Option<&mut Program>,
+    ) -> Result<Option<CopyHeader>, CopyError> {
+        let r = self.step_inner(e, program.as_deref_mut());
+        if self.load && r.is_err() {
+            if let Some(p) = program {
+                p.lines.fill(None);
+            }
+        }
+        r
+    }
+
+    fn step_inner<E: Eeprom>(
+        &mut self,
+        e: &mut E,
+        mut program: Option<&mut Program>,
+    ) -> Result<Option<CopyHeader>, CopyError> {
+        if self.load && program.is_none() {
+            return Err(CopyError::Format);
+        }
+        let mut buf = [0u8; PAGE_BYTES];
+        let offset = usize::from(self.page) * PAGE_BYTES;
+        let payload_from: usize;
+        let chunk_len: usize;
+        match self.header {
+            None => {
+                // Page 0 in one read: the header, and the first payload bytes behind it
+                // (bytes past the payload are read and ignored).
+                e.read(self.addr, &mut buf)?;
+                let h = buf
+                    .get(..COPY_HEADER_BYTES)
+                    .and_then(|b| <[u8; COPY_HEADER_BYTES]>::try_from(b).ok())
+                    .and_then(|h| CopyHeader::parse(&h))
+                    .ok_or(CopyError::NoHeader)?;
+                if h.slot != self.slot {
+                    return Err(CopyError::WrongSlot);
+                }
+                self.digest.update(h.to_bytes().get(..12).unwrap_or(&[]));
+                if let (true, Some(p)) = (self.load, program.as_deref_mut()) {
+                    p.lines.fill(None);
+                }
+                self.header = Some(h);
+                payload_from = COPY_HEADER_BYTES;
+                chunk_len = usize::from(h.payload_len).min(PAGE_BYTES - COPY_HEADER_BYTES);
+            }
+            Some(h) => {
+                let total = COPY_HEADER_BYTES + usize::from(h.payload_len);
+                let n = total.saturating_sub(offset).min(PAGE_BYTES);
+                let chunk = buf.get_mut(..n).ok_or(CopyError::Format)?;
+                e.read(at(self.addr, offset)?, chunk)?;
+                payload_from = 0;
+                chunk_len = n;
+            }
+        }
+        let chunk = buf
+            .get(payload_from..payload_from + chunk_len)
+            .ok_or(CopyError::Format)?;
+        self.digest.update(chunk);
         for &b in chunk {
-            parser.feed(b, |n, i| {
-                if let Some(l) = program.lines.get_mut(usize::from(n)) {
+            self.parser.feed(b, |n, i| {
+                if let Some(l) = program
+                    .as_deref_mut()
+                    .and_then(|p| p.lines.get_mut(usize::from(n)))
+                {
                     *l = Some(i);
                 }
             });
         }
-    });
-    if r.is_err() || !parser.finished_ok(h.lines) {
-        program.lines.fill(None);
-        return Err(r.err().unwrap_or(CopyError::Format));
+        self.page += 1;
+        let h = self.header.ok_or(CopyError::NoHeader)?;
+        let total = COPY_HEADER_BYTES + usize::from(h.payload_len);
+        if usize::from(self.page) * PAGE_BYTES < total {
+            return Ok(None);
+        }
+        if self.digest.clone().finalize() != h.crc {
+            return Err(CopyError::Crc);
+        }
+        if !self.parser.finished_ok(h.lines) {
+            return Err(CopyError::Format);
+        }
+        Ok(Some(h))
     }
-    Ok(())
 }
 
-/// Write `program` as one copy of `slot` with `generation` at `addr`.
-///
-/// Pages after the first go first and the header page last, so a copy torn by a power
-/// cut usually still has its old header, and in any case fails its CRC.
+/// Writes one copy, one page per [`CopyWriter::step`]: the pages after the first go
+/// first and the header page last, so a copy torn by a power cut usually still has its
+/// old header, and in any case fails its CRC. The chip's write cycle after each page is
+/// the caller's to wait for ([`Eeprom::ready`]) before the next step.
+#[derive(Debug, Clone)]
+pub(crate) struct CopyWriter {
+    addr: u16,
+    header: CopyHeader,
+    /// Next page to write: 1, 2, ... up to the last, then 0.
+    page: u16,
+    pages: u16,
+    /// The payload bytes of the pages after the first, in order.
+    cursor: PayloadCursor,
+}
+
+impl CopyWriter {
+    /// Prepares the copy of `program` (its CRC is computed here: CPU time only).
+    pub(crate) fn new(
+        addr: u16,
+        slot: u8,
+        generation: u32,
+        program: &Program,
+    ) -> Result<Self, CopyError> {
+        let (len, lines) = payload_size(program);
+        if len > PAYLOAD_MAX {
+            return Err(CopyError::Format);
+        }
+        let mut header = CopyHeader {
+            slot,
+            generation,
+            payload_len: len as u16,
+            lines,
+            crc: 0,
+        };
+        let mut digest = CRC32.digest();
+        digest.update(header.to_bytes().get(..12).unwrap_or(&[]));
+        for_each_payload_byte(program, |b| digest.update(&[b]));
+        header.crc = digest.finalize();
+        let total = COPY_HEADER_BYTES + len;
+        let pages = total.div_ceil(PAGE_BYTES) as u16;
+        let mut cursor = PayloadCursor::new();
+        for _ in 0..(PAGE_BYTES - COPY_HEADER_BYTES) {
+            if cursor.next(program).is_none() {
+                break;
+            }
+        }
+        Ok(CopyWriter {
+            addr,
+            header,
+            page: if pages > 1 { 1 } else { 0 },
+            pages,
+            cursor,
+        })
+    }
+
+    /// The header the copy gets.
+    pub(crate) fn header(&self) -> CopyHeader {
+        self.header
+    }
+
+    /// Writes one page. `Ok(true)`: that was the header page, the copy is written (once
+    /// its write cycle ends).
+    pub(crate) fn step<E: Eeprom>(
+        &mut self,
+        e: &mut E,
+        program: &Program,
+    ) -> Result<bool, CopyError> {
+        let mut page = [0xFFu8; PAGE_BYTES];
+        let total = COPY_HEADER_BYTES + usize::from(self.header.payload_len);
+        let offset = usize::from(self.page) * PAGE_BYTES;
+        let used = total.saturating_sub(offset).min(PAGE_BYTES);
+        if self.page == 0 {
+            let mut first = PayloadCursor::new();
+            for (i, d) in page.iter_mut().enumerate().take(used) {
+                *d = match self.header.to_bytes().get(i) {
+                    Some(&b) => b,
+                    None => first.next(program).ok_or(CopyError::Format)?,
+                };
+            }
+        } else {
+            for d in page.iter_mut().take(used) {
+                *d = self.cursor.next(program).ok_or(CopyError::Format)?;
+            }
+        }
+        e.start_write(at(self.addr, offset)?, page.get(..used).unwrap_or(&[]))?;
+        if self.page == 0 {
+            return Ok(true);
+        }
+        self.page += 1;
+        if self.page >= self.pages {
+            self.page = 0;
+        }
+        Ok(false)
+    }
+}
+
+/// Polls `e` until its write cycle has ended (synchronous use on the RAM model and in
+/// tools only; the firmware polls on later passes instead).
+pub(crate) fn wait_ready<E: Eeprom>(e: &mut E) -> Result<(), EepromError> {
+    for _ in 0..SYNC_POLL_LIMIT {
+        if e.ready()? {
+            return Ok(());
+        }
+    }
+    Err(EepromError::Bus)
+}
+
+/// Polls [`wait_ready`] gives a write cycle before it reports a bus error.
+const SYNC_POLL_LIMIT: u32 = 10_000;
+
+/// Check a copy completely (header, CRC, decodability) without touching any program.
+pub fn check_copy<E: Eeprom>(e: &mut E, addr: u16, slot: u8) -> Result<CopyHeader, CopyError> {
+    let mut r = CopyReader::check(addr, slot);
+    loop {
+        if let Some(h) = r.step(e, None)? {
+            return Ok(h);
+        }
+    }
+}
+
+/// Read the copy of `slot` at `addr` into `program` (cleared first), checking it again
+/// on the way. On a read error or a bad copy the program is left empty, never mixed.
+pub fn read_copy<E: Eeprom>(
+    e: &mut E,
+    addr: u16,
+    slot: u8,
+    program: &mut Program,
+) -> Result<CopyHeader, CopyError> {
+    let mut r = CopyReader::load(addr, slot);
+    loop {
+        if let Some(h) = r.step(e, Some(program))? {
+            return Ok(h);
+        }
+    }
+}
+
+/// Write `program` as one copy of `slot` with `generation` at `addr`, waiting for each
+/// write cycle (see [`CopyWriter`] for the page order).
 pub fn write_copy<E: Eeprom>(
     e: &mut E,
     addr: u16,
@@ -296,54 +557,14 @@ pub fn write_copy<E: Eeprom>(
     generation: u32,
     program: &Program,
 ) -> Result<CopyHeader, CopyError> {
-    let (len, lines) = payload_size(program);
-    if len > PAYLOAD_MAX {
-        return Err(CopyError::Format);
-    }
-    let mut h = CopyHeader {
-        slot,
-        generation,
-        payload_len: len as u16,
-        lines,
-        crc: 0,
-    };
-    let mut digest = CRC32.digest();
-    digest.update(h.to_bytes().get(..12).unwrap_or(&[]));
-    for_each_payload_byte(program, |b| digest.update(&[b]));
-    h.crc = digest.finalize();
-
-    let mut first_page = [0xFFu8; PAGE_BYTES];
-    let mut page = [0xFFu8; PAGE_BYTES];
-    let total = COPY_HEADER_BYTES + len;
-    let mut pos = 0usize;
-    let mut result: Result<(), EepromError> = Ok(());
-    let mut put = |b: u8, pos: &mut usize| {
-        let in_page = *pos % PAGE_BYTES;
-        if *pos < PAGE_BYTES {
-            if let Some(d) = first_page.get_mut(in_page) {
-                *d = b;
-            }
-        } else if let Some(d) = page.get_mut(in_page) {
-            *d = b;
+    let mut w = CopyWriter::new(addr, slot, generation, program)?;
+    loop {
+        let done = w.step(e, program)?;
+        wait_ready(e)?;
+        if done {
+            return Ok(w.header());
         }
-        *pos += 1;
-        let page_full = pos.is_multiple_of(PAGE_BYTES) || *pos == total;
-        if *pos > PAGE_BYTES && page_full && result.is_ok() {
-            let used = (*pos - 1) % PAGE_BYTES + 1;
-            let page_start = *pos - used;
-            result = u16::try_from(usize::from(addr) + page_start)
-                .map_err(|_| EepromError::OutOfRange)
-                .and_then(|a| e.write_page(a, page.get(..used).unwrap_or(&[])));
-        }
-    };
-    for b in h.to_bytes() {
-        put(b, &mut pos);
     }
-    for_each_payload_byte(program, |b| put(b, &mut pos));
-    result?;
-    let used = total.min(PAGE_BYTES);
-    e.write_page(addr, first_page.get(..used).unwrap_or(&[]))?;
-    Ok(h)
 }
 
 #[cfg(test)]
@@ -376,7 +597,7 @@ mod tests {
         assert_eq!(check_copy(&mut e, 1024, 2), Ok(h));
         assert_eq!(check_copy(&mut e, 1024, 3), Err(CopyError::WrongSlot));
         let mut q = Program::default();
-        read_copy(&mut e, 1024, &h, &mut q).unwrap();
+        assert_eq!(read_copy(&mut e, 1024, 2, &mut q), Ok(h));
         assert_eq!(p, q);
     }
 
@@ -395,7 +616,7 @@ mod tests {
         let mut e = MemEeprom::new();
         let h = write_copy(&mut e, 384, 1, 1, &p).unwrap();
         let mut q = Program::default();
-        read_copy(&mut e, 384, &h, &mut q).unwrap();
+        assert_eq!(read_copy(&mut e, 384, 1, &mut q), Ok(h));
         assert_eq!(p, q);
     }
 

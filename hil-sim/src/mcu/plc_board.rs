@@ -1,8 +1,10 @@
 //! The PLC MCU on the host: the firmware's [`PlcApp`] (program, VM, link endpoint, keypad
 //! editor, EEPROM storage) with a [`MemEeprom`] in the socket, called as the board's
-//! tasks call it. The LCD is refreshed every 100 ms, as on the board.
+//! tasks call it: every millisecond [`PlcApp::tick_1ms`] with the **raw** pin levels and
+//! key matrix (debouncing, scan cadence, one EEPROM page of storage work and the redraw
+//! cadence are the core's, as on the board), UART bytes in and out as the link task does.
 
-use firmware_plc::app::{Alerts, PlcApp, RunState, RunStatus};
+use firmware_plc::app::{PlcApp, RawIo, RunState, RunStatus};
 use firmware_plc::editor::{Editor, Key, Screen};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
@@ -12,23 +14,18 @@ use shared_protocol::units::Micros;
 
 use super::{Lcd, PlcMcu, PlcPins};
 
-/// LCD refresh period.
-pub const LCD_REFRESH_US: u64 = 100_000;
-
 /// The PLC board.
 pub struct PlcBoard {
     app: PlcApp<MemEeprom>,
     screen: Screen,
     lcd: Lcd,
     outputs: u8,
-    lcd_fields: [Option<i16>; 4],
-    last_render_us: Option<u64>,
-    /// `PlcApp::alerts()` at the last redraw: a change (link lost, fault, warning)
-    /// redraws at once, as the board does, so the LCD shows it within the 100 ms of
-    /// link.md instead of waiting for the periodic refresh.
-    drawn_alerts: Option<Alerts>,
     /// The board's link pump (its link task's state).
     pump: Pump,
+    /// The pins as the last [`PlcMcu::scan`] call gave them (raw levels).
+    pins: PlcPins,
+    /// Keys held down now (bit as in [`RawIo::keys`]).
+    keys: u16,
 }
 
 impl PlcBoard {
@@ -40,12 +37,12 @@ impl PlcBoard {
             app,
             lcd: Lcd::default(),
             outputs: 0,
-            lcd_fields: [None; 4],
-            last_render_us: None,
-            drawn_alerts: None,
             pump: Pump::new(MAX_IDLE_US),
+            pins: PlcPins::default(),
+            keys: 0,
         };
-        b.render(now);
+        b.app.render(now, &mut b.screen);
+        b.show();
         b
     }
 
@@ -78,42 +75,44 @@ impl PlcBoard {
         &self.screen
     }
 
-    fn render(&mut self, now: Micros) {
-        self.app.render(now, &mut self.screen);
+    fn show(&mut self) {
         for r in 0..self.screen.rows() {
             self.lcd.set_row(usize::from(r), self.screen.row(r));
         }
-        self.last_render_us = Some(now.0);
-        self.drawn_alerts = Some(self.app.alerts());
     }
 }
 
 impl PlcMcu for PlcBoard {
     fn tick_1ms(&mut self, now: Micros) {
         self.app.tick(now);
-        if self
-            .last_render_us
-            .is_none_or(|t| now.0.saturating_sub(t) >= LCD_REFRESH_US)
-            || self.drawn_alerts != Some(self.app.alerts())
-        {
-            self.render(now);
+        let raw = RawIo {
+            digital: self.pins.digital,
+            analog: self.pins.analog,
+            keys: self.keys,
+        };
+        let tick = self.app.tick_1ms(now, raw, &mut self.screen);
+        self.outputs = tick.outputs;
+        if tick.redrawn {
+            self.show();
         }
     }
 
-    fn scan(&mut self, pins: &PlcPins, now: Micros) {
-        let out = self.app.scan(pins.digital, pins.analog, now);
-        self.outputs = out.outputs;
-        self.lcd_fields = out.lcd;
+    fn scan(&mut self, pins: &PlcPins, _now: Micros) {
+        // Sampled (raw) by the next tick, as the board samples its pins.
+        self.pins = *pins;
     }
 
-    fn key(&mut self, key: char, down: bool, now: Micros) {
-        if !down {
+    fn key(&mut self, key: char, down: bool, _now: Micros) {
+        let Some(k) = Key::from_char(key) else {
             return;
-        }
-        if let Some(k) = Key::from_char(key) {
-            self.app.key(k, now);
-            // The board redraws at once after a key.
-            self.render(now);
+        };
+        let Some(bit) = Key::ALL.iter().position(|x| *x == k) else {
+            return;
+        };
+        if down {
+            self.keys |= 1 << bit;
+        } else {
+            self.keys &= !(1 << bit);
         }
     }
 
@@ -138,7 +137,7 @@ impl PlcMcu for PlcBoard {
     }
 
     fn lcd_fields(&self) -> [Option<i16>; 4] {
-        self.lcd_fields
+        self.app.status().lcd
     }
 
     fn lcd(&self) -> &Lcd {

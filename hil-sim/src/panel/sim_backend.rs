@@ -1,8 +1,9 @@
 //! The panel on the full co-simulation: both MCUs, the UART link and the motor rig.
 //!
 //! The panel's keys and switches reach the PLC board through [`PanelPlc`], a thin
-//! wrapper that the simulator sees as the PLC MCU: queued keypad keys are pressed at the
-//! next 1 ms tick, and the scan reads the panel's switches and pots instead of the
+//! wrapper that the simulator sees as the PLC MCU: queued keypad keys are pressed one
+//! after the other, each held for [`KEY_HOLD_MS`] and released for as long (the board's
+//! keypad debouncing needs 10 stable samples), and the scan reads the panel's switches and pots instead of the
 //! (empty) scenario's. Everything else is the unchanged board.
 
 use std::cell::{Cell, RefCell};
@@ -21,10 +22,17 @@ use crate::mcu::{DriveBoard, DriveMcu, Lcd, PlcBoard, PlcMcu, PlcPins};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};
 
+/// How long a panel key is held down, and then left up before the next one, in ms: the
+/// keypad debouncing's 10 samples each way (`firmware_plc::app::KEY_DEBOUNCE_SAMPLES`),
+/// so the same key typed twice counts twice; 20 ms per key.
+pub const KEY_HOLD_MS: u32 = firmware_plc::app::KEY_DEBOUNCE_SAMPLES as u32;
+
 /// The PLC board with the panel's keypad and I/O attached.
 pub struct PanelPlc {
     inner: PlcBoard,
     keys: RefCell<VecDeque<char>>,
+    /// The key being pressed and the ticks left in its press (down, then up).
+    pressing: Option<(char, u32)>,
     digital: Cell<u8>,
     analog: Cell<[u16; 4]>,
 }
@@ -34,6 +42,7 @@ impl PanelPlc {
         PanelPlc {
             inner,
             keys: RefCell::new(VecDeque::new()),
+            pressing: None,
             digital: Cell::new(0),
             analog: Cell::new([0; 4]),
         }
@@ -53,12 +62,20 @@ impl PanelPlc {
 
 impl PlcMcu for PanelPlc {
     fn tick_1ms(&mut self, now: Micros) {
-        let pending: Vec<char> = self.keys.borrow_mut().drain(..).collect();
-        for c in pending {
-            self.inner.key(c, true, now);
+        // Down for KEY_HOLD_MS ticks (samples), then up for as many.
+        if self.pressing.is_none() {
+            if let Some(c) = self.keys.borrow_mut().pop_front() {
+                self.inner.key(c, true, now);
+                self.pressing = Some((c, 2 * KEY_HOLD_MS));
+            }
+        }
+        if let Some((c, KEY_HOLD_MS)) = self.pressing {
             self.inner.key(c, false, now);
         }
         self.inner.tick_1ms(now);
+        self.pressing = self
+            .pressing
+            .and_then(|(c, left)| (left > 1).then_some((c, left - 1)));
     }
     fn scan(&mut self, _scenario_pins: &PlcPins, now: Micros) {
         let pins = self.pins();

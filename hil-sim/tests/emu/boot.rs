@@ -82,6 +82,12 @@ fn both_images_boot_to_idle_and_stop() {
     let rows: Vec<String> = (0..4).map(|r| lcd.row(r)).collect();
     assert!(
         rows.first().is_some_and(|r| r.starts_with(">000 PWF  Q00")),
-        "LCD: {rows:#?}"
+        "LCD: {rows:#?}\nPLC log {:#?}\nPLC diagnostics {:#?}",
+        sim.plc()
+            .log()
+            .iter()
+            .map(|l| &l.message)
+            .collect::<Vec<_>>(),
+        sim.plc().diagnostics()
     );
 }

@@ -7,6 +7,7 @@ mod common;
 
 mod brake_and_determinism;
 mod cli;
+mod debounce;
 mod examples_on_rig;
 mod hw_comparators;
 mod keypad;

@@ -1,0 +1,52 @@
+//! Panics and HardFault: the outputs Q0-Q5 go off before anything else, before any
+//! logging (review D7), as on the drive (`firmware-drive/src/board/fault.rs`).
+//!
+//! * `core::panic!` (an `expect`, an embassy/PAC assertion) reaches [`panic`], this image's
+//!   own `#[panic_handler]`: outputs off, then the message over defmt, then [`halt`].
+//! * `defmt::panic!`/`unwrap!` inside embassy log their message first and then reach
+//!   [`defmt_panic`]: outputs off, [`halt`].
+//! * A HardFault turns the outputs off in [`HardFault`].
+//!
+//! [`halt`] stops for a debugger (`bkpt`) or, without one, resets the MCU at once: it does
+//! not wait for the watchdog, which may not have been started yet (a panic during
+//! start-up). After the reset the outputs are inputs again (analog mode) until the
+//! application drives them low.
+
+use core::panic::PanicInfo;
+
+use cortex_m_rt::{exception, ExceptionFrame};
+
+use crate::pins;
+
+fn halt() -> ! {
+    // C_DEBUGEN: a debugger is attached (probe-rs then prints the backtrace).
+    const DHCSR: *const u32 = 0xE000_EDF0 as *const u32;
+    // SAFETY: DHCSR is a core debug register, always mapped and readable.
+    let debugger = unsafe { core::ptr::read_volatile(DHCSR) } & 1 != 0;
+    if debugger {
+        cortex_m::asm::bkpt();
+    }
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    cortex_m::interrupt::disable();
+    pins::force_outputs_low();
+    defmt::error!("panic: {}", defmt::Display2Format(info));
+    halt()
+}
+
+#[exception]
+unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
+    pins::force_outputs_low();
+    defmt::error!("HardFault");
+    halt()
+}
+
+#[defmt::panic_handler]
+fn defmt_panic() -> ! {
+    cortex_m::interrupt::disable();
+    pins::force_outputs_low();
+    halt()
+}

@@ -1,0 +1,576 @@
+//! Storage work as jobs, done one EEPROM page per step.
+//!
+//! A save of a full slot reads and writes about 380 pages; over the board's 100 kHz I2C
+//! that is seconds. Done in one call it stalls everything else (board review D5/D11), so
+//! every storage operation is a [`Job`] in a queue, and [`super::Storage::step`] moves the
+//! active job on by **at most one transfer of at most one page** (64 bytes) per call: the
+//! application calls it once per 1 ms pass, between scans.
+//!
+//! After each page write the 24C256 runs its write cycle (up to 5 ms) and answers nothing;
+//! the next step first asks [`super::Eeprom::ready`] (one short poll) and does nothing
+//! else while the chip is still busy, so no access ever meets a busy chip. A write cycle
+//! that has not ended [`WRITE_CYCLE_LIMIT_US`] after the write fails the job with a bus
+//! error. Every job that writes ends only after its last write cycle has ended, so an idle
+//! queue means an idle chip.
+//!
+//! Power-fail safety is the same as for the synchronous operations (they run these very
+//! jobs to the end; see `docs/eeprom-image.md`): the order of the page writes is
+//! unchanged, only spread over passes.
+
+use shared_protocol::program::Program;
+
+use super::boot::{self, BootRecord, RECORD_BYTES};
+use super::eeprom::{PAGE_BYTES, PAGE_WRITE_MS};
+use super::fault_log::{self, FaultEntry, NewestFinder, LOG_PAGES};
+use super::layout::BOOT_ADDR;
+use super::slot::{CopyError, CopyHeader, CopyReader, CopyWriter};
+use super::{LoadReport, OtherCopy, SlotCopy, StorageError};
+
+/// How long a write cycle may take before the job fails: twice the datasheet's worst case.
+pub const WRITE_CYCLE_LIMIT_US: u64 = 2 * PAGE_WRITE_MS as u64 * 1000;
+
+/// A change of the boot record.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum BootChange {
+    /// Count this power-up: the record's power-up count becomes `count`.
+    PowerUp { count: u32 },
+    /// RUN started from `slot` (`running`), or the user stopped (see
+    /// [`super::Storage::set_run_state`]).
+    Run { slot: Option<u8>, running: bool },
+}
+
+/// One storage operation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Job {
+    /// Save the program into slot 1..=4 (power-fail safe). The program must not change
+    /// until the job is done (the application refuses edits meanwhile).
+    Save { slot: u8 },
+    /// Load slot 1..=4 into the program (the program is rewritten while the job runs).
+    Load { slot: u8 },
+    /// Append an entry to the fault log.
+    LogFault(FaultEntry),
+    /// Erase the fault log.
+    ClearFaultLog,
+    /// Write the boot record.
+    Boot(BootChange),
+}
+
+impl Job {
+    /// Whether the job reads (`Save`) or rewrites (`Load`) the program while it runs.
+    pub fn uses_program(&self) -> Option<ProgramUse> {
+        match self {
+            Job::Save { .. } => Some(ProgramUse::Reads),
+            Job::Load { .. } => Some(ProgramUse::Writes),
+            _ => None,
+        }
+    }
+}
+
+/// How a job holds the program.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ProgramUse {
+    /// A save: the program must not change (RUN may start: it does not change it).
+    Reads,
+    /// A load: the program is being replaced (neither edits nor RUN).
+    Writes,
+}
+
+/// A finished job and how it went. Dropping it loses the outcome the user must see.
+#[must_use]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum JobDone {
+    /// The new generation of the slot.
+    Saved {
+        slot: u8,
+        result: Result<u32, StorageError>,
+    },
+    Loaded {
+        slot: u8,
+        result: Result<LoadReport, StorageError>,
+    },
+    FaultLogged {
+        entry: FaultEntry,
+        result: Result<(), StorageError>,
+    },
+    FaultLogCleared {
+        result: Result<(), StorageError>,
+    },
+    BootWritten {
+        change: BootChange,
+        result: Result<(), StorageError>,
+    },
+}
+
+impl JobDone {
+    /// The outcome of `job` when it failed with `e`.
+    pub(crate) fn failed(job: Job, e: StorageError) -> JobDone {
+        match job {
+            Job::Save { slot } => JobDone::Saved {
+                slot,
+                result: Err(e),
+            },
+            Job::Load { slot } => JobDone::Loaded {
+                slot,
+                result: Err(e),
+            },
+            Job::LogFault(entry) => JobDone::FaultLogged {
+                entry,
+                result: Err(e),
+            },
+            Job::ClearFaultLog => JobDone::FaultLogCleared { result: Err(e) },
+            Job::Boot(change) => JobDone::BootWritten {
+                change,
+                result: Err(e),
+            },
+        }
+    }
+
+    /// The error, if the job failed.
+    pub fn error(&self) -> Option<StorageError> {
+        match *self {
+            JobDone::Saved { result, .. } => result.err(),
+            JobDone::Loaded { result, .. } => result.err(),
+            JobDone::FaultLogged { result, .. }
+            | JobDone::FaultLogCleared { result }
+            | JobDone::BootWritten { result, .. } => result.err(),
+        }
+    }
+}
+
+/// What one step did.
+#[must_use]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Step {
+    /// The step talked to the EEPROM (a transfer or a ready poll): the bus was busy.
+    pub used_bus: bool,
+    /// The job that finished in this step.
+    pub done: Option<JobDone>,
+}
+
+impl Step {
+    pub(crate) const IDLE: Step = Step {
+        used_bus: false,
+        done: None,
+    };
+}
+
+/// The program as a step may touch it: a save only reads it.
+pub(crate) enum Prog<'a> {
+    Ref(&'a Program),
+    Mut(&'a mut Program),
+}
+
+impl Prog<'_> {
+    fn get(&self) -> &Program {
+        match self {
+            Prog::Ref(p) => p,
+            Prog::Mut(p) => p,
+        }
+    }
+
+    fn get_mut(&mut self) -> Option<&mut Program> {
+        match self {
+            Prog::Ref(_) => None,
+            Prog::Mut(p) => Some(p),
+        }
+    }
+}
+
+/// Where the active job stands.
+#[derive(Clone)]
+pub(crate) enum Phase {
+    /// Save or load: checking copy A.
+    CheckA(CopyReader),
+    /// Then copy B, with A's result.
+    CheckB {
+        a: Result<CopyHeader, CopyError>,
+        r: CopyReader,
+    },
+    /// Save: writing `copy` (the first or the second one).
+    SaveWrite {
+        copy: SlotCopy,
+        second: bool,
+        w: CopyWriter,
+    },
+    /// Save: reading back what was just written.
+    SaveVerify {
+        copy: SlotCopy,
+        second: bool,
+        generation: u32,
+        r: CopyReader,
+    },
+    /// Load: reading the chosen copy into the program.
+    LoadRead { report: LoadReport, r: CopyReader },
+    /// Boot record: reading copy `next` (0, 1) of it.
+    BootRead {
+        next: u8,
+        best: Option<(BootRecord, usize)>,
+    },
+    /// Fault log: reading page `next` of the ring to find where the entry goes.
+    RingScan { next: u8, finder: NewestFinder },
+    /// Clearing page `next` of the fault log.
+    Clear { next: u8 },
+    /// The last write was made: wait for its write cycle, then report `done`.
+    Settle(JobDone),
+}
+
+/// What a phase did in one call.
+enum Went {
+    /// One transfer made; continue with this phase in a later step.
+    Later(Phase),
+    /// The job is over (possibly after a transfer).
+    Over(JobDone),
+}
+
+/// The EEPROM access a phase step made.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Access {
+    None,
+    Read,
+    Write,
+}
+
+fn copy_addr(slot: u8, copy: SlotCopy) -> Result<u16, StorageError> {
+    super::layout::copy_addr(slot, copy.index()).ok_or(StorageError::NoSuchSlot(slot))
+}
+
+fn eeprom_err(e: CopyError) -> Result<Result<CopyHeader, CopyError>, StorageError> {
+    match e {
+        CopyError::Eeprom(e) => Err(StorageError::Eeprom(e)),
+        other => Ok(Err(other)),
+    }
+}
+
+/// The first phase of `job`.
+pub(crate) fn start(job: Job) -> Result<Phase, StorageError> {
+    Ok(match job {
+        Job::Save { slot } | Job::Load { slot } => {
+            Phase::CheckA(CopyReader::check(copy_addr(slot, SlotCopy::A)?, slot))
+        }
+        Job::LogFault(_) => Phase::RingScan {
+            next: 0,
+            finder: NewestFinder::default(),
+        },
+        Job::ClearFaultLog => Phase::Clear { next: 0 },
+        Job::Boot(BootChange::Run { slot: Some(s), .. }) if !(1..=super::SLOTS).contains(&s) => {
+            return Err(StorageError::NoSuchSlot(s));
+        }
+        Job::Boot(_) => Phase::BootRead {
+            next: 0,
+            best: None,
+        },
+    })
+}
+
+/// Moves `phase` of `job` on by at most one transfer. Returns the new phase (or the
+/// outcome) and which access was made.
+pub(crate) fn advance<E: super::Eeprom>(
+    e: &mut E,
+    job: Job,
+    phase: Phase,
+    prog: &mut Prog<'_>,
+) -> (Result<Phase, JobDone>, Access) {
+    match one(e, job, phase, prog) {
+        Ok((Went::Later(p), access)) => (Ok(p), access),
+        Ok((Went::Over(d), access)) => (Err(d), access),
+        Err((err, access)) => (Err(JobDone::failed(job, err)), access),
+    }
+}
+
+type OneResult = Result<(Went, Access), (StorageError, Access)>;
+
+/// One phase step: at most one transfer (none only when the job ends here).
+fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>) -> OneResult {
+    let r = |err: StorageError| (err, Access::Read);
+    let w = |err: StorageError| (err, Access::Write);
+    match phase {
+        Phase::CheckA(mut rd) => {
+            let slot = job_slot(job);
+            match rd.step(e, None) {
+                Ok(None) => Ok((Went::Later(Phase::CheckA(rd)), Access::Read)),
+                res => {
+                    let a = match res {
+                        Ok(Some(h)) => Ok(h),
+                        Err(err) => eeprom_err(err).map_err(r)?,
+                        Ok(None) => Err(CopyError::Format),
+                    };
+                    let rb = CopyReader::check(copy_addr(slot, SlotCopy::B).map_err(r)?, slot);
+                    Ok((Went::Later(Phase::CheckB { a, r: rb }), Access::Read))
+                }
+            }
+        }
+        Phase::CheckB { a, r: mut rd } => match rd.step(e, None) {
+            Ok(None) => Ok((Went::Later(Phase::CheckB { a, r: rd }), Access::Read)),
+            res => {
+                let b = match res {
+                    Ok(Some(h)) => Ok(h),
+                    Err(err) => eeprom_err(err).map_err(r)?,
+                    Ok(None) => Err(CopyError::Format),
+                };
+                let next = match job {
+                    Job::Save { slot } => save_plan(slot, a, b, prog.get()).map_err(r)?,
+                    Job::Load { slot } => load_plan(slot, a, b).map_err(r)?,
+                    _ => return Err(r(StorageError::Busy)),
+                };
+                Ok((Went::Later(next), Access::Read))
+            }
+        },
+        Phase::SaveWrite {
+            copy,
+            second,
+            w: mut wr,
+        } => {
+            let slot = job_slot(job);
+            let done = wr.step(e, prog.get()).map_err(|err| match err {
+                CopyError::Eeprom(x) => w(StorageError::Eeprom(x)),
+                _ => w(StorageError::TooBig),
+            })?;
+            let next = if done {
+                let addr = copy_addr(slot, copy).map_err(w)?;
+                Phase::SaveVerify {
+                    copy,
+                    second,
+                    generation: wr.header().generation,
+                    r: CopyReader::check(addr, slot),
+                }
+            } else {
+                Phase::SaveWrite {
+                    copy,
+                    second,
+                    w: wr,
+                }
+            };
+            Ok((Went::Later(next), Access::Write))
+        }
+        Phase::SaveVerify {
+            copy,
+            second,
+            generation,
+            r: mut rd,
+        } => {
+            let slot = job_slot(job);
+            match rd.step(e, None) {
+                Ok(None) => Ok((
+                    Went::Later(Phase::SaveVerify {
+                        copy,
+                        second,
+                        generation,
+                        r: rd,
+                    }),
+                    Access::Read,
+                )),
+                Ok(Some(h)) if h.generation == generation => {
+                    if second {
+                        return Ok((
+                            Went::Over(JobDone::Saved {
+                                slot,
+                                result: Ok(generation),
+                            }),
+                            Access::Read,
+                        ));
+                    }
+                    let other = copy.other();
+                    let addr = copy_addr(slot, other).map_err(r)?;
+                    let wr = CopyWriter::new(addr, slot, generation, prog.get())
+                        .map_err(|_| r(StorageError::TooBig))?;
+                    Ok((
+                        Went::Later(Phase::SaveWrite {
+                            copy: other,
+                            second: true,
+                            w: wr,
+                        }),
+                        Access::Read,
+                    ))
+                }
+                Err(CopyError::Eeprom(x)) => Err(r(StorageError::Eeprom(x))),
+                _ => Err(r(StorageError::VerifyFailed)),
+            }
+        }
+        Phase::LoadRead { report, r: mut rd } => {
+            let Some(p) = prog.get_mut() else {
+                return Err(r(StorageError::Busy));
+            };
+            match rd.step(e, Some(p)) {
+                Ok(None) => Ok((Went::Later(Phase::LoadRead { report, r: rd }), Access::Read)),
+                Ok(Some(_)) => Ok((
+                    Went::Over(JobDone::Loaded {
+                        slot: report.slot,
+                        result: Ok(report),
+                    }),
+                    Access::Read,
+                )),
+                Err(CopyError::Eeprom(x)) => Err(r(StorageError::Eeprom(x))),
+                Err(_) => Err(r(StorageError::Damaged(report.slot))),
+            }
+        }
+        Phase::BootRead { next, best } => {
+            let Job::Boot(change) = job else {
+                return Err(r(StorageError::Busy));
+            };
+            if let Some(&addr) = BOOT_ADDR.get(usize::from(next)) {
+                let mut b = [0u8; RECORD_BYTES];
+                e.read(addr, &mut b).map_err(|x| r(x.into()))?;
+                let best = boot::keep_newest(best, usize::from(next), &b);
+                return Ok((
+                    Went::Later(Phase::BootRead {
+                        next: next + 1,
+                        best,
+                    }),
+                    Access::Read,
+                ));
+            }
+            let current = best.map(|(rec, _)| rec);
+            let mut record = current.unwrap_or_default();
+            match change {
+                BootChange::PowerUp { count } => record.power_cycles = count,
+                BootChange::Run { slot, running } => {
+                    let running = running && slot.is_some();
+                    let want_slot = slot.or(record.last_run_slot);
+                    if record.last_run_slot == want_slot && record.run_at_power_up == running {
+                        // Nothing changes: spare the EEPROM a write.
+                        return Ok((
+                            Went::Over(JobDone::BootWritten {
+                                change,
+                                result: Ok(()),
+                            }),
+                            Access::None,
+                        ));
+                    }
+                    record.last_run_slot = want_slot;
+                    record.run_at_power_up = running;
+                }
+            }
+            let (addr, record) = boot::next_write(best, record);
+            e.start_write(addr, &record.to_bytes())
+                .map_err(|x| w(x.into()))?;
+            Ok((
+                Went::Later(Phase::Settle(JobDone::BootWritten {
+                    change,
+                    result: Ok(()),
+                })),
+                Access::Write,
+            ))
+        }
+        Phase::RingScan { next, mut finder } => {
+            let Job::LogFault(entry) = job else {
+                return Err(r(StorageError::Busy));
+            };
+            if usize::from(next) < LOG_PAGES {
+                let mut page = [0u8; PAGE_BYTES];
+                e.read(fault_log::page_addr(usize::from(next)), &mut page)
+                    .map_err(|x| r(x.into()))?;
+                finder.push_bytes(&page);
+                return Ok((
+                    Went::Later(Phase::RingScan {
+                        next: next + 1,
+                        finder,
+                    }),
+                    Access::Read,
+                ));
+            }
+            e.start_write(finder.append_addr(), &entry.to_bytes())
+                .map_err(|x| w(x.into()))?;
+            Ok((
+                Went::Later(Phase::Settle(JobDone::FaultLogged {
+                    entry,
+                    result: Ok(()),
+                })),
+                Access::Write,
+            ))
+        }
+        Phase::Clear { next } => {
+            let blank = [0xFFu8; PAGE_BYTES];
+            e.start_write(fault_log::page_addr(usize::from(next)), &blank)
+                .map_err(|x| w(x.into()))?;
+            let next = next + 1;
+            let phase = if usize::from(next) < LOG_PAGES {
+                Phase::Clear { next }
+            } else {
+                Phase::Settle(JobDone::FaultLogCleared { result: Ok(()) })
+            };
+            Ok((Went::Later(phase), Access::Write))
+        }
+        // Reached only once the write cycle has ended (the caller polls first).
+        Phase::Settle(done) => Ok((Went::Over(done), Access::None)),
+    }
+}
+
+fn job_slot(job: Job) -> u8 {
+    match job {
+        Job::Save { slot } | Job::Load { slot } => slot,
+        _ => 0,
+    }
+}
+
+/// After both checks of a save: which copy to write first and with which generation.
+/// The first copy written is the damaged one, else the older one (A on a tie).
+fn save_plan(
+    slot: u8,
+    a: Result<CopyHeader, CopyError>,
+    b: Result<CopyHeader, CopyError>,
+    program: &Program,
+) -> Result<Phase, StorageError> {
+    let first = match (&a, &b) {
+        (Err(_), _) => SlotCopy::A,
+        (Ok(_), Err(_)) => SlotCopy::B,
+        (Ok(ha), Ok(hb)) if hb.generation < ha.generation => SlotCopy::B,
+        _ => SlotCopy::A,
+    };
+    let newest = [&a, &b]
+        .iter()
+        .filter_map(|r| r.as_ref().ok().map(|h| h.generation))
+        .max()
+        .unwrap_or(0);
+    let generation = newest.wrapping_add(1);
+    let w = CopyWriter::new(copy_addr(slot, first)?, slot, generation, program)
+        .map_err(|_| StorageError::TooBig)?;
+    Ok(Phase::SaveWrite {
+        copy: first,
+        second: false,
+        w,
+    })
+}
+
+/// After both checks of a load: which copy to read, or why none.
+fn load_plan(
+    slot: u8,
+    a: Result<CopyHeader, CopyError>,
+    b: Result<CopyHeader, CopyError>,
+) -> Result<Phase, StorageError> {
+    let (used, h, other) = match (a, b) {
+        (Ok(ha), Ok(hb)) => {
+            let (used, h, other_gen) = if hb.generation > ha.generation {
+                (SlotCopy::B, hb, ha.generation)
+            } else {
+                (SlotCopy::A, ha, hb.generation)
+            };
+            let other = if other_gen == h.generation {
+                OtherCopy::Same
+            } else {
+                OtherCopy::Older
+            };
+            (used, h, other)
+        }
+        (Ok(ha), Err(e)) => (SlotCopy::A, ha, OtherCopy::Bad(e)),
+        (Err(e), Ok(hb)) => (SlotCopy::B, hb, OtherCopy::Bad(e)),
+        // A copy never written means no save of this slot ever completed (the first save
+        // writes both): whatever the other copy holds is a cut first save.
+        (Err(CopyError::NoHeader), Err(_)) | (Err(_), Err(CopyError::NoHeader)) => {
+            return Err(StorageError::Empty(slot))
+        }
+        (Err(_), Err(_)) => return Err(StorageError::Damaged(slot)),
+    };
+    Ok(Phase::LoadRead {
+        report: LoadReport {
+            slot,
+            used,
+            generation: h.generation,
+            other,
+        },
+        r: CopyReader::load(copy_addr(slot, used)?, slot),
+    })
+}
