@@ -21,8 +21,10 @@
 //!   is gone as far as the drive knows): PWM off, the drive section stops, so that the
 //!   frequency command falls and a later ACK is possible. Nothing restarts by itself:
 //!   after the reconnection the PLC must ACK and send RUN again.
-//! * A download is verified by the link (CRC, decode, `verify_drive`) and then handed to
-//!   [`DriveCore::load_program`]; a reject trips `PROG`.
+//! * A download is checked by the link (CRC, decode, `verify_drive`, one step per
+//!   `poll_tx` so that no call holds the PWM interrupt off for long: review D13) and then
+//!   handed, as a `VerifiedDriveSection`, to [`DriveCore::load_verified`]; a reject trips
+//!   `PROG`.
 //! * Every fault the core latches is reported to the PLC (reliably, with the drive's
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
@@ -59,8 +61,8 @@ pub enum AppEvent {
         command: DriveCommand,
         error: CommandError,
     },
-    /// The core refused a section the link had accepted (cannot happen while both use
-    /// the same verifier; kept so that it would be seen).
+    /// The link reported an accepted section but had none to hand over (cannot happen:
+    /// `ProgramAccepted` is pushed with the section in place; kept so it would be seen).
     LoadFailed,
 }
 
@@ -244,15 +246,10 @@ impl DriveApp {
                     self.command(DriveCommand::Direction { reverse })
                 }
                 LinkEvent::AckFault => self.command(DriveCommand::Ack),
-                LinkEvent::ProgramAccepted => {
-                    let loaded = self
-                        .link
-                        .take_program()
-                        .map(|p| self.core.load_program(&p).is_ok());
-                    if loaded != Some(true) {
-                        self.push(AppEvent::LoadFailed);
-                    }
-                }
+                LinkEvent::ProgramAccepted => match self.link.take_program() {
+                    Some(p) => self.core.load_verified(&p),
+                    None => self.push(AppEvent::LoadFailed),
+                },
                 LinkEvent::ProgramRejected { .. } => self.core.trip(FaultCode::Prog),
             }
         }

@@ -14,7 +14,7 @@
 //! the `pwm_period` that detects a trip already returns the outputs off.
 
 use heapless::Deque;
-use shared_protocol::program::{verify_drive, DriveSection, VerifyError};
+use shared_protocol::program::{verify_drive, DriveSection, VerifiedDriveSection, VerifyError};
 use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Volts};
 
@@ -329,22 +329,38 @@ impl DriveCore {
     /// latched, and the error (line + reason) for the download reply. A download while in
     /// RUN stops first (the PLC downloads only when it starts RUN).
     pub fn load_program(&mut self, s: &DriveSection) -> Result<(), VerifyError> {
-        if self.state == DriveState::Run {
-            self.set_state(DriveState::Idle);
-        }
-        self.run_requested = false;
-        self.outputs_on = false;
+        self.stop_for_load();
         if let Err(e) = verify_drive(s) {
             self.program = None;
             self.vm.stop_outputs();
             self.trip(FaultCode::Prog);
             return Err(e);
         }
+        self.load_checked(s);
+        Ok(())
+    }
+
+    /// [`Self::load_program`] for a section the link has verified (it does so in a step
+    /// of its own: the verifier is too long to run again here, review D13).
+    pub fn load_verified(&mut self, v: &VerifiedDriveSection) {
+        self.stop_for_load();
+        self.load_checked(v.section());
+    }
+
+    fn load_checked(&mut self, s: &DriveSection) {
         self.vm.load(s);
         self.program = Some(s.clone());
         self.apply_settings();
         self.update_hw_thresholds();
-        Ok(())
+    }
+
+    /// A new section never runs on from the old one's RUN.
+    fn stop_for_load(&mut self) {
+        if self.state == DriveState::Run {
+            self.set_state(DriveState::Idle);
+        }
+        self.run_requested = false;
+        self.outputs_on = false;
     }
 
     /// Latch a fault detected outside the core (e.g. `FaultCode::Link` from the link

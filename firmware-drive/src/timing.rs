@@ -52,8 +52,7 @@ impl PwmTiming {
         let ticks_per_period = 2 * arr * psc1;
         let pwm_millihertz = ((f_tim * 1000 + ticks_per_period / 2) / ticks_per_period) as u32;
         // step(0.1 Hz) = 0.1 * T_pwm * 2^64 = ticks * 2^64 / (10 * f_tim).
-        let phase_step_per_decihertz =
-            (u128::from(ticks_per_period) << 64) / (10 * u128::from(f_tim));
+        let phase_step_per_decihertz = shl64_div(ticks_per_period, 10 * f_tim);
         let dead_ns = u64::from(dead_time_ns.max(min_dead_time_ns));
         let dead_counts = (dead_ns * f_tim).div_ceil(1_000_000_000);
         let (dtg, realised) = encode_dtg(dead_counts);
@@ -75,6 +74,23 @@ impl PwmTiming {
         let step = f.saturating_mul(self.phase_step_per_decihertz);
         step.min(u128::from(u64::MAX >> 1)) as u64
     }
+}
+
+/// `(n << 64) / d` (`d` > 0), exact, in 64-bit divisions when `d` fits in 32 bits. A
+/// 128-bit division is a software routine of thousands of Cortex-M4 instructions; this
+/// runs in the 1 ms tick whenever `PWF` changes, inside the critical section the PWM
+/// interrupt waits for (review D13).
+fn shl64_div(n: u64, d: u64) -> u128 {
+    let d = d.max(1);
+    if d > u64::from(u32::MAX) {
+        return (u128::from(n) << 64) / u128::from(d);
+    }
+    // Long division by 32-bit digits: every remainder is below d < 2^32, so shifting it
+    // by 32 bits stays within 64.
+    let (q2, r) = (n / d, n % d);
+    let (q1, r) = ((r << 32) / d, (r << 32) % d);
+    let q0 = (r << 32) / d;
+    (u128::from(q2) << 64) | (u128::from(q1) << 32) | u128::from(q0)
 }
 
 /// The smallest BDTR.DTG code whose dead time is at least `counts` CK_INT periods
@@ -109,6 +125,52 @@ pub fn decode_dtg(dtg: u8) -> u16 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shl64_div_is_the_exact_128_bit_quotient() {
+        let ds = [
+            1u64,
+            7,
+            10,
+            1_700_000_000,
+            1_699_999_999,
+            u64::from(u32::MAX),
+            1 << 32,
+            u64::MAX,
+        ];
+        let ns = [
+            0u64,
+            1,
+            2,
+            4250,
+            8_589_672_450,
+            1 << 33,
+            u64::MAX - 1,
+            u64::MAX,
+        ];
+        for d in ds {
+            for n in ns {
+                assert_eq!(
+                    shl64_div(n, d),
+                    (u128::from(n) << 64) / u128::from(d),
+                    "{n} / {d}"
+                );
+            }
+        }
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for _ in 0..10_000 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let n = x >> (x % 40);
+            let d = (x.rotate_left(17) >> 33).max(1);
+            assert_eq!(
+                shl64_div(n, d),
+                (u128::from(n) << 64) / u128::from(d),
+                "{n} / {d}"
+            );
+        }
+    }
 
     #[test]
     fn twenty_khz_at_170_mhz_is_arr_4250() {

@@ -197,7 +197,10 @@ fn download_is_verified_and_accepted() {
     let (result, drive) = download(&mut p, &section);
     assert_eq!(result, Some(DownloadResult::Accepted));
     assert_eq!(drive, vec![DriveEvent::ProgramAccepted]);
-    assert_eq!(p.drive.take_program(), Some(section));
+    assert_eq!(
+        p.drive.take_program().map(|v| v.section().clone()),
+        Some(section)
+    );
     assert!(!p.plc.download_in_progress());
 }
 
@@ -222,7 +225,7 @@ fn download_reject_names_line_and_reason() {
             reason: RejectReason::Verify(code)
         }]
     );
-    assert_eq!(p.drive.take_program(), None);
+    assert!(p.drive.take_program().is_none());
 }
 
 #[test]
@@ -238,7 +241,10 @@ fn download_survives_a_lossy_link() {
     let section = ramp_section();
     let (result, _) = download(&mut p, &section);
     assert_eq!(result, Some(DownloadResult::Accepted));
-    assert_eq!(p.drive.take_program(), Some(section));
+    assert_eq!(
+        p.drive.take_program().map(|v| v.section().clone()),
+        Some(section)
+    );
 }
 
 #[test]
@@ -581,4 +587,82 @@ fn a_plc_with_another_version_ends_a_running_session() {
         ]
     );
     assert!(!p.drive.is_up());
+}
+
+/// The drive checks a complete download in steps, one per `poll_transmit` (CRC, decode,
+/// verifier, then the result), never inside `receive`: on the board each call is one
+/// critical section against the PWM interrupt (review D13). Raw PLC frames, so that the
+/// calls can be counted.
+#[test]
+fn the_drive_checks_a_download_one_step_per_transmit_call() {
+    use shared_protocol::link::message::CHUNK_BYTES;
+    use shared_protocol::link::plc::section_crc;
+    use shared_protocol::program::{encode_slot, LINE_BYTES};
+
+    for corrupt in [false, true] {
+        let section = ramp_section();
+        let bytes: Vec<u8> = section
+            .lines
+            .iter()
+            .flat_map(|l| encode_slot(l.as_ref()))
+            .collect();
+        let crc = section_crc(&bytes) ^ u32::from(corrupt);
+        let mut msgs = vec![
+            PlcMsg::Hello {
+                version: PROTOCOL_VERSION,
+                session: 1,
+            },
+            PlcMsg::DownloadBegin { crc },
+        ];
+        for (k, chunk) in bytes.chunks(CHUNK_BYTES).enumerate() {
+            msgs.push(PlcMsg::DownloadChunk {
+                first_line: (k * CHUNK_BYTES / LINE_BYTES) as u8,
+                data: heapless::Vec::from_slice(chunk).unwrap(),
+            });
+        }
+        msgs.push(PlcMsg::DownloadEnd);
+        let mut drive = shared_protocol::link::DriveLink::new(LinkConfig::default());
+        let mut out = [0u8; MAX_WIRE_FRAME];
+        let now = Micros(1_000);
+        for (k, msg) in msgs.into_iter().enumerate() {
+            let seq = (k as u8).wrapping_sub(1); // the Hello is unnumbered
+            let n = encode_frame(&Frame { seq, ack: 0, msg }, true, &mut out).unwrap();
+            drive.receive(&out[..n], now);
+        }
+        assert_eq!(drive.poll_event(), Some(DriveEvent::Connected));
+        assert_eq!(drive.poll_event(), None, "nothing checked inside receive");
+        let mut calls = 0;
+        let result = loop {
+            assert!(
+                drive.poll_timeout().is_some_and(|t| t <= now),
+                "a pending step is due at once"
+            );
+            drive.poll_transmit(now, &mut out);
+            calls += 1;
+            if let Some(e) = drive.poll_event() {
+                break e;
+            }
+            assert!(calls < 10, "no result");
+        };
+        if corrupt {
+            // CRC, then the result.
+            assert_eq!(
+                result,
+                DriveEvent::ProgramRejected {
+                    line: 0,
+                    reason: RejectReason::Crc
+                }
+            );
+            assert_eq!(calls, 2);
+            assert!(drive.take_program().is_none());
+        } else {
+            // CRC, decode, verifier, then the result.
+            assert_eq!(result, DriveEvent::ProgramAccepted);
+            assert_eq!(calls, 4);
+            assert_eq!(
+                drive.take_program().map(|v| v.section().clone()),
+                Some(section)
+            );
+        }
+    }
 }

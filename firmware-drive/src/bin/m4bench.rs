@@ -26,8 +26,11 @@ mod target {
     }
 
     use firmware_drive::{AdcSample, DriveCommand, DriveConfig, DriveCore, ResetCause};
-    use shared_protocol::program::assemble_into;
+    use shared_protocol::link::plc::section_crc;
     use shared_protocol::program::Program;
+    use shared_protocol::program::{
+        assemble_into, decode_slot, encode_slot, verify_drive, DRIVE_LINES, LINE_BYTES,
+    };
     use static_cell::StaticCell;
 
     pub const CALLS: u32 = 1000;
@@ -107,6 +110,27 @@ mod target {
         }
         bench_mark(6);
         black_box(acc);
+        // The end of a download (review D13), part by part: the section CRC, the slot
+        // decoding, the verifier, the core's load (which verifies again).
+        let section = program.drive_section();
+        let mut bytes = [0u8; DRIVE_LINES * LINE_BYTES];
+        for (dst, line) in bytes.chunks_exact_mut(LINE_BYTES).zip(section.lines.iter()) {
+            dst.copy_from_slice(&encode_slot(line.as_ref()));
+        }
+        bench_mark(7);
+        black_box(section_crc(black_box(&bytes)));
+        bench_mark(8);
+        let mut decoded = 0u32;
+        for b in bytes.chunks_exact(LINE_BYTES) {
+            decoded += u32::from(matches!(decode_slot(black_box(b)), Ok(Some(_))));
+        }
+        black_box(decoded);
+        bench_mark(9);
+        black_box(verify_drive(black_box(&section)).is_ok());
+        bench_mark(10);
+        let _ = core.command(DriveCommand::Stop);
+        black_box(core.load_program(black_box(&section)).is_ok());
+        bench_mark(11);
         bench_mark(0xFFFF_FFFF);
         loop {
             cortex_m::asm::nop();

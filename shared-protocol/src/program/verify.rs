@@ -529,6 +529,30 @@ pub fn verify_drive(d: &DriveSection) -> Result<(), VerifyError> {
     first_error((0u16..PLC_FIRST_LINE).zip(d.lines.iter()))
 }
 
+/// A drive section that passed [`verify_drive`]. The drive's link verifies a download in
+/// its own step; the core then loads this without verifying again (the verifier is
+/// ~3 800 Cortex-M4 instructions, a large part of a PWM period: review D13).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct VerifiedDriveSection(DriveSection);
+
+impl VerifiedDriveSection {
+    /// Verifies `s`.
+    pub fn new(s: DriveSection) -> Result<Self, VerifyError> {
+        verify_drive(&s)?;
+        Ok(VerifiedDriveSection(s))
+    }
+
+    /// For the link, which ran [`verify_drive`] on exactly this section in an earlier
+    /// step and has not changed it since.
+    pub(crate) fn verified_earlier(s: DriveSection) -> Self {
+        VerifiedDriveSection(s)
+    }
+
+    pub fn section(&self) -> &DriveSection {
+        &self.0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
