@@ -10,6 +10,9 @@
 //! 1 = 1000 x pwm_period, motor program running (outputs on, OC/UV/brake checks active);
 //! 3 = 1000 x pwm_period with the outputs off (IDLE); 5 = 10 x tick_1ms of the motor
 //! program (lines 000-025). A mark 0x10 after section 1 confirms the outputs were on.
+//! The end of a download, part by part (review D13; `docs/critical-sections.md`): 7 = the
+//! section CRC, 8 = decoding 150 slots, 9 = `verify_drive`, 10 = `DriveCore::load_program`
+//! (verifies again; the link path uses `load_verified`).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
