@@ -11,6 +11,7 @@
 //!
 //! Decisions and model equations: `hil-sim/docs/`.
 
+pub mod decimate;
 pub mod emu;
 pub mod lab;
 pub mod latency;
@@ -41,5 +42,13 @@ pub fn image_bytes(program: &shared_protocol::program::Program) -> anyhow::Resul
 
 /// `hil-sim panel`: the interactive front panel.
 pub fn panel_command(program: Option<&Path>) -> anyhow::Result<()> {
+    use std::io::IsTerminal;
+    // ratatui panics without a terminal (piped stdin, CI, ssh without -t): say so instead.
+    if !(std::io::stdin().is_terminal() && std::io::stdout().is_terminal()) {
+        anyhow::bail!(
+            "panel needs an interactive terminal on stdin and stdout (ssh -t, no pipes); \
+             for scripted runs use `hil-sim run`"
+        );
+    }
     panel::run(program)
 }

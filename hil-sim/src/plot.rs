@@ -1,5 +1,9 @@
-//! The PNG plot of a run: frequency, speed, phase currents, line voltage a-b (PWM-period
-//! average), DC-link voltage, and the fault / brake / PWM signals, on a shared time axis.
+//! The plot of a run (PNG or SVG, by the file's extension): frequency, speed, phase
+//! currents, line voltage a-b (PWM-period average), DC-link voltage, and the fault /
+//! brake / PWM signals, on a shared time axis. Each panel names its traces and their
+//! colours in its caption, so no legend box covers a trace. The file is written under a
+//! temporary name and renamed when complete: a failed plot never leaves a partial or
+//! empty file behind.
 //!
 //! Text is drawn with a font shipped in the crate (DejaVu Sans Mono, `assets/`), through
 //! plotters' `ab_glyph` backend: no fontconfig or FreeType needed on the machine.
@@ -23,8 +27,62 @@ fn register_font() {
     });
 }
 
+/// The image formats `--plot` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlotFormat {
+    Png,
+    Svg,
+}
+
+impl PlotFormat {
+    /// The format of `path` by its extension (case-insensitive); anything else is refused
+    /// with the list of what is supported, before a run starts.
+    pub fn of(path: &Path) -> Result<PlotFormat> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("png") => Ok(PlotFormat::Png),
+            Some("svg") => Ok(PlotFormat::Svg),
+            _ => Err(anyhow!(
+                "--plot {}: unsupported image format (use a .png or .svg file name)",
+                path.display()
+            )),
+        }
+    }
+}
+
+/// Checks before a run that `path` has a supported extension and that its directory is
+/// writable (a probe file is created and removed), so a long run does not end in an
+/// error; nothing is left behind.
+pub fn check_target(path: &Path) -> Result<PlotFormat> {
+    let format = PlotFormat::of(path)?;
+    let probe = temp_path(path);
+    std::fs::File::create(&probe).map_err(|e| anyhow!("cannot create {}: {e}", path.display()))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(format)
+}
+
+/// The name the plot is drawn under before it is renamed to `path`: `x.partial.png` for
+/// `x.png` (the bitmap encoder picks the format by the extension).
+fn temp_path(path: &Path) -> std::path::PathBuf {
+    let mut name = path
+        .file_stem()
+        .map(|n| n.to_os_string())
+        .unwrap_or_default();
+    name.push(".partial");
+    if let Some(ext) = path.extension() {
+        name.push(".");
+        name.push(ext);
+    }
+    path.with_file_name(name)
+}
+
 struct Series<'a> {
     name: &'a str,
+    /// The colour's name in the panel's caption.
+    color_name: &'a str,
     color: RGBColor,
     y: Box<dyn Fn(&Sample) -> f64 + 'a>,
 }
@@ -53,11 +111,40 @@ fn range(samples: &[Sample], series: &[Series<'_>], min_span: f64) -> (f64, f64)
     (lo - pad, hi + pad)
 }
 
-/// Writes the plot of `samples` to `path` (PNG).
+/// Writes the plot of `samples` to `path` (PNG or SVG by its extension).
 pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
+    let format = PlotFormat::of(path)?;
     register_font();
-    let err = |e: &dyn std::fmt::Display| anyhow!("plot {}: {e}", path.display());
-    let root = BitMapBackend::new(path, (1400, 1800)).into_drawing_area();
+    let tmp = temp_path(path);
+    let drawn = match format {
+        PlotFormat::Png => draw(
+            BitMapBackend::new(&tmp, SIZE).into_drawing_area(),
+            samples,
+            title,
+        ),
+        PlotFormat::Svg => draw(
+            SVGBackend::new(&tmp, SIZE).into_drawing_area(),
+            samples,
+            title,
+        ),
+    };
+    let done = drawn.and_then(|()| {
+        std::fs::rename(&tmp, path).map_err(|e| anyhow!("cannot write {}: {e}", path.display()))
+    });
+    if done.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    done.map_err(|e| anyhow!("plot {}: {e}", path.display()))
+}
+
+const SIZE: (u32, u32) = (1400, 1800);
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, plotters::coord::Shift>,
+    samples: &[Sample],
+    title: &str,
+) -> Result<()> {
+    let err = |e: &dyn std::fmt::Display| anyhow!("{e}");
     root.fill(&WHITE).map_err(|e| err(&e))?;
     let root = root
         .titled(title, ("sans-serif", 22))
@@ -74,6 +161,7 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             1.0,
             vec![Series {
                 name: "f_cmd_hz * dir",
+                color_name: "blue",
                 color: BLUE,
                 y: Box::new(|s| s.f_cmd_hz * f64::from(s.dir)),
             }],
@@ -83,6 +171,7 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             10.0,
             vec![Series {
                 name: "speed_rpm",
+                color_name: "green",
                 color: RGBColor(0, 128, 0),
                 y: Box::new(|s| s.speed_rpm),
             }],
@@ -93,16 +182,19 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             vec![
                 Series {
                     name: "i_a",
+                    color_name: "red",
                     color: RED,
                     y: Box::new(|s| s.i_abc_a[0]),
                 },
                 Series {
                     name: "i_b",
+                    color_name: "green",
                     color: RGBColor(0, 150, 0),
                     y: Box::new(|s| s.i_abc_a[1]),
                 },
                 Series {
                     name: "i_c",
+                    color_name: "blue",
                     color: BLUE,
                     y: Box::new(|s| s.i_abc_a[2]),
                 },
@@ -113,6 +205,7 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             1.0,
             vec![Series {
                 name: "u_ab_v",
+                color_name: "teal",
                 color: RGBColor(0, 110, 160),
                 y: Box::new(|s| s.u_ab_v),
             }],
@@ -122,6 +215,7 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             2.0,
             vec![Series {
                 name: "u_dc_v",
+                color_name: "brown",
                 color: RGBColor(160, 80, 0),
                 y: Box::new(|s| s.u_dc_v),
             }],
@@ -132,16 +226,19 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             vec![
                 Series {
                     name: "fault",
+                    color_name: "red",
                     color: RED,
                     y: Box::new(|s| f64::from(s.fault)),
                 },
                 Series {
                     name: "brake",
+                    color_name: "purple",
                     color: RGBColor(128, 0, 128),
                     y: Box::new(|s| if s.brake { 1.5 } else { 0.0 }),
                 },
                 Series {
                     name: "pwm_on",
+                    color_name: "black",
                     color: BLACK,
                     y: Box::new(|s| if s.pwm_on { 1.0 } else { 0.0 }),
                 },
@@ -149,12 +246,20 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
         ),
     ];
     let areas = root.split_evenly((panels.len(), 1));
-    for (area, (caption, min_span, series)) in areas.iter().zip(panels.iter()) {
+    let last = areas.len().saturating_sub(1);
+    for (k, (area, (caption, min_span, series))) in areas.iter().zip(panels.iter()).enumerate() {
         let (lo, hi) = range(samples, series, *min_span);
+        let names: Vec<String> = series
+            .iter()
+            .map(|s| format!("{} ({})", s.name, s.color_name))
+            .collect();
+        let caption = format!("{caption}: {}", names.join(", "));
         let mut chart = ChartBuilder::on(area)
-            .caption(*caption, ("sans-serif", 16))
+            .caption(caption, ("sans-serif", 16))
             .margin(8)
-            .x_label_area_size(28)
+            .margin_right(24)
+            // The bottom panel carries the time axis's name below its labels.
+            .x_label_area_size(if k == last { 44 } else { 28 })
             .y_label_area_size(60)
             .build_cartesian_2d(t_start..t_end, lo..hi)
             .map_err(|e| err(&e))?;
@@ -165,24 +270,13 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             .draw()
             .map_err(|e| err(&e))?;
         for ser in series {
-            let color = ser.color;
             chart
                 .draw_series(LineSeries::new(
                     samples.iter().map(|s| (s.t_ns as f64 * 1e-9, (ser.y)(s))),
-                    color,
+                    ser.color,
                 ))
-                .map_err(|e| err(&e))?
-                .label(ser.name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], color));
+                .map_err(|e| err(&e))?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 12))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()
-            .map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))?;
     Ok(())

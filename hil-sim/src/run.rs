@@ -118,8 +118,9 @@ impl RunReport {
     }
 }
 
-/// Simulates `program` under `scenario` for `duration_s`. `keep_samples` keeps every
-/// sample in the report (for CSV and plot); `progress` is called every simulated 0.1 s.
+/// Simulates `program` under `scenario` for `duration_s`. `keep_samples` keeps the
+/// samples in the report for the plot (evenly decimated to at most
+/// [`crate::decimate::PLOT_SAMPLES`]; `on_sample` sees every one, for the CSV); `progress` is called every simulated 0.1 s.
 pub fn run(
     program: &Program,
     scenario: Scenario,
@@ -135,7 +136,7 @@ pub fn run(
     let start = Instant::now();
     let mut sim = Simulation::new(program, scenario, opts)?;
     let end_ns = (duration_s * 1e9).round() as u64;
-    let mut samples = Vec::new();
+    let mut samples = crate::decimate::Decimator::new(crate::decimate::PLOT_SAMPLES);
     let mut warnings: Vec<(f64, String)> = Vec::new();
     let mut seen: Vec<String> = Vec::new();
     let chunk_ns = 100_000_000;
@@ -153,7 +154,7 @@ pub fn run(
             }
             on_sample(s);
             if keep_samples {
-                samples.push(s.clone());
+                samples.push(s);
             }
         });
         progress(t as f64 * 1e-9);
@@ -161,7 +162,7 @@ pub fn run(
     let st = firmware_drive_status(&sim);
     let o = sim.plant().outputs();
     Ok(RunReport {
-        samples,
+        samples: samples.into_vec(),
         faults: sim.faults().to_vec(),
         lcd: sim.plc().lcd().clone(),
         sim_s: sim.now_ns() as f64 * 1e-9,

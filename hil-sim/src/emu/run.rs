@@ -153,7 +153,7 @@ pub fn run(
     let start = Instant::now();
     let mut sim = EmuSim::new(drive_elf, plc_elf, program, scenario, opts)?;
     let end_ns = (duration_s * 1e9).round() as u64;
-    let mut samples = Vec::new();
+    let mut samples = crate::decimate::Decimator::new(crate::decimate::PLOT_SAMPLES);
     let mut shown = [0usize; 2];
     let mut log: Vec<(String, LogLine)> = Vec::new();
     let chunk_ns = 10_000_000;
@@ -163,7 +163,7 @@ pub fn run(
         sim.run_until(t, |s| {
             on_sample(s);
             if keep_samples {
-                samples.push(s.clone());
+                samples.push(s);
             }
         });
         let mut fresh: Vec<(String, LogLine)> = Vec::new();
@@ -191,7 +191,7 @@ pub fn run(
     };
     let o = sim.rig().plant.outputs();
     Ok(EmuReport {
-        samples,
+        samples: samples.into_vec(),
         faults: sim.faults().to_vec(),
         lcd: sim.lcd(),
         sim_s: sim.now_ns() as f64 * 1e-9,

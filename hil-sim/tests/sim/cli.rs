@@ -161,3 +161,87 @@ fn a_drive_stack_underflow_is_refused_with_its_text_line() {
     let out = bin().arg("disasm").arg(&bad).output().unwrap();
     assert!(out.status.success());
 }
+
+/// Issue 20: without a terminal (piped stdin, CI, ssh without -t) the panel exits 1 with
+/// one clear line instead of panicking inside ratatui (exit 101).
+#[test]
+fn the_panel_without_a_terminal_exits_1_with_one_line() {
+    let out = bin()
+        .arg("panel")
+        .stdin(std::process::Stdio::piped())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("interactive terminal"), "{err}");
+}
+
+/// Issue 20: a sampling period below the simulation's 1 us step is refused before the run
+/// (0.0001 ms once wrote 1.18 GB for one simulated second), and so is a plot format that
+/// cannot be written; neither leaves a file behind.
+#[test]
+fn a_too_fine_sampling_or_an_unknown_plot_format_is_refused_before_the_run() {
+    let csv = tmp("fine.csv");
+    let out = bin()
+        .arg("run")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .args(["--duration", "1", "--sample-ms", "0.0001"])
+        .arg("--csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("--sample-ms must be at least 0.001"), "{err}");
+    assert!(!csv.exists());
+
+    let jpg = tmp("motor.jpg");
+    let out = bin()
+        .arg("run")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .args(["--duration", "1"])
+        .arg("--plot")
+        .arg(&jpg)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("use a .png or .svg"), "{err}");
+    assert!(!jpg.exists());
+    assert!(out.stdout.is_empty(), "nothing simulated");
+}
+
+/// Issue 20: `--plot x.svg` writes an SVG, complete (no `.partial` left), and the summary.
+#[test]
+fn an_svg_plot_is_written_complete_with_the_summary() {
+    let svg = tmp("motor.svg");
+    let out = bin()
+        .arg("run")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .arg("--scenario")
+        .arg(repo("hil-sim/scenarios/motor.toml"))
+        .args(["--duration", "1", "--sample-ms", "5"])
+        .arg("--plot")
+        .arg(&svg)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(
+        text.starts_with("<svg") || text.starts_with("<?xml"),
+        "{}",
+        &text[..80.min(text.len())]
+    );
+    assert!(text.trim_end().ends_with("</svg>"));
+    assert!(
+        text.contains("phase currents [A]: i_a (red)"),
+        "captions name the traces"
+    );
+    assert!(!tmp("motor.partial.svg").exists());
+    assert!(String::from_utf8_lossy(&out.stdout).contains("simulated"));
+}
