@@ -46,7 +46,7 @@ fn figure(name: &str, s: &[Sample], title: &str) -> Result<()> {
     let dir = root().join("hil-sim/docs/lab");
     std::fs::create_dir_all(&dir)?;
     let path = dir.join(name);
-    hil_sim::plot::plot(&path, s, title)?;
+    hil_sim::plot::plot(&path, s, title, &hil_sim::plot::Marks::default())?;
     shrink(&path)
 }
 

@@ -41,6 +41,9 @@ enum Cmd {
         /// Write a plot: PNG or SVG, by the file name's extension.
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// End of the plot's phase-current zoom (a few periods), s; default: the end.
+        #[arg(long)]
+        zoom_at: Option<f64>,
         /// CSV sampling period, ms.
         #[arg(long, default_value_t = 1.0)]
         sample_ms: f64,
@@ -74,6 +77,9 @@ enum Cmd {
         /// Write a plot: PNG or SVG, by the file name's extension.
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// End of the plot's phase-current zoom (a few periods), s; default: the end.
+        #[arg(long)]
+        zoom_at: Option<f64>,
         /// The drive's ELF (default: the release image in the workspace's target directory).
         #[arg(long)]
         drive_elf: Option<PathBuf>,
@@ -110,6 +116,7 @@ fn real_main() -> Result<()> {
             duration,
             csv,
             plot,
+            zoom_at,
             sample_ms,
             seed,
         } => cmd_run(
@@ -117,7 +124,7 @@ fn real_main() -> Result<()> {
             scenario.as_deref(),
             duration,
             csv.as_deref(),
-            plot.as_deref(),
+            (plot.as_deref(), zoom_at),
             sample_ms,
             seed,
         ),
@@ -130,6 +137,7 @@ fn real_main() -> Result<()> {
             duration,
             csv,
             plot,
+            zoom_at,
             drive_elf,
             plc_elf,
             log,
@@ -141,6 +149,7 @@ fn real_main() -> Result<()> {
             duration,
             csv: csv.as_deref(),
             plot: plot.as_deref(),
+            zoom_at,
             drive_elf: drive_elf.as_deref(),
             plc_elf: plc_elf.as_deref(),
             log,
@@ -174,7 +183,7 @@ fn cmd_run(
     scenario: Option<&Path>,
     duration: Option<f64>,
     csv: Option<&Path>,
-    plot: Option<&Path>,
+    (plot, zoom_at): (Option<&Path>, Option<f64>),
     sample_ms: f64,
     seed: u64,
 ) -> Result<()> {
@@ -242,7 +251,11 @@ fn cmd_run(
             program.display(),
             scenario_name(scenario)
         );
-        hil_sim::plot::plot(p, &report.samples, &title)?;
+        let marks = hil_sim::plot::Marks {
+            zoom_at_s: zoom_at,
+            ..report.marks.clone()
+        };
+        hil_sim::plot::plot(p, &report.samples, &title, &marks)?;
     }
     Ok(())
 }
@@ -253,6 +266,7 @@ struct EmuArgs<'a> {
     duration: Option<f64>,
     csv: Option<&'a Path>,
     plot: Option<&'a Path>,
+    zoom_at: Option<f64>,
     drive_elf: Option<&'a Path>,
     plc_elf: Option<&'a Path>,
     log: bool,
@@ -303,6 +317,7 @@ fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
     let mut csv_err = None;
     let tty = std::io::stderr().is_terminal();
     let mut last_progress = 0.0;
+    let actions = scen.actions.clone();
     let report = hil_sim::emu::run::run(
         &drive_elf,
         &plc_elf,
@@ -349,7 +364,12 @@ fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
             a.program.display(),
             scenario_name(a.scenario)
         );
-        hil_sim::plot::plot(p, &report.samples, &title)?;
+        let marks = hil_sim::plot::Marks {
+            events: hil_sim::run::event_marks(&actions, &report.faults),
+            zoom_at_s: a.zoom_at,
+            ..Default::default()
+        };
+        hil_sim::plot::plot(p, &report.samples, &title, &marks)?;
     }
     Ok(())
 }

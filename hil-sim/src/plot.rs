@@ -27,6 +27,21 @@ fn register_font() {
     });
 }
 
+/// What is drawn over the traces: limits as dashed horizontal lines (and named in the
+/// panel's caption, also when they are off the scale), events as vertical markers.
+#[derive(Debug, Clone, Default)]
+pub struct Marks {
+    /// `I>`, `OC_HW`, ... in A: dashed at +/- in the phase-current panel.
+    pub current_limits_a: Vec<(String, f64)>,
+    /// `U>`, `U<`, `OV_HW` in V: dashed in the DC-link panel.
+    pub dc_limits_v: Vec<(String, f64)>,
+    /// (t in s, label): inputs, keys, plant changes and trips, marked on the frequency and
+    /// the fault panels.
+    pub events: Vec<(f64, String)>,
+    /// The end of the phase-current zoom (s); `None`: the end of the run.
+    pub zoom_at_s: Option<f64>,
+}
+
 /// The image formats `--plot` writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PlotFormat {
@@ -112,7 +127,7 @@ fn range(samples: &[Sample], series: &[Series<'_>], min_span: f64) -> (f64, f64)
 }
 
 /// Writes the plot of `samples` to `path` (PNG or SVG by its extension).
-pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
+pub fn plot(path: &Path, samples: &[Sample], title: &str, marks: &Marks) -> Result<()> {
     let format = PlotFormat::of(path)?;
     register_font();
     let tmp = temp_path(path);
@@ -121,11 +136,13 @@ pub fn plot(path: &Path, samples: &[Sample], title: &str) -> Result<()> {
             BitMapBackend::new(&tmp, SIZE).into_drawing_area(),
             samples,
             title,
+            marks,
         ),
         PlotFormat::Svg => draw(
             SVGBackend::new(&tmp, SIZE).into_drawing_area(),
             samples,
             title,
+            marks,
         ),
     };
     let done = drawn.and_then(|()| {
@@ -143,6 +160,7 @@ fn draw<DB: DrawingBackend>(
     root: DrawingArea<DB, plotters::coord::Shift>,
     samples: &[Sample],
     title: &str,
+    marks: &Marks,
 ) -> Result<()> {
     let err = |e: &dyn std::fmt::Display| anyhow!("{e}");
     root.fill(&WHITE).map_err(|e| err(&e))?;
@@ -247,19 +265,107 @@ fn draw<DB: DrawingBackend>(
     ];
     let areas = root.split_evenly((panels.len(), 1));
     let last = areas.len().saturating_sub(1);
+    // Events at the same instant share one marker and one label.
+    let mut events: Vec<(f64, String)> = Vec::new();
+    for (t, label) in &marks.events {
+        match events.last_mut() {
+            Some((t0, l)) if (*t - *t0).abs() < 1e-9 => {
+                l.push_str(", ");
+                l.push_str(label);
+            }
+            _ => events.push((*t, label.clone())),
+        }
+    }
     for (k, (area, (caption, min_span, series))) in areas.iter().zip(panels.iter()).enumerate() {
-        let (lo, hi) = range(samples, series, *min_span);
         let names: Vec<String> = series
             .iter()
             .map(|s| format!("{} ({})", s.name, s.color_name))
             .collect();
-        let caption = format!("{caption}: {}", names.join(", "));
+        // Panel 2 holds the currents, panel 4 the DC link: their limits.
+        let (limits, mirrored): (&[(String, f64)], bool) = match k {
+            2 => (&marks.current_limits_a, true),
+            4 => (&marks.dc_limits_v, false),
+            _ => (&[], false),
+        };
+        let mut caption = format!("{caption}: {}", names.join(", "));
+        if !limits.is_empty() {
+            let l: Vec<String> = limits.iter().map(|(n, v)| format!("{n} {v:.1}")).collect();
+            caption.push_str(&format!("; dashed: {}", l.join(", ")));
+        }
+        let panel = Panel {
+            series,
+            min_span: *min_span,
+            limits,
+            mirrored,
+            events: if k == 0 || k == last { &events } else { &[] },
+            labels: k == 0,
+            x_label_area: if k == last { 44 } else { 28 },
+        };
+        if k == 2 {
+            // The currents: the envelope of the run, and a zoom of a few periods in
+            // which the three phases can be told apart.
+            let (wide, zoom) = area.split_horizontally(area.dim_in_pixel().0 * 68 / 100);
+            panel.draw(&wide, samples, (t_start, t_end), &caption, &err)?;
+            let (z0, z1) = zoom_window(samples, marks.zoom_at_s, (t_start, t_end));
+            let inside: Vec<Sample> = samples
+                .iter()
+                .filter(|s| {
+                    let t = s.t_ns as f64 * 1e-9;
+                    t >= z0 && t <= z1
+                })
+                .cloned()
+                .collect();
+            let zoom_caption = format!("zoom {z0:.3}-{z1:.3} s");
+            panel.draw(&zoom, &inside, (z0, z1), &zoom_caption, &err)?;
+        } else {
+            panel.draw(area, samples, (t_start, t_end), &caption, &err)?;
+        }
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}
+
+/// About three periods of the output frequency (0.1 s when it is below 1 Hz) ending at
+/// `at` (default: the end of the run), within the run.
+fn zoom_window(samples: &[Sample], at: Option<f64>, (t0, t1): (f64, f64)) -> (f64, f64) {
+    let end = at.unwrap_or(t1).clamp(t0, t1);
+    let f = samples
+        .iter()
+        .rev()
+        .find(|s| s.t_ns as f64 * 1e-9 <= end)
+        .map_or(0.0, |s| s.f_cmd_hz.abs());
+    let span = if f >= 1.0 { 3.0 / f } else { 0.1 };
+    let start = (end - span).max(t0);
+    (start, end.max(start + 1e-6))
+}
+
+/// One chart: traces, limits, event markers.
+struct Panel<'a, 'b> {
+    series: &'a [Series<'b>],
+    min_span: f64,
+    limits: &'a [(String, f64)],
+    mirrored: bool,
+    events: &'a [(f64, String)],
+    labels: bool,
+    x_label_area: u32,
+}
+
+impl Panel<'_, '_> {
+    fn draw<DB: DrawingBackend>(
+        &self,
+        area: &DrawingArea<DB, plotters::coord::Shift>,
+        samples: &[Sample],
+        (t_start, t_end): (f64, f64),
+        caption: &str,
+        err: &dyn Fn(&dyn std::fmt::Display) -> anyhow::Error,
+    ) -> Result<()> {
+        let (lo, hi) = range(samples, self.series, self.min_span);
         let mut chart = ChartBuilder::on(area)
             .caption(caption, ("sans-serif", 16))
             .margin(8)
             .margin_right(24)
             // The bottom panel carries the time axis's name below its labels.
-            .x_label_area_size(if k == last { 44 } else { 28 })
+            .x_label_area_size(self.x_label_area)
             .y_label_area_size(60)
             .build_cartesian_2d(t_start..t_end, lo..hi)
             .map_err(|e| err(&e))?;
@@ -269,7 +375,7 @@ fn draw<DB: DrawingBackend>(
             .label_style(("sans-serif", 12))
             .draw()
             .map_err(|e| err(&e))?;
-        for ser in series {
+        for ser in self.series {
             chart
                 .draw_series(LineSeries::new(
                     samples.iter().map(|s| (s.t_ns as f64 * 1e-9, (ser.y)(s))),
@@ -277,7 +383,46 @@ fn draw<DB: DrawingBackend>(
                 ))
                 .map_err(|e| err(&e))?;
         }
+        for (_, v) in self.limits {
+            let levels: &[f64] = if self.mirrored { &[*v, -*v] } else { &[*v] };
+            for &y in levels {
+                // Only what is on the scale (the caption names every limit).
+                if y > lo && y < hi {
+                    chart
+                        .draw_series(DashedLineSeries::new(
+                            [(t_start, y), (t_end, y)],
+                            8,
+                            6,
+                            RGBColor(200, 0, 0).stroke_width(1),
+                        ))
+                        .map_err(|e| err(&e))?;
+                }
+            }
+        }
+        let visible = self
+            .events
+            .iter()
+            .filter(|(t, _)| *t >= t_start && *t <= t_end);
+        for (i, (t, label)) in visible.enumerate() {
+            chart
+                .draw_series(DashedLineSeries::new(
+                    [(*t, lo), (*t, hi)],
+                    4,
+                    4,
+                    RGBColor(90, 90, 90).stroke_width(1),
+                ))
+                .map_err(|e| err(&e))?;
+            if self.labels {
+                chart
+                    .draw_series(std::iter::once(Text::new(
+                        format!(" {label}"),
+                        // Alternate rows, so that close events' labels do not overlap.
+                        (*t, hi - (i % 2) as f64 * 0.08 * (hi - lo)),
+                        ("sans-serif", 11).into_font().color(&RGBColor(60, 60, 60)),
+                    )))
+                    .map_err(|e| err(&e))?;
+            }
+        }
+        Ok(())
     }
-    root.present().map_err(|e| err(&e))?;
-    Ok(())
 }

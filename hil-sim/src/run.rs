@@ -8,7 +8,8 @@ use firmware_plc::storage::image::{is_image, program_from_image};
 use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
 use crate::mcu::{Lcd, PlcMcu};
-use crate::scenario::Scenario;
+use crate::plot::Marks;
+use crate::scenario::{Action, Input, PlantChange, Scenario, TimedAction};
 use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
 
 /// Reads a program that the PLC would start: `.plc` text, or a whole-EEPROM image
@@ -65,6 +66,53 @@ pub struct RunReport {
     /// Each run-time warning seen (one per status-line text: the long text of its first
     /// appearance), with the time it first appeared.
     pub warnings: Vec<(f64, String)>,
+    /// Limits and events for the plot.
+    pub marks: Marks,
+    /// The drive's state changes (s, state): RUN, trips, accepted ACKs.
+    pub drive_states: Vec<(f64, &'static str)>,
+    /// Largest |phase current| (A) and DC-link voltage (V) of the run.
+    pub peak_current_a: f64,
+    pub peak_dc_v: f64,
+}
+
+/// A scenario action as a plot marker label.
+pub fn action_label(a: &Action) -> String {
+    let input = |i: &Input| match *i {
+        Input::Digital(n) => format!("D{n:02}"),
+        Input::Analog(n) => format!("A{n:02}"),
+        Input::Aux => "AUX".to_string(),
+    };
+    match a {
+        Action::Set(i, v) => format!("{}={v}", input(i)),
+        Action::KeyDown(k) => format!("key {k}"),
+        Action::KeyUp(_) => String::new(),
+        Action::Plant(p) => match p {
+            PlantChange::DcLinkV(v) => format!("Udc {v} V"),
+            PlantChange::LoadTorqueNm(v) => format!("load {v} Nm"),
+            PlantChange::InertiaKgm2(v) => format!("J {v}"),
+            PlantChange::BrakeResistorOhm(v) => format!("Rb {v}"),
+            PlantChange::LockedRotor(v) => format!("locked {v}"),
+        },
+    }
+}
+
+/// The plot's event markers: the scenario's actions (a digital input going off and a key
+/// release are not marked, so a button press is one marker) and the trips.
+pub fn event_marks(actions: &[TimedAction], faults: &[FaultRecord]) -> Vec<(f64, String)> {
+    let mut ev: Vec<(f64, String)> = actions
+        .iter()
+        .filter(|a| !matches!(a.action, Action::Set(Input::Digital(_), 0)))
+        .map(|a| (a.at_ns as f64 * 1e-9, action_label(&a.action)))
+        .filter(|(_, l)| !l.is_empty())
+        .collect();
+    ev.extend(faults.iter().map(|f| {
+        (
+            f.t_ns as f64 * 1e-9,
+            format!("F{} {}", f.code, fault_name(f.code)),
+        )
+    }));
+    ev.sort_by(|a, b| a.0.total_cmp(&b.0));
+    ev
 }
 
 /// Fault name for a code.
@@ -111,6 +159,18 @@ impl RunReport {
                 s.push_str(&format!("  {t:.3} s  {w}\n"));
             }
         }
+        if !self.drive_states.is_empty() {
+            let h: Vec<String> = self
+                .drive_states
+                .iter()
+                .map(|(t, st)| format!("{t:.3} s {st}"))
+                .collect();
+            s.push_str(&format!("drive states: {}\n", h.join(", ")));
+        }
+        s.push_str(&format!(
+            "peaks: phase current {:.2} A, DC link {:.1} V\n",
+            self.peak_current_a, self.peak_dc_v
+        ));
         s.push_str("LCD:\n");
         s.push_str(&self.lcd.framed());
         s.push('\n');
@@ -134,7 +194,10 @@ pub fn run(
         bail!("the duration must be a positive number of seconds, got {duration_s}");
     }
     let start = Instant::now();
+    let actions = scenario.actions.clone();
     let mut sim = Simulation::new(program, scenario, opts)?;
+    let mut peak_current_a: f64 = 0.0;
+    let mut peak_dc_v: f64 = 0.0;
     let end_ns = (duration_s * 1e9).round() as u64;
     let mut samples = crate::decimate::Decimator::new(crate::decimate::PLOT_SAMPLES);
     let mut warnings: Vec<(f64, String)> = Vec::new();
@@ -152,6 +215,8 @@ pub fn run(
                     }
                 }
             }
+            peak_current_a = s.i_abc_a.iter().fold(peak_current_a, |m, i| m.max(i.abs()));
+            peak_dc_v = peak_dc_v.max(s.u_dc_v);
             on_sample(s);
             if keep_samples {
                 samples.push(s);
@@ -161,7 +226,21 @@ pub fn run(
     }
     let st = firmware_drive_status(&sim);
     let o = sim.plant().outputs();
+    let marks = Marks {
+        current_limits_a: current_limits(&sim),
+        dc_limits_v: dc_limits(&sim),
+        events: event_marks(&actions, sim.faults()),
+        zoom_at_s: None,
+    };
     Ok(RunReport {
+        marks,
+        drive_states: sim
+            .drive_states()
+            .iter()
+            .map(|(t, s)| (*t as f64 * 1e-9, *s))
+            .collect(),
+        peak_current_a,
+        peak_dc_v,
         samples: samples.into_vec(),
         faults: sim.faults().to_vec(),
         lcd: sim.plc().lcd().clone(),
@@ -173,6 +252,34 @@ pub fn run(
         final_f_hz: st.1,
         warnings,
     })
+}
+
+/// `I>` (if the program sets one) and `OC_HW` as in effect at the end of the run, A.
+fn current_limits(sim: &Simulation) -> Vec<(String, f64)> {
+    let core = sim.drive().core();
+    let st = core.status();
+    let mut l = Vec::new();
+    let i_max = core.vm().settings().i_max_centiamps;
+    if i_max > 0 {
+        l.push(("I>".to_string(), f64::from(i_max) / 100.0));
+    }
+    l.push(("OC_HW".to_string(), f64::from(st.hw.oc_hw.0) / 100.0));
+    l
+}
+
+/// `U>`, `U<` (if set) and `OV_HW` at the end of the run, V.
+fn dc_limits(sim: &Simulation) -> Vec<(String, f64)> {
+    let core = sim.drive().core();
+    let s = core.vm().settings();
+    let mut l = Vec::new();
+    if s.u_max_volts > 0 {
+        l.push(("U>".to_string(), f64::from(s.u_max_volts)));
+    }
+    if s.u_min_volts > 0 {
+        l.push(("U<".to_string(), f64::from(s.u_min_volts)));
+    }
+    l.push(("OV_HW".to_string(), f64::from(core.status().hw.ov_hw.0)));
+    l
 }
 
 fn firmware_drive_status(sim: &Simulation) -> (&'static str, f64) {

@@ -108,6 +108,8 @@ pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
     sample_ns: u64,
     faults: Vec<FaultRecord>,
     last_fault: u8,
+    /// The drive's state changes (time, state name), for the run summary's RUN/ACK history.
+    states: Vec<(u64, &'static str)>,
 }
 
 impl Simulation<DriveBoard, PlcBoard> {
@@ -217,6 +219,7 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
             sample_ns: opts.sample_ns.max(1),
             faults: Vec::new(),
             last_fault: 0,
+            states: Vec::new(),
             scenario,
         }
     }
@@ -251,6 +254,12 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
     /// Faults in the order they latched.
     pub fn faults(&self) -> &[FaultRecord] {
         &self.faults
+    }
+
+    /// The drive's state after each change (time in ns, `IDLE`/`RUN`/`FAULT`/...), from
+    /// its first 1 ms tick: a FAULT -> IDLE change is an accepted ACK.
+    pub fn drive_states(&self) -> &[(u64, &'static str)] {
+        &self.states
     }
 
     /// Runs until `end_ns` (inclusive), calling `on_sample` at every sample time.
@@ -337,6 +346,10 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
                 self.faults.push(FaultRecord { t_ns: t, code: f });
             }
             self.last_fault = f;
+            let state = self.drive.status().state.name();
+            if self.states.last().is_none_or(|(_, s)| *s != state) {
+                self.states.push((t, state));
+            }
         }
         if t >= self.next_scan_ns {
             // The pins as they are now; the PLC samples them in its tick (raw levels).

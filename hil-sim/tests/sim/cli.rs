@@ -243,5 +243,20 @@ fn an_svg_plot_is_written_complete_with_the_summary() {
         "captions name the traces"
     );
     assert!(!tmp("motor.partial.svg").exists());
-    assert!(String::from_utf8_lossy(&out.stdout).contains("simulated"));
+    // Limits, events and the zoom (issue 20 item 8).
+    let has = |a: &str, b: &str| text.contains(a) || text.contains(b);
+    assert!(
+        has("dashed: I&gt; 2.0, OC_HW", "dashed: I> 2.0, OC_HW"),
+        "current limits"
+    );
+    assert!(has("U&gt; 35.0", "U> 35.0"), "DC-link limits");
+    assert!(text.contains("D00=1"), "START marked");
+    assert!(text.contains("zoom "), "phase-current zoom");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("simulated"), "{stdout}");
+    assert!(stdout.contains("peaks: phase current"), "{stdout}");
+    assert!(
+        stdout.contains("drive states: ") && stdout.contains(" RUN"),
+        "{stdout}"
+    );
 }
