@@ -404,5 +404,12 @@ fn cmd_disasm(program: &Path) -> Result<()> {
     shared_protocol::program::disassemble(&p, &mut text)
         .map_err(|_| anyhow::anyhow!("cannot format the program"))?;
     print!("{text}");
+    // Shown so that it can be fixed, but a program the PLC would refuse is an error.
+    shared_protocol::program::verify(&p).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: the PLC would refuse this program: {e}",
+            program.display()
+        )
+    })?;
     Ok(())
 }

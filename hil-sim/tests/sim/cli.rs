@@ -157,9 +157,11 @@ fn a_drive_stack_underflow_is_refused_with_its_text_line() {
             "{err}"
         );
     }
-    // disasm prints it anyway (it is text, not a run).
+    // disasm prints it (to fix it), but says that the PLC would refuse it (issue 20).
     let out = bin().arg("disasm").arg(&bad).output().unwrap();
-    assert!(out.status.success());
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("002 SN1"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("the PLC would refuse this program"));
 }
 
 /// Issue 20: without a terminal (piped stdin, CI, ssh without -t) the panel exits 1 with
@@ -259,4 +261,32 @@ fn an_svg_plot_is_written_complete_with_the_summary() {
         stdout.contains("drive states: ") && stdout.contains(" RUN"),
         "{stdout}"
     );
+}
+
+/// Issue 20 item 7: an EEPROM image that the PLC would refuse (a PLC instruction in the
+/// drive section) is refused by `run` and `asm`, and `disasm` prints it but says so and
+/// exits non-zero.
+#[test]
+fn an_image_the_plc_would_refuse_is_reported_by_every_command() {
+    use shared_protocol::program::{Instruction, Mnemonic, Program};
+    let mut p = Program::default();
+    p.lines[0] = Some(Instruction {
+        mnemonic: Mnemonic::Not,
+        operand: None,
+        constant: 0,
+    });
+    let img = tmp("refused.bin");
+    std::fs::write(&img, hil_sim::image_bytes(&p).unwrap()).unwrap();
+    for cmd in ["run", "asm", "disasm"] {
+        let out = bin().arg(cmd).arg(&img).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{cmd}: {err}");
+        assert!(
+            err.contains("NOT") && err.contains("drive section"),
+            "{cmd}: {err}"
+        );
+    }
+    // disasm still shows the program, so that it can be fixed.
+    let out = bin().arg("disasm").arg(&img).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stdout).contains("000 NOT"));
 }
