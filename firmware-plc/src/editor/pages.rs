@@ -129,13 +129,18 @@ fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
             return true;
         }
     }
+    let faulted = view.run.fault.is_some();
     let text = match ed.mode {
         Mode::Browse => return false,
         Mode::Prefix(Prefix::Save) if narrow => "SAVE SLOT 1-4?",
         Mode::Prefix(Prefix::Save) => "SAVE TO SLOT 1-4?",
         Mode::Prefix(Prefix::Load) if narrow => "LOAD 1-4 0=NEW",
         Mode::Prefix(Prefix::Load) => "LOAD SLOT 1-4 0=NEW",
+        // With a fault standing, `*` `9` (acknowledge) is what the user most likely needs.
+        Mode::Prefix(Prefix::Line) if ed.page == Page::FaultLog && faulted => "0=CLR LOG 9=ACK",
         Mode::Prefix(Prefix::Line) if ed.page == Page::FaultLog => "0=CLEAR FAULT LOG",
+        Mode::Prefix(Prefix::Line) if faulted && narrow => "9ACK 1IN 3DL 0CL",
+        Mode::Prefix(Prefix::Line) if faulted => "9=ACK 1INS 3DEL 0CLR",
         Mode::Prefix(Prefix::Line) if narrow => "1IN 3DL 0CL 5CHK",
         Mode::Prefix(Prefix::Line) => "1INS 3DEL 0CLR 5CHK",
         Mode::Goto { value, digits } => {
@@ -162,6 +167,22 @@ fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
     };
     push(s, format_args!("{text}"));
     true
+}
+
+/// The hint that takes turns with the alerts: with a fault standing, how to acknowledge
+/// it (`*` `9`) and RUN/STOP; otherwise the page's first hint.
+fn main_hint(ed: &Editor, view: &View<'_>, s: &mut Line) {
+    if view.run.fault.is_none() {
+        hint(ed, view, 0, s);
+        return;
+    }
+    let text = match (view.run.running, ed.cols < 20) {
+        (true, false) => "*9=ACK FAULT A=STOP",
+        (false, false) => "*9=ACK FAULT A=RUN",
+        (true, true) => "*9 ACK A STOP",
+        (false, true) => "*9 ACK A RUN",
+    };
+    push(s, format_args!("{text}"));
 }
 
 /// The help hints of a page, most important first.
@@ -232,9 +253,7 @@ pub(super) fn status_text(ed: &Editor, view: &View<'_>, s: &mut Line) {
         Some(_) => {
             warning_line(view.run.drive_warning, s);
         }
-        None => {
-            hint(ed, view, 0, s);
-        }
+        None => main_hint(ed, view, s),
     }
 }
 
@@ -348,9 +367,7 @@ pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
         5 => {
             warning_line(view.run.drive_warning, &mut s);
         }
-        _ => {
-            hint(ed, view, 0, &mut s);
-        }
+        _ => main_hint(ed, view, &mut s),
     }
     pad_row(out, last, &s);
 }
@@ -430,7 +447,7 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
         0 => pad_row(out, last, &text),
         1 => pad_row(out, last, &time),
         _ => {
-            hint(ed, view, 0, &mut status);
+            main_hint(ed, view, &mut status);
             pad_row(out, last, &status);
         }
     }

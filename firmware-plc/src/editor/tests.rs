@@ -271,7 +271,7 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
         .collect();
     assert_eq!(
         rows,
-        ["F2 overcurrent (HW)", "W:DIV0 @ 163", "A=RUN C=SAVE D=LOAD"]
+        ["F2 overcurrent (HW)", "W:DIV0 @ 163", "*9=ACK FAULT A=RUN"]
     );
     // The drive's warning (item 5 of issue 15: a clamped PWF) takes its turn too.
     let both = RunView {
@@ -295,7 +295,7 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
             "F2 overcurrent (HW)",
             "W:DIV0 @ 163",
             "W:PWF 488Hz @ 000",
-            "A=RUN C=SAVE D=LOAD"
+            "*9=ACK FAULT A=RUN"
         ]
     );
     let lost = RunView {
@@ -395,7 +395,7 @@ fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
     assert_eq!(rows[0], "RUN RUN   50.0 F\n1=12    2=-5    ");
     assert_eq!(rows[1].lines().nth(1), Some("3=7     4=-     "));
     assert_eq!(rows[2].lines().nth(1), Some("F1 overcurrent  "));
-    assert_eq!(rows[3].lines().nth(1), Some("A STOP B PAGE   "));
+    assert_eq!(rows[3].lines().nth(1), Some("*9 ACK A STOP   "));
     assert_eq!(rows[4], rows[0]);
     ed.show_page(Page::FaultLog);
     let log = [FaultEntry {
@@ -534,4 +534,44 @@ fn star_9_acknowledges_faults_on_every_page() {
         }
     }
     assert_eq!(p, Program::default());
+}
+
+/// Issue 20 item 3: with a fault standing, `*` `9` is offered in the `*` prompt (listing
+/// and fault log) and in the hint that takes turns with the fault.
+#[test]
+fn acknowledging_is_offered_wherever_a_fault_is_shown() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    let faulted = RunView {
+        drive_state: DriveState::Fault,
+        fault: Some(3),
+        ..RunView::default()
+    };
+    let rows: Vec<String> = (0..2)
+        .map(|k| {
+            draw(&ed, &p, faulted, &[], k * 2000)
+                .row(3)
+                .trim_end()
+                .to_string()
+        })
+        .collect();
+    assert!(rows[0].starts_with("F3 "), "{rows:?}");
+    assert_eq!(rows[1], "*9=ACK FAULT A=RUN");
+    press(&mut ed, &mut p, false, "*");
+    assert_eq!(
+        draw(&ed, &p, faulted, &[], 0).row(3).trim_end(),
+        "9=ACK 1INS 3DEL 0CLR"
+    );
+    // Without a fault the prompt keeps its editing commands.
+    assert_eq!(
+        draw(&ed, &p, RunView::default(), &[], 0).row(3).trim_end(),
+        "1INS 3DEL 0CLR 5CHK"
+    );
+    press(&mut ed, &mut p, false, "*");
+    ed.show_page(Page::FaultLog);
+    press(&mut ed, &mut p, false, "*");
+    assert_eq!(
+        draw(&ed, &p, faulted, &[], 0).row(3).trim_end(),
+        "0=CLR LOG 9=ACK"
+    );
 }
