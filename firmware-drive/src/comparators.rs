@@ -22,6 +22,7 @@
 
 use shared_protocol::units::{CentiAmps, Volts};
 
+use crate::front_end::{FrontEndSpec, DIRECT_PINS, ESC1_PGAS};
 use crate::measure::{udc_counts_at_volts, ADC_FULL_COUNTS, CURRENT_FULL_CENTIAMPS};
 use crate::measure::{FrontEnd, SensorScaling, CURRENT_ZERO_COUNTS, ESC1_SCALING, SOURCE_SCALING};
 use crate::protection::HwBreak;
@@ -175,9 +176,32 @@ impl ComparatorSpec {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct BoardProfile {
     pub name: &'static str,
+    /// Short name: hil-sim's `[plant] board` value, and the image's `DRIVE_BOARD_PROFILE`
+    /// marker (the emulator puts this profile's voltages on the pins).
+    pub key: &'static str,
     pub comparators: &'static [ComparatorSpec],
     /// How the currents and the DC link reach the ADC.
     pub scaling: SensorScaling,
+    /// The amplifiers the board enables and the ADC channels it reads.
+    pub front_end: FrontEndSpec,
+}
+
+impl BoardProfile {
+    /// [`BoardProfile::key`] as the fixed-size, zero-padded marker the image carries
+    /// (truncated to 8 bytes).
+    // Both indices are below the bounds the loop checks (`get` is not const); the image
+    // evaluates it at compile time.
+    #[allow(clippy::indexing_slicing)]
+    pub const fn key_bytes(&self) -> [u8; 8] {
+        let k = self.key.as_bytes();
+        let mut out = [0u8; 8];
+        let mut i = 0;
+        while i < k.len() && i < 8 {
+            out[i] = k[i];
+            i += 1;
+        }
+        out
+    }
 }
 
 /// The source's sensors (+-10 A around 1.65 V, 0-45 V) on the ESC1's pins (a carrier board
@@ -185,7 +209,9 @@ pub struct BoardProfile {
 /// each phase, and the DC link. Cargo feature `source-sensors` of the image.
 pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
     name: "source sensors on B-G431B-ESC1 pins",
+    key: "source",
     scaling: SOURCE_SCALING,
+    front_end: DIRECT_PINS,
     comparators: &[
         ComparatorSpec {
             comp: 1,
@@ -237,7 +263,9 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
 /// divider (full scale 34.3 V: `U>>` above it cannot trip).
 pub const B_G431B_ESC1: BoardProfile = BoardProfile {
     name: "B-G431B-ESC1",
+    key: "esc1",
     scaling: ESC1_SCALING,
+    front_end: ESC1_PGAS,
     comparators: &[
         ComparatorSpec {
             comp: 1,
@@ -343,6 +371,13 @@ mod tests {
             assert_eq!(spec.inp, inp0);
             // One spec per comparator.
             assert!(p.comparators[..k].iter().all(|o| o.comp != spec.comp));
+            // A comparator on an amplifier's input sees the ADC's signal divided by the
+            // amplifier's gain: the divider is that gain.
+            assert_eq!(
+                spec.input_divider,
+                p.front_end.gain_of(spec.signal),
+                "{spec:?}"
+            );
         }
         // Comparators sharing a DAC channel need the same value for any thresholds.
         for oc in [1, 150, 300, 999] {
@@ -375,6 +410,12 @@ mod tests {
                 .iter()
                 .any(|s| s.signal == sig && s.direction == positive));
         }
+    }
+
+    #[test]
+    fn the_key_marker_is_zero_padded() {
+        assert_eq!(&B_G431B_ESC1.key_bytes(), b"esc1\0\0\0\0");
+        assert_eq!(&SOURCE_SENSORS.key_bytes(), b"source\0\0");
     }
 
     #[test]

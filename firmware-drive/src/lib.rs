@@ -17,6 +17,7 @@ pub mod app;
 pub mod comparators;
 pub mod config;
 pub mod drive;
+pub mod front_end;
 pub mod link;
 pub mod measure;
 pub mod modulator;

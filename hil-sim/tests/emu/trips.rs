@@ -4,6 +4,11 @@ use g431_emu::cpu::CpuEvent;
 use g431_emu::periph::rcc::ResetKind;
 use g431_emu::time::cycles_to_ns;
 
+use firmware_drive::comparators::{BoardProfile, HwThresholds, Signal};
+use firmware_drive::measure::FrontEnd;
+use hil_sim::plant::sensors;
+use shared_protocol::units::{CentiAmps, Volts};
+
 use crate::common::{emu, ns, MOTOR_PLC};
 
 const START_50HZ: &str = r#"
@@ -20,6 +25,23 @@ press = "D00"
 /// software limit `I>` (2 A): the DAC values come from the downloaded section.
 fn motor_with_low_hw_limit() -> String {
     MOTOR_PLC.replace("025 frv K20 0200", "025 frv K20 0200\n026 I>> K21 0120")
+}
+
+/// The phase current at which the image's phase-a comparator trips for `I>>` of
+/// `oc_centiamps` (nominal zero: the emulated sensors have no offset).
+fn trip_level_a(board: &BoardProfile, oc_centiamps: i16) -> f64 {
+    let t = HwThresholds {
+        oc_hw: CentiAmps(oc_centiamps),
+        ov_hw: Volts(30),
+    };
+    let fe = FrontEnd::new(board.scaling);
+    let spec = board
+        .comparators
+        .iter()
+        .find(|s| s.signal == Signal::CurrentA)
+        .expect("phase a comparator");
+    let signal_counts = f64::from(spec.dac_counts(t, &fe)) * f64::from(spec.input_divider);
+    sensors::counts_to_current_f(&board.scaling, signal_counts)
 }
 
 #[test]
@@ -42,13 +64,20 @@ fn a_comparator_break_latches_the_outputs_off_with_oc_hw() {
         .filter(|s| s.t_ns > t_trip + ns(0.05))
         .all(|s| s.i_abc_a.iter().all(|i| i.abs() < 0.05)));
     // Before the trip no phase exceeded the level by more than what one PWM period of a
-    // locked rotor adds (the comparators are sampled twice per period).
+    // locked rotor adds (the comparators are sampled twice per period). The level is the
+    // image's board's: on the bare ESC1 the comparators watch the PGA inputs, where the
+    // DAC's step is 0.47 A and the core rounds 1.2 A down to the step at or below it.
+    let level = trip_level_a(sim.rig().plant.params().board, 120);
+    assert!(level <= 1.2 && level > 0.7, "trip level {level} A");
     let peak = samples
         .iter()
         .filter(|s| s.t_ns < t_trip)
         .flat_map(|s| s.i_abc_a)
         .fold(0.0f64, f64::max);
-    assert!(peak > 1.1 && peak < 1.4, "peak before the trip {peak} A");
+    assert!(
+        peak > level - 0.1 && peak < level + 0.2,
+        "peak before the trip {peak} A, level {level} A"
+    );
     let tim1 = sim.drive().soc().tim1().expect("TIM1").gate();
     assert!(!tim1.moe, "MOE set again after the break");
 }
