@@ -99,6 +99,9 @@ pub struct ComparatorSpec {
     /// The comparator sees the ADC's signal divided by this: 1 when it watches the ADC's
     /// own pin, 16 when it watches the input of a PGA of gain 16 with VINM grounded.
     pub input_divider: u16,
+    /// Blanked by TIM1's OC5 around the switching edges (`crate::blanking`, review D10):
+    /// the phase-current comparators, whose shunts ring at every turn-on.
+    pub blanked: bool,
 }
 
 impl ComparatorSpec {
@@ -118,6 +121,20 @@ impl ComparatorSpec {
         match (self.comp, self.dac) {
             (1 | 3, D::Dac3Ch1) | (2 | 4, D::Dac3Ch2) => Some(0b100),
             (1 | 3 | 4, D::Dac1Ch1) | (2, D::Dac1Ch2) => Some(0b101),
+            _ => None,
+        }
+    }
+
+    /// COMPx_CSR.BLANKSEL: TIM1_OC5 if [`ComparatorSpec::blanked`] (RM0440 "COMP blanking
+    /// sources": 001 for COMP1-COMP3, 100 for COMP4; ST's `COMP_BLANKINGSRC_TIM1_OC5_COMP4`
+    /// = BLANKSEL_2), else 000. `None`: TIM1_OC5 cannot blank this comparator.
+    pub const fn blanksel(&self) -> Option<u8> {
+        if !self.blanked {
+            return Some(0);
+        }
+        match self.comp {
+            1..=3 => Some(0b001),
+            4 => Some(0b100),
             _ => None,
         }
     }
@@ -221,6 +238,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch1,
             input_divider: 1,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 2,
@@ -230,6 +248,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 1,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 3,
@@ -239,6 +258,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OvHw,
             dac: DacChannel::Dac1Ch1,
             input_divider: 1,
+            blanked: false,
         },
         // DAC3 CH2 is shared with COMP2: the same I>> threshold.
         ComparatorSpec {
@@ -249,6 +269,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 1,
+            blanked: true,
         },
     ],
 };
@@ -275,6 +296,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch1,
             input_divider: 16,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 2,
@@ -284,6 +306,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 16,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 3,
@@ -293,6 +316,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OvHw,
             dac: DacChannel::Dac1Ch1,
             input_divider: 1,
+            blanked: false,
         },
         ComparatorSpec {
             comp: 4,
@@ -302,6 +326,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 16,
+            blanked: true,
         },
     ],
 };
@@ -366,6 +391,16 @@ mod tests {
         for (k, spec) in p.comparators.iter().enumerate() {
             assert!((1..=4).contains(&spec.comp), "G431: COMP1-COMP4");
             assert!(spec.inmsel().is_some(), "{spec:?}: DAC not reachable");
+            assert!(
+                spec.blanksel().is_some(),
+                "{spec:?}: TIM1_OC5 cannot blank it"
+            );
+            // The phase-current comparators are blanked, the DC link's is not.
+            assert_eq!(
+                spec.blanked,
+                spec.cause() == HwBreak::Overcurrent,
+                "{spec:?}"
+            );
             // COMPx_INP0 pins of the G431 (RM0440; INP1 is PB1/PA3/PC1/PE7).
             let inp0 = ["PA1", "PA7", "PA0", "PB0"][usize::from(spec.comp - 1)];
             assert_eq!(spec.inp, inp0);
@@ -410,6 +445,24 @@ mod tests {
                 .iter()
                 .any(|s| s.signal == sig && s.direction == positive));
         }
+    }
+
+    #[test]
+    fn blanksel_is_tim1_oc5_per_rm0440() {
+        let codes: Vec<(u8, Option<u8>)> = B_G431B_ESC1
+            .comparators
+            .iter()
+            .map(|s| (s.comp, s.blanksel()))
+            .collect();
+        assert_eq!(
+            codes,
+            vec![(1, Some(1)), (2, Some(1)), (3, Some(0)), (4, Some(0b100))]
+        );
+        let c5 = ComparatorSpec {
+            comp: 5,
+            ..B_G431B_ESC1.comparators[0]
+        };
+        assert_eq!(c5.blanksel(), None);
     }
 
     #[test]

@@ -14,6 +14,7 @@
 
 // Drive core modules (issue 4). Units, scaling and every decision: `docs/drive-core.md`.
 pub mod app;
+pub mod blanking;
 pub mod comparators;
 pub mod config;
 pub mod drive;

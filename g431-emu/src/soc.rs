@@ -851,6 +851,11 @@ impl Soc {
                     self.refresh(a);
                 }
                 TimEvent::Blanking { at, active } => {
+                    // The comparators are sampled only at TIM1's events: take their inputs
+                    // at the window's edge first, so that a raw level left over from a
+                    // spike inside the window (gone on the silicon, whose comparator
+                    // follows its input continuously) does not show when it closes.
+                    self.sample_comparators(at);
                     let c = self.wired.comp;
                     for n in 1..=4 {
                         let tim1_oc5 = self

@@ -9,7 +9,9 @@
 //! Sections (m4count prints the instructions between `bench_mark(k)` and the next mark):
 //! 1 = 1000 x pwm_period, motor program running (outputs on, OC/UV/brake checks active);
 //! 3 = 1000 x pwm_period with the outputs off (IDLE); 5 = 10 x tick_1ms of the motor
-//! program (lines 000-025). A mark 0x10 after section 1 confirms the outputs were on.
+//! program (lines 000-025); 7 = 1000 x `PeriodAction::from_command` of a running period
+//! (the compare clamp and the blanking window's CCR5). A mark 0x10 after section 1 confirms
+//! the outputs were on.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -25,6 +27,7 @@ mod target {
         cortex_m::asm::udf()
     }
 
+    use firmware_drive::power_port::PeriodAction;
     use firmware_drive::{AdcSample, DriveCommand, DriveConfig, DriveCore, ResetCause};
     use shared_protocol::program::assemble_into;
     use shared_protocol::program::Program;
@@ -107,6 +110,20 @@ mod target {
         }
         bench_mark(6);
         black_box(acc);
+        // Section 7: 1000 x the period's action from a running command (compares clamped,
+        // the blanking window's CCR5), as `DriveApp::pwm_period` builds it after the core.
+        let _ = core.command(DriveCommand::Run);
+        let t = core.pwm_timing();
+        let c = core.pwm_period(&s);
+        let mut blank = 0u32;
+        bench_mark(7);
+        for _ in 0..CALLS {
+            let a = PeriodAction::from_command(black_box(&c), black_box(&t), black_box(&t));
+            let a = black_box(a);
+            blank = blank.wrapping_add(u32::from(a.blanking) + u32::from(a.ccr[2]));
+        }
+        bench_mark(8);
+        black_box(blank);
         bench_mark(0xFFFF_FFFF);
         loop {
             cortex_m::asm::nop();

@@ -63,7 +63,7 @@ pub fn init(a: Analog, fe: &FrontEndSpec) -> Converters {
             .init(OpAmp::new(a.opamp1, OpAmpSpeed::HighSpeed))
             .pga_int(current_a.reborrow(), OpAmpGain::Mul16)
             .degrade_adc(),
-        _ => super::fault::fatal("board profile: current a on an ADC1 input this board lacks"),
+        _ => super::fault::fatal(super::fault::UNBINDABLE_PROFILE),
     };
     let ch_b: AnyAdcChannel<'static, ADC2> = match fe.current_b {
         AdcInput::Pin {
@@ -73,7 +73,7 @@ pub fn init(a: Analog, fe: &FrontEndSpec) -> Converters {
             .init(OpAmp::new(a.opamp2, OpAmpSpeed::HighSpeed))
             .pga_int(current_b.reborrow(), OpAmpGain::Mul16)
             .degrade_adc(),
-        _ => super::fault::fatal("board profile: current b on an ADC2 input this board lacks"),
+        _ => super::fault::fatal(super::fault::UNBINDABLE_PROFILE),
     };
     let adc1 = adc1.setup_injected_conversions(
         [

@@ -29,10 +29,10 @@ pub fn apply(fe: &FrontEndSpec) {
             1 => pac::OPAMP1,
             2 => pac::OPAMP2,
             3 => pac::OPAMP3,
-            _ => super::fault::fatal("board profile names an OPAMP the G431 lacks"),
+            _ => super::fault::fatal(super::fault::UNBINDABLE_PROFILE),
         };
         let (Some(vp), Some(gain)) = (o.vp_sel(), o.pga_gain_bits()) else {
-            super::fault::fatal("board profile: OPAMP input or gain not in RM0440");
+            super::fault::fatal(super::fault::UNBINDABLE_PROFILE);
         };
         regs.csr().write(|w| {
             w.set_vp_sel(VpSel::from_bits(vp));

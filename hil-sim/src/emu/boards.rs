@@ -52,6 +52,19 @@ pub struct Rig {
     pub aux_counts: u16,
     /// TIM1's gate state from the last update (for the record: duties, outputs on).
     pub gate: Option<GateState>,
+    /// Disturbances of the sensed phase currents (switching spikes on a shunt): what the
+    /// sense pins carry on top of the plant's current, not the motor's current.
+    pub sense_spikes: Vec<SenseSpikeAt>,
+}
+
+/// A disturbance of one sensed phase current from `from_ns` to `to_ns` (emulated time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SenseSpikeAt {
+    /// Inverter leg 0..=2.
+    pub phase: usize,
+    pub amps: f64,
+    pub from_ns: u64,
+    pub to_ns: u64,
 }
 
 impl Rig {
@@ -69,7 +82,21 @@ impl Rig {
             plant_ns: 0,
             aux_counts: 0,
             gate: None,
+            sense_spikes: Vec::new(),
         }
+    }
+
+    /// The phase currents the sense pins carry at `ns`: the plant's plus any spike.
+    pub fn sensed_currents(&self, ns: u64) -> [f64; 3] {
+        let mut i = self.plant.outputs().i_abc_a;
+        for s in &self.sense_spikes {
+            if (s.from_ns..=s.to_ns).contains(&ns) {
+                if let Some(x) = i.get_mut(s.phase) {
+                    *x += s.amps;
+                }
+            }
+        }
+        i
     }
 
     /// Advances the plant to `ns`.
@@ -212,11 +239,12 @@ impl Board for DriveBoard {
         let mut rig = self.rig.borrow_mut();
         rig.advance_to(cycles_to_ns(at));
         let o = rig.plant.outputs();
+        let i = rig.sensed_currents(cycles_to_ns(at));
         let p = rig.plant.params().board;
         match pin {
-            drive_pins::CURRENT_A => current_volts(p, Signal::CurrentA, o.i_abc_a[0]),
-            drive_pins::CURRENT_B => current_volts(p, Signal::CurrentB, o.i_abc_a[1]),
-            drive_pins::CURRENT_C => current_volts(p, Signal::CurrentC, o.i_abc_a[2]),
+            drive_pins::CURRENT_A => current_volts(p, Signal::CurrentA, i[0]),
+            drive_pins::CURRENT_B => current_volts(p, Signal::CurrentB, i[1]),
+            drive_pins::CURRENT_C => current_volts(p, Signal::CurrentC, i[2]),
             drive_pins::DC_LINK => udc_volts(p, o.u_dc_v),
             drive_pins::AUX => f64::from(rig.aux_counts) / f64::from(sensors::ADC_MAX) * VREF,
             _ => 0.0,

@@ -151,3 +151,64 @@ fn a_late_watchdog_feed_resets_the_drive_and_the_plc_shows_wdg() {
         sim.faults()
     );
 }
+
+/// Review D10 on the real image: TIM1's OC5 (CCR5 from the core every period) blanks
+/// COMP1/2/4 in a window around the counter's valley that holds every switching edge. A
+/// 0.8 us, +3 A spike on phase a's sense signal centred on the valley, in 20 periods,
+/// trips nothing; the same spike centred on the peak, where the comparators stay live,
+/// trips `OC_HW`. (A sustained overcurrent: `a_comparator_break_latches_the_outputs_off_with_oc_hw`,
+/// with the window in place.)
+#[test]
+fn a_spike_inside_the_blanking_window_does_not_trip_outside_it_trips_oc_hw() {
+    use g431_emu::time::ns_to_cycles;
+    use hil_sim::emu::boards::SenseSpikeAt;
+
+    // I>> 1.50 A: above the start-up current on either board profile's steps.
+    let program = MOTOR_PLC.replace("025 frv K20 0200", "025 frv K20 0200\n026 I>> K21 0150");
+    let mut sim = emu(&program, START_50HZ);
+    sim.run_until(ns(1.5), |_| {});
+    assert!(sim.faults().is_empty(), "{:?}", sim.faults());
+    let g = sim.drive().soc().tim1().expect("TIM1").gate();
+    assert!(g.outputs_enabled, "the motor runs");
+    // The comparators of the phases are blanked by TIM1_OC5, the DC link's is not.
+    let comps = sim.drive().soc().comps().expect("COMP model");
+    for n in 1..=4 {
+        let c = comps.config(n).expect("COMPn");
+        let tim1_oc5 = c.blanking == Some(g431_emu::periph::comp::BlankingSource::Tim1Oc5);
+        assert_eq!(tim1_oc5, n != 3, "COMP{n}: {c:?}");
+    }
+    let origin = g.phase_origin.expect("counting");
+    let count = g.cycles_per_count;
+    let period = 2 * u64::from(g.arr) * count;
+    // The next valley from now (in cycles), then a spike centred on it for 20 periods.
+    let now = ns_to_cycles(sim.now_ns());
+    let first = origin + (now.saturating_sub(origin) / period + 2) * period;
+    let spike = |centre: u64| SenseSpikeAt {
+        phase: 0,
+        amps: 3.0,
+        from_ns: cycles_to_ns(centre) - 400,
+        to_ns: cycles_to_ns(centre) + 400,
+    };
+    {
+        let mut rig = sim.rig_mut();
+        for k in 0..20 {
+            rig.sense_spikes.push(spike(first + k * period));
+        }
+    }
+    // 50 ms more: a fault would have reached the PLC's status by then.
+    sim.run_until(cycles_to_ns(first + 21 * period) + ns(0.05), |_| {});
+    assert!(
+        sim.faults().is_empty(),
+        "tripped by blanked spikes: {:?}",
+        sim.faults()
+    );
+    // The same spike at the next peak (half a period after a valley).
+    let g = sim.drive().soc().tim1().expect("TIM1").gate();
+    let origin = g.phase_origin.expect("counting");
+    let now = ns_to_cycles(sim.now_ns());
+    let valley = origin + (now.saturating_sub(origin) / period + 2) * period;
+    sim.rig_mut().sense_spikes.push(spike(valley + period / 2));
+    sim.run_until(cycles_to_ns(valley) + ns(0.05), |_| {});
+    let codes: Vec<u8> = sim.faults().iter().map(|f| f.code).collect();
+    assert_eq!(codes, vec![2], "faults {:?}", sim.faults());
+}
