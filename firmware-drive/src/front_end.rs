@@ -7,7 +7,7 @@
 //! RM0440 facts the tables are checked against (unit tests below):
 //! * OPAMPx_CSR.VP_SEL (§25.5.1): OPAMP1 VINP0-2 = PA1, PA3, PA7; OPAMP2 = PA7, PB14, PB0;
 //!   OPAMP3 = PB0, PB13, PA1 (11 = DAC3 for OPAMP1/3, not bonded for OPAMP2 on the G431).
-//! * PGA_GAIN[2:0] (VM_SEL = 10, PGA_GAIN[4:3] = 00: the gain network's ground end on
+//! * PGA_GAIN bits 2:0 (VM_SEL = 10, PGA_GAIN bits 4:3 = 00: the gain network's ground end on
 //!   VSSA, non-inverting gain): 000 = 2, 001 = 4, 010 = 8, 011 = 16, 100 = 32, 101 = 64.
 //! * With OPAINTOEN = 1 the output reaches an ADC channel internally, not the VOUT pin
 //!   (PA2, PA6, PB1): OPAMP1 = ADC1_IN13, OPAMP2 = ADC2_IN16, OPAMP3 = ADC2_IN18 (RM0440

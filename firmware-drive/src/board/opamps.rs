@@ -34,7 +34,7 @@ pub fn apply(fe: &FrontEndSpec) {
         let (Some(vp), Some(gain)) = (o.vp_sel(), o.pga_gain_bits()) else {
             super::fault::fatal(super::fault::UNBINDABLE_PROFILE);
         };
-        regs.csr().write(|w| {
+        regs.csr().modify(|w| {
             w.set_vp_sel(VpSel::from_bits(vp));
             w.set_vm_sel(VmSel::PGA);
             w.set_pga_gain(PgaGain::from_bits(gain));
