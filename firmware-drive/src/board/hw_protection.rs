@@ -115,7 +115,8 @@ pub fn init(
     let mut c3 = Comp::new(p.comp_udc, udc, Irqs, config(&spec(board, 3)));
     let mut c4 = Comp::new(p.comp_ic, ic, Irqs, config(&spec(board, 4)));
     // BLANKSEL from the table (embassy's `BlankingSource` stops at code 3; COMP4's
-    // TIM1_OC5 is 100), with the comparators still off.
+    // TIM1_OC5 is 100). TIM1 does not run yet and the break is not armed: no window and
+    // no trip depend on it before this write.
     for (regs, n) in [
         (pac::COMP1, 1),
         (pac::COMP2, 2),
