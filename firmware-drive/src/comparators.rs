@@ -22,6 +22,7 @@
 
 use shared_protocol::units::{CentiAmps, Volts};
 
+use crate::front_end::{FrontEndSpec, DIRECT_PINS, ESC1_PGAS};
 use crate::measure::{udc_counts_at_volts, ADC_FULL_COUNTS, CURRENT_FULL_CENTIAMPS};
 use crate::measure::{FrontEnd, SensorScaling, CURRENT_ZERO_COUNTS, ESC1_SCALING, SOURCE_SCALING};
 use crate::protection::HwBreak;
@@ -98,6 +99,9 @@ pub struct ComparatorSpec {
     /// The comparator sees the ADC's signal divided by this: 1 when it watches the ADC's
     /// own pin, 16 when it watches the input of a PGA of gain 16 with VINM grounded.
     pub input_divider: u16,
+    /// Blanked by TIM1's OC5 around the switching edges (`crate::blanking`, review D10):
+    /// the phase-current comparators, whose shunts ring at every turn-on.
+    pub blanked: bool,
 }
 
 impl ComparatorSpec {
@@ -117,6 +121,20 @@ impl ComparatorSpec {
         match (self.comp, self.dac) {
             (1 | 3, D::Dac3Ch1) | (2 | 4, D::Dac3Ch2) => Some(0b100),
             (1 | 3 | 4, D::Dac1Ch1) | (2, D::Dac1Ch2) => Some(0b101),
+            _ => None,
+        }
+    }
+
+    /// COMPx_CSR.BLANKSEL: TIM1_OC5 if [`ComparatorSpec::blanked`] (RM0440 "COMP blanking
+    /// sources": 001 for COMP1-COMP3, 100 for COMP4; ST's `COMP_BLANKINGSRC_TIM1_OC5_COMP4`
+    /// = BLANKSEL_2), else 000. `None`: TIM1_OC5 cannot blank this comparator.
+    pub const fn blanksel(&self) -> Option<u8> {
+        if !self.blanked {
+            return Some(0);
+        }
+        match self.comp {
+            1..=3 => Some(0b001),
+            4 => Some(0b100),
             _ => None,
         }
     }
@@ -175,9 +193,32 @@ impl ComparatorSpec {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct BoardProfile {
     pub name: &'static str,
+    /// Short name: hil-sim's `[plant] board` value, and the image's `DRIVE_BOARD_PROFILE`
+    /// marker (the emulator puts this profile's voltages on the pins).
+    pub key: &'static str,
     pub comparators: &'static [ComparatorSpec],
     /// How the currents and the DC link reach the ADC.
     pub scaling: SensorScaling,
+    /// The amplifiers the board enables and the ADC channels it reads.
+    pub front_end: FrontEndSpec,
+}
+
+impl BoardProfile {
+    /// [`BoardProfile::key`] as the fixed-size, zero-padded marker the image carries
+    /// (truncated to 8 bytes).
+    // Both indices are below the bounds the loop checks (`get` is not const); the image
+    // evaluates it at compile time.
+    #[allow(clippy::indexing_slicing)]
+    pub const fn key_bytes(&self) -> [u8; 8] {
+        let k = self.key.as_bytes();
+        let mut out = [0u8; 8];
+        let mut i = 0;
+        while i < k.len() && i < 8 {
+            out[i] = k[i];
+            i += 1;
+        }
+        out
+    }
 }
 
 /// The source's sensors (+-10 A around 1.65 V, 0-45 V) on the ESC1's pins (a carrier board
@@ -185,7 +226,9 @@ pub struct BoardProfile {
 /// each phase, and the DC link. Cargo feature `source-sensors` of the image.
 pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
     name: "source sensors on B-G431B-ESC1 pins",
+    key: "source",
     scaling: SOURCE_SCALING,
+    front_end: DIRECT_PINS,
     comparators: &[
         ComparatorSpec {
             comp: 1,
@@ -195,6 +238,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch1,
             input_divider: 1,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 2,
@@ -204,6 +248,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 1,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 3,
@@ -213,6 +258,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OvHw,
             dac: DacChannel::Dac1Ch1,
             input_divider: 1,
+            blanked: false,
         },
         // DAC3 CH2 is shared with COMP2: the same I>> threshold.
         ComparatorSpec {
@@ -223,6 +269,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 1,
+            blanked: true,
         },
     ],
 };
@@ -237,7 +284,9 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
 /// divider (full scale 34.3 V: `U>>` above it cannot trip).
 pub const B_G431B_ESC1: BoardProfile = BoardProfile {
     name: "B-G431B-ESC1",
+    key: "esc1",
     scaling: ESC1_SCALING,
+    front_end: ESC1_PGAS,
     comparators: &[
         ComparatorSpec {
             comp: 1,
@@ -247,6 +296,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch1,
             input_divider: 16,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 2,
@@ -256,6 +306,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 16,
+            blanked: true,
         },
         ComparatorSpec {
             comp: 3,
@@ -265,6 +316,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OvHw,
             dac: DacChannel::Dac1Ch1,
             input_divider: 1,
+            blanked: false,
         },
         ComparatorSpec {
             comp: 4,
@@ -274,6 +326,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 16,
+            blanked: true,
         },
     ],
 };
@@ -338,11 +391,28 @@ mod tests {
         for (k, spec) in p.comparators.iter().enumerate() {
             assert!((1..=4).contains(&spec.comp), "G431: COMP1-COMP4");
             assert!(spec.inmsel().is_some(), "{spec:?}: DAC not reachable");
+            assert!(
+                spec.blanksel().is_some(),
+                "{spec:?}: TIM1_OC5 cannot blank it"
+            );
+            // The phase-current comparators are blanked, the DC link's is not.
+            assert_eq!(
+                spec.blanked,
+                spec.cause() == HwBreak::Overcurrent,
+                "{spec:?}"
+            );
             // COMPx_INP0 pins of the G431 (RM0440; INP1 is PB1/PA3/PC1/PE7).
             let inp0 = ["PA1", "PA7", "PA0", "PB0"][usize::from(spec.comp - 1)];
             assert_eq!(spec.inp, inp0);
             // One spec per comparator.
             assert!(p.comparators[..k].iter().all(|o| o.comp != spec.comp));
+            // A comparator on an amplifier's input sees the ADC's signal divided by the
+            // amplifier's gain: the divider is that gain.
+            assert_eq!(
+                spec.input_divider,
+                p.front_end.gain_of(spec.signal),
+                "{spec:?}"
+            );
         }
         // Comparators sharing a DAC channel need the same value for any thresholds.
         for oc in [1, 150, 300, 999] {
@@ -375,6 +445,30 @@ mod tests {
                 .iter()
                 .any(|s| s.signal == sig && s.direction == positive));
         }
+    }
+
+    #[test]
+    fn blanksel_is_tim1_oc5_per_rm0440() {
+        let codes: Vec<(u8, Option<u8>)> = B_G431B_ESC1
+            .comparators
+            .iter()
+            .map(|s| (s.comp, s.blanksel()))
+            .collect();
+        assert_eq!(
+            codes,
+            vec![(1, Some(1)), (2, Some(1)), (3, Some(0)), (4, Some(0b100))]
+        );
+        let c5 = ComparatorSpec {
+            comp: 5,
+            ..B_G431B_ESC1.comparators[0]
+        };
+        assert_eq!(c5.blanksel(), None);
+    }
+
+    #[test]
+    fn the_key_marker_is_zero_padded() {
+        assert_eq!(&B_G431B_ESC1.key_bytes(), b"esc1\0\0\0\0");
+        assert_eq!(&SOURCE_SENSORS.key_bytes(), b"source\0\0");
     }
 
     #[test]

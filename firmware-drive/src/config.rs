@@ -26,15 +26,36 @@ pub struct DriveConfig {
     pub min_max_injection: bool,
     /// Switching frequency before the program's `PWF` has run, Hz.
     pub default_pwm_hz: u16,
-    /// The board: its comparators (which signal, direction, DAC) and how its sensors
-    /// scale (`measure::SensorScaling`). The image uses `SOURCE_SENSORS` until the ESC1
-    /// OPAMP front end is bound in the board layer (`docs/drive-core.md`, "Board profiles").
+    /// The board: its comparators (which signal, direction, DAC), how its sensors scale
+    /// (`measure::SensorScaling`) and its analog front end (`front_end`). `Default` keeps
+    /// the source's sensors (the host simulator's reference rig); the image runs
+    /// [`DriveConfig::image`], whose board is [`IMAGE_BOARD`] (`docs/drive-core.md`,
+    /// "Board profiles").
     pub board: &'static BoardProfile,
     /// Hardware overcurrent threshold while the program sets no `I>>` (the source's
     /// trimmer as delivered), 0.01 A.
     pub oc_hw_default_centiamps: u16,
     /// Hardware overvoltage threshold while the program sets no `U>>`, V.
     pub ov_hw_default_volts: u16,
+}
+
+/// The board profile the firmware image is built for: the bare B-G431B-ESC1 (the board
+/// users flash), or with the cargo feature `source-sensors` the source's ±10 A / 0-45 V
+/// sensors on the ESC1's pins (a carrier board).
+#[cfg(not(feature = "source-sensors"))]
+pub const IMAGE_BOARD: &BoardProfile = &crate::comparators::B_G431B_ESC1;
+/// The board profile the firmware image is built for (feature `source-sensors`).
+#[cfg(feature = "source-sensors")]
+pub const IMAGE_BOARD: &BoardProfile = &SOURCE_SENSORS;
+
+impl DriveConfig {
+    /// The configuration the firmware image runs: the defaults on [`IMAGE_BOARD`].
+    pub fn image() -> Self {
+        DriveConfig {
+            board: IMAGE_BOARD,
+            ..DriveConfig::default()
+        }
+    }
 }
 
 impl Default for DriveConfig {
@@ -50,5 +71,30 @@ impl Default for DriveConfig {
             oc_hw_default_centiamps: 300,
             ov_hw_default_volts: 40,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::comparators::B_G431B_ESC1;
+
+    #[test]
+    fn the_image_runs_the_board_of_its_build() {
+        let expected = if cfg!(feature = "source-sensors") {
+            &SOURCE_SENSORS
+        } else {
+            &B_G431B_ESC1
+        };
+        assert_eq!(DriveConfig::image().board, expected);
+        // The host simulator's reference rig keeps the source's sensors.
+        assert_eq!(DriveConfig::default().board, &SOURCE_SENSORS);
+        assert_eq!(
+            DriveConfig {
+                board: &SOURCE_SENSORS,
+                ..DriveConfig::image()
+            },
+            DriveConfig::default()
+        );
     }
 }

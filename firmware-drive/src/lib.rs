@@ -14,9 +14,11 @@
 
 // Drive core modules (issue 4). Units, scaling and every decision: `docs/drive-core.md`.
 pub mod app;
+pub mod blanking;
 pub mod comparators;
 pub mod config;
 pub mod drive;
+pub mod front_end;
 pub mod link;
 pub mod measure;
 pub mod modulator;

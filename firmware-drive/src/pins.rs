@@ -10,14 +10,18 @@
 //! | PWM U high / low | PA8 / PC13 | TIM1_CH1 / TIM1_CH1N | UH / UL |
 //! | PWM V high / low | PA9 / PA12 | TIM1_CH2 / TIM1_CH2N | VH / VL |
 //! | PWM W high / low | PA10 / PB15 | TIM1_CH3 / TIM1_CH3N | WH / WL |
-//! | phase current a | PA1 | ADC1_IN2 (injected), COMP1_INP vs DAC3_CH1 | Curr_fdbk1 |
-//! | phase current b | PA7 | ADC2_IN4 (injected), COMP2_INP vs DAC3_CH2 | Curr_fdbk2 |
-//! | phase current c (comparator only) | PB0 | COMP4_INP vs DAC3_CH2 | Curr_fdbk3 |
+//! | phase current a | PA1 | OPAMP1_VINP (PGA x16) -> ADC1_IN13 (injected); COMP1_INP vs DAC3_CH1 | Curr_fdbk1 |
+//! | phase current b | PA7 | OPAMP2_VINP (PGA x16) -> ADC2_IN16 (injected); COMP2_INP vs DAC3_CH2 | Curr_fdbk2 |
+//! | phase current c (comparator only) | PB0 | OPAMP3_VINP (PGA x16) -> ADC2_IN18 (not sampled); COMP4_INP vs DAC3_CH2 | Curr_fdbk3 |
 //! | DC link voltage | PA0 | ADC1_IN1 (injected), COMP3_INP vs DAC1_CH1 | VBUS |
 //! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 (injected) | POT |
 //! | brake chopper gate | PB5 | GPIO out, active high | free pin |
 //! | link TX / RX | PB6 / PB7 | USART1 (AF7), DMA1 CH1 / CH2 | encoder/Hall H1 / H2 pads |
 //! | heartbeat LED (toggles while the watchdog is fed) | PC6 | GPIO out | LED |
+//!
+//! The current rows are the bare ESC1's front end (`firmware_drive::front_end::ESC1_PGAS`);
+//! with the feature `source-sensors` the OPAMPs stay off and the ADC reads PA1 (ADC1_IN2)
+//! and PA7 (ADC2_IN4) directly (`DIRECT_PINS`).
 
 //!
 //! The link is not on USART2 (PB3/PB4): those are the virtual COM port of the ST-LINK on the
@@ -46,6 +50,10 @@ pub struct Analog {
     pub current_b: Peri<'static, p::PA7>,
     pub dc_link: Peri<'static, p::PA0>,
     pub aux: Peri<'static, p::PB12>,
+    /// The shunt amplifiers (PGA mode when the profile lists them).
+    pub opamp1: Peri<'static, p::OPAMP1>,
+    pub opamp2: Peri<'static, p::OPAMP2>,
+    pub opamp3: Peri<'static, p::OPAMP3>,
 }
 
 /// Hardware trip path: comparators and the DACs that set their thresholds (which one
@@ -103,6 +111,9 @@ pub fn split(p: Peripherals) -> Board {
             current_b: p.PA7,
             dc_link: p.PA0,
             aux: p.PB12,
+            opamp1: p.OPAMP1,
+            opamp2: p.OPAMP2,
+            opamp3: p.OPAMP3,
         },
         protection: Protection {
             comp_ia: p.COMP1,

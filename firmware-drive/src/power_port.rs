@@ -13,6 +13,8 @@
 //!   (a pulse shorter than the write, which the hardware then does not block) takes the
 //!   outputs off again at once: the flag is checked once more after MOE is set;
 //! * compares are never above ARR + 1 of the timing in effect;
+//! * the blanking window (CCR5) is written right after the compares it belongs to (both
+//!   preloaded: they take effect together at the update event);
 //! * a timer change (PSC/ARR/dead time) is written with the outputs off, and they stay off
 //!   for that period: they come back at the next period, once the new timing is in effect.
 
@@ -33,6 +35,9 @@ pub trait PowerPort {
     fn set_timing(&mut self, t: &PwmTiming);
     /// CCR1-3 (preloaded).
     fn set_compares(&mut self, ccr: [u16; 3]);
+    /// CCR5, the comparator blanking window (OC5 active while CNT < CCR5, preloaded: it
+    /// takes effect with the compares of the same period; `crate::blanking`).
+    fn set_blanking(&mut self, ccr5: u16);
     /// Per leg: its two switches follow their compare (CCxE = CCxNE = 1) or stay open.
     fn set_legs(&mut self, on: [bool; 3]);
     /// MOE = 1.
@@ -51,6 +56,8 @@ pub struct PeriodAction {
     pub legs: [bool; 3],
     /// CCR1-3, at most ARR + 1 of the timing in effect.
     pub ccr: [u16; 3],
+    /// CCR5: the blanking window around the switching edges of these compares (0: none).
+    pub blanking: u16,
     /// A new timing to program (the outputs stay off for this period).
     pub timing: Option<PwmTiming>,
     pub brake: bool,
@@ -63,10 +70,13 @@ impl PeriodAction {
         let timing = (programmed != wanted).then_some(*wanted);
         let max = wanted.arr.saturating_add(1);
         let enable = cmd.enable && timing.is_none();
+        let legs = if enable { cmd.leg_enable } else { [false; 3] };
+        let ccr = cmd.ccr().map(|c| c.min(max));
         PeriodAction {
             enable,
-            legs: if enable { cmd.leg_enable } else { [false; 3] },
-            ccr: cmd.ccr().map(|c| c.min(max)),
+            legs,
+            ccr,
+            blanking: crate::blanking::ccr5(ccr, legs, wanted),
             timing,
             brake: cmd.brake,
         }
@@ -81,6 +91,7 @@ impl PeriodAction {
             port.set_timing(t);
         }
         port.set_compares(self.ccr);
+        port.set_blanking(self.blanking);
         if self.enable {
             port.set_legs(self.legs);
             if port.break_pending() {
@@ -200,6 +211,7 @@ mod tests {
         Off,
         Timing(u16),
         Compares([u16; 3]),
+        Blanking(u16),
         Legs([bool; 3]),
         On,
         Brake(bool),
@@ -236,6 +248,10 @@ mod tests {
                 self.arr
             );
             self.ops.push(Op::Compares(ccr));
+        }
+        fn set_blanking(&mut self, ccr5: u16) {
+            assert!(ccr5 <= self.arr, "CCR5 {ccr5} above ARR {}", self.arr);
+            self.ops.push(Op::Blanking(ccr5));
         }
         fn set_legs(&mut self, on: [bool; 3]) {
             self.ops.push(Op::Legs(on));
@@ -278,10 +294,13 @@ mod tests {
             ..Recorder::default()
         };
         PeriodAction::from_command(&cmd(true, [10, 500, 1000], 1000), &t, &t).apply(&mut p);
+        // The leg at 1000 (100 %) does not switch: the window ends `blank_counts` after
+        // the 500 leg's edge.
         assert_eq!(
             p.ops,
             vec![
                 Op::Compares([10, 500, 1001]),
+                Op::Blanking(500 + t.blank_counts),
                 Op::Legs([true; 3]),
                 Op::On,
                 Op::Brake(false)
@@ -300,6 +319,17 @@ mod tests {
         PeriodAction::from_command(&cmd(false, [0; 3], 1000), &t, &t).apply(&mut p);
         assert_eq!(p.ops.first(), Some(&Op::Off));
         assert!(!p.moe);
+    }
+
+    #[test]
+    fn no_window_while_the_outputs_are_off() {
+        let t = timing(1000);
+        let mut p = Recorder {
+            arr: 1000,
+            ..Recorder::default()
+        };
+        PeriodAction::from_command(&cmd(false, [500; 3], 1000), &t, &t).apply(&mut p);
+        assert!(p.ops.contains(&Op::Blanking(0)), "{:?}", p.ops);
     }
 
     #[test]
@@ -347,6 +377,7 @@ mod tests {
                 Op::Off,
                 Op::Timing(400),
                 Op::Compares([401, 100, 401]),
+                Op::Blanking(0),
                 Op::Brake(false)
             ]
         );

@@ -25,6 +25,12 @@ pub struct PwmTiming {
     pub dtg: u8,
     /// The switching frequency the timer really produces, mHz.
     pub pwm_millihertz: u32,
+    /// Comparator blanking past the last switching edge, counter counts: the dead time
+    /// plus [`crate::blanking::RINGING_NS`], rounded up (`blanking::ccr5`).
+    pub blank_counts: u16,
+    /// Live comparator time kept either side of the peak, counter counts
+    /// ([`crate::blanking::MIN_LIVE_NS`]).
+    pub live_counts: u16,
     /// Phase-accumulator step per PWM period for 0.1 Hz output (2^64 = one turn).
     pub(crate) phase_step_per_decihertz: u128,
 }
@@ -56,12 +62,19 @@ impl PwmTiming {
         let dead_ns = u64::from(dead_time_ns.max(min_dead_time_ns));
         let dead_counts = (dead_ns * f_tim).div_ceil(1_000_000_000);
         let (dtg, realised) = encode_dtg(dead_counts);
+        let psc = (psc1 - 1) as u16;
+        let ringing =
+            crate::blanking::counts_of_ns(crate::blanking::RINGING_NS, timer_clock_hz, psc);
+        let dead = u32::from(realised).div_ceil(u32::from(psc) + 1);
+        let live = crate::blanking::counts_of_ns(crate::blanking::MIN_LIVE_NS, timer_clock_hz, psc);
         PwmTiming {
-            psc: (psc1 - 1) as u16,
+            psc,
             arr: arr as u16,
             dead_time_counts: realised,
             dtg,
             pwm_millihertz,
+            blank_counts: (dead + ringing).min(u32::from(u16::MAX)) as u16,
+            live_counts: live.min(u32::from(u16::MAX)) as u16,
             phase_step_per_decihertz,
         }
     }

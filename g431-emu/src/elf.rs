@@ -85,6 +85,16 @@ impl Image {
         })
     }
 
+    /// The flash bytes of the data symbol `name` (a `static` the image places in flash, e.g.
+    /// a marker the host reads); `None` when the image has no such symbol or it is not in
+    /// flash.
+    pub fn flash_symbol(&self, name: &str) -> Option<&[u8]> {
+        let file = ElfFile32::<object::Endianness>::parse(&*self.elf).ok()?;
+        let sym = file.symbols().find(|s| s.name() == Ok(name))?;
+        let start = (sym.address() as u32).checked_sub(FLASH_BASE)? as usize;
+        self.flash.get(start..start + sym.size() as usize)
+    }
+
     /// The function containing `pc`, demangled enough to read (`name+0x12`).
     pub fn symbolize(&self, pc: u32) -> String {
         let k = self.functions.partition_point(|(a, _, _)| *a <= pc);

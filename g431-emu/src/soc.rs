@@ -851,6 +851,11 @@ impl Soc {
                     self.refresh(a);
                 }
                 TimEvent::Blanking { at, active } => {
+                    // The comparators are sampled only at TIM1's events: take their inputs
+                    // at the window's edge first, so that a raw level left over from a
+                    // spike inside the window (gone on the silicon, whose comparator
+                    // follows its input continuously) does not show when it closes.
+                    self.sample_comparators(at);
                     let c = self.wired.comp;
                     for n in 1..=4 {
                         let tim1_oc5 = self
@@ -905,7 +910,20 @@ impl Soc {
                 }
                 InvertingInput::Pin(pin) => self.board.pin_volts(pin, t),
             };
-            let above = self.board.comparator_above(&cfg, inm, t);
+            // An OPAMP driving the comparator's INP pin (COMP1 INP1 = PB1 = OPAMP3 VOUT)
+            // gives its output; any other input is the board's.
+            let driven = snap.opamps.iter().any(|c| {
+                c.is_some_and(|c| c.enabled && !c.internal_only && c.output_pin == cfg.inp)
+            });
+            let above = if driven {
+                let mut src = AnalogAdapter {
+                    board: self.board.as_mut(),
+                    snap: &snap,
+                };
+                src.pin(cfg.inp, t) > inm
+            } else {
+                self.board.comparator_above(&cfg, inm, t)
+            };
             if let Some(b) = self.model_mut::<CompBank>(c) {
                 b.set_input(n, above, t);
             }
@@ -958,6 +976,21 @@ impl Soc {
     /// The TIM1 model (for the host's plant wiring and tests).
     pub fn tim1(&self) -> Option<&TimAdv> {
         self.model::<TimAdv>(self.wired.tim1)
+    }
+
+    /// The OPAMP1-3 model (for tests: the configuration the image wrote).
+    pub fn opamps(&self) -> Option<&OpampBank> {
+        self.model::<OpampBank>(self.wired.opamp)
+    }
+
+    /// The ADC1/ADC2 model (for tests: the latest conversions).
+    pub fn adc12(&self) -> Option<&Adc12> {
+        self.model::<Adc12>(self.wired.adc12)
+    }
+
+    /// The COMP1-4 model (for tests: configuration and outputs).
+    pub fn comps(&self) -> Option<&CompBank> {
+        self.model::<CompBank>(self.wired.comp)
     }
 
     /// Slot `k` can raise or drop a DMA request, or is a DMA controller.
@@ -1554,18 +1587,43 @@ impl AnalogAdapter<'_> {
     }
 }
 
+impl AnalogAdapter<'_> {
+    /// OPAMPn's output on its internal ADC channel: only with OPAINTOEN = 1 (RM0440 §25.3:
+    /// the output then goes to the ADC and not to the VOUT pin); otherwise the internal
+    /// channel is not connected and reads 0 V.
+    fn opamp_internal(&mut self, n: usize, at: Cycles) -> f64 {
+        match self.snap.opamps.get(n).copied().flatten() {
+            Some(cfg) if cfg.internal_only => self.opamp_out(n, at),
+            _ => 0.0,
+        }
+    }
+
+    /// Volts on `pin`: an enabled OPAMP's output while it drives its VOUT pin (OPAINTOEN =
+    /// 0: PA2, PA6, PB1), else the board's.
+    fn pin(&mut self, pin: &str, at: Cycles) -> f64 {
+        let driver =
+            self.snap.opamps.iter().position(|c| {
+                c.is_some_and(|c| c.enabled && !c.internal_only && c.output_pin == pin)
+            });
+        match driver {
+            Some(n) => self.opamp_out(n, at),
+            None => self.board.pin_volts(pin, at),
+        }
+    }
+}
+
 impl AnalogSource for AnalogAdapter<'_> {
     fn volts(&mut self, adc: AdcId, channel: u8, at: Cycles) -> f64 {
         match (adc, channel) {
-            (AdcId::Adc1, 13) => self.opamp_out(0, at),
-            (AdcId::Adc2, 16) => self.opamp_out(1, at),
-            (AdcId::Adc2, 18) => self.opamp_out(2, at),
+            (AdcId::Adc1, 13) => self.opamp_internal(0, at),
+            (AdcId::Adc2, 16) => self.opamp_internal(1, at),
+            (AdcId::Adc2, 18) => self.opamp_internal(2, at),
             // Temperature sensor at 30 °C (DS12589 V30), VBAT/3 at 3.3 V, VREFINT.
             (AdcId::Adc1, 16) => 0.76,
             (AdcId::Adc1, 17) => 3.3 / 3.0,
             (AdcId::Adc1, 18) => VREFINT_VOLTS,
             _ => match adc_pin(adc, channel) {
-                Some(pin) => self.board.pin_volts(pin, at),
+                Some(pin) => self.pin(pin, at),
                 None => 0.0,
             },
         }
@@ -1578,6 +1636,103 @@ mod tests {
 
     fn soc() -> Soc {
         Soc::new(vec![0xFF; 16], Box::new(BareBoard))
+    }
+
+    /// A board with 0.1 V on the ESC1's PGA inputs and 1.0 V on PB1.
+    struct AnalogBoard;
+
+    impl PinReader for AnalogBoard {
+        fn external(
+            &mut self,
+            _: u8,
+            _: u8,
+            _: Cycles,
+            _: &dyn Fn(u8, u8) -> Drive,
+        ) -> crate::periph::gpio::External {
+            crate::periph::gpio::External::Floating
+        }
+    }
+
+    impl Board for AnalogBoard {
+        fn pin_volts(&mut self, pin: &str, _at: Cycles) -> f64 {
+            match pin {
+                "PA1" | "PA7" | "PB0" => 0.1,
+                "PB1" => 1.0,
+                _ => 0.0,
+            }
+        }
+    }
+
+    /// OPAMPn in PGA mode, gain 16, VINP0, enabled; `internal`: OPAINTOEN.
+    fn pga16(bank: &mut OpampBank, n: u32, internal: bool) {
+        let v = 1 | (2 << 5) | (3 << 14) | if internal { 1 << 8 } else { 0 };
+        assert!(bank.write(crate::periph::Write::word(4 * (n - 1), v), 0));
+    }
+
+    fn snapshot(bank: &OpampBank) -> AnalogSnapshot {
+        AnalogSnapshot {
+            opamps: [1, 2, 3].map(|n| bank.config(n)),
+            dac1: [None; 2],
+            dac3: [None; 2],
+        }
+    }
+
+    #[test]
+    fn opamp_outputs_reach_the_adc_internally_only_with_opaintoen() {
+        let mut bank = OpampBank::new();
+        pga16(&mut bank, 1, true);
+        pga16(&mut bank, 2, true);
+        pga16(&mut bank, 3, false);
+        let snap = snapshot(&bank);
+        let mut board = AnalogBoard;
+        let mut a = AnalogAdapter {
+            board: &mut board,
+            snap: &snap,
+        };
+        // 16 x 0.1 V on ADC1 IN13 and ADC2 IN16 (the ESC1's phase currents at 0 A).
+        assert!((a.volts(AdcId::Adc1, 13, 0) - 1.6).abs() < 1e-12);
+        assert!((a.volts(AdcId::Adc2, 16, 0) - 1.6).abs() < 1e-12);
+        // OPAMP3 drives its pin PB1 (ADC1 IN12), not ADC2 IN18.
+        assert_eq!(a.volts(AdcId::Adc2, 18, 0), 0.0);
+        assert!((a.volts(AdcId::Adc1, 12, 0) - 1.6).abs() < 1e-12);
+        // The VINP pins themselves read the board's voltage (ADC1 IN2 = PA1).
+        assert!((a.volts(AdcId::Adc1, 2, 0) - 0.1).abs() < 1e-12);
+        // Output clamped to the rail: 16 x 0.25 V.
+        struct High;
+        impl PinReader for High {
+            fn external(
+                &mut self,
+                _: u8,
+                _: u8,
+                _: Cycles,
+                _: &dyn Fn(u8, u8) -> Drive,
+            ) -> crate::periph::gpio::External {
+                crate::periph::gpio::External::Floating
+            }
+        }
+        impl Board for High {
+            fn pin_volts(&mut self, _: &str, _: Cycles) -> f64 {
+                0.25
+            }
+        }
+        let mut high = High;
+        let mut a = AnalogAdapter {
+            board: &mut high,
+            snap: &snap,
+        };
+        assert_eq!(a.volts(AdcId::Adc1, 13, 0), 3.3);
+        // Disabled: nothing on the internal channel, and PB1 is the board's again.
+        let off = AnalogSnapshot {
+            opamps: [None; 3],
+            ..snapshot(&bank)
+        };
+        let mut board = AnalogBoard;
+        let mut a = AnalogAdapter {
+            board: &mut board,
+            snap: &off,
+        };
+        assert_eq!(a.volts(AdcId::Adc1, 13, 0), 0.0);
+        assert!((a.volts(AdcId::Adc1, 12, 0) - 1.0).abs() < 1e-12);
     }
 
     #[test]

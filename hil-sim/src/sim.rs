@@ -232,6 +232,11 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         &self.plant
     }
 
+    /// The plant, for tests that disturb it (e.g. `Plant::inject_sense_spike`).
+    pub fn plant_mut(&mut self) -> &mut Plant {
+        &mut self.plant
+    }
+
     pub fn drive(&self) -> &D {
         &self.drive
     }
@@ -467,6 +472,8 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         self.next_pwm_ns = timer_period_ns(self.pwm_epoch_ns, self.pwm_k, ticks, f_tim);
         let period_ns = self.next_pwm_ns - t;
         self.plant.start_period(period_ns, self.tim1.gate());
+        self.plant
+            .set_blanking(self.tim1.blanking_ccr5(), timing.arr);
         let s = self.plant.adc_sample();
         let adc = AdcSample {
             i_a: s.i_a_counts,

@@ -4,8 +4,8 @@
 //! ([`Plant`]) holds what the hardware does asynchronously: the comparators, the break
 //! input clearing MOE, and the gates.
 //!
-//! The rules are RM0440's, as in `g431-emu`'s register model: compares, PSC, ARR and the
-//! dead time take effect at the update event; MOE and the output enables at once; MOE
+//! The rules are RM0440's, as in `g431-emu`'s register model: compares (CCR1-3 and the
+//! blanking window's CCR5), PSC, ARR and the dead time take effect at the update event; MOE and the output enables at once; MOE
 //! cannot be set while the break input is active; the break flag stays set while it is.
 
 use firmware_drive::power_port::PowerPort;
@@ -22,6 +22,9 @@ pub struct SimTim1 {
     preload: Option<PwmTiming>,
     ccr_active: [u16; 3],
     ccr_preload: [u16; 3],
+    /// CCR5 (OC5, the comparators' blanking window), preloaded like the compares.
+    ccr5_active: u16,
+    ccr5_preload: u16,
     legs: [bool; 3],
     moe: bool,
     /// BIE: the break interrupt is unmasked.
@@ -38,6 +41,8 @@ impl SimTim1 {
             preload: None,
             ccr_active: [0; 3],
             ccr_preload: [0; 3],
+            ccr5_active: 0,
+            ccr5_preload: 0,
             legs: [true; 3],
             moe: false,
             break_irq_enabled: true,
@@ -51,6 +56,14 @@ impl SimTim1 {
             self.active = t;
         }
         self.ccr_active = self.ccr_preload;
+        self.ccr5_active = self.ccr5_preload;
+    }
+
+    /// CCR5 in effect: OC5 (PWM mode 1) is active while CNT < CCR5, the comparators
+    /// with BLANKSEL = TIM1_OC5 are blanked then (the plant applies it,
+    /// [`Plant::set_blanking`]).
+    pub fn blanking_ccr5(&self) -> u16 {
+        self.ccr5_active
     }
 
     pub fn timing(&self) -> &PwmTiming {
@@ -140,6 +153,10 @@ impl PowerPort for SimPowerPort<'_> {
         self.tim.ccr_preload = ccr;
     }
 
+    fn set_blanking(&mut self, ccr5: u16) {
+        self.tim.ccr5_preload = ccr5;
+    }
+
     fn set_legs(&mut self, on: [bool; 3]) {
         self.tim.legs = on;
         if self.tim.moe {
@@ -204,5 +221,27 @@ mod tests {
         assert_eq!(tim.timing().arr, t.arr);
         tim.update();
         assert_eq!(tim.timing().arr, t2.arr);
+    }
+
+    #[test]
+    fn the_blanking_window_is_preloaded_and_blanks_the_phase_comparators() {
+        let t = timing(16_000);
+        let mut tim = SimTim1::new(t, 170_000_000);
+        let mut plant = Plant::new(RigParams::default());
+        let a = PeriodAction::from_command(&run_cmd(1000, t.arr), &t, &t);
+        assert_eq!(a.blanking, 1000 + t.blank_counts);
+        a.apply(&mut tim.port(&mut plant));
+        assert_eq!(tim.blanking_ccr5(), 0, "CCR5 waits for the update event");
+        tim.update();
+        assert_eq!(tim.blanking_ccr5(), 1000 + t.blank_counts);
+        // In the plant: a window of 2 x CCR5 counts around the valley (mid-period).
+        let period_ns = 62_500;
+        plant.start_period(period_ns, tim.gate());
+        plant.set_blanking(tim.blanking_ccr5(), t.arr);
+        let half = u64::from(1000 + t.blank_counts) * (period_ns / 2) / u64::from(t.arr);
+        assert!(plant.blanking_at(period_ns / 2));
+        assert!(plant.blanking_at(period_ns / 2 + half - 1));
+        assert!(!plant.blanking_at(period_ns / 2 + half));
+        assert!(!plant.blanking_at(0), "live at the peak");
     }
 }

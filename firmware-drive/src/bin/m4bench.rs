@@ -9,9 +9,11 @@
 //! Sections (m4count prints the instructions between `bench_mark(k)` and the next mark):
 //! 1 = 1000 x pwm_period, motor program running (outputs on, OC/UV/brake checks active);
 //! 3 = 1000 x pwm_period with the outputs off (IDLE); 5 = 10 x tick_1ms of the motor
-//! program (lines 000-025). A mark 0x10 after section 1 confirms the outputs were on.
-//! The end of a download, part by part (review D13; `docs/critical-sections.md`): 7 = the
-//! section CRC, 8 = decoding 150 slots, 9 = `verify_drive`, 10 = `DriveCore::load_program`
+//! program (lines 000-025); 7 = 1000 x `PeriodAction::from_command` of a running period
+//! (the compare clamp and the blanking window's CCR5). A mark 0x10 after section 1 confirms
+//! the outputs were on.
+//! The end of a download, part by part (review D13; `docs/critical-sections.md`): 20 = the
+//! section CRC, 21 = decoding 150 slots, 22 = `verify_drive`, 23 = `DriveCore::load_program`
 //! (verifies again; the link path uses `load_verified`).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
@@ -28,6 +30,7 @@ mod target {
         cortex_m::asm::udf()
     }
 
+    use firmware_drive::power_port::PeriodAction;
     use firmware_drive::{AdcSample, DriveCommand, DriveConfig, DriveCore, ResetCause};
     use shared_protocol::link::plc::section_crc;
     use shared_protocol::program::Program;
@@ -113,6 +116,20 @@ mod target {
         }
         bench_mark(6);
         black_box(acc);
+        // Section 7: 1000 x the period's action from a running command (compares clamped,
+        // the blanking window's CCR5), as `DriveApp::pwm_period` builds it after the core.
+        let _ = core.command(DriveCommand::Run);
+        let t = core.pwm_timing();
+        let c = core.pwm_period(&s);
+        let mut blank = 0u32;
+        bench_mark(7);
+        for _ in 0..CALLS {
+            let a = PeriodAction::from_command(black_box(&c), black_box(&t), black_box(&t));
+            let a = black_box(a);
+            blank = blank.wrapping_add(u32::from(a.blanking) + u32::from(a.ccr[2]));
+        }
+        bench_mark(8);
+        black_box(blank);
         // The end of a download (review D13), part by part: the section CRC, the slot
         // decoding, the verifier, the core's load (which verifies again).
         let section = program.drive_section();
@@ -120,20 +137,20 @@ mod target {
         for (dst, line) in bytes.chunks_exact_mut(LINE_BYTES).zip(section.lines.iter()) {
             dst.copy_from_slice(&encode_slot(line.as_ref()));
         }
-        bench_mark(7);
+        bench_mark(20);
         black_box(section_crc(black_box(&bytes)));
-        bench_mark(8);
+        bench_mark(21);
         let mut decoded = 0u32;
         for b in bytes.chunks_exact(LINE_BYTES) {
             decoded += u32::from(matches!(decode_slot(black_box(b)), Ok(Some(_))));
         }
         black_box(decoded);
-        bench_mark(9);
+        bench_mark(22);
         black_box(verify_drive(black_box(&section)).is_ok());
-        bench_mark(10);
+        bench_mark(23);
         let _ = core.command(DriveCommand::Stop);
         black_box(core.load_program(black_box(&section)).is_ok());
-        bench_mark(11);
+        bench_mark(24);
         bench_mark(0xFFFF_FFFF);
         loop {
             cortex_m::asm::nop();

@@ -42,6 +42,11 @@ fn halt() -> ! {
     cortex_m::peripheral::SCB::sys_reset()
 }
 
+/// The one reason for every board-profile table entry the board cannot bind (an OPAMP,
+/// pin, gain, ADC input or blanking source the G431 or this board lacks): one string in
+/// flash instead of one per check. The core's unit tests keep the tables bindable.
+pub const UNBINDABLE_PROFILE: &str = "board profile entry not bindable";
+
 /// A check of the board layer failed: outputs off, the reason logged, halt.
 pub fn fatal(reason: &'static str) -> ! {
     cortex_m::interrupt::disable();

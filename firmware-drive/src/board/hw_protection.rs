@@ -7,6 +7,9 @@
 //! few tens of nanoseconds without software; automatic output enable is off, so the break
 //! latches until the core acknowledges the fault and a new RUN sets MOE again.
 //!
+//! COMP1/2/4 are blanked by TIM1's OC5 around the switching edges (review D10,
+//! `firmware_drive::blanking`; the window is the core's, per period), COMP3 is not.
+//!
 //! The thresholds are the core's decision (`DriveCore::comparator_dacs`: the program's
 //! `I>>`/`U>>` or the board's defaults, in ADC counts of the same signals); this module
 //! only writes them to the DACs, at start-up and whenever the core's values change (a
@@ -111,6 +114,21 @@ pub fn init(
     let mut c2 = Comp::new(p.comp_ib, ib, Irqs, config(&spec(board, 2)));
     let mut c3 = Comp::new(p.comp_udc, udc, Irqs, config(&spec(board, 3)));
     let mut c4 = Comp::new(p.comp_ic, ic, Irqs, config(&spec(board, 4)));
+    // BLANKSEL from the table (embassy's `BlankingSource` stops at code 3; COMP4's
+    // TIM1_OC5 is 100). TIM1 does not run yet and the break is not armed: no window and
+    // no trip depend on it before this write.
+    for (regs, n) in [
+        (pac::COMP1, 1),
+        (pac::COMP2, 2),
+        (pac::COMP3, 3),
+        (pac::COMP4, 4),
+    ] {
+        let Some(code) = spec(board, n).blanksel() else {
+            super::fault::fatal(super::fault::UNBINDABLE_PROFILE);
+        };
+        regs.csr()
+            .modify(|w| w.set_blanksel(pac::comp::vals::Blanking::from_bits(code)));
+    }
     c1.enable();
     c2.enable();
     c3.enable();

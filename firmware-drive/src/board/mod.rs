@@ -14,6 +14,7 @@ pub mod cycles;
 pub mod fault;
 pub mod hw_protection;
 pub mod link;
+pub mod opamps;
 pub mod power_stage;
 pub mod pwm_isr;
 pub mod shared;
@@ -41,6 +42,13 @@ use crate::pins;
 /// Name in the boot line and in probe-rs logs.
 pub const IMAGE: &str = "firmware-drive";
 
+/// Which board profile this image was built for (`BoardProfile::key`, zero-padded), for
+/// tools that run the image: hil-sim's emulator reads it to put that profile's voltages on
+/// the pins.
+#[no_mangle]
+#[used]
+pub static DRIVE_BOARD_PROFILE: [u8; 8] = firmware_drive::config::IMAGE_BOARD.key_bytes();
+
 /// Brings the board up and starts every task.
 pub async fn start(spawner: Spawner) {
     static ANALOG: StaticCell<analog::Converters> = StaticCell::new();
@@ -49,7 +57,7 @@ pub async fn start(spawner: Spawner) {
 
     let (p, cause) = board_common::boot::init(IMAGE, env!("CARGO_PKG_VERSION"));
 
-    let cfg = DriveConfig::default();
+    let cfg = DriveConfig::image();
     if cfg.timer_clock_hz != clocks::SYSCLK_HZ {
         fault::fatal("TIM1 clock differs from the core's");
     }
@@ -59,6 +67,7 @@ pub async fn start(spawner: Spawner) {
     let min_dead_counts =
         power_stage::min_dead_time_counts(cfg.timer_clock_hz, cfg.min_dead_time_ns);
 
+    defmt::info!("board profile: {}", cfg.board.name);
     let mut board = pins::split(p);
     let a = &mut board.analog;
     HW.init(hw_protection::init(
@@ -75,7 +84,7 @@ pub async fn start(spawner: Spawner) {
     for irq in [interrupt::COMP1_2_3, interrupt::COMP4] {
         irq.set_priority(board_common::boot::BACKGROUND);
     }
-    ANALOG.init(analog::init(board.analog));
+    ANALOG.init(analog::init(board.analog, &cfg.board.front_end));
     PWM.init(power_stage::init(board.power, timing, min_dead_counts));
     let brake = Output::new(board.misc.brake, Level::Low, Speed::Low);
     shared::install(shared::Shared {

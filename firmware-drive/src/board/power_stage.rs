@@ -94,6 +94,15 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
             w.set_ocpe(ch % 2, true);
         });
     }
+    // Review D10: OC5 is the comparators' blanking window (COMP BLANKSEL = TIM1_OC5), PWM
+    // mode 1 (active while CNT < CCR5: around the valley), preloaded like the compares;
+    // CCR5 per period from the core (`PeriodAction::blanking`), 0 = no window. GC5Cx
+    // stay 0: OC5 is not ANDed into the phase outputs.
+    t.ccmr3().modify(|w| {
+        w.set_ocm(0, Ocm::PWM_MODE1);
+        w.set_ocpe(0, true);
+    });
+    t.ccr5().write(|w| w.set_ccr(0));
     t.ccer().modify(|w| {
         for ch in 0..3 {
             w.set_cce(ch, true);
@@ -103,6 +112,9 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
         }
         // CH4 drives no pin: it only times the ADC trigger.
         w.set_cce(3, false);
+        // OC5 is internal (no pin): enabled, active high, to the comparators.
+        w.set_cce(4, true);
+        w.set_ccp(4, false);
     });
     t.cr1().modify(|w| {
         w.set_cms(Cms::CENTER_ALIGNED1);
@@ -227,6 +239,12 @@ impl PowerPort for Tim1Port<'_> {
         for (ch, c) in ccr.into_iter().enumerate() {
             t.ccr(ch).write(|w| w.set_ccr(c));
         }
+    }
+
+    /// CCR5 alone (GC5C1-3 written 0: OC5 is not grouped with the outputs).
+    #[inline(always)]
+    fn set_blanking(&mut self, ccr5: u16) {
+        pac::TIM1.ccr5().write(|w| w.set_ccr(ccr5));
     }
 
     /// CCxE and CCxNE of CH1-3 together. A leg that is off has both outputs disabled:

@@ -5,8 +5,10 @@
 //!
 //! The drive (`firmware-drive/src/board/hw_protection.rs`, embassy-stm32 0.6 `comp.rs`) writes
 //! each CSR once with INPSEL = 0 (COMP1 PA1, COMP2 PA7, COMP3 PA0), INMSEL = DAC (100 for
-//! COMP1/2 = DAC3 CH1/CH2, 101 for COMP3 = DAC1 CH1), HYST = 20 mV, POLARITY = 0, BLANKSEL = 0
-//! and EN, then sets EN again; it reads VALUE in the break interrupt. The comparators' outputs
+//! COMP1/2 = DAC3 CH1/CH2, 101 for COMP3 = DAC1 CH1), HYST = 20 mV, the polarity of its board
+//! profile (inverted on the bare ESC1), BLANKSEL = 0 and EN, then sets EN again; the board then
+//! writes BLANKSEL = TIM1_OC5 on COMP1/2/4 (review D10) with a read-modify-write; it reads
+//! VALUE in the break interrupt. The comparators' outputs
 //! are ORed into TIM1's break input (AF1.BKCMPxE).
 //!
 //! The comparison itself is the host's business (a continuous-time plant): the model decodes

@@ -2,9 +2,11 @@
 //! pin of the G431 sees (the rig's sensors, inputs, keypad, the I2C bus) and where each
 //! output goes (the power stage, the brake chopper, the PLC's outputs).
 //!
-//! * [`DriveBoard`]: a B-G431B-ESC1 whose current and DC-link pins carry the source's
-//!   sensor scaling (±10 A and 0..45 V on 0..3.3 V, `plant::sensors`), TIM1's outputs drive
-//!   hil-sim's inverter and motor ([`Rig`]), PB5 is the brake chopper's gate.
+//! * [`DriveBoard`]: a B-G431B-ESC1 whose current and DC-link pins carry the voltages of
+//!   the board profile the image was built for ([`image_board`]): the bare ESC1's shunt
+//!   networks in front of the on-chip PGAs, or the source's sensors (±10 A and 0..45 V on
+//!   0..3.3 V); TIM1's outputs drive hil-sim's inverter and motor ([`Rig`]), PB5 is the
+//!   brake chopper's gate.
 //! * [`PlcBoard`]: a NUCLEO-G431RB with the PLC's inputs, outputs, analog inputs, the 4x4
 //!   keypad matrix and, on I2C3 (PA8/PB5), the same 24C256 and PCF8574 + HD44780 LCD the
 //!   simulator's panel uses, as device models.
@@ -21,6 +23,8 @@ use g431_emu::periph::gpio::{Drive, External, PinReader};
 use g431_emu::periph::tim_adv::{GateState, PinDrive, TimEvent};
 use g431_emu::soc::Board;
 use g431_emu::time::{cycles_to_ns, Cycles};
+
+use firmware_drive::comparators::{BoardProfile, Signal};
 
 use crate::plant::{sensors, Comparators, GateCommand, Leg, Plant};
 
@@ -48,6 +52,19 @@ pub struct Rig {
     pub aux_counts: u16,
     /// TIM1's gate state from the last update (for the record: duties, outputs on).
     pub gate: Option<GateState>,
+    /// Disturbances of the sensed phase currents (switching spikes on a shunt): what the
+    /// sense pins carry on top of the plant's current, not the motor's current.
+    pub sense_spikes: Vec<SenseSpikeAt>,
+}
+
+/// A disturbance of one sensed phase current from `from_ns` to `to_ns` (emulated time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SenseSpikeAt {
+    /// Inverter leg 0..=2.
+    pub phase: usize,
+    pub amps: f64,
+    pub from_ns: u64,
+    pub to_ns: u64,
 }
 
 impl Rig {
@@ -65,7 +82,21 @@ impl Rig {
             plant_ns: 0,
             aux_counts: 0,
             gate: None,
+            sense_spikes: Vec::new(),
         }
+    }
+
+    /// The phase currents the sense pins carry at `ns`: the plant's plus any spike.
+    pub fn sensed_currents(&self, ns: u64) -> [f64; 3] {
+        let mut i = self.plant.outputs().i_abc_a;
+        for s in &self.sense_spikes {
+            if (s.from_ns..=s.to_ns).contains(&ns) {
+                if let Some(x) = i.get_mut(s.phase) {
+                    *x += s.amps;
+                }
+            }
+        }
+        i
     }
 
     /// Advances the plant to `ns`.
@@ -124,28 +155,46 @@ pub fn gate_command(g: &GateState) -> (u64, GateCommand) {
     (period_ns, GateCommand { legs, dead_time_ns })
 }
 
-/// The sensors of the emulated drive board (the source's, `plant::sensors`).
-const SCALING: &firmware_drive::measure::SensorScaling = &firmware_drive::measure::SOURCE_SCALING;
-
-/// Volts on a current-sense pin for a phase current.
-pub fn current_volts(i_a: f64) -> f64 {
-    let counts = sensors::current_signal_counts(SCALING, i_a);
-    (counts / f64::from(sensors::ADC_MAX) * VREF).clamp(0.0, VREF)
+/// Volts on the sense pin of `signal` for a phase current of `i_a` on a board with the
+/// front end of `profile`: the ADC-scale voltage of the profile's scaling
+/// (`plant::sensors`), divided by the gain of the on-chip amplifier that follows the pin
+/// (the ESC1's PGA x16: about 0.103 V at 0 A, falling 1.71 mV/A).
+pub fn current_volts(profile: &BoardProfile, signal: Signal, i_a: f64) -> f64 {
+    let counts = sensors::current_signal_counts(&profile.scaling, i_a);
+    let adc_volts = counts / f64::from(sensors::ADC_MAX) * VREF;
+    (adc_volts / f64::from(profile.front_end.gain_of(signal))).clamp(0.0, VREF)
 }
 
-/// The phase current a current-sense pin voltage stands for (inverse of [`current_volts`]).
-pub fn volts_current(v: f64) -> f64 {
-    let counts = v / VREF * f64::from(sensors::ADC_MAX);
-    (counts - f64::from(SCALING.current_zero_counts)) * 1000.0
-        / f64::from(SCALING.current_millicounts_per_amp)
+/// The phase current a sense-pin voltage stands for (inverse of [`current_volts`]).
+pub fn volts_current(profile: &BoardProfile, signal: Signal, v: f64) -> f64 {
+    let sc = &profile.scaling;
+    let adc_volts = v * f64::from(profile.front_end.gain_of(signal));
+    let counts = adc_volts / VREF * f64::from(sensors::ADC_MAX);
+    (counts - f64::from(sc.current_zero_counts)) * 1000.0
+        / f64::from(sc.current_millicounts_per_amp)
 }
 
 /// Volts on the DC-link pin.
-pub fn udc_volts(u: f64) -> f64 {
-    (sensors::udc_signal_counts(SCALING, u) / f64::from(sensors::ADC_MAX) * VREF).clamp(0.0, VREF)
+pub fn udc_volts(profile: &BoardProfile, u: f64) -> f64 {
+    (sensors::udc_signal_counts(&profile.scaling, u) / f64::from(sensors::ADC_MAX) * VREF)
+        .clamp(0.0, VREF)
 }
 
-/// The drive board (B-G431B-ESC1 with the source's sensors).
+/// The board profile a drive image was built for, from its `DRIVE_BOARD_PROFILE` marker
+/// (`firmware_drive::config::IMAGE_BOARD`): the emulated board must put that profile's
+/// voltages on the pins.
+pub fn image_board(image: &g431_emu::elf::Image) -> Option<&'static BoardProfile> {
+    let marker = image.flash_symbol("DRIVE_BOARD_PROFILE")?;
+    [
+        &firmware_drive::comparators::B_G431B_ESC1,
+        &firmware_drive::comparators::SOURCE_SENSORS,
+    ]
+    .into_iter()
+    .find(|p| p.key_bytes().as_slice() == marker)
+}
+
+/// The drive board: a B-G431B-ESC1 whose sense pins carry the voltages of the rig's board
+/// profile (the plant's `RigParams::board`, which `EmuSim` sets from the image's marker).
 pub struct DriveBoard {
     rig: Rc<RefCell<Rig>>,
 }
@@ -190,11 +239,13 @@ impl Board for DriveBoard {
         let mut rig = self.rig.borrow_mut();
         rig.advance_to(cycles_to_ns(at));
         let o = rig.plant.outputs();
+        let i = rig.sensed_currents(cycles_to_ns(at));
+        let p = rig.plant.params().board;
         match pin {
-            drive_pins::CURRENT_A => current_volts(o.i_abc_a[0]),
-            drive_pins::CURRENT_B => current_volts(o.i_abc_a[1]),
-            drive_pins::CURRENT_C => current_volts(o.i_abc_a[2]),
-            drive_pins::DC_LINK => udc_volts(o.u_dc_v),
+            drive_pins::CURRENT_A => current_volts(p, Signal::CurrentA, i[0]),
+            drive_pins::CURRENT_B => current_volts(p, Signal::CurrentB, i[1]),
+            drive_pins::CURRENT_C => current_volts(p, Signal::CurrentC, i[2]),
+            drive_pins::DC_LINK => udc_volts(p, o.u_dc_v),
             drive_pins::AUX => f64::from(rig.aux_counts) / f64::from(sensors::ADC_MAX) * VREF,
             _ => 0.0,
         }
@@ -358,12 +409,20 @@ mod tests {
 
     #[test]
     fn current_scaling_matches_the_plants_sensor() {
-        for i in [-9.0, -1.234, 0.0, 0.5, 3.0, 9.9] {
-            let v = current_volts(i);
-            let counts = (v / VREF * f64::from(sensors::ADC_MAX)).round() as u16;
-            assert_eq!(counts, sensors::current_counts(SCALING, i), "{i} A");
-            assert!((volts_current(v) - i).abs() < 1e-9);
+        use firmware_drive::comparators::{B_G431B_ESC1, SOURCE_SENSORS};
+        for p in [&SOURCE_SENSORS, &B_G431B_ESC1] {
+            let gain = f64::from(p.front_end.gain_of(Signal::CurrentA));
+            for i in [-9.0, -1.234, 0.0, 0.5, 3.0, 9.9] {
+                let v = current_volts(p, Signal::CurrentA, i);
+                // What the ADC converts: the pin, times the amplifier's gain.
+                let counts = (v * gain / VREF * f64::from(sensors::ADC_MAX)).round() as u16;
+                assert_eq!(counts, sensors::current_counts(&p.scaling, i), "{i} A");
+                assert!((volts_current(p, Signal::CurrentA, v) - i).abs() < 1e-9);
+            }
         }
+        // The bare ESC1 at 0 A: about 0.103 V at the PGA input (review D4).
+        let v = current_volts(&B_G431B_ESC1, Signal::CurrentB, 0.0);
+        assert!((v - 0.1031).abs() < 0.001, "{v} V");
         assert_eq!(pin_id("PC13"), Some((2, 13)));
     }
 }

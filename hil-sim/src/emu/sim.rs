@@ -31,7 +31,7 @@ use shared_protocol::link::message::{DriveMsg, DriveStatus, PlcMsg};
 use shared_protocol::link::FrameReader;
 use shared_protocol::program::Program;
 
-use super::boards::{drive_pins, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
+use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
 use crate::mcu::Lcd;
 use crate::plant::Plant;
 use crate::scenario::{Action, Input, Scenario};
@@ -170,8 +170,21 @@ impl EmuSim {
             },
         )
         .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))?;
+        // The emulated board is the one the drive image was built for (its
+        // `DRIVE_BOARD_PROFILE` marker), whatever the scenario's `[plant] board` says: an
+        // image for the bare ESC1 reads its shunt amplifiers, one built with
+        // `source-sensors` the source's sensors.
+        let drive_image = g431_emu::elf::Image::load(drive_elf)
+            .with_context(|| format!("drive image {}", drive_elf.display()))?;
+        let mut scenario = scenario;
+        scenario.rig.board = image_board(&drive_image).with_context(|| {
+            format!(
+                "drive image {} has no known DRIVE_BOARD_PROFILE marker",
+                drive_elf.display()
+            )
+        })?;
         let rig = Rc::new(RefCell::new(Rig::new(Plant::new(scenario.rig))));
-        let drive = Mcu::load("drive", drive_elf, Box::new(DriveBoard::new(rig.clone())))
+        let drive = Mcu::new("drive", drive_image, Box::new(DriveBoard::new(rig.clone())))
             .with_context(|| format!("drive image {}", drive_elf.display()))?;
         let io = Rc::new(RefCell::new(PlcIo::default()));
         let mut plc = Mcu::load("plc", plc_elf, Box::new(PlcBoard::new(io.clone())))

@@ -134,6 +134,20 @@ pub struct PlantOutputs {
     pub u_ab_v: f64,
 }
 
+/// A disturbance of one sensed phase current during part of a PWM period (a switching
+/// spike or ringing on the shunt): what the comparators see, not the motor's current.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SenseSpike {
+    /// Inverter leg 0..=2.
+    pub phase: usize,
+    /// Added to the sensed current, A.
+    pub amps: f64,
+    /// From/to this time into the period, ns (the valley of the counter is at half the
+    /// period).
+    pub from_ns: u64,
+    pub to_ns: u64,
+}
+
 /// The rig's state and the command it is under.
 #[derive(Debug, Clone)]
 pub struct Plant {
@@ -156,6 +170,13 @@ pub struct Plant {
     comparators: Comparators,
     /// Comparator outputs after the last step.
     comparator_levels: ComparatorLevels,
+    /// TIM1's OC5 blanking window of this period: half its length either side of the
+    /// counter's valley, ns (0: none). In this model's period the valley is at
+    /// `period_ns / 2` (high switches on in the middle).
+    blank_half_ns: u64,
+    /// A disturbance of the sensed current in this period (armed for the next one).
+    spike: Option<SenseSpike>,
+    armed_spike: Option<SenseSpike>,
     /// Mechanical angle, rad (for plots and tests of reversal).
     angle_rad: f64,
     /// Integrals over the running PWM period: leg fractions, line voltage a-b, time (s).
@@ -181,6 +202,9 @@ impl Plant {
             break_flag: false,
             comparators: Comparators::new(params.board, params.hw_defaults.thresholds()),
             comparator_levels: ComparatorLevels::default(),
+            blank_half_ns: 0,
+            spike: None,
+            armed_spike: None,
             angle_rad: 0.0,
             period_acc: ([0.0; 3], 0.0, 0.0),
             period_avg: ([0.0; 3], 0.0),
@@ -206,7 +230,32 @@ impl Plant {
         self.period_acc = ([0.0; 3], 0.0, 0.0);
         self.period_ns = period_ns.max(1);
         self.tau_ns = 0;
+        self.spike = self.armed_spike.take();
         self.set_command(cmd);
+    }
+
+    /// The running PWM period, ns.
+    pub fn period_ns(&self) -> u64 {
+        self.period_ns
+    }
+
+    /// TIM1's OC5 window for the period just started (RM0440: OC5REF in PWM mode 1 is
+    /// active while CNT < CCR5; `firmware_drive::blanking`): `ccr5` of `arr` counts. While
+    /// it is active the comparators the board profile marks `blanked` output 0.
+    pub fn set_blanking(&mut self, ccr5: u16, arr: u16) {
+        let half = self.period_ns / 2;
+        self.blank_half_ns = (u64::from(ccr5.min(arr)) * half) / u64::from(arr.max(1));
+    }
+
+    /// The blanking window is active at `tau_ns` into the period.
+    pub fn blanking_at(&self, tau_ns: u64) -> bool {
+        self.blank_half_ns > 0 && tau_ns.abs_diff(self.period_ns / 2) < self.blank_half_ns
+    }
+
+    /// Adds `spike` to the sensed current of the next PWM period (the comparators see it;
+    /// the motor does not: a switching spike or ringing on a shunt).
+    pub fn inject_sense_spike(&mut self, spike: SenseSpike) {
+        self.armed_spike = Some(spike);
     }
 
     /// Changes the gate command now, inside the period (MOE or an output enable written).
@@ -354,13 +403,14 @@ impl Plant {
                         .min(self.tau_ns.saturating_add(left))
                 }
             };
+            let seg_end = seg_end.min(self.next_sense_boundary(self.tau_ns));
             let seg = seg_end.saturating_sub(self.tau_ns).max(1).min(left);
             let conns = self.conns();
             let n = seg.div_ceil(MAX_STEP_NS);
             let mut done = 0;
             for k in 0..n {
                 let step = (seg * (k + 1)) / n - (seg * k) / n;
-                self.step(step, conns);
+                self.step(step, conns, self.tau_ns + done + step);
                 done += step;
                 if self.hw_break && conns.iter().any(|c| matches!(c, Conn::Frac(_))) {
                     // The break forces every leg off at once: finish the segment floating.
@@ -370,6 +420,26 @@ impl Plant {
             self.tau_ns = self.tau_ns.saturating_add(done);
             left -= done;
         }
+    }
+
+    /// The next instant after `tau_ns` at which what the comparators see changes by
+    /// itself (a blanking-window or sense-spike edge), so that a step ends there.
+    fn next_sense_boundary(&self, tau_ns: u64) -> u64 {
+        let mid = self.period_ns / 2;
+        let mut edges = [u64::MAX; 4];
+        if self.blank_half_ns > 0 {
+            edges[0] = mid.saturating_sub(self.blank_half_ns);
+            edges[1] = mid + self.blank_half_ns;
+        }
+        if let Some(s) = self.spike {
+            edges[2] = s.from_ns;
+            edges[3] = s.to_ns;
+        }
+        edges
+            .into_iter()
+            .filter(|e| *e > tau_ns)
+            .min()
+            .unwrap_or(u64::MAX)
     }
 
     fn conns(&self) -> [Conn; 3] {
@@ -385,7 +455,7 @@ impl Plant {
     }
 
     /// One RK4 step of `dt_ns` with the legs connected as given.
-    fn step(&mut self, dt_ns: u64, conns: [Conn; 3]) {
+    fn step(&mut self, dt_ns: u64, conns: [Conn; 3], tau_end_ns: u64) {
         let h = dt_ns as f64 * 1e-9;
         let all_float = conns.iter().all(|c| matches!(c, Conn::Float));
         let (i_s, _) = self.stator(&self.x);
@@ -442,7 +512,30 @@ impl Plant {
             self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
         }
         let o = self.outputs();
-        self.comparator_levels = self.comparators.levels(o.i_abc_a, o.u_dc_v);
+        let mut sensed = o.i_abc_a;
+        if let Some(sp) = self.spike {
+            if (sp.from_ns..=sp.to_ns).contains(&tau_end_ns) {
+                if let Some(i) = sensed.get_mut(sp.phase) {
+                    *i += sp.amps;
+                }
+            }
+        }
+        let mut levels = self.comparators.levels(sensed, o.u_dc_v);
+        if self.blanking_at(tau_end_ns) {
+            // RM0440: a blanked comparator's output (and VALUE) is 0 during the window.
+            for spec in self
+                .comparators
+                .board
+                .comparators
+                .iter()
+                .filter(|c| c.blanked)
+            {
+                if let Some(l) = levels.0.get_mut(usize::from(spec.comp.saturating_sub(1))) {
+                    *l = false;
+                }
+            }
+        }
+        self.comparator_levels = levels;
         // The comparators are ORed into the break input (active high, level-sensitive):
         // while one is high, MOE is cleared and BIF set.
         if self.break_input_active() {

@@ -61,7 +61,12 @@ pub fn udc_counts(sc: &SensorScaling, u_v: f64) -> u16 {
 
 /// Current a count stands for (the inverse the drive applies, at the nominal zero).
 pub fn counts_to_current(sc: &SensorScaling, c: u16) -> f64 {
-    (f64::from(c) - f64::from(sc.current_zero_counts)) * 1000.0
+    counts_to_current_f(sc, f64::from(c))
+}
+
+/// Current an ADC reading (not quantised) stands for, at the nominal zero.
+pub fn counts_to_current_f(sc: &SensorScaling, counts: f64) -> f64 {
+    (counts - f64::from(sc.current_zero_counts)) * 1000.0
         / f64::from(sc.current_millicounts_per_amp)
 }
 

@@ -91,3 +91,54 @@ fn both_images_boot_to_idle_and_stop() {
         sim.plc().diagnostics()
     );
 }
+
+/// Review D4: the image users flash is for the bare B-G431B-ESC1. It puts OPAMP1-3 in PGA
+/// mode (gain 16, VINP0 = PA1, PA7, PB0, output to the ADC internally), the ADCs read the
+/// amplifier outputs (ADC1 IN13, ADC2 IN16), and with the plant at 0 A (about 0.103 V on
+/// the PGA inputs) the boot zero calibration passes: IDLE, no `BOOT` fault.
+#[test]
+fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current() {
+    use firmware_drive::comparators::B_G431B_ESC1;
+    use g431_emu::periph::adc::AdcId;
+    use g431_emu::periph::opamp::{OpampInput, OpampMode};
+
+    let (drive, _) = crate::common::images();
+    let image = g431_emu::elf::Image::load(drive).expect("drive image");
+    let board = hil_sim::emu::boards::image_board(&image).expect("profile marker");
+    if board != &B_G431B_ESC1 {
+        // A `source-sensors` build (not what CI tests or users flash): its pins carry the
+        // source's sensors, `both_images_boot_to_idle_and_stop` covers it.
+        return;
+    }
+    let mut sim = emu(MOTOR_PLC, STAY_STOPPED);
+    sim.run_until(ns(0.3), |_| {});
+    assert_eq!(sim.rig().plant.params().board, &B_G431B_ESC1);
+    assert!(
+        sim.drive()
+            .log()
+            .iter()
+            .any(|l| l.message.contains("board profile: B-G431B-ESC1")),
+        "{:?}",
+        sim.drive()
+            .log()
+            .iter()
+            .map(|l| &l.message)
+            .collect::<Vec<_>>()
+    );
+    let amps = sim.drive().soc().opamps().expect("OPAMP model");
+    for (n, pin) in [(1, "PA1"), (2, "PA7"), (3, "PB0")] {
+        let c = amps.config(n).expect("OPAMPn");
+        assert!(c.enabled && c.internal_only && !c.calibrating, "{c:?}");
+        assert_eq!(c.vinp, OpampInput::Pin(pin));
+        assert_eq!(c.mode, OpampMode::Pga { gain: 16 });
+    }
+    // 0.103 V x 16 = 1.65 V: mid-scale on both current channels (the pins themselves
+    // would read about 128 counts, review D4's "-9.4 A").
+    let adc = sim.drive().soc().adc12().expect("ADC model");
+    for (id, what) in [(AdcId::Adc1, "i_a"), (AdcId::Adc2, "i_b")] {
+        let c = adc.jdr(id, 1);
+        assert!((2000..=2100).contains(&c), "{what}: {c} counts");
+    }
+    assert_eq!(sim.status().map(|s| s.state), Some(DriveState::Idle));
+    assert!(sim.faults().is_empty(), "{:?}", sim.faults());
+}

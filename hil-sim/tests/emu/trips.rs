@@ -4,6 +4,11 @@ use g431_emu::cpu::CpuEvent;
 use g431_emu::periph::rcc::ResetKind;
 use g431_emu::time::cycles_to_ns;
 
+use firmware_drive::comparators::{BoardProfile, HwThresholds, Signal};
+use firmware_drive::measure::FrontEnd;
+use hil_sim::plant::sensors;
+use shared_protocol::units::{CentiAmps, Volts};
+
 use crate::common::{emu, ns, MOTOR_PLC};
 
 const START_50HZ: &str = r#"
@@ -20,6 +25,23 @@ press = "D00"
 /// software limit `I>` (2 A): the DAC values come from the downloaded section.
 fn motor_with_low_hw_limit() -> String {
     MOTOR_PLC.replace("025 frv K20 0200", "025 frv K20 0200\n026 I>> K21 0120")
+}
+
+/// The phase current at which the image's phase-a comparator trips for `I>>` of
+/// `oc_centiamps` (nominal zero: the emulated sensors have no offset).
+fn trip_level_a(board: &BoardProfile, oc_centiamps: i16) -> f64 {
+    let t = HwThresholds {
+        oc_hw: CentiAmps(oc_centiamps),
+        ov_hw: Volts(30),
+    };
+    let fe = FrontEnd::new(board.scaling);
+    let spec = board
+        .comparators
+        .iter()
+        .find(|s| s.signal == Signal::CurrentA)
+        .expect("phase a comparator");
+    let signal_counts = f64::from(spec.dac_counts(t, &fe)) * f64::from(spec.input_divider);
+    sensors::counts_to_current_f(&board.scaling, signal_counts)
 }
 
 #[test]
@@ -42,13 +64,20 @@ fn a_comparator_break_latches_the_outputs_off_with_oc_hw() {
         .filter(|s| s.t_ns > t_trip + ns(0.05))
         .all(|s| s.i_abc_a.iter().all(|i| i.abs() < 0.05)));
     // Before the trip no phase exceeded the level by more than what one PWM period of a
-    // locked rotor adds (the comparators are sampled twice per period).
+    // locked rotor adds (the comparators are sampled twice per period). The level is the
+    // image's board's: on the bare ESC1 the comparators watch the PGA inputs, where the
+    // DAC's step is 0.47 A and the core rounds 1.2 A down to the step at or below it.
+    let level = trip_level_a(sim.rig().plant.params().board, 120);
+    assert!(level <= 1.2 && level > 0.7, "trip level {level} A");
     let peak = samples
         .iter()
         .filter(|s| s.t_ns < t_trip)
         .flat_map(|s| s.i_abc_a)
         .fold(0.0f64, f64::max);
-    assert!(peak > 1.1 && peak < 1.4, "peak before the trip {peak} A");
+    assert!(
+        peak > level - 0.1 && peak < level + 0.2,
+        "peak before the trip {peak} A, level {level} A"
+    );
     let tim1 = sim.drive().soc().tim1().expect("TIM1").gate();
     assert!(!tim1.moe, "MOE set again after the break");
 }
@@ -121,4 +150,65 @@ fn a_late_watchdog_feed_resets_the_drive_and_the_plc_shows_wdg() {
         "{:?}",
         sim.faults()
     );
+}
+
+/// Review D10 on the real image: TIM1's OC5 (CCR5 from the core every period) blanks
+/// COMP1/2/4 in a window around the counter's valley that holds every switching edge. A
+/// 0.8 us, +3 A spike on phase a's sense signal centred on the valley, in 20 periods,
+/// trips nothing; the same spike centred on the peak, where the comparators stay live,
+/// trips `OC_HW`. (A sustained overcurrent: `a_comparator_break_latches_the_outputs_off_with_oc_hw`,
+/// with the window in place.)
+#[test]
+fn a_spike_inside_the_blanking_window_does_not_trip_outside_it_trips_oc_hw() {
+    use g431_emu::time::ns_to_cycles;
+    use hil_sim::emu::boards::SenseSpikeAt;
+
+    // I>> 1.50 A: above the start-up current on either board profile's steps.
+    let program = MOTOR_PLC.replace("025 frv K20 0200", "025 frv K20 0200\n026 I>> K21 0150");
+    let mut sim = emu(&program, START_50HZ);
+    sim.run_until(ns(1.5), |_| {});
+    assert!(sim.faults().is_empty(), "{:?}", sim.faults());
+    let g = sim.drive().soc().tim1().expect("TIM1").gate();
+    assert!(g.outputs_enabled, "the motor runs");
+    // The comparators of the phases are blanked by TIM1_OC5, the DC link's is not.
+    let comps = sim.drive().soc().comps().expect("COMP model");
+    for n in 1..=4 {
+        let c = comps.config(n).expect("COMPn");
+        let tim1_oc5 = c.blanking == Some(g431_emu::periph::comp::BlankingSource::Tim1Oc5);
+        assert_eq!(tim1_oc5, n != 3, "COMP{n}: {c:?}");
+    }
+    let origin = g.phase_origin.expect("counting");
+    let count = g.cycles_per_count;
+    let period = 2 * u64::from(g.arr) * count;
+    // The next valley from now (in cycles), then a spike centred on it for 20 periods.
+    let now = ns_to_cycles(sim.now_ns());
+    let first = origin + (now.saturating_sub(origin) / period + 2) * period;
+    let spike = |centre: u64| SenseSpikeAt {
+        phase: 0,
+        amps: 3.0,
+        from_ns: cycles_to_ns(centre) - 400,
+        to_ns: cycles_to_ns(centre) + 400,
+    };
+    {
+        let mut rig = sim.rig_mut();
+        for k in 0..20 {
+            rig.sense_spikes.push(spike(first + k * period));
+        }
+    }
+    // 50 ms more: a fault would have reached the PLC's status by then.
+    sim.run_until(cycles_to_ns(first + 21 * period) + ns(0.05), |_| {});
+    assert!(
+        sim.faults().is_empty(),
+        "tripped by blanked spikes: {:?}",
+        sim.faults()
+    );
+    // The same spike at the next peak (half a period after a valley).
+    let g = sim.drive().soc().tim1().expect("TIM1").gate();
+    let origin = g.phase_origin.expect("counting");
+    let now = ns_to_cycles(sim.now_ns());
+    let valley = origin + (now.saturating_sub(origin) / period + 2) * period;
+    sim.rig_mut().sense_spikes.push(spike(valley + period / 2));
+    sim.run_until(cycles_to_ns(valley) + ns(0.05), |_| {});
+    let codes: Vec<u8> = sim.faults().iter().map(|f| f.code).collect();
+    assert_eq!(codes, vec![2], "faults {:?}", sim.faults());
 }
