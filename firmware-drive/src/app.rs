@@ -27,9 +27,7 @@
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
 use shared_protocol::link::drive::{DriveEvent as LinkEvent, DriveLink, DriveLinkState};
-use shared_protocol::link::{
-    DriveState as WireState, DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig,
-};
+use shared_protocol::link::{DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig};
 use shared_protocol::units::Micros;
 
 use crate::config::{DriveConfig, ResetCause};
@@ -70,7 +68,7 @@ const APP_EVENTS: usize = 32;
 pub struct DriveApp {
     core: DriveCore,
     link: DriveLink,
-    unreported: heapless::Deque<u8, UNREPORTED>,
+    unreported: heapless::Deque<FaultCode, UNREPORTED>,
     events: heapless::Deque<AppEvent, APP_EVENTS>,
     /// The timing TIM1 is programmed with (the last one a [`PeriodAction`] carried).
     programmed: PwmTiming,
@@ -151,11 +149,11 @@ impl DriveApp {
     pub fn tick_1ms(&mut self, now: Micros) {
         self.link.tick(now);
         self.apply_link_events();
-        let mut faults: heapless::Vec<u8, 16> = heapless::Vec::new();
+        let mut faults: heapless::Vec<FaultCode, 16> = heapless::Vec::new();
         let mut core_events: heapless::Vec<DriveEvent, 20> = heapless::Vec::new();
         self.core.tick_1ms(&mut |e| {
             if let DriveEvent::Fault(f) = e {
-                let _ = faults.push(f.code());
+                let _ = faults.push(f);
             }
             let _ = core_events.push(e);
         });
@@ -262,13 +260,8 @@ impl DriveApp {
 /// The link's status frame from the core's status.
 pub fn wire_status(s: &DriveStatus) -> WireStatus {
     WireStatus {
-        state: match s.state {
-            DriveState::Boot => WireState::Boot,
-            DriveState::Idle => WireState::Idle,
-            DriveState::Run => WireState::Run,
-            DriveState::Fault => WireState::Fault,
-        },
-        fault: s.fault.map_or(0, |f| f.code()),
+        state: s.state,
+        fault: s.fault,
         freq_dhz: s.f_applied.0,
         reverse: s.reverse,
         udc_dv: s.u_dc.0,

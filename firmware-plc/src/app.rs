@@ -37,7 +37,8 @@
 use shared_protocol::link::plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
 use shared_protocol::link::Q_COUNT;
 use shared_protocol::link::{
-    fault_text, DownloadResult, DriveState, DriveStatus, DriveWarning, LinkConfig, RejectReason,
+    fault_text, DownloadResult, DriveState, DriveStatus, DriveWarning, FaultCode, LinkConfig,
+    RejectReason,
 };
 use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
@@ -87,7 +88,7 @@ pub struct Alerts {
     pub run: RunState,
     pub link: PlcLinkState,
     pub drive_state: Option<DriveState>,
-    pub drive_fault: Option<u8>,
+    pub drive_fault: Option<FaultCode>,
     pub newest_fault: Option<u8>,
     pub warning: Option<vm::Warning>,
     pub drive_warning: Option<DriveWarning>,
@@ -335,7 +336,7 @@ impl<E: Eeprom> PlcApp<E> {
             run: self.run,
             link: self.link.state(),
             drive_state: drive.map(|d| d.state),
-            drive_fault: drive.map(|d| d.fault),
+            drive_fault: drive.and_then(|d| d.fault),
             newest_fault: self.newest_fault,
             warning: self.warning,
             drive_warning: drive.and_then(|d| d.warning),
@@ -498,10 +499,10 @@ impl<E: Eeprom> PlcApp<E> {
                 frq: Decihertz(s.freq_dhz),
                 udc: Decivolts(s.udc_dv),
                 imx: CentiAmps(s.imax_ca),
-                flt: s.fault,
+                flt: s.fault.map_or(0, FaultCode::code),
                 dir_reverse: s.reverse,
-                ready: s.state == DriveState::Run && s.fault == 0,
-                fault_latched: s.fault != 0,
+                ready: s.state == DriveState::Run && s.fault.is_none(),
+                fault_latched: s.fault.is_some(),
                 ihw: CentiAmps(s.oc_hw_ca),
                 uhw: Volts(s.ov_hw_v),
             },
@@ -571,6 +572,8 @@ impl<E: Eeprom> PlcApp<E> {
                     });
                 }
                 PlcEvent::DriveFault { code, .. } => {
+                    // The log and `FLT` keep the raw code (the log also holds events).
+                    let code = code.code();
                     self.newest_fault = Some(code);
                     // The PLC's clock, not the drive's: the log's timestamps must be
                     // comparable across drive reboots. Queued: the job runs in
@@ -757,8 +760,8 @@ impl<E: Eeprom> PlcApp<E> {
             freq_dhz: drive.map_or(0, |s| s.freq_dhz),
             reverse: drive.is_some_and(|s| s.reverse),
             fault: drive
-                .map(|s| s.fault)
-                .filter(|&f| f != 0)
+                .and_then(|s| s.fault)
+                .map(FaultCode::code)
                 .or(self.newest_fault.filter(|_| drive.is_none())),
             lcd: self.out.lcd,
             warning,

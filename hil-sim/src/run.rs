@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use firmware_plc::storage::image::{is_image, program_from_image};
+use shared_protocol::fault::fault_name;
 use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
 use crate::mcu::{Lcd, PlcMcu};
@@ -65,11 +66,6 @@ pub struct RunReport {
     /// Each run-time warning seen (one per status-line text: the long text of its first
     /// appearance), with the time it first appeared.
     pub warnings: Vec<(f64, String)>,
-}
-
-/// Fault name for a code.
-pub fn fault_name(code: u8) -> &'static str {
-    shared_protocol::link::message::fault_name(code)
 }
 
 impl RunReport {

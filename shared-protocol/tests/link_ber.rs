@@ -4,6 +4,7 @@
 
 use std::collections::HashMap;
 
+use shared_protocol::fault::FaultCode;
 use shared_protocol::link::channel::{Channel, Impairments};
 use shared_protocol::link::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
 use shared_protocol::link::pair::LinkPair;
@@ -134,7 +135,7 @@ enum Cmd {
 fn status_for(k: u16) -> DriveStatus {
     DriveStatus {
         state: DriveState::Run,
-        fault: 0,
+        fault: None,
         freq_dhz: k as i16,
         reverse: k % 2 == 1,
         udc_dv: (k as i16).wrapping_mul(7),
@@ -200,7 +201,10 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
             r.unwrap();
             issued.push(c);
         }
-        if rng.below(500) == 0 && p.drive.is_up() && p.drive.report_fault(5, faults_reported + 1) {
+        if rng.below(500) == 0
+            && p.drive.is_up()
+            && p.drive.report_fault(FaultCode::Link, faults_reported + 1)
+        {
             faults_reported += 1;
         }
         if rng.below(20) == 0 {
@@ -224,7 +228,7 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
                 PlcEvent::LinkLost { .. } => plc_losses += 1,
                 PlcEvent::Connected => {}
                 PlcEvent::DriveFault {
-                    code: 5,
+                    code: FaultCode::Link,
                     drive_time_ms,
                 } => faults_seen.push(drive_time_ms),
                 other => panic!("unexpected {other:?}"),

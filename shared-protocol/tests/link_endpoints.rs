@@ -1,6 +1,7 @@
 //! Both link endpoints over the byte-timed in-memory UART: handshake, commands, download,
 //! supervision, reconnection, version mismatch.
 
+use shared_protocol::fault::FaultCode;
 use shared_protocol::link::channel::Impairments;
 use shared_protocol::link::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
 use shared_protocol::link::pair::LinkPair;
@@ -134,18 +135,20 @@ fn status_reaches_the_plc_and_state_changes_are_prompt() {
     assert_eq!(p.plc.last_status().map(|(st, _)| st), Some(s));
     // A trip is reported at once (not at the next 10 ms period) and as a reliable event.
     s.state = DriveState::Fault;
-    s.fault = 1;
+    s.fault = Some(FaultCode::Oc);
     p.drive.set_status(s);
-    assert!(p.drive.report_fault(1, 1234));
+    assert!(p.drive.report_fault(FaultCode::Oc, 1234));
     let t0 = p.now;
     let mut seen_status = None;
     let mut seen_event = None;
     p.run_until(Micros(t0.0 + 20_000), |p| {
-        if seen_status.is_none() && p.plc.last_status().map(|x| x.0.fault) == Some(1) {
+        if seen_status.is_none()
+            && p.plc.last_status().map(|x| x.0.fault) == Some(Some(FaultCode::Oc))
+        {
             seen_status = Some(p.now);
         }
         if let Some(PlcEvent::DriveFault {
-            code: 1,
+            code: FaultCode::Oc,
             drive_time_ms: 1234,
         }) = p.plc.poll_event()
         {
@@ -505,7 +508,7 @@ fn a_sequence_disagreement_is_detected_and_healed() {
     // the PLC restarts reusing the session number: the drive takes its Hello for a retry.
     let mut p = connected_pair(115_200);
     for k in 0..3 {
-        assert!(p.drive.report_fault(1, k));
+        assert!(p.drive.report_fault(FaultCode::Oc, k));
     }
     let end = Micros(p.now.0 + 30_000);
     p.run_until(end, |_| {});
@@ -514,11 +517,15 @@ fn a_sequence_disagreement_is_detected_and_healed() {
     let end = Micros(t0.0 + 30_000);
     p.run_until(end, |_| {});
     assert!(p.plc.is_up());
-    assert!(p.drive.report_fault(4, 99));
+    assert!(p.drive.report_fault(FaultCode::Uv, 99));
     let mut got = None;
     p.run_until(Micros(t0.0 + 600_000), |p| {
         while let Some(e) = p.plc.poll_event() {
-            if let PlcEvent::DriveFault { code: 4, .. } = e {
+            if let PlcEvent::DriveFault {
+                code: FaultCode::Uv,
+                ..
+            } = e
+            {
                 got.get_or_insert(p.now.0 - t0.0);
             }
         }

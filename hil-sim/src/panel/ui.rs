@@ -8,7 +8,7 @@ use ratatui::style::{Color, Modifier, Style};
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Paragraph};
 use ratatui::Frame;
-use shared_protocol::link::fault_text;
+use shared_protocol::fault::fault_text;
 
 const LCD_BG: Color = Color::Rgb(150, 190, 70);
 const LCD_FG: Color = Color::Rgb(20, 30, 10);

@@ -29,12 +29,11 @@ pub use drive::{DriveEvent, DriveLink, DriveLinkState};
 pub use frame::{FrameError, FrameReader, MAX_WIRE_FRAME};
 pub use message::{
     fault_name, fault_text, DownloadResult, DriveMsg, DriveState, DriveStatus, DriveWarning,
-    PlcMsg, QValue, RejectReason, PROTOCOL_VERSION,
+    FaultCode, PlcMsg, QValue, RejectReason, PROTOCOL_VERSION,
 };
 pub use plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
 
-/// Number of Q variables (Q00-Q63).
-pub const Q_COUNT: usize = 64;
+pub use crate::program::Q_COUNT;
 
 /// Counters of one endpoint, for diagnostics and tests.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -12,6 +12,7 @@ use super::message::{
 };
 use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::{LinkStats, Q_COUNT};
+use crate::fault::FaultCode;
 use crate::program::{encode_slot, DriveSection, DRIVE_LINES, LINE_BYTES};
 use crate::units::Micros;
 
@@ -55,7 +56,7 @@ pub enum PlcEvent {
     /// The drive's answer to the last download.
     Download(DownloadResult),
     /// The drive tripped.
-    DriveFault { code: u8, drive_time_ms: u32 },
+    DriveFault { code: FaultCode, drive_time_ms: u32 },
 }
 
 /// Why a command was refused.
