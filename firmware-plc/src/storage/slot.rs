@@ -569,7 +569,7 @@ pub fn write_copy<E: Eeprom>(
 
 #[cfg(test)]
 mod tests {
-    use super::super::eeprom::MemEeprom;
+    use super::super::MemEeprom;
     use super::*;
     use shared_protocol::program::{Mnemonic, Operand};
 

@@ -8,16 +8,19 @@
 //!   stall and loss timers, counters, encoding of what goes out).
 //! * [`plc::PlcLink`] and [`drive::DriveLink`]: the two endpoint state machines; the
 //!   firmware crates re-export them as `firmware_plc::link` and `firmware_drive::link`.
-//! * [`channel`]: a byte-timed, impaired in-memory UART for tests, benchmarks and hil-sim.
+//! * `channel` and `pair` (feature `sim`): a byte-timed, impaired in-memory UART and the
+//!   two endpoints wired over it, for tests, benchmarks and hil-sim; never in the images.
 //!
 //! The full description (frame layout, messages, timing, decisions) is `docs/link.md`
 //! in this crate.
 
+#[cfg(any(test, feature = "sim"))]
 pub mod channel;
 pub mod config;
 pub mod drive;
 pub mod frame;
 pub mod message;
+#[cfg(any(test, feature = "sim"))]
 pub mod pair;
 pub mod plc;
 pub mod pump;
