@@ -95,7 +95,7 @@ impl MemEeprom {
         self.bytes_written
     }
 
-    /// Page write cycles since creation (each costs up to [`PAGE_WRITE_MS`] on the chip).
+    /// Page write cycles since creation (each costs up to [`PAGE_WRITE_MS`](super::eeprom::PAGE_WRITE_MS) on the chip).
     pub fn pages_written(&self) -> u32 {
         self.pages_written
     }
