@@ -8,7 +8,7 @@ use firmware_plc::storage::image::{is_image, program_from_image};
 use shared_protocol::fault::fault_name;
 use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
-use crate::mcu::{Lcd, PlcMcu};
+use crate::mcu::Lcd;
 use crate::scenario::Scenario;
 use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
 
@@ -171,7 +171,6 @@ pub fn run(
 }
 
 fn firmware_drive_status(sim: &Simulation) -> (&'static str, f64) {
-    use crate::mcu::DriveMcu;
     let s = sim.drive().status();
     (s.state.name(), f64::from(s.f_applied.0) / 10.0)
 }

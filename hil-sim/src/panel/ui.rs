@@ -87,12 +87,6 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
     let s = app.status();
     let mut v = Vec::new();
     v.push(Line::from(format!("t = {:.1} s", s.t_s)));
-    if !s.simulated {
-        v.push(Line::from(Span::styled(
-            "editor only: no simulated rig",
-            Style::default().fg(Color::Yellow),
-        )));
-    }
     v.push(Line::from(format!(
         "PLC {}   drive {}",
         if s.plc_running { "RUN" } else { "STOP" },
