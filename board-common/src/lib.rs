@@ -9,7 +9,8 @@
 //! * `boot`: the boot sequence (reset cause, embassy at 170 MHz, interrupt priorities
 //!   below the drive's TIM1, boot line).
 //! * `banner`: the boot line.
-//! * `debug`: what a halted core freezes (DBGMCU).
+//! * `debug`: what a halted core freezes (DBGMCU), and `halt` (debugger or reset), the end
+//!   of both images' panic and fault handlers.
 //! * `supervisor`: the task that feeds the IWDG while every task reports alive.
 //! * `link`: the link USART (pull-up on RX, line-error recovery) and the pump task.
 //! * `cycles`: DWT cycle counters (feature `dwt-cycles`).
