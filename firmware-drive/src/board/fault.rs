@@ -32,7 +32,6 @@ fn safe_state() {
     pins::force_power_outputs_low();
 }
 
-
 /// A check of the board layer failed: outputs off, the reason logged, halt.
 pub fn fatal(reason: &'static str) -> ! {
     cortex_m::interrupt::disable();

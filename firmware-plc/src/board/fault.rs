@@ -19,7 +19,6 @@ use cortex_m_rt::{exception, ExceptionFrame};
 
 use crate::pins;
 
-
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
