@@ -1,4 +1,5 @@
-//! What stops while a debugger halts the core (DBGMCU, RM0440 §47.16).
+//! What stops while a debugger halts the core (DBGMCU, RM0440 §47.16), and [`halt`], the
+//! end of both images' panic and fault handlers.
 //!
 //! Review D15: the IWDG keeps counting while the core is halted, so about 100 ms after a
 //! breakpoint (or the `bkpt` after a panic) the MCU resets, every breakpoint reboots the
@@ -15,4 +16,19 @@ pub fn freeze_watchdog_when_halted() {
     if cfg!(debug_assertions) {
         pac::DBGMCU.apb1lfzr().modify(|w| w.set_iwdg(true));
     }
+}
+
+/// After a panic or fault (the board has already made its outputs safe and logged):
+/// stops for a debugger (`bkpt`: probe-rs then prints the backtrace) or, without one,
+/// resets the MCU at once. The reset cause then reads as a software reset. It does not
+/// wait for the watchdog, which may not have been started yet (a panic during start-up).
+pub fn halt() -> ! {
+    // C_DEBUGEN: a debugger is attached.
+    const DHCSR: *const u32 = 0xE000_EDF0 as *const u32;
+    // SAFETY: DHCSR is a core debug register, always mapped and readable.
+    let debugger = unsafe { core::ptr::read_volatile(DHCSR) } & 1 != 0;
+    if debugger {
+        cortex_m::asm::bkpt();
+    }
+    cortex_m::peripheral::SCB::sys_reset()
 }

@@ -4,19 +4,20 @@
 //! feeding rule and the reset-cause decoding (`shared_protocol::supervision`), the log
 //! rate limiter (`shared_protocol::rate_limit`).
 //!
-//! * [`clocks`]: the 170 MHz configuration both boards run at.
-//! * [`reset_cause`]: RCC_CSR read and cleared before embassy starts.
-//! * [`boot`]: the boot sequence (reset cause, embassy at 170 MHz, interrupt priorities
+//! * `clocks`: the 170 MHz configuration both boards run at.
+//! * `reset_cause`: RCC_CSR read and cleared before embassy starts.
+//! * `boot`: the boot sequence (reset cause, embassy at 170 MHz, interrupt priorities
 //!   below the drive's TIM1, boot line).
-//! * [`banner`]: the boot line.
-//! * [`debug`]: what a halted core freezes (DBGMCU).
-//! * [`supervisor`]: the task that feeds the IWDG while every task reports alive.
-//! * [`link`]: the link USART (pull-up on RX, line-error recovery) and the pump task.
-//! * [`cycles`]: DWT cycle counters (feature `dwt-cycles`).
-//! * [`time`]: the monotonic clock the cores take.
+//! * `banner`: the boot line.
+//! * `debug`: what a halted core freezes (DBGMCU), and `halt` (debugger or reset), the end
+//!   of both images' panic and fault handlers.
+//! * `supervisor`: the task that feeds the IWDG while every task reports alive.
+//! * `link`: the link USART (pull-up on RX, line-error recovery) and the pump task.
+//! * `cycles`: DWT cycle counters (feature `dwt-cycles`).
+//! * `time`: the monotonic clock the cores take.
 //!
-//! Target only: on the host this crate is empty, so `cargo test --workspace` never builds
-//! embassy.
+//! Target only: on the host this crate is empty (so the module names above are plain text
+//! in the host docs), and `cargo test --workspace` never builds embassy.
 #![no_std]
 
 #[cfg(target_os = "none")]

@@ -29,13 +29,13 @@
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
 use shared_protocol::link::drive::{DriveEvent as LinkEvent, DriveLink, DriveLinkState};
-use shared_protocol::link::{
-    DriveState as WireState, DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig,
-};
+use shared_protocol::link::{DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig};
 use shared_protocol::units::Micros;
 
 use crate::config::{DriveConfig, ResetCause};
-use crate::drive::{CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, PwmCommand};
+use crate::drive::{
+    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, PwmCommand, EVENT_QUEUE,
+};
 use crate::measure::AdcSample;
 use crate::power_port::{BreakMonitor, BreakReport, ComparatorLevels, PeriodAction};
 use crate::protection::{FaultCode, HwBreak};
@@ -68,11 +68,14 @@ pub enum AppEvent {
 
 const APP_EVENTS: usize = 32;
 
+/// Most events one [`DriveCore::tick_1ms`] delivers.
+const TICK_EVENTS: usize = EVENT_QUEUE + 1;
+
 /// The drive application.
 pub struct DriveApp {
     core: DriveCore,
     link: DriveLink,
-    unreported: heapless::Deque<u8, UNREPORTED>,
+    unreported: heapless::Deque<FaultCode, UNREPORTED>,
     events: heapless::Deque<AppEvent, APP_EVENTS>,
     /// The timing TIM1 is programmed with (the last one a [`PeriodAction`] carried).
     programmed: PwmTiming,
@@ -124,6 +127,7 @@ impl DriveApp {
         if self.events.is_full() {
             self.events.pop_front();
         }
+        // Cannot fail: room was made above (the newest events are kept).
         let _ = self.events.push_back(e);
     }
 
@@ -135,6 +139,7 @@ impl DriveApp {
 
     /// The next frame for the UART (0 = nothing now); `out` must hold
     /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes.
+    #[must_use = "the frame in `out` must be sent"]
     pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
         let n = self.link.poll_transmit(now, out);
         // A link loss is detected by the timers poll_transmit runs.
@@ -153,11 +158,13 @@ impl DriveApp {
     pub fn tick_1ms(&mut self, now: Micros) {
         self.link.tick(now);
         self.apply_link_events();
-        let mut faults: heapless::Vec<u8, 16> = heapless::Vec::new();
-        let mut core_events: heapless::Vec<DriveEvent, 20> = heapless::Vec::new();
+        // A tick delivers at most its queue of EVENT_QUEUE events plus `EventsLost`: the
+        // pushes below cannot fail.
+        let mut faults: heapless::Vec<FaultCode, TICK_EVENTS> = heapless::Vec::new();
+        let mut core_events: heapless::Vec<DriveEvent, TICK_EVENTS> = heapless::Vec::new();
         self.core.tick_1ms(&mut |e| {
             if let DriveEvent::Fault(f) = e {
-                let _ = faults.push(f.code());
+                let _ = faults.push(f);
             }
             let _ = core_events.push(e);
         });
@@ -168,6 +175,7 @@ impl DriveApp {
             if self.unreported.push_back(code).is_err() {
                 // Keep the newest reports.
                 self.unreported.pop_front();
+                // Cannot fail: room was made just above.
                 let _ = self.unreported.push_back(code);
             }
         }
@@ -184,6 +192,7 @@ impl DriveApp {
     /// The PWM interrupt: measurements and trips in, what the power stage does this period
     /// out (perform it with [`PeriodAction::apply`]).
     #[inline]
+    #[must_use = "the action must be applied to the power stage"]
     pub fn pwm_period(&mut self, adc: &AdcSample) -> PeriodAction {
         let cmd: PwmCommand = self.core.pwm_period(adc);
         let wanted = self.core.pwm_timing();
@@ -197,6 +206,7 @@ impl DriveApp {
     /// The TIM1 break interrupt with the comparators at `levels` (the hardware has
     /// already opened every switch; the board has cleared the flag and masked the
     /// interrupt): the causes are latched as faults.
+    #[must_use = "the report says whether to re-arm the break input"]
     pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
         let report = self.breaks.fired(self.core.config().board, levels);
         for (cause, fired) in HwBreak::ALL.into_iter().zip(report.fired) {
@@ -210,6 +220,7 @@ impl DriveApp {
     /// Every millisecond, with the comparators at `levels`: causes whose comparators went
     /// low are released (the fault stays latched until ACK); `rearm` tells the board to
     /// clear the break flag and unmask the break interrupt.
+    #[must_use = "the report says whether to re-arm the break input"]
     pub fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
         let report = self.breaks.poll(self.core.config().board, levels);
         for (cause, released) in HwBreak::ALL.into_iter().zip(report.released) {
@@ -259,13 +270,8 @@ impl DriveApp {
 /// The link's status frame from the core's status.
 pub fn wire_status(s: &DriveStatus) -> WireStatus {
     WireStatus {
-        state: match s.state {
-            DriveState::Boot => WireState::Boot,
-            DriveState::Idle => WireState::Idle,
-            DriveState::Run => WireState::Run,
-            DriveState::Fault => WireState::Fault,
-        },
-        fault: s.fault.map_or(0, |f| f.code()),
+        state: s.state,
+        fault: s.fault,
         freq_dhz: s.f_applied.0,
         reverse: s.reverse,
         udc_dv: s.u_dc.0,

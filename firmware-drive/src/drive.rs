@@ -498,6 +498,7 @@ impl DriveCore {
 
     /// The PWM interrupt: measurements, software trips and the duties for the next period.
     #[inline]
+    #[must_use = "the command must reach the power stage"]
     pub fn pwm_period(&mut self, raw: &AdcSample) -> PwmCommand {
         if self.state == DriveState::Boot {
             self.zero_cal.add(raw, &self.cfg.board.scaling);
@@ -741,7 +742,7 @@ mod tests {
 
     fn running(f: i16) -> DriveCore {
         let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
-        core.pwm_period(&ok_sample());
+        let _ = core.pwm_period(&ok_sample());
         events(&mut core);
         core.load_program(&section(SINE)).expect("valid");
         core.command(DriveCommand::SetQ { addr: 1, value: f })
@@ -784,7 +785,7 @@ mod tests {
     #[test]
     fn current_sensor_offset_fails_the_self_test() {
         let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
-        core.pwm_period(&AdcSample {
+        let _ = core.pwm_period(&AdcSample {
             i_a: 2048 + 400,
             ..ok_sample()
         });
@@ -816,7 +817,7 @@ mod tests {
         let text = "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n\
                     004 LD K01 0500\n005 WR PW3\n006 fmn K02 0050\n";
         let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
-        core.pwm_period(&ok_sample());
+        let _ = core.pwm_period(&ok_sample());
         events(&mut core);
         core.load_program(&section(text)).unwrap();
         core.command(DriveCommand::SetQ { addr: 1, value: 10 })
@@ -878,7 +879,7 @@ mod tests {
             core.command(DriveCommand::Ack),
             Err(CommandError::CauseActive(FaultCode::Oc))
         );
-        core.pwm_period(&ok_sample());
+        let _ = core.pwm_period(&ok_sample());
         // The PLC still commands 50 Hz: refused.
         assert_eq!(
             core.command(DriveCommand::Ack),
@@ -1120,7 +1121,7 @@ mod tests {
     #[test]
     fn status_scales_measurements() {
         let mut core = running(500);
-        core.pwm_period(&AdcSample {
+        let _ = core.pwm_period(&AdcSample {
             i_a: 2048 + 205,
             i_b: 2048 - 100,
             u_dc: 2730,

@@ -1,109 +1,12 @@
-//! Fault codes and the per-PWM-period checks (drive.md "Trips"). Limits from the program
-//! (V, 0.01 A) are converted to ADC counts once, when the program sets them, so that the
-//! interrupt only compares integers.
+//! The per-PWM-period checks (drive.md "Trips"). Limits from the program (V, 0.01 A) are
+//! converted to ADC counts once, when the program sets them, so that the interrupt only
+//! compares integers.
 
 use crate::measure::{udc_counts_at_volts, AdcSample};
 
-/// Latched fault codes (drive.md table; `Boot` is this project's addition).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-#[repr(u8)]
-pub enum FaultCode {
-    /// Software overcurrent: |i_a| or |i_b| above `I>`.
-    Oc = 1,
-    /// Hardware comparator on a phase current (TIM1 break input).
-    OcHw = 2,
-    /// Hardware comparator on the DC link (TIM1 break input).
-    OvHw = 3,
-    /// DC link below `U<` while the PWM is on.
-    Uv = 4,
-    /// No valid frame from the PLC within the link timeout in RUN.
-    Link = 5,
-    /// Drive section rejected on download.
-    Prog = 6,
-    /// The drive restarted through its watchdog.
-    Wdg = 7,
-    /// Extension: the boot self-test failed (sine table, timer setup or current-sensor
-    /// offset out of tolerance).
-    Boot = 8,
-}
-
-impl FaultCode {
-    pub const ALL: [FaultCode; 8] = [
-        FaultCode::Oc,
-        FaultCode::OcHw,
-        FaultCode::OvHw,
-        FaultCode::Uv,
-        FaultCode::Link,
-        FaultCode::Prog,
-        FaultCode::Wdg,
-        FaultCode::Boot,
-    ];
-
-    /// The code shown by `FLT` and sent over the link.
-    pub const fn code(self) -> u8 {
-        self as u8
-    }
-
-    pub fn from_code(c: u8) -> Option<FaultCode> {
-        FaultCode::ALL.into_iter().find(|f| f.code() == c)
-    }
-
-    /// Short name (drive.md).
-    pub const fn name(self) -> &'static str {
-        match self {
-            FaultCode::Oc => "OC",
-            FaultCode::OcHw => "OC_HW",
-            FaultCode::OvHw => "OV_HW",
-            FaultCode::Uv => "UV",
-            FaultCode::Link => "LINK",
-            FaultCode::Prog => "PROG",
-            FaultCode::Wdg => "WDG",
-            FaultCode::Boot => "BOOT",
-        }
-    }
-
-    /// One-line text for the LCD status line (fits 20 columns).
-    pub const fn text(self) -> &'static str {
-        match self {
-            FaultCode::Oc => "overcurrent",
-            FaultCode::OcHw => "overcurrent (hw)",
-            FaultCode::OvHw => "overvoltage (hw)",
-            FaultCode::Uv => "undervoltage",
-            FaultCode::Link => "PLC link lost",
-            FaultCode::Prog => "program rejected",
-            FaultCode::Wdg => "watchdog reset",
-            FaultCode::Boot => "self-test failed",
-        }
-    }
-}
-
-/// Causes of the TIM1 break input (comparators of the G4, or hil-sim's model of them).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum HwBreak {
-    Overcurrent,
-    Overvoltage,
-}
-
-impl HwBreak {
-    /// In the order of [`crate::power_port::BreakReport`]'s arrays.
-    pub const ALL: [HwBreak; 2] = [HwBreak::Overcurrent, HwBreak::Overvoltage];
-
-    pub const fn fault(self) -> FaultCode {
-        match self {
-            HwBreak::Overcurrent => FaultCode::OcHw,
-            HwBreak::Overvoltage => FaultCode::OvHw,
-        }
-    }
-
-    pub(crate) const fn index(self) -> usize {
-        match self {
-            HwBreak::Overcurrent => 0,
-            HwBreak::Overvoltage => 1,
-        }
-    }
-}
+/// The fault vocabulary is shared with the PLC and hil-sim (one copy, in
+/// `shared-protocol`); re-exported here for the drive's modules.
+pub use shared_protocol::fault::{FaultCode, HwBreak};
 
 /// The program's protection settings, in ADC counts. `None` = not set (no check).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -176,17 +79,6 @@ mod tests {
             u_dc: counts,
             ..Default::default()
         }
-    }
-
-    #[test]
-    fn codes_round_trip_and_match_drive_md() {
-        for f in FaultCode::ALL {
-            assert_eq!(FaultCode::from_code(f.code()), Some(f));
-        }
-        assert_eq!(FaultCode::Oc.code(), 1);
-        assert_eq!(FaultCode::Wdg.code(), 7);
-        assert_eq!(FaultCode::from_code(0), None);
-        assert!(FaultCode::ALL.iter().all(|f| f.text().len() <= 20));
     }
 
     #[test]

@@ -22,8 +22,8 @@ use crate::modulator::LegMode;
 
 /// Depth of the int stack.
 pub const STACK_DEPTH: usize = 5;
-/// Number of Q variables.
-pub const Q_COUNT: usize = 64;
+/// Number of Q variables (shared with the PLC and the link).
+pub use shared_protocol::program::Q_COUNT;
 /// `PWF` range, Hz (program.md 4.2): the source's 488 Hz minimum.
 pub const PWF_MIN_HZ: u16 = 488;
 pub const PWF_MAX_HZ: u16 = 20_000;

@@ -159,10 +159,13 @@ fn rejected_section_trips_prog_and_names_the_line() {
     assert_eq!(r.drive.core().state(), DriveState::Fault);
     assert!(!r.pwm_on);
     // The PLC hears of the trip (for its fault log).
-    assert!(r
-        .plc_events
-        .iter()
-        .any(|e| matches!(e, PlcEvent::DriveFault { code: 6, .. })));
+    assert!(r.plc_events.iter().any(|e| matches!(
+        e,
+        PlcEvent::DriveFault {
+            code: FaultCode::Prog,
+            ..
+        }
+    )));
 }
 
 #[test]

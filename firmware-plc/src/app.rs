@@ -37,7 +37,8 @@
 use shared_protocol::link::plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
 use shared_protocol::link::Q_COUNT;
 use shared_protocol::link::{
-    fault_text, DownloadResult, DriveState, DriveStatus, DriveWarning, LinkConfig, RejectReason,
+    fault_text, DownloadResult, DriveState, DriveStatus, DriveWarning, FaultCode, LinkConfig,
+    RejectReason,
 };
 use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
@@ -87,7 +88,7 @@ pub struct Alerts {
     pub run: RunState,
     pub link: PlcLinkState,
     pub drive_state: Option<DriveState>,
-    pub drive_fault: Option<u8>,
+    pub drive_fault: Option<FaultCode>,
     pub newest_fault: Option<u8>,
     pub warning: Option<vm::Warning>,
     pub drive_warning: Option<DriveWarning>,
@@ -123,9 +124,6 @@ pub struct PlcApp<E: Eeprom> {
     ticks: u32,
     /// [`PlcApp::alerts`] at the last redraw.
     drawn_alerts: Option<Alerts>,
-    /// A STOP the link refused (its command queue was full): retried on every link call
-    /// until it is queued, so STOP is never dropped.
-    stop_owed: bool,
     /// The run state last reported in a [`Tick`] (changes made by the link calls
     /// between ticks are reported by the next tick).
     reported_run: RunState,
@@ -221,7 +219,6 @@ impl<E: Eeprom> PlcApp<E> {
             ticks: 0,
             drawn_alerts: None,
             reported_run: RunState::Stopped,
-            stop_owed: false,
         }
     }
 
@@ -335,7 +332,7 @@ impl<E: Eeprom> PlcApp<E> {
             run: self.run,
             link: self.link.state(),
             drive_state: drive.map(|d| d.state),
-            drive_fault: drive.map(|d| d.fault),
+            drive_fault: drive.and_then(|d| d.fault),
             newest_fault: self.newest_fault,
             warning: self.warning,
             drive_warning: drive.and_then(|d| d.warning),
@@ -380,16 +377,13 @@ impl<E: Eeprom> PlcApp<E> {
         self.queue_boot(false);
     }
 
-    /// Hands STOP to the link. Refused with a full command queue: owed, and retried by
-    /// every later link call ([`PlcApp::service`]) until queued. Refused while the link
-    /// is down: nothing to send (the drive stops by itself on a lost link: `LINK`).
+    /// Hands STOP to the link, which never refuses it for lack of room (it goes to the
+    /// head of the queue, `PlcLink::stop`). Refused only while the link is down: nothing
+    /// to send then, the drive stops by itself on a lost link (`LINK`, and STOP).
     fn send_stop(&mut self) {
-        self.stop_owed = matches!(self.link.stop(), Err(CommandError::QueueFull));
-    }
-
-    /// Whether a STOP refused by a full link queue is still waiting to be queued.
-    pub fn stop_owed(&self) -> bool {
-        self.stop_owed
+        if let Err(e) = self.link.stop() {
+            debug_assert_eq!(e, CommandError::NotConnected);
+        }
     }
 
     /// Queues the boot record's run state (a waiting change is replaced by this one).
@@ -441,6 +435,7 @@ impl<E: Eeprom> PlcApp<E> {
 
     /// One scan with the inputs sampled at its start; returns the outputs to write.
     /// Does nothing (outputs off) unless RUN is on.
+    #[must_use = "the outputs must be written to the pins"]
     pub fn scan(&mut self, digital: u8, analog: [u16; 4], now: Micros) -> ScanOutputs {
         if self.run != RunState::Running {
             self.out = ScanOutputs::default();
@@ -465,14 +460,15 @@ impl<E: Eeprom> PlcApp<E> {
             if *sent == Some(value) && !drive_writes {
                 continue;
             }
-            // Refused only when 96 commands wait: the link keeps the newest value for the
-            // next reconnection anyway.
+            // Refused only when 95 commands wait (`QueueFull`; the link keeps the newest
+            // value for the next reconnection anyway) and never for the address
+            // (`dirty_q` gives Q00-Q63 only).
             let _ = self.link.write_q(n, value);
             *sent = Some(value);
         }
         if let Some(rev) = out.rev_request {
             // Remembered while the link is down and resent after each handshake; refused
-            // only with 96 commands waiting, and the program asks again every scan.
+            // only with 95 commands waiting, and the program asks again every scan.
             let _ = self.link.set_direction(rev);
         }
         if out.ack_request {
@@ -498,10 +494,10 @@ impl<E: Eeprom> PlcApp<E> {
                 frq: Decihertz(s.freq_dhz),
                 udc: Decivolts(s.udc_dv),
                 imx: CentiAmps(s.imax_ca),
-                flt: s.fault,
+                flt: s.fault.map_or(0, FaultCode::code),
                 dir_reverse: s.reverse,
-                ready: s.state == DriveState::Run && s.fault == 0,
-                fault_latched: s.fault != 0,
+                ready: s.state == DriveState::Run && s.fault.is_none(),
+                fault_latched: s.fault.is_some(),
                 ihw: CentiAmps(s.oc_hw_ca),
                 uhw: Volts(s.ov_hw_v),
             },
@@ -518,6 +514,7 @@ impl<E: Eeprom> PlcApp<E> {
     /// The next frame for the UART (0 = nothing now); `out` must hold
     /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes. Also runs the link's timers and
     /// the RUN sequence: call it at least every millisecond.
+    #[must_use = "the frame in `out` must be sent"]
     pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
         self.service(now);
         let n = self.link.poll_transmit(now, out);
@@ -539,9 +536,6 @@ impl<E: Eeprom> PlcApp<E> {
     }
 
     fn service(&mut self, now: Micros) {
-        if self.stop_owed {
-            self.send_stop();
-        }
         while let Some(e) = self.link.poll_event() {
             match e {
                 PlcEvent::Connected => {}
@@ -571,6 +565,8 @@ impl<E: Eeprom> PlcApp<E> {
                     });
                 }
                 PlcEvent::DriveFault { code, .. } => {
+                    // The log and `FLT` keep the raw code (the log also holds events).
+                    let code = code.code();
                     self.newest_fault = Some(code);
                     // The PLC's clock, not the drive's: the log's timestamps must be
                     // comparable across drive reboots. Queued: the job runs in
@@ -757,8 +753,8 @@ impl<E: Eeprom> PlcApp<E> {
             freq_dhz: drive.map_or(0, |s| s.freq_dhz),
             reverse: drive.is_some_and(|s| s.reverse),
             fault: drive
-                .map(|s| s.fault)
-                .filter(|&f| f != 0)
+                .and_then(|s| s.fault)
+                .map(FaultCode::code)
                 .or(self.newest_fault.filter(|_| drive.is_none())),
             lcd: self.out.lcd,
             warning,

@@ -5,8 +5,8 @@
 pub use shared_protocol::link::plc::{CommandError, PlcEvent, PlcLink, PlcLinkState, PLC_WINDOW};
 pub use shared_protocol::link::pump::{LinkEndpoint, Pump};
 pub use shared_protocol::link::{
-    fault_name, fault_text, DownloadResult, DriveState, DriveStatus, LinkConfig, LinkStats,
-    RejectReason, MAX_WIRE_FRAME, PROTOCOL_VERSION,
+    fault_name, fault_text, DownloadResult, DriveState, DriveStatus, FaultCode, LinkConfig,
+    LinkStats, RejectReason, MAX_WIRE_FRAME, PROTOCOL_VERSION,
 };
 
 use crate::app::PlcApp;

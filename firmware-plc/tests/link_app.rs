@@ -75,11 +75,13 @@ impl Rig {
                 self.plc.on_rx(&buf[..n], now);
             }
             if now.0.is_multiple_of(100) {
-                self.drive.pwm_period(&adc);
+                // No power stage in this rig: only the core's trips matter.
+                let _ = self.drive.pwm_period(&adc);
             }
             if now.0 >= self.next_ms * 1000 {
                 self.next_ms += 1;
-                self.plc.scan(self.digital, self.analog, now);
+                // No pins in this rig: the outputs are read from the app.
+                let _ = self.plc.scan(self.digital, self.analog, now);
                 let _ = self.plc.step_storage(now);
                 self.drive.tick_1ms(now);
             }
@@ -265,10 +267,14 @@ fn stop_is_never_dropped_even_with_the_link_queue_full() {
         queued += 1;
         assert!(queued < 1000);
     }
+    assert!(queued > 0);
+    // The link takes STOP at once, ahead of the waiting ACKs: the drive is IDLE long
+    // before they have all gone (each is a frame).
     r.plc.stop();
-    assert!(r.plc.stop_owed(), "the full queue refused STOP at first");
+    assert_eq!(r.plc.run_state(), RunState::Stopped);
+    r.run_for(5_000);
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
     r.run_for(200_000);
-    assert!(!r.plc.stop_owed());
     assert_eq!(r.plc.run_state(), RunState::Stopped);
     assert_eq!(r.drive.core().state(), CoreState::Idle);
 }

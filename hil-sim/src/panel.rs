@@ -3,12 +3,13 @@
 //! The LCD is drawn as the PLC's 20x4 display (cursor and blink included), the keypad is
 //! the PC keyboard (same characters; arrows and Enter as `2/4/6/8` and `5`), and the rig
 //! beside it shows frequency, speed, faults and the digital/analog I/O, which keys
-//! toggle. The panel drives the same `firmware_plc::editor::Editor` the firmware runs.
+//! toggle. The panel runs the whole co-simulation ([`SimBackend`]): its keys go to the
+//! simulator's PLC board, i.e. the firmware's `PlcApp` with its debouncing and editor, as
+//! a scenario's keys do (no key handling of its own).
 //!
 //! Simulated time follows the wall clock (at most 100 ms per frame).
 
 pub mod app;
-pub mod backend;
 pub mod keys;
 pub mod sim_backend;
 pub mod ui;
@@ -22,8 +23,7 @@ use ratatui::crossterm::event::{self, Event, KeyEventKind};
 use shared_protocol::program::{assemble, Program};
 
 pub use app::PanelApp;
-pub use backend::{Backend, EditorBackend, RigStatus};
-pub use sim_backend::{PanelPlc, SimBackend};
+pub use sim_backend::{RigStatus, SimBackend};
 
 /// Read a program from a `.plc` text or an EEPROM image.
 pub fn read_program(path: &Path) -> Result<Program> {
@@ -37,15 +37,10 @@ pub fn read_program(path: &Path) -> Result<Program> {
     assemble(&text).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))
 }
 
-/// The backend the panel runs: the whole co-simulated rig.
-pub fn make_backend(program: Option<Program>) -> Result<Box<dyn Backend>> {
-    Ok(Box::new(SimBackend::new(program.as_ref())?))
-}
-
 /// Run the panel until Esc / Ctrl-C.
 pub fn run(program: Option<&Path>) -> Result<()> {
     let program = program.map(read_program).transpose()?;
-    let mut app = PanelApp::new(make_backend(program)?);
+    let mut app = PanelApp::new(SimBackend::new(program.as_ref())?);
     let mut terminal = ratatui::init();
     let result = event_loop(&mut terminal, &mut app);
     ratatui::restore();

@@ -5,9 +5,10 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use firmware_plc::storage::image::{is_image, program_from_image};
+use shared_protocol::fault::fault_name;
 use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
-use crate::mcu::{Lcd, PlcMcu};
+use crate::mcu::Lcd;
 use crate::plot::Marks;
 use crate::scenario::{Action, Input, PlantChange, Scenario, TimedAction};
 use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
@@ -113,11 +114,6 @@ pub fn event_marks(actions: &[TimedAction], faults: &[FaultRecord]) -> Vec<(f64,
     }));
     ev.sort_by(|a, b| a.0.total_cmp(&b.0));
     ev
-}
-
-/// Fault name for a code.
-pub fn fault_name(code: u8) -> &'static str {
-    shared_protocol::link::message::fault_name(code)
 }
 
 impl RunReport {
@@ -283,7 +279,6 @@ fn dc_limits(sim: &Simulation) -> Vec<(String, f64)> {
 }
 
 fn firmware_drive_status(sim: &Simulation) -> (&'static str, f64) {
-    use crate::mcu::DriveMcu;
     let s = sim.drive().status();
     (s.state.name(), f64::from(s.f_applied.0) / 10.0)
 }

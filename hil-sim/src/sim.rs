@@ -19,7 +19,7 @@ use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use crate::mcu::{DriveBoard, DriveMcu, PlcBoard, PlcMcu, PlcPins, Warnings};
+use crate::mcu::{DriveBoard, PlcBoard, PlcPins, Warnings};
 use crate::plant::{Comparators, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
 use crate::tim1::SimTim1;
@@ -76,12 +76,12 @@ impl Default for RunOptions {
 }
 
 /// The whole rig in virtual time.
-pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
+pub struct Simulation {
     now_ns: u64,
     plant: Plant,
     plant_ns: u64,
-    drive: D,
-    plc: P,
+    drive: DriveBoard,
+    plc: PlcBoard,
     scenario: Scenario,
     next_action: usize,
     pins: PlcPins,
@@ -112,7 +112,7 @@ pub struct Simulation<D: DriveMcu = DriveBoard, P: PlcMcu = PlcBoard> {
     states: Vec<(u64, &'static str)>,
 }
 
-impl Simulation<DriveBoard, PlcBoard> {
+impl Simulation {
     /// The default boards with `program` in the PLC's EEPROM (slot 1, RUN at power-up
     /// unless the scenario types the RUN key).
     pub fn new(program: &Program, scenario: Scenario, opts: RunOptions) -> Result<Self> {
@@ -165,11 +165,16 @@ fn timer_period_ns(epoch: u64, k: u64, ticks: u64, f_tim: u32) -> u64 {
     epoch + ((u128::from(k) * u128::from(ticks) * 1_000_000_000) / f) as u64
 }
 
-impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
+impl Simulation {
     /// The given boards on the default models: [`Plant`] with the scenario's rig, and
     /// [`Channel`] wires with its link settings (bit errors seeded from `opts.seed`, the
     /// drive-to-PLC direction from a derived seed).
-    pub fn with_boards(drive: D, plc: P, scenario: Scenario, opts: RunOptions) -> Self {
+    pub fn with_boards(
+        drive: DriveBoard,
+        plc: PlcBoard,
+        scenario: Scenario,
+        opts: RunOptions,
+    ) -> Self {
         let imp = Impairments {
             bit_error_rate: scenario.bit_error_rate,
             ..Impairments::default()
@@ -184,8 +189,8 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
     /// The given boards, plant and wires. `to_drive` carries the PLC's transmissions,
     /// `to_plc` the drive's.
     pub fn with_parts(
-        drive: D,
-        plc: P,
+        drive: DriveBoard,
+        plc: PlcBoard,
         plant: Plant,
         to_drive: Channel,
         to_plc: Channel,
@@ -237,16 +242,28 @@ impl<D: DriveMcu, P: PlcMcu> Simulation<D, P> {
         &mut self.plant
     }
 
-    pub fn drive(&self) -> &D {
+    pub fn drive(&self) -> &DriveBoard {
         &self.drive
     }
 
-    pub fn plc(&self) -> &P {
+    pub fn plc(&self) -> &PlcBoard {
         &self.plc
     }
 
     pub fn pins(&self) -> PlcPins {
         self.pins
+    }
+
+    /// Sets the PLC's input pins (the front panel's switches and pots; a scenario sets
+    /// them with its actions). The PLC samples them at its next tick.
+    pub fn set_pins(&mut self, pins: PlcPins) {
+        self.pins = pins;
+    }
+
+    /// A keypad key goes down or up now (the front panel; a scenario presses keys with
+    /// its actions).
+    pub fn key(&mut self, key: char, down: bool) {
+        self.plc.key(key, down, Micros(self.now_ns / 1000));
     }
 
     /// Changes the sampling period from the next sample on (e.g. fine samples of one

@@ -17,7 +17,7 @@ fn lcd_text(app: &PanelApp) -> String {
 
 #[test]
 fn type_a_short_program_run_it_and_see_it_work() {
-    let mut app = PanelApp::new(Box::new(SimBackend::new(None).unwrap()));
+    let mut app = PanelApp::new(SimBackend::new(None).unwrap());
     app.advance(200);
     // 150 LD D00 / 151 WR O00: the output follows the switch.
     type_keys(&mut app, "#150585#151588865");
@@ -55,7 +55,7 @@ fn motor_example_runs_from_the_panel() {
         "/../shared-protocol/programs/motor.plc"
     );
     let p = read_program(std::path::Path::new(path)).unwrap();
-    let mut app = PanelApp::new(Box::new(SimBackend::new(Some(&p)).unwrap()));
+    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
     app.advance(100);
     assert!(
         lcd_text(&app).contains("LOADED SLOT 1"),
@@ -100,7 +100,7 @@ fn bit_flip_in_the_eeprom_is_reported_on_the_lcd_at_power_up() {
     let image = program_image(&p, &ImageOptions::default()).unwrap();
     let mut eeprom = MemEeprom::from_image(&image);
     eeprom.flip_bit(copy_addr(1, 0).unwrap() + 40, 2);
-    let mut app = PanelApp::new(Box::new(SimBackend::with_eeprom(eeprom)));
+    let mut app = PanelApp::new(SimBackend::with_eeprom(eeprom));
     app.advance(10);
     let lcd = lcd_text(&app);
     assert!(lcd.contains("S1:COPY A BAD,USED B"), "{lcd}");

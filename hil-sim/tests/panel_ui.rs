@@ -1,9 +1,11 @@
-//! The virtual front panel drawn into a test terminal: LCD, keypad, key map, rig.
+//! The virtual front panel drawn into a test terminal: LCD, keypad, key map, rig. The
+//! panel runs the co-simulation: its keys reach the firmware's `PlcApp` on hil-sim's PLC
+//! board.
 
 use firmware_plc::editor::Key;
 use firmware_plc::storage::MemEeprom;
 use hil_sim::panel::keys::{map_char, Input};
-use hil_sim::panel::{read_program, ui, EditorBackend, PanelApp};
+use hil_sim::panel::{read_program, ui, PanelApp, SimBackend};
 use ratatui::backend::TestBackend;
 use ratatui::Terminal;
 
@@ -26,7 +28,7 @@ fn type_keys(app: &mut PanelApp, s: &str) {
 
 #[test]
 fn typing_a_short_program_shows_on_the_lcd() {
-    let mut app = PanelApp::new(Box::new(EditorBackend::new(MemEeprom::new(), None)));
+    let mut app = PanelApp::new(SimBackend::with_eeprom(MemEeprom::new()));
     // Line 150: LD D00; line 151: WR O00 (5 = edit, 8 = next value: empty, LD, LDC, WR;
     // 6 = operand field; 5 = done). Then back to line 150.
     type_keys(&mut app, "#150585#151588865#150");
@@ -40,19 +42,30 @@ fn typing_a_short_program_shows_on_the_lcd() {
         "{t}"
     );
     assert!(t.contains("D00-07"), "{t}");
-    // Save into slot 2: the LCD says so.
+    // Save into slot 2 (the board's storage writes a page per millisecond): the LCD says
+    // so.
     type_keys(&mut app, "c2");
+    app.advance(500);
     term.draw(|f| ui::draw(f, &app)).unwrap();
     assert!(text(&term).contains("SAVED IN SLOT 2"));
-    // RUN is verified and accepted (editor only: nothing executes).
+    // RUN: verified, the drive section downloaded, both run; D00 on lights O00.
     type_keys(&mut app, "a");
+    app.advance(300);
     term.draw(|f| ui::draw(f, &app)).unwrap();
     assert!(text(&term).contains("PLC RUN"), "{}", text(&term));
+    assert_eq!(app.status().digital_out & 1, 0);
+    app.input(map_char('q').unwrap());
+    app.advance(50);
+    assert_eq!(
+        app.status().digital_out & 1,
+        1,
+        "D00 -> O00 through the scan"
+    );
 }
 
 #[test]
 fn switches_and_pots_follow_their_keys() {
-    let mut app = PanelApp::new(Box::new(EditorBackend::new(MemEeprom::new(), None)));
+    let mut app = PanelApp::new(SimBackend::with_eeprom(MemEeprom::new()));
     app.input(map_char('q').unwrap());
     app.input(map_char('x').unwrap());
     app.input(map_char('X').unwrap());
@@ -79,7 +92,7 @@ fn program_file_loads_into_the_panel() {
         "/../shared-protocol/programs/motor.plc"
     );
     let p = read_program(std::path::Path::new(path)).unwrap();
-    let mut app = PanelApp::new(Box::new(EditorBackend::new(MemEeprom::new(), Some(p))));
+    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
     type_keys(&mut app, "#150");
     let mut term = Terminal::new(TestBackend::new(110, 30)).unwrap();
     term.draw(|f| ui::draw(f, &app)).unwrap();

@@ -3,6 +3,9 @@
 //! * [`program`]: the user program model (both sections), its compact binary line encoding,
 //!   the verifier and the `.plc` text assembler/disassembler.
 //! * [`link`]: the PLC-drive UART wire format (framing, CRC, messages).
+//! * [`fault`] and [`drive_state`]: the drive's vocabulary (fault codes with their names
+//!   and texts, hardware-break causes, operating states), one copy for both images and
+//!   hil-sim. The Q count is [`program::Q_COUNT`].
 //!
 //! `no_std`, no allocation, never panics on any input.
 #![cfg_attr(not(test), no_std)]
@@ -18,6 +21,8 @@
     )
 )]
 
+pub mod drive_state;
+pub mod fault;
 pub mod link;
 pub mod program;
 pub mod rate_limit;

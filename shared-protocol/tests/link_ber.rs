@@ -4,6 +4,7 @@
 
 use std::collections::HashMap;
 
+use shared_protocol::fault::FaultCode;
 use shared_protocol::link::channel::{Channel, Impairments};
 use shared_protocol::link::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
 use shared_protocol::link::pair::LinkPair;
@@ -134,7 +135,7 @@ enum Cmd {
 fn status_for(k: u16) -> DriveStatus {
     DriveStatus {
         state: DriveState::Run,
-        fault: 0,
+        fault: None,
         freq_dhz: k as i16,
         reverse: k % 2 == 1,
         udc_dv: (k as i16).wrapping_mul(7),
@@ -200,7 +201,10 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
             r.unwrap();
             issued.push(c);
         }
-        if rng.below(500) == 0 && p.drive.is_up() && p.drive.report_fault(5, faults_reported + 1) {
+        if rng.below(500) == 0
+            && p.drive.is_up()
+            && p.drive.report_fault(FaultCode::Link, faults_reported + 1)
+        {
             faults_reported += 1;
         }
         if rng.below(20) == 0 {
@@ -224,7 +228,7 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
                 PlcEvent::LinkLost { .. } => plc_losses += 1,
                 PlcEvent::Connected => {}
                 PlcEvent::DriveFault {
-                    code: 5,
+                    code: FaultCode::Link,
                     drive_time_ms,
                 } => faults_seen.push(drive_time_ms),
                 other => panic!("unexpected {other:?}"),
@@ -262,29 +266,7 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
     assert!(faults_reported > 0);
     assert_eq!(faults_seen, (1..=faults_reported).collect::<Vec<_>>());
 
-    // Every applied command maps to an issued one at a strictly later index (in order,
-    // never twice); every non-Q command is applied; a Q write is skipped only when a newer
-    // write to the same Q superseded it while waiting; the last value of each Q arrives.
-    let mut idx = 0usize;
-    for a in &applied {
-        let pos = issued[idx..]
-            .iter()
-            .position(|c| c == a)
-            .unwrap_or_else(|| panic!("{a:?} applied out of order or twice"));
-        for skipped in &issued[idx..idx + pos] {
-            match skipped {
-                Cmd::Q(addr, _) => assert!(
-                    issued[idx + pos..]
-                        .iter()
-                        .any(|c| matches!(c, Cmd::Q(b, _) if b == addr)),
-                    "Q write {skipped:?} lost"
-                ),
-                other => panic!("command {other:?} lost"),
-            }
-        }
-        idx += pos + 1;
-    }
-    assert_eq!(idx, issued.len(), "the newest commands were applied");
+    check_applied(&issued, &applied);
     let (d, u) = (p.drive.stats(), p.plc.stats());
     eprintln!(
         "{} frames on the wire; {} commands issued, {} applied ({} Q writes superseded); \
@@ -302,6 +284,95 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
         u.duplicates,
     );
     assert!(d.frames_bad > 0 || imp == Impairments::default());
+}
+
+/// The delivery rules (link.md) of what the drive applied, against what the PLC issued:
+/// * every command other than STOP is applied at most once, in issue order;
+/// * STOP goes to the head of the PLC's queue: it overtakes commands waiting there, drops
+///   the waiting Q writes and RUN, and replaces a waiting STOP;
+/// * a Q write is skipped only when a newer write to the same Q superseded it or a later
+///   STOP dropped it; a RUN only when a later STOP dropped it; a direction or ACK never;
+/// * the newest Q values and the newest of RUN/STOP arrive.
+fn check_applied(issued: &[Cmd], applied: &[Cmd]) {
+    let stops: Vec<usize> = (0..issued.len())
+        .filter(|&i| issued[i] == Cmd::Stop)
+        .collect();
+    let stop_after = |i: usize| stops.iter().any(|&s| s > i);
+    // Issue index of each applied command, matched to the earliest issued command that
+    // the rules allow: commands other than STOP keep their issue order; a Q write or RUN
+    // applied after a STOP was issued after it (STOP drops the waiting ones); a direction
+    // or ACK may have been issued before it (overtaken). A STOP was issued after every
+    // command applied before it; a STOP that replaced a waiting one stands for both.
+    let mut at = Vec::with_capacity(applied.len());
+    let (mut next, mut floor, mut next_stop) = (0usize, 0usize, 0usize);
+    for a in applied {
+        if *a == Cmd::Stop {
+            let k = stops[next_stop..]
+                .iter()
+                .position(|&s| s >= next)
+                .unwrap_or_else(|| panic!("a STOP applied that was not issued after #{next}"));
+            let s = stops[next_stop + k];
+            next_stop += k + 1;
+            floor = s + 1;
+            at.push(s);
+            continue;
+        }
+        let from = match a {
+            Cmd::Q(..) | Cmd::Run => next.max(floor),
+            _ => next,
+        };
+        let pos = issued[from..]
+            .iter()
+            .position(|c| c == a)
+            .unwrap_or_else(|| panic!("{a:?} applied out of order, twice, or after a STOP"));
+        at.push(from + pos);
+        next = from + pos + 1;
+    }
+    // What was never applied: a Q write superseded by a newer one to the same Q or dropped
+    // by a later STOP, a RUN dropped by a later STOP, a replaced STOP; never a direction
+    // or an ACK.
+    for (i, c) in issued.iter().enumerate() {
+        if at.contains(&i) {
+            continue;
+        }
+        match c {
+            Cmd::Stop => {}
+            Cmd::Q(addr, _) => assert!(
+                stop_after(i)
+                    || issued[i + 1..]
+                        .iter()
+                        .any(|d| matches!(d, Cmd::Q(b, _) if b == addr)),
+                "Q write {c:?} #{i} lost"
+            ),
+            Cmd::Run => assert!(stop_after(i), "RUN #{i} lost"),
+            other => panic!("command {other:?} #{i} lost"),
+        }
+    }
+    let last_stop = stops.last().copied();
+    // The newest value of each Q, unless a later STOP dropped it.
+    for (i, c) in issued.iter().enumerate() {
+        if let Cmd::Q(addr, _) = c {
+            let newest = !issued[i + 1..]
+                .iter()
+                .any(|d| matches!(d, Cmd::Q(b, _) if b == addr));
+            if newest && !stop_after(i) {
+                assert!(at.contains(&i), "the newest write {c:?} never applied");
+            }
+        }
+    }
+    // The newest of RUN and STOP is the drive's last.
+    let last_run_stop = applied
+        .iter()
+        .rev()
+        .find(|c| matches!(c, Cmd::Run | Cmd::Stop));
+    let newest_issued = issued
+        .iter()
+        .rev()
+        .find(|c| matches!(c, Cmd::Run | Cmd::Stop));
+    assert_eq!(last_run_stop, newest_issued);
+    if let Some(s) = last_stop {
+        assert!(applied.contains(&Cmd::Stop), "STOP #{s} never applied");
+    }
 }
 
 fn harsh() -> Impairments {

@@ -1,12 +1,13 @@
 //! Both link endpoints over the byte-timed in-memory UART: handshake, commands, download,
 //! supervision, reconnection, version mismatch.
 
+use shared_protocol::fault::FaultCode;
 use shared_protocol::link::channel::Impairments;
 use shared_protocol::link::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
 use shared_protocol::link::pair::LinkPair;
 use shared_protocol::link::{
-    DownloadResult, DriveEvent, DriveLinkState, DriveMsg, DriveState, DriveStatus, LinkConfig,
-    PlcEvent, PlcLink, PlcLinkState, PlcMsg, RejectReason, PROTOCOL_VERSION,
+    CommandError, DownloadResult, DriveEvent, DriveLinkState, DriveMsg, DriveState, DriveStatus,
+    LinkConfig, PlcEvent, PlcLink, PlcLinkState, PlcMsg, RejectReason, PROTOCOL_VERSION,
 };
 use shared_protocol::program::{DriveSection, Instruction, Mnemonic, Operand};
 use shared_protocol::units::Micros;
@@ -77,7 +78,6 @@ fn commands_are_applied_once_in_order() {
     p.plc.run().unwrap();
     p.plc.write_q(2, -7).unwrap();
     p.plc.ack_fault().unwrap();
-    p.plc.stop().unwrap();
     let end = Micros(p.now.0 + 30_000);
     p.run_until(end, |_| {});
     assert_eq!(
@@ -89,10 +89,127 @@ fn commands_are_applied_once_in_order() {
             DriveEvent::Run,
             DriveEvent::QWrite { addr: 2, value: -7 },
             DriveEvent::AckFault,
-            DriveEvent::Stop,
         ]
     );
     assert_eq!(p.plc.unacknowledged(), 0);
+}
+
+/// The PLC's next frame, decoded.
+fn next_plc_frame(p: &mut LinkPair) -> Option<PlcMsg> {
+    let mut buf = [0u8; MAX_WIRE_FRAME];
+    let n = p.plc.poll_transmit(p.now, &mut buf);
+    let mut r = FrameReader::new();
+    buf[..n]
+        .iter()
+        .find_map(|&b| r.push::<PlcMsg>(b))
+        .map(|f| f.unwrap().msg)
+}
+
+/// Fill the PLC's command queue: RUN, every Q, then ACKs until refused. Returns the ACKs.
+fn fill_queue(p: &mut LinkPair) -> usize {
+    p.plc.run().unwrap();
+    for addr in 0..64 {
+        p.plc.write_q(addr, i16::from(addr)).unwrap();
+    }
+    let mut acks = 0;
+    loop {
+        match p.plc.ack_fault() {
+            Ok(()) => acks += 1,
+            Err(e) => {
+                assert_eq!(e, CommandError::QueueFull);
+                break;
+            }
+        }
+        assert!(acks < 1000);
+    }
+    assert!(acks > 0);
+    acks
+}
+
+#[test]
+fn stop_with_the_queue_full_is_the_next_frame_and_drops_waiting_q_writes_and_run() {
+    let mut p = connected_pair(115_200);
+    let acks = fill_queue(&mut p);
+    let waiting = p.plc.unacknowledged();
+    assert_eq!(waiting, 1 + 64 + acks);
+    p.plc
+        .stop()
+        .expect("STOP is never refused while the link is up");
+    // RUN and the 64 Q writes are gone; STOP is in.
+    assert_eq!(p.plc.unacknowledged(), 1 + acks);
+    assert_eq!(next_plc_frame(&mut p), Some(PlcMsg::Stop));
+    // A second STOP (the first is on the wire) goes ahead of the ACKs and drops a Q
+    // write issued meanwhile; a third replaces the waiting second.
+    p.plc.stop().unwrap();
+    assert_eq!(p.plc.unacknowledged(), 2 + acks);
+    p.plc.write_q(0, 1).unwrap();
+    assert_eq!(p.plc.unacknowledged(), 3 + acks);
+    p.plc.stop().unwrap();
+    assert_eq!(
+        p.plc.unacknowledged(),
+        2 + acks,
+        "the Q write and the second STOP went"
+    );
+    let end = Micros(p.now.0 + 1_000_000);
+    let mut ev = Vec::new();
+    p.run_until(end, |p| ev.extend(drive_events(p)));
+    assert_eq!(ev.first(), Some(&DriveEvent::Stop));
+    assert_eq!(ev.iter().filter(|e| **e == DriveEvent::Stop).count(), 2);
+    assert_eq!(
+        ev.iter().filter(|e| **e == DriveEvent::AckFault).count(),
+        acks
+    );
+    assert!(
+        !ev.iter()
+            .any(|e| matches!(e, DriveEvent::Run | DriveEvent::QWrite { .. })),
+        "{ev:?}"
+    );
+    assert_eq!(p.plc.unacknowledged(), 0);
+}
+
+#[test]
+fn stop_overtakes_everything_not_yet_on_the_wire_and_the_drive_ends_stopped() {
+    let mut p = connected_pair(115_200);
+    // RUN and a first Q frame go on the wire; the rest waits.
+    p.plc.run().unwrap();
+    for addr in 0..40 {
+        p.plc.write_q(addr, 5).unwrap();
+    }
+    assert_eq!(next_plc_frame(&mut p), Some(PlcMsg::Run));
+    assert!(matches!(next_plc_frame(&mut p), Some(PlcMsg::QWrite(v)) if v.len() == 8));
+    p.plc.set_direction(true).unwrap();
+    p.plc.run().unwrap();
+    p.plc.stop().unwrap();
+    assert_eq!(next_plc_frame(&mut p), Some(PlcMsg::Stop));
+    let end = Micros(p.now.0 + 200_000);
+    let mut ev = Vec::new();
+    p.run_until(end, |p| ev.extend(drive_events(p)));
+    // What was on the wire arrives (RUN, one Q frame), then STOP, then the direction;
+    // the second RUN and the 32 waiting Q writes were dropped.
+    let commands: Vec<_> = ev
+        .iter()
+        .filter(|e| !matches!(e, DriveEvent::QWrite { .. }))
+        .collect();
+    assert_eq!(
+        commands,
+        [
+            &DriveEvent::Run,
+            &DriveEvent::Stop,
+            &DriveEvent::Direction { reverse: true }
+        ]
+    );
+    let q = ev
+        .iter()
+        .filter(|e| matches!(e, DriveEvent::QWrite { .. }))
+        .count();
+    assert_eq!(q, 8);
+    assert_eq!(p.plc.unacknowledged(), 0);
+}
+
+#[test]
+fn stop_is_refused_only_while_the_link_is_down() {
+    let mut p = LinkPair::new(LinkConfig::default(), Impairments::default(), 1);
+    assert_eq!(p.plc.stop(), Err(CommandError::NotConnected));
 }
 
 #[test]
@@ -134,18 +251,20 @@ fn status_reaches_the_plc_and_state_changes_are_prompt() {
     assert_eq!(p.plc.last_status().map(|(st, _)| st), Some(s));
     // A trip is reported at once (not at the next 10 ms period) and as a reliable event.
     s.state = DriveState::Fault;
-    s.fault = 1;
+    s.fault = Some(FaultCode::Oc);
     p.drive.set_status(s);
-    assert!(p.drive.report_fault(1, 1234));
+    assert!(p.drive.report_fault(FaultCode::Oc, 1234));
     let t0 = p.now;
     let mut seen_status = None;
     let mut seen_event = None;
     p.run_until(Micros(t0.0 + 20_000), |p| {
-        if seen_status.is_none() && p.plc.last_status().map(|x| x.0.fault) == Some(1) {
+        if seen_status.is_none()
+            && p.plc.last_status().map(|x| x.0.fault) == Some(Some(FaultCode::Oc))
+        {
             seen_status = Some(p.now);
         }
         if let Some(PlcEvent::DriveFault {
-            code: 1,
+            code: FaultCode::Oc,
             drive_time_ms: 1234,
         }) = p.plc.poll_event()
         {
@@ -511,7 +630,7 @@ fn a_sequence_disagreement_is_detected_and_healed() {
     // the PLC restarts reusing the session number: the drive takes its Hello for a retry.
     let mut p = connected_pair(115_200);
     for k in 0..3 {
-        assert!(p.drive.report_fault(1, k));
+        assert!(p.drive.report_fault(FaultCode::Oc, k));
     }
     let end = Micros(p.now.0 + 30_000);
     p.run_until(end, |_| {});
@@ -520,11 +639,15 @@ fn a_sequence_disagreement_is_detected_and_healed() {
     let end = Micros(t0.0 + 30_000);
     p.run_until(end, |_| {});
     assert!(p.plc.is_up());
-    assert!(p.drive.report_fault(4, 99));
+    assert!(p.drive.report_fault(FaultCode::Uv, 99));
     let mut got = None;
     p.run_until(Micros(t0.0 + 600_000), |p| {
         while let Some(e) = p.plc.poll_event() {
-            if let PlcEvent::DriveFault { code: 4, .. } = e {
+            if let PlcEvent::DriveFault {
+                code: FaultCode::Uv,
+                ..
+            } = e
+            {
                 got.get_or_insert(p.now.0 - t0.0);
             }
         }

@@ -19,6 +19,7 @@
 
 use core::panic::PanicInfo;
 
+use board_common::debug::halt;
 use cortex_m_rt::{exception, ExceptionFrame};
 
 use super::power_stage;
@@ -29,17 +30,6 @@ use crate::pins;
 fn safe_state() {
     power_stage::force_off();
     pins::force_power_outputs_low();
-}
-
-fn halt() -> ! {
-    // C_DEBUGEN: a debugger is attached (probe-rs then prints the backtrace).
-    const DHCSR: *const u32 = 0xE000_EDF0 as *const u32;
-    // SAFETY: DHCSR is a core debug register, always mapped and readable.
-    let debugger = unsafe { core::ptr::read_volatile(DHCSR) } & 1 != 0;
-    if debugger {
-        cortex_m::asm::bkpt();
-    }
-    cortex_m::peripheral::SCB::sys_reset()
 }
 
 /// The one reason for every board-profile table entry the board cannot bind (an OPAMP,

@@ -24,7 +24,8 @@ impl Rig {
             u_dc: 2730,
             ..AdcSample::default()
         };
-        core.pwm_period(&sample);
+        // The boot period only runs the self-test; its (off) command is not needed.
+        let _ = core.pwm_period(&sample);
         let mut rig = Rig {
             core,
             sample,

@@ -14,20 +14,10 @@
 
 use core::panic::PanicInfo;
 
+use board_common::debug::halt;
 use cortex_m_rt::{exception, ExceptionFrame};
 
 use crate::pins;
-
-fn halt() -> ! {
-    // C_DEBUGEN: a debugger is attached (probe-rs then prints the backtrace).
-    const DHCSR: *const u32 = 0xE000_EDF0 as *const u32;
-    // SAFETY: DHCSR is a core debug register, always mapped and readable.
-    let debugger = unsafe { core::ptr::read_volatile(DHCSR) } & 1 != 0;
-    if debugger {
-        cortex_m::asm::bkpt();
-    }
-    cortex_m::peripheral::SCB::sys_reset()
-}
 
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {

@@ -277,7 +277,7 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
             s,
             format_args!(
                 "{plc:<4}{:<5}{:>5} {dir}",
-                r.drive_state.text(),
+                r.drive_state.name(),
                 Tenths(r.freq_dhz)
             ),
         );
@@ -286,7 +286,7 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
             s,
             format_args!(
                 "{plc:<4} {:<5} {:>5}Hz {dir}",
-                r.drive_state.text(),
+                r.drive_state.name(),
                 Tenths(r.freq_dhz)
             ),
         );

@@ -112,7 +112,7 @@ pub fn write<E: Eeprom>(e: &mut E, record: BootRecord) -> Result<BootRecord, Eep
 
 #[cfg(test)]
 mod tests {
-    use super::super::eeprom::MemEeprom;
+    use super::super::MemEeprom;
     use super::*;
 
     #[test]

@@ -186,7 +186,7 @@ pub fn clear<E: Eeprom>(e: &mut E) -> Result<(), EepromError> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::eeprom::MemEeprom;
+    use super::super::MemEeprom;
     use super::*;
 
     fn entry(code: u8, power_cycle: u16, uptime_s: u32) -> FaultEntry {

@@ -13,22 +13,27 @@
 //! The firmware queues every operation as a [`Job`] and moves it on one EEPROM page per
 //! pass with [`Storage::step`] (see [`job`]); the synchronous methods ([`Storage::save`],
 //! [`Storage::load`], ...) run the same jobs to the end, for power-up (before the
-//! watchdog runs), tools and tests. [`MemEeprom`] is the RAM model used by tests and
-//! hil-sim.
+//! watchdog runs), tools and tests. `MemEeprom` (feature `sim`) is the RAM model used by
+//! tests and hil-sim; `image` (feature `sim`) builds EEPROM images with it.
 
 pub mod boot;
 pub mod eeprom;
 pub mod fault_log;
+#[cfg(any(test, feature = "sim"))]
 pub mod image;
 pub mod job;
 pub mod layout;
+#[cfg(any(test, feature = "sim"))]
+pub mod mem_eeprom;
 pub mod slot;
 
 pub use boot::BootRecord;
-pub use eeprom::{Eeprom, EepromError, MemEeprom, EEPROM_BYTES, PAGE_BYTES};
+pub use eeprom::{Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES};
 pub use fault_log::FaultEntry;
 pub use job::{BootChange, Job, JobDone, ProgramUse, Step, WRITE_CYCLE_LIMIT_US};
 pub use layout::{FAULT_LOG_ENTRIES, SLOTS};
+#[cfg(any(test, feature = "sim"))]
+pub use mem_eeprom::MemEeprom;
 pub use slot::CopyError;
 
 use job::{Access, Phase, Prog};

@@ -2,7 +2,7 @@
 //!
 //! Streaming (never a whole-copy buffer) keeps the RAM cost at one page on the stack, so
 //! the same code runs on the MCU and builds the off-board image in hil-sim. The work is
-//! done by two steppers, [`CopyReader`] (check or load) and [`CopyWriter`], which touch
+//! done by two steppers, `CopyReader` (check or load) and `CopyWriter`, which touch
 //! at most one 64-byte page of the copy per call: the job queue (`storage::job`) calls
 //! them once per pass of the application task; the synchronous functions below
 //! ([`check_copy`], [`read_copy`], [`write_copy`]) run them to the end.
@@ -549,7 +549,7 @@ pub fn read_copy<E: Eeprom>(
 }
 
 /// Write `program` as one copy of `slot` with `generation` at `addr`, waiting for each
-/// write cycle (see [`CopyWriter`] for the page order).
+/// write cycle (see `CopyWriter` for the page order).
 pub fn write_copy<E: Eeprom>(
     e: &mut E,
     addr: u16,
@@ -569,7 +569,7 @@ pub fn write_copy<E: Eeprom>(
 
 #[cfg(test)]
 mod tests {
-    use super::super::eeprom::MemEeprom;
+    use super::super::MemEeprom;
     use super::*;
     use shared_protocol::program::{Mnemonic, Operand};
 

@@ -39,8 +39,8 @@ use shared_protocol::units::Millis;
 pub const PLC_LINES: usize = LINES - PLC_FIRST_LINE as usize;
 /// Bit memory B00-B99.
 pub const B_COUNT: usize = 100;
-/// Integer variables Q00-Q63.
-pub const Q_COUNT: usize = 64;
+/// Integer variables Q00-Q63 (the count is shared with the drive and the link).
+pub use shared_protocol::program::Q_COUNT;
 
 /// The PLC VM: the compiled program with its timer/edge state, the data memory, the
 /// first-scan flag and the last direction request. About 7.4 KiB, all inline (no

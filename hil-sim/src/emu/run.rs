@@ -11,9 +11,9 @@ use shared_protocol::program::Program;
 
 use super::sim::EmuSim;
 use crate::mcu::Lcd;
-use crate::run::fault_name;
 use crate::scenario::Scenario;
 use crate::sim::{FaultRecord, RunOptions, Sample};
+use shared_protocol::fault::fault_name;
 
 /// What an `emu` run produced.
 #[derive(Debug, Clone)]

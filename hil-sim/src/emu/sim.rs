@@ -427,7 +427,7 @@ impl EmuSim {
     fn track_faults(&mut self) {
         let f = self
             .image_fault()
-            .unwrap_or_else(|| self.status.map_or(0, |s| s.fault));
+            .unwrap_or_else(|| self.status.and_then(|s| s.fault).map_or(0, |f| f.code()));
         if f != 0 && f != self.last_fault {
             self.faults.push(FaultRecord {
                 t_ns: self.now_ns,
@@ -451,7 +451,9 @@ impl EmuSim {
             dir: if st.reverse { -1 } else { 1 },
             m,
             pwm_on: duties.iter().any(Option::is_some) && !o.hw_break,
-            fault: self.image_fault().unwrap_or(st.fault),
+            fault: self
+                .image_fault()
+                .unwrap_or(st.fault.map_or(0, |f| f.code())),
             u_dc_v: o.u_dc_v,
             i_abc_a: o.i_abc_a,
             speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),

@@ -9,8 +9,6 @@ use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
 
-use super::DriveMcu;
-
 /// The drive board.
 pub struct DriveBoard {
     app: DriveApp,
@@ -46,56 +44,74 @@ impl DriveBoard {
     }
 }
 
-impl DriveMcu for DriveBoard {
+impl DriveBoard {
+    // The calls the simulator makes, as the board's interrupts and tasks make them.
+    /// TIM1 update interrupt: the ADC conversion of this period in, what the power stage
+    /// does out (performed over the simulator's TIM1, [`crate::tim1::SimTim1`]).
     #[inline]
-    fn pwm_isr(&mut self, adc: &AdcSample) -> PeriodAction {
+    pub fn pwm_isr(&mut self, adc: &AdcSample) -> PeriodAction {
         self.app.pwm_period(adc)
     }
 
-    fn tick_1ms(&mut self, now: Micros) {
+    /// The 1 ms system tick (drive section, state machine, link timers).
+    pub fn tick_1ms(&mut self, now: Micros) {
         self.app.tick_1ms(now);
         self.drain();
     }
 
-    fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
+    /// TIM1 break interrupt with the comparators at `levels`.
+    pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
         self.app.break_fired(levels)
     }
 
-    fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
+    /// Every 1 ms before the tick: the comparators at `levels` (release, re-arm).
+    pub fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
         self.app.break_poll(levels)
     }
 
-    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
+    /// One pass of the board's link task: the core's pump
+    /// (`shared_protocol::link::pump::Pump::pass`) over the application, exactly as the
+    /// board runs it. `rx`: bytes received since the last pass; `tx_room`: what the line
+    /// takes now. [`Self::link_tx`] then holds the bytes for the line.
+    pub fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
         let p = self.pump.pass(&mut self.app, rx, tx_room, now);
         self.drain();
         p
     }
 
-    fn link_tx(&self) -> &[u8] {
+    /// The bytes the last [`Self::link_pass`] handed out.
+    pub fn link_tx(&self) -> &[u8] {
         self.pump.tx()
     }
 
-    fn link_timeout(&self) -> Option<Micros> {
+    /// The application's next link deadline (`poll_timeout`): the board's tasks wake the
+    /// link task when it has come.
+    pub fn link_timeout(&self) -> Option<Micros> {
         self.app.poll_timeout()
     }
 
-    fn pwm_timing(&self) -> PwmTiming {
+    /// TIM1 setup the board's init programs (later changes come as [`PeriodAction`]s).
+    pub fn pwm_timing(&self) -> PwmTiming {
         self.app.pwm_timing()
     }
 
-    fn timer_clock_hz(&self) -> u32 {
+    /// The timer's kernel clock.
+    pub fn timer_clock_hz(&self) -> u32 {
         self.timer_clock_hz
     }
 
-    fn status(&self) -> DriveStatus {
+    pub fn status(&self) -> DriveStatus {
         self.app.status()
     }
 
-    fn board(&self) -> &'static BoardProfile {
+    /// The board's comparators (which signal, direction and DAC each one has): the drive
+    /// core's profile.
+    pub fn board(&self) -> &'static BoardProfile {
         self.app.core().config().board
     }
 
-    fn comparator_dacs(&self) -> DacValues {
+    /// What the firmware writes to the comparator threshold DACs now.
+    pub fn comparator_dacs(&self) -> DacValues {
         self.app.core().comparator_dacs()
     }
 }

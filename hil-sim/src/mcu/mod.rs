@@ -1,69 +1,19 @@
 //! The two MCUs as the simulator drives them.
 //!
-//! Each trait is the seam between the simulated hardware and the firmware's sans-IO
-//! application: the simulator plays the peripherals (timer interrupt with its ADC sample,
-//! 1 ms system tick, UART bytes, break input, GPIO, keypad, LCD, EEPROM) and calls the
-//! same core code the firmware images run. The implementations in [`drive_board`] and
-//! [`plc_board`] are the host counterparts of the boards' `main.rs`.
+//! [`DriveBoard`] and [`PlcBoard`] are the seam between the simulated hardware and the
+//! firmware's sans-IO applications: the simulator plays the peripherals (timer interrupt
+//! with its ADC sample, 1 ms system tick, UART bytes, break input, GPIO, keypad, LCD,
+//! EEPROM) and calls the same core code the firmware images run, as the boards' tasks
+//! and interrupts call it. There is one of each (no trait: the front panel drives the
+//! same `PlcBoard` through the simulator, issue 14).
 
 pub mod drive_board;
 pub mod lcd;
 pub mod plc_board;
 
-use firmware_drive::comparators::{BoardProfile, DacValues};
-use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
-use firmware_drive::{AdcSample, DriveStatus, PwmTiming};
-use shared_protocol::link::pump::Pass;
-use shared_protocol::units::Micros;
-
 pub use drive_board::DriveBoard;
 pub use lcd::Lcd;
 pub use plc_board::PlcBoard;
-
-/// The drive MCU.
-pub trait DriveMcu {
-    /// TIM1 update interrupt: the ADC conversion of this period in, what the power stage
-    /// does out (performed over the simulator's TIM1, [`crate::tim1::SimTim1`]).
-    fn pwm_isr(&mut self, adc: &AdcSample) -> PeriodAction;
-    /// The 1 ms system tick (drive section, state machine, link timers).
-    fn tick_1ms(&mut self, now: Micros);
-    /// TIM1 break interrupt with the comparators at `levels`.
-    fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport;
-    /// Every 1 ms before the tick: the comparators at `levels` (release, re-arm).
-    fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport;
-    /// One pass of the board's link task: the core's pump
-    /// (`shared_protocol::link::pump::Pump::pass`) over the application, exactly as the
-    /// board runs it. `rx`: bytes received since the last pass; `tx_room`: what the line
-    /// takes now. [`Self::link_tx`] then holds the bytes for the line.
-    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass;
-    /// The bytes the last [`Self::link_pass`] handed out.
-    fn link_tx(&self) -> &[u8];
-    /// The application's next link deadline (`poll_timeout`): the board's tasks wake the
-    /// link task when it has come.
-    fn link_timeout(&self) -> Option<Micros>;
-    /// TIM1 setup the board's init programs (later changes come as [`PeriodAction`]s).
-    fn pwm_timing(&self) -> PwmTiming;
-    /// The timer's kernel clock.
-    fn timer_clock_hz(&self) -> u32;
-    fn status(&self) -> DriveStatus;
-    /// The board's comparators (which signal, direction and DAC each one has). Default:
-    /// the drive core's default profile.
-    fn board(&self) -> &'static BoardProfile {
-        firmware_drive::DriveConfig::default().board
-    }
-    /// What the firmware writes to the comparator threshold DACs now. Default: the
-    /// drive core's default levels (a board model that reads its DAC registers overrides
-    /// this).
-    fn comparator_dacs(&self) -> DacValues {
-        let c = firmware_drive::DriveConfig::default();
-        let t = firmware_drive::comparators::HwThresholds {
-            oc_hw: shared_protocol::units::CentiAmps(c.oc_hw_default_centiamps as i16),
-            ov_hw: shared_protocol::units::Volts(c.ov_hw_default_volts as i16),
-        };
-        let fe = firmware_drive::measure::FrontEnd::new(self.board().scaling);
-        firmware_drive::comparators::dac_values(self.board(), t, &fe)
-    }
-}
 
 /// The PLC's inputs as its pins present them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -116,33 +66,5 @@ impl Warnings {
             v.push((short.clone(), format!("{short} (drive): {w}")));
         }
         v
-    }
-}
-
-/// The PLC MCU.
-pub trait PlcMcu {
-    /// The 1 ms system tick (link timers, keypad debouncing, LCD refresh).
-    fn tick_1ms(&mut self, now: Micros);
-    /// One PLC scan with the pins as they are now.
-    fn scan(&mut self, pins: &PlcPins, now: Micros);
-    /// A keypad key went down or up.
-    fn key(&mut self, key: char, down: bool, now: Micros);
-    /// See [`DriveMcu::link_pass`].
-    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass;
-    fn link_tx(&self) -> &[u8];
-    fn link_timeout(&self) -> Option<Micros>;
-    /// Output pins O00..O05, bit n = On.
-    fn outputs(&self) -> u8;
-    /// The PLC's copy of Qn.
-    fn q(&self, n: u8) -> i16;
-    /// The run screen's 4 value fields.
-    fn lcd_fields(&self) -> [Option<i16>; 4];
-    /// The LCD as the user sees it.
-    fn lcd(&self) -> &Lcd;
-    /// The user program is running.
-    fn running(&self) -> bool;
-    /// The run-time warnings the PLC shows on its status line (default: none known).
-    fn warnings(&self) -> Warnings {
-        Warnings::default()
     }
 }

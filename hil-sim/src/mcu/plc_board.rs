@@ -12,7 +12,7 @@ use shared_protocol::link::LinkConfig;
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use super::{Lcd, PlcMcu, PlcPins};
+use super::{Lcd, PlcPins};
 
 /// The PLC board.
 pub struct PlcBoard {
@@ -22,7 +22,7 @@ pub struct PlcBoard {
     outputs: u8,
     /// The board's link pump (its link task's state).
     pump: Pump,
-    /// The pins as the last [`PlcMcu::scan`] call gave them (raw levels).
+    /// The pins as the last [`PlcBoard::scan`] call gave them (raw levels).
     pins: PlcPins,
     /// Keys held down now (bit as in [`RawIo::keys`]).
     keys: u16,
@@ -82,8 +82,10 @@ impl PlcBoard {
     }
 }
 
-impl PlcMcu for PlcBoard {
-    fn tick_1ms(&mut self, now: Micros) {
+impl PlcBoard {
+    // The calls the simulator makes, as the board's interrupts and tasks make them.
+    /// The 1 ms system tick (link timers, keypad debouncing, LCD refresh).
+    pub fn tick_1ms(&mut self, now: Micros) {
         self.app.tick(now);
         let raw = RawIo {
             digital: self.pins.digital,
@@ -97,12 +99,14 @@ impl PlcMcu for PlcBoard {
         }
     }
 
-    fn scan(&mut self, pins: &PlcPins, _now: Micros) {
+    /// One PLC scan with the pins as they are now.
+    pub fn scan(&mut self, pins: &PlcPins, _now: Micros) {
         // Sampled (raw) by the next tick, as the board samples its pins.
         self.pins = *pins;
     }
 
-    fn key(&mut self, key: char, down: bool, _now: Micros) {
+    /// A keypad key went down or up.
+    pub fn key(&mut self, key: char, down: bool, _now: Micros) {
         let Some(k) = Key::from_char(key) else {
             return;
         };
@@ -116,35 +120,41 @@ impl PlcMcu for PlcBoard {
         }
     }
 
-    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
+    /// See [`super::DriveBoard::link_pass`].
+    pub fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
         self.pump.pass(&mut self.app, rx, tx_room, now)
     }
 
-    fn link_tx(&self) -> &[u8] {
+    pub fn link_tx(&self) -> &[u8] {
         self.pump.tx()
     }
 
-    fn link_timeout(&self) -> Option<Micros> {
+    pub fn link_timeout(&self) -> Option<Micros> {
         self.app.poll_timeout()
     }
 
-    fn outputs(&self) -> u8 {
+    /// Output pins O00..O05, bit n = On.
+    pub fn outputs(&self) -> u8 {
         self.outputs
     }
 
-    fn q(&self, n: u8) -> i16 {
+    /// The PLC's copy of Qn.
+    pub fn q(&self, n: u8) -> i16 {
         self.app.q(n)
     }
 
-    fn lcd_fields(&self) -> [Option<i16>; 4] {
+    /// The run screen's 4 value fields.
+    pub fn lcd_fields(&self) -> [Option<i16>; 4] {
         self.app.status().lcd
     }
 
-    fn lcd(&self) -> &Lcd {
+    /// The LCD as the user sees it.
+    pub fn lcd(&self) -> &Lcd {
         &self.lcd
     }
 
-    fn warnings(&self) -> super::Warnings {
+    /// The run-time warnings the PLC shows on its status line (default: none known).
+    pub fn warnings(&self) -> super::Warnings {
         let s = self.app.status();
         super::Warnings {
             plc: s.warning,
@@ -152,7 +162,8 @@ impl PlcMcu for PlcBoard {
         }
     }
 
-    fn running(&self) -> bool {
+    /// The user program is running.
+    pub fn running(&self) -> bool {
         self.app.run_state() == RunState::Running
     }
 }

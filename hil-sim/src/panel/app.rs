@@ -1,12 +1,12 @@
-//! The panel's state between frames: the backend plus the PC-side input state.
+//! The panel's state between frames: the co-simulated rig plus the PC-side input state.
 
-use super::backend::{Backend, RigStatus};
 use super::keys::{Input, PULSE_MS};
+use super::sim_backend::{RigStatus, SimBackend};
 use firmware_plc::editor::{Key, Screen};
 
 /// The virtual front panel, independent of the terminal (drawn by [`super::ui`]).
 pub struct PanelApp {
-    backend: Box<dyn Backend>,
+    backend: SimBackend,
     digital: u8,
     analog: [u16; 4],
     /// Remaining push-button time per input, ms.
@@ -20,7 +20,7 @@ pub struct PanelApp {
 }
 
 impl PanelApp {
-    pub fn new(backend: Box<dyn Backend>) -> Self {
+    pub fn new(backend: SimBackend) -> Self {
         let s = backend.status();
         PanelApp {
             backend,
@@ -91,6 +91,11 @@ impl PanelApp {
 
     pub fn lcd(&self) -> Screen {
         self.backend.lcd()
+    }
+
+    /// The rig behind the panel.
+    pub fn backend(&self) -> &SimBackend {
+        &self.backend
     }
 
     pub fn status(&self) -> RigStatus {

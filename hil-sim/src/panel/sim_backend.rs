@@ -1,24 +1,21 @@
 //! The panel on the full co-simulation: both MCUs, the UART link and the motor rig.
 //!
-//! The panel's keys and switches reach the PLC board through [`PanelPlc`], a thin
-//! wrapper that the simulator sees as the PLC MCU: queued keypad keys are pressed one
-//! after the other, each held for [`KEY_HOLD_MS`] and released for as long (the board's
-//! keypad debouncing needs 10 stable samples), and the scan reads the panel's switches and pots instead of the
-//! (empty) scenario's. Everything else is the unchanged board.
+//! The panel's keys and switches reach the simulator's PLC board ([`crate::mcu::PlcBoard`],
+//! the firmware's `PlcApp` as the board runs it) the way a scenario's do: keypad keys
+//! queue and are pressed one after the other, each held for [`KEY_HOLD_MS`] and released
+//! for as long (the keypad debouncing needs 10 stable samples each way), and the
+//! switches and pots are the PLC's input pins. No key handling of its own.
 
-use std::cell::{Cell, RefCell};
 use std::collections::VecDeque;
 
 use firmware_plc::editor::{Key, Screen};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
-use shared_protocol::link::pump::Pass;
 use shared_protocol::link::LinkConfig;
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use super::backend::{Backend, RigStatus};
-use crate::mcu::{DriveBoard, DriveMcu, Lcd, PlcBoard, PlcMcu, PlcPins};
+use crate::mcu::{DriveBoard, PlcBoard, PlcPins};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};
 
@@ -27,96 +24,39 @@ use crate::sim::{RunOptions, Sample, Simulation};
 /// so the same key typed twice counts twice; 20 ms per key.
 pub const KEY_HOLD_MS: u32 = firmware_plc::app::KEY_DEBOUNCE_SAMPLES as u32;
 
-/// The PLC board with the panel's keypad and I/O attached.
-pub struct PanelPlc {
-    inner: PlcBoard,
-    keys: RefCell<VecDeque<char>>,
-    /// The key being pressed and the ticks left in its press (down, then up).
-    pressing: Option<(char, u32)>,
-    digital: Cell<u8>,
-    analog: Cell<[u16; 4]>,
-}
+const MS_NS: u64 = 1_000_000;
 
-impl PanelPlc {
-    pub fn new(inner: PlcBoard) -> Self {
-        PanelPlc {
-            inner,
-            keys: RefCell::new(VecDeque::new()),
-            pressing: None,
-            digital: Cell::new(0),
-            analog: Cell::new([0; 4]),
-        }
-    }
-
-    pub fn board(&self) -> &PlcBoard {
-        &self.inner
-    }
-
-    fn pins(&self) -> PlcPins {
-        PlcPins {
-            digital: self.digital.get(),
-            analog: self.analog.get(),
-        }
-    }
-}
-
-impl PlcMcu for PanelPlc {
-    fn tick_1ms(&mut self, now: Micros) {
-        // Down for KEY_HOLD_MS ticks (samples), then up for as many.
-        if self.pressing.is_none() {
-            if let Some(c) = self.keys.borrow_mut().pop_front() {
-                self.inner.key(c, true, now);
-                self.pressing = Some((c, 2 * KEY_HOLD_MS));
-            }
-        }
-        if let Some((c, KEY_HOLD_MS)) = self.pressing {
-            self.inner.key(c, false, now);
-        }
-        self.inner.tick_1ms(now);
-        self.pressing = self
-            .pressing
-            .and_then(|(c, left)| (left > 1).then_some((c, left - 1)));
-    }
-    fn scan(&mut self, _scenario_pins: &PlcPins, now: Micros) {
-        let pins = self.pins();
-        self.inner.scan(&pins, now);
-    }
-    fn key(&mut self, key: char, down: bool, now: Micros) {
-        self.inner.key(key, down, now);
-    }
-    fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
-        self.inner.link_pass(rx, tx_room, now)
-    }
-    fn link_tx(&self) -> &[u8] {
-        self.inner.link_tx()
-    }
-    fn link_timeout(&self) -> Option<Micros> {
-        self.inner.link_timeout()
-    }
-    fn outputs(&self) -> u8 {
-        self.inner.outputs()
-    }
-    fn q(&self, n: u8) -> i16 {
-        self.inner.q(n)
-    }
-    fn lcd_fields(&self) -> [Option<i16>; 4] {
-        self.inner.lcd_fields()
-    }
-    fn lcd(&self) -> &Lcd {
-        self.inner.lcd()
-    }
-    fn running(&self) -> bool {
-        self.inner.running()
-    }
-    fn warnings(&self) -> crate::mcu::Warnings {
-        self.inner.warnings()
-    }
+/// The rig's state for the side panel.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RigStatus {
+    /// Simulated time, s.
+    pub t_s: f64,
+    pub plc_running: bool,
+    pub drive_state: String,
+    pub f_hz: f64,
+    pub reverse: bool,
+    pub speed_rpm: f64,
+    pub u_dc_v: f64,
+    pub i_max_a: f64,
+    pub fault: u8,
+    pub brake: bool,
+    /// D00..D07, bit n = Dn.
+    pub digital_in: u8,
+    /// O00..O05, bit n = On.
+    pub digital_out: u8,
+    /// A00..A03, 10-bit counts.
+    pub analog: [u16; 4],
 }
 
 /// The co-simulated rig behind the panel, in virtual time that the panel advances.
 pub struct SimBackend {
-    sim: Simulation<DriveBoard, PanelPlc>,
+    sim: Simulation,
     last: Option<Sample>,
+    /// Keypad keys not yet pressed.
+    keys: VecDeque<char>,
+    /// The key being pressed and the milliseconds left in its press (down, then up).
+    pressing: Option<(char, u32)>,
+    pins: PlcPins,
 }
 
 impl SimBackend {
@@ -144,7 +84,7 @@ impl SimBackend {
     pub fn with_eeprom(eeprom: MemEeprom) -> Self {
         let scenario = Scenario::default();
         let link = LinkConfig::at_baud(scenario.baud);
-        let plc = PanelPlc::new(PlcBoard::new(eeprom, link, Micros(0)));
+        let plc = PlcBoard::new(eeprom, link, Micros(0));
         let drive = DriveBoard::new(link);
         let opts = RunOptions {
             // The side panel needs a few values per frame, not every millisecond.
@@ -154,21 +94,50 @@ impl SimBackend {
         SimBackend {
             sim: Simulation::with_boards(drive, plc, scenario, opts),
             last: None,
+            keys: VecDeque::new(),
+            pressing: None,
+            pins: PlcPins::default(),
         }
     }
 
-    pub fn simulation(&self) -> &Simulation<DriveBoard, PanelPlc> {
+    pub fn simulation(&self) -> &Simulation {
         &self.sim
     }
-}
 
-impl Backend for SimBackend {
-    fn key(&mut self, key: Key) {
-        self.sim.plc().keys.borrow_mut().push_back(key.to_char());
+    /// A keypad key: pressed after the keys before it.
+    pub fn key(&mut self, key: Key) {
+        self.keys.push_back(key.to_char());
     }
 
-    fn advance(&mut self, dt_ms: u32) {
-        let end = self.sim.now_ns() + u64::from(dt_ms) * 1_000_000;
+    /// Let `dt_ms` of simulated time pass. While keys are being typed, in 1 ms steps:
+    /// down for [`KEY_HOLD_MS`] PLC ticks, then up for as many.
+    pub fn advance(&mut self, dt_ms: u32) {
+        let mut left = dt_ms;
+        while left > 0 {
+            if self.pressing.is_none() {
+                if let Some(c) = self.keys.pop_front() {
+                    self.sim.key(c, true);
+                    self.pressing = Some((c, 2 * KEY_HOLD_MS));
+                }
+            }
+            let step = match self.pressing {
+                Some((c, KEY_HOLD_MS)) => {
+                    self.sim.key(c, false);
+                    1
+                }
+                Some(_) => 1,
+                None => left,
+            };
+            self.run(step);
+            left -= step;
+            self.pressing = self
+                .pressing
+                .and_then(|(c, n)| (n > 1).then_some((c, n - 1)));
+        }
+    }
+
+    fn run(&mut self, ms: u32) {
+        let end = self.sim.now_ns() + u64::from(ms) * MS_NS;
         let mut last = None;
         self.sim.run_until(end, |s| last = Some(s.clone()));
         if last.is_some() {
@@ -176,23 +145,23 @@ impl Backend for SimBackend {
         }
     }
 
-    fn lcd(&self) -> Screen {
-        // The board's LCD with its cursor, refreshed every 100 ms and after each key.
-        self.sim.plc().board().screen().clone()
+    /// The LCD as the PLC drives it now (with its cursor; refreshed every 100 ms and
+    /// after each key).
+    pub fn lcd(&self) -> Screen {
+        self.sim.plc().screen().clone()
     }
 
-    fn status(&self) -> RigStatus {
+    pub fn status(&self) -> RigStatus {
         let d = self.sim.drive().status();
         let mut st = RigStatus {
             t_s: self.sim.now_ns() as f64 * 1e-9,
-            simulated: true,
             plc_running: self.sim.plc().running(),
-            drive_state: format!("{:?}", d.state).to_uppercase(),
+            drive_state: d.state.name().to_string(),
             fault: d.fault.map_or(0, |f| f.code()),
             reverse: d.reverse,
-            digital_in: self.sim.plc().digital.get(),
+            digital_in: self.pins.digital,
             digital_out: self.sim.plc().outputs(),
-            analog: self.sim.plc().analog.get(),
+            analog: self.pins.analog,
             ..RigStatus::default()
         };
         if let Some(s) = &self.last {
@@ -205,21 +174,20 @@ impl Backend for SimBackend {
         st
     }
 
-    fn set_digital(&mut self, n: u8, on: bool) {
-        let plc = self.sim.plc();
-        let d = plc.digital.get();
+    /// Set digital input `n` (0..8).
+    pub fn set_digital(&mut self, n: u8, on: bool) {
         if n < 8 {
-            plc.digital
-                .set(if on { d | (1 << n) } else { d & !(1 << n) });
+            let d = self.pins.digital;
+            self.pins.digital = if on { d | (1 << n) } else { d & !(1 << n) };
+            self.sim.set_pins(self.pins);
         }
     }
 
-    fn set_analog(&mut self, n: u8, counts: u16) {
-        let plc = self.sim.plc();
-        let mut a = plc.analog.get();
-        if let Some(v) = a.get_mut(usize::from(n)) {
+    /// Set analog input `n` (0..4) to `counts` (0..1023).
+    pub fn set_analog(&mut self, n: u8, counts: u16) {
+        if let Some(v) = self.pins.analog.get_mut(usize::from(n)) {
             *v = counts.min(1023);
+            self.sim.set_pins(self.pins);
         }
-        plc.analog.set(a);
     }
 }

@@ -8,7 +8,7 @@ use ratatui::style::{Color, Modifier, Style};
 use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Paragraph};
 use ratatui::Frame;
-use shared_protocol::link::fault_text;
+use shared_protocol::fault::fault_text;
 
 const LCD_BG: Color = Color::Rgb(150, 190, 70);
 const LCD_FG: Color = Color::Rgb(20, 30, 10);
@@ -87,12 +87,6 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
     let s = app.status();
     let mut v = Vec::new();
     v.push(Line::from(format!("t = {:.1} s", s.t_s)));
-    if !s.simulated {
-        v.push(Line::from(Span::styled(
-            "editor only: no simulated rig",
-            Style::default().fg(Color::Yellow),
-        )));
-    }
     v.push(Line::from(format!(
         "PLC {}   drive {}",
         if s.plc_running { "RUN" } else { "STOP" },

@@ -2,7 +2,6 @@
 //! raw pin levels to `PlcApp::tick_1ms`, so a pulse shorter than the 5 samples never
 //! reaches the scan, as on the board.
 
-use hil_sim::mcu::PlcMcu;
 use hil_sim::run::parse_program;
 use hil_sim::scenario::Scenario;
 use hil_sim::sim::{RunOptions, Simulation};

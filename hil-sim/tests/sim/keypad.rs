@@ -2,7 +2,6 @@
 //! at power-up), and the LCD shows what the firmware's editor draws.
 
 use super::common::*;
-use hil_sim::mcu::PlcMcu;
 use hil_sim::run::parse_program;
 use hil_sim::scenario::Scenario;
 use hil_sim::sim::{RunOptions, Simulation};

@@ -2,7 +2,6 @@
 //! fault code (drive.md), turns the PWM off, and stays latched.
 
 use super::common::*;
-use hil_sim::mcu::PlcMcu;
 use hil_sim::run::{parse_program, RunReport};
 use hil_sim::scenario::Scenario;
 use hil_sim::sim::{RunOptions, Simulation};

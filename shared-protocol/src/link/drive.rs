@@ -15,6 +15,7 @@ use super::message::{
 use super::plc::section_crc;
 use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::LinkStats;
+use crate::fault::FaultCode;
 use crate::program::{
     decode_slot, verify_drive, DriveSection, VerifiedDriveSection, DRIVE_LINES, LINE_BYTES,
 };
@@ -184,7 +185,8 @@ impl DriveLink {
 
     /// Report a trip to the PLC (reliable; kept across a reconnection). Returns `false`
     /// when 16 reports are already waiting.
-    pub fn report_fault(&mut self, code: u8, drive_time_ms: u32) -> bool {
+    #[must_use = "a report that did not fit must be kept and offered again"]
+    pub fn report_fault(&mut self, code: FaultCode, drive_time_ms: u32) -> bool {
         self.pending
             .push_back(DriveMsg::Fault {
                 code,

@@ -6,6 +6,9 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use crate::drive_state::DriveState;
+pub use crate::fault::{fault_name, fault_text, FaultCode};
+
 /// Protocol version stated in the handshake; bump on any incompatible wire change.
 /// 2: the status carries the hardware thresholds and the drive's run-time warning.
 pub const PROTOCOL_VERSION: u16 = 2;
@@ -61,36 +64,15 @@ impl PlcMsg {
     }
 }
 
-/// The drive core's state as reported to the PLC (drive.md "States").
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum DriveState {
-    #[default]
-    Boot,
-    Idle,
-    Run,
-    Fault,
-}
-
-impl DriveState {
-    /// Short text for the LCD.
-    pub const fn text(self) -> &'static str {
-        match self {
-            DriveState::Boot => "BOOT",
-            DriveState::Idle => "IDLE",
-            DriveState::Run => "RUN",
-            DriveState::Fault => "FAULT",
-        }
-    }
-}
-
 /// The drive's periodic report. Units are in the field names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct DriveStatus {
     pub state: DriveState,
-    /// Latched fault code (drive.md table), 0 = none.
-    pub fault: u8,
+    /// Latched fault (drive.md table). On the wire one byte, 0 = none, as before the
+    /// type was typed: an undefined code makes the frame unparsable.
+    #[serde(with = "crate::fault::wire_option")]
+    pub fault: Option<FaultCode>,
     /// Output frequency being generated, 0.1 Hz.
     pub freq_dhz: i16,
     /// Applied direction.
@@ -222,7 +204,7 @@ pub enum DriveMsg {
     /// Reliable: the answer to a download.
     Download(DownloadResult),
     /// Reliable: a trip, with the drive's millisecond clock at the trip.
-    Fault { code: u8, drive_time_ms: u32 },
+    Fault { code: FaultCode, drive_time_ms: u32 },
 }
 
 impl DriveMsg {
@@ -232,35 +214,137 @@ impl DriveMsg {
     }
 }
 
-/// Name of a drive fault code (drive.md table; 8 is the drive core's boot self-test
-/// extension), for the LCD and the fault log.
-pub const fn fault_name(code: u8) -> &'static str {
-    match code {
-        0 => "none",
-        1 => "OC",
-        2 => "OC_HW",
-        3 => "OV_HW",
-        4 => "UV",
-        5 => "LINK",
-        6 => "PROG",
-        7 => "WDG",
-        8 => "BOOT",
-        _ => "?",
-    }
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::frame::{decode_raw, encode_frame, Frame, FrameError, FrameReader};
 
-/// One-line description of a drive fault code, at most 20 characters (one LCD row).
-pub const fn fault_text(code: u8) -> &'static str {
-    match code {
-        0 => "no fault",
-        1 => "overcurrent",
-        2 => "overcurrent (HW)",
-        3 => "overvoltage (HW)",
-        4 => "undervoltage",
-        5 => "link lost",
-        6 => "program rejected",
-        7 => "watchdog reset",
-        8 => "self-test failed",
-        _ => "unknown fault",
+    /// `DriveStatus` as it was before the fault became typed (`fault: u8`): the bytes must
+    /// not change, or `PROTOCOL_VERSION` would have to.
+    #[derive(Serialize)]
+    struct UntypedStatus {
+        state: DriveState,
+        fault: u8,
+        freq_dhz: i16,
+        reverse: bool,
+        udc_dv: i16,
+        imax_ca: i16,
+        com: u16,
+        oc_hw_ca: i16,
+        ov_hw_v: i16,
+        warning: Option<DriveWarning>,
+    }
+
+    #[derive(Serialize)]
+    enum UntypedDriveMsg {
+        _HelloReply,
+        _Ack,
+        _Status,
+        _Download,
+        Fault { code: u8, drive_time_ms: u32 },
+    }
+
+    fn status(fault: Option<FaultCode>) -> DriveStatus {
+        DriveStatus {
+            state: DriveState::Fault,
+            fault,
+            freq_dhz: -123,
+            udc_dv: 301,
+            imax_ca: 250,
+            com: 1023,
+            oc_hw_ca: 900,
+            ov_hw_v: 40,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn typed_fault_codes_keep_the_wire_bytes() {
+        let mut typed = [0u8; 64];
+        let mut untyped = [0u8; 64];
+        for (fault, byte) in [(None, 0u8)]
+            .into_iter()
+            .chain(FaultCode::ALL.map(|f| (Some(f), f.code())))
+        {
+            let s = status(fault);
+            let old = UntypedStatus {
+                state: s.state,
+                fault: byte,
+                freq_dhz: s.freq_dhz,
+                reverse: s.reverse,
+                udc_dv: s.udc_dv,
+                imax_ca: s.imax_ca,
+                com: s.com,
+                oc_hw_ca: s.oc_hw_ca,
+                ov_hw_v: s.ov_hw_v,
+                warning: s.warning,
+            };
+            assert_eq!(
+                postcard::to_slice(&s, &mut typed).unwrap(),
+                postcard::to_slice(&old, &mut untyped).unwrap()
+            );
+        }
+        for f in FaultCode::ALL {
+            let new = DriveMsg::Fault {
+                code: f,
+                drive_time_ms: 70_000,
+            };
+            let old = UntypedDriveMsg::Fault {
+                code: f.code(),
+                drive_time_ms: 70_000,
+            };
+            let n = postcard::to_slice(&new, &mut typed).unwrap().len();
+            assert_eq!(typed[..n], *postcard::to_slice(&old, &mut untyped).unwrap());
+            assert_eq!(postcard::from_bytes::<DriveMsg>(&typed[..n]), Ok(new));
+        }
+    }
+
+    /// A frame (valid CRC) whose fault byte no `FaultCode` has: refused as a message
+    /// that does not parse, counted by the receiver as a bad frame.
+    #[test]
+    fn an_undefined_fault_code_makes_the_frame_unparsable() {
+        let mut wire = [0u8; 128];
+        for code in [0u8, 9, 200] {
+            let frame = Frame {
+                seq: 0,
+                ack: 0,
+                msg: UntypedDriveMsg::Fault {
+                    code,
+                    drive_time_ms: 1,
+                },
+            };
+            let n = encode_frame(&frame, false, &mut wire).unwrap();
+            let mut r = FrameReader::new();
+            let got = wire[..n].iter().find_map(|&b| r.push::<DriveMsg>(b));
+            assert_eq!(got, Some(Err(FrameError::Message)), "code {code}");
+        }
+        // The status's 0 is "no fault"; an undefined code there is refused too.
+        let mut raw = [0u8; 64];
+        let ok = postcard::to_slice(
+            &Frame {
+                seq: 0,
+                ack: 0,
+                msg: DriveMsg::Status(status(None)),
+            },
+            &mut raw,
+        )
+        .unwrap()
+        .len();
+        let fault_at = 2 + 1 + 1; // seq, ack, message type, state
+        assert_eq!(raw[fault_at], 0);
+        raw[fault_at] = 9;
+        let crc = crate::link::frame::CRC.checksum(&raw[..ok]);
+        raw[ok..ok + 4].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(
+            decode_raw::<DriveMsg>(&raw[..ok + 4]),
+            Err(FrameError::Message)
+        );
+        raw[fault_at] = 3;
+        let crc = crate::link::frame::CRC.checksum(&raw[..ok]);
+        raw[ok..ok + 4].copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(
+            decode_raw::<DriveMsg>(&raw[..ok + 4]).map(|f| f.msg),
+            Ok(DriveMsg::Status(status(Some(FaultCode::OvHw))))
+        );
     }
 }

@@ -8,16 +8,19 @@
 //!   stall and loss timers, counters, encoding of what goes out).
 //! * [`plc::PlcLink`] and [`drive::DriveLink`]: the two endpoint state machines; the
 //!   firmware crates re-export them as `firmware_plc::link` and `firmware_drive::link`.
-//! * [`channel`]: a byte-timed, impaired in-memory UART for tests, benchmarks and hil-sim.
+//! * `channel` and `pair` (feature `sim`): a byte-timed, impaired in-memory UART and the
+//!   two endpoints wired over it, for tests, benchmarks and hil-sim; never in the images.
 //!
 //! The full description (frame layout, messages, timing, decisions) is `docs/link.md`
 //! in this crate.
 
+#[cfg(any(test, feature = "sim"))]
 pub mod channel;
 pub mod config;
 pub mod drive;
 pub mod frame;
 pub mod message;
+#[cfg(any(test, feature = "sim"))]
 pub mod pair;
 pub mod plc;
 pub mod pump;
@@ -29,12 +32,11 @@ pub use drive::{DriveEvent, DriveLink, DriveLinkState};
 pub use frame::{FrameError, FrameReader, MAX_WIRE_FRAME};
 pub use message::{
     fault_name, fault_text, DownloadResult, DriveMsg, DriveState, DriveStatus, DriveWarning,
-    PlcMsg, QValue, RejectReason, PROTOCOL_VERSION,
+    FaultCode, PlcMsg, QValue, RejectReason, PROTOCOL_VERSION,
 };
 pub use plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
 
-/// Number of Q variables (Q00-Q63).
-pub const Q_COUNT: usize = 64;
+pub use crate::program::Q_COUNT;
 
 /// Counters of one endpoint, for diagnostics and tests.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -12,6 +12,7 @@ use super::message::{
 };
 use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::{LinkStats, Q_COUNT};
+use crate::fault::FaultCode;
 use crate::program::{encode_slot, DriveSection, DRIVE_LINES, LINE_BYTES};
 use crate::units::Micros;
 
@@ -24,6 +25,9 @@ const HEARTBEAT_EARLY_US: u64 = 2_000;
 pub const PLC_WINDOW: usize = 8;
 /// Commands waiting for a place in the window (all 64 Q plus the download and a few more).
 const PENDING: usize = 96;
+/// Of [`PENDING`], what other commands may take: the last place is STOP's, so that STOP is
+/// never refused for lack of room.
+const PENDING_NOT_STOP: usize = PENDING - 1;
 const EVENTS: usize = 16;
 const SECTION_BYTES: usize = DRIVE_LINES * LINE_BYTES;
 const CHUNK_LINES: usize = CHUNK_BYTES / LINE_BYTES;
@@ -55,7 +59,7 @@ pub enum PlcEvent {
     /// The drive's answer to the last download.
     Download(DownloadResult),
     /// The drive tripped.
-    DriveFault { code: u8, drive_time_ms: u32 },
+    DriveFault { code: FaultCode, drive_time_ms: u32 },
 }
 
 /// Why a command was refused.
@@ -217,24 +221,51 @@ impl PlcLink {
         if let Some(i) = old {
             self.pending.remove(tail + i);
         }
-        self.pending
-            .push(Pending::Q(q))
-            .map_err(|_| CommandError::QueueFull)
+        self.push_pending(Pending::Q(q))
+    }
+
+    /// Room left for commands other than STOP.
+    fn room(&self) -> usize {
+        PENDING_NOT_STOP.saturating_sub(self.pending.len())
+    }
+
+    fn push_pending(&mut self, p: Pending) -> Result<(), CommandError> {
+        if self.room() == 0 {
+            return Err(CommandError::QueueFull);
+        }
+        self.pending.push(p).map_err(|_| CommandError::QueueFull)
     }
 
     fn command(&mut self, p: Pending) -> Result<(), CommandError> {
         if !self.is_up() {
             return Err(CommandError::NotConnected);
         }
-        self.pending.push(p).map_err(|_| CommandError::QueueFull)
+        self.push_pending(p)
     }
 
     pub fn run(&mut self) -> Result<(), CommandError> {
         self.command(Pending::Run)
     }
 
+    /// STOP (drive.md: PWM off, coast). Never refused for lack of room: it drops what is
+    /// still waiting and would contradict or delay it (Q writes, a RUN, an earlier STOP;
+    /// none of them on the wire yet) and goes to the head of the queue, so it is the next
+    /// new message sent (a retransmission that is due, or a full window of 8 in flight,
+    /// still goes first: those are already on the wire). A dropped RUN is what the caller
+    /// asked for; dropped Q writes stay in the PLC's copy and are resent after the next
+    /// handshake like all others (RUN starts with Q cleared anyway). Refused only while
+    /// the link is down ([`CommandError::NotConnected`]): the drive stops itself then
+    /// (`LINK` in RUN, and STOP).
     pub fn stop(&mut self) -> Result<(), CommandError> {
-        self.command(Pending::Stop)
+        if !self.is_up() {
+            return Err(CommandError::NotConnected);
+        }
+        self.pending
+            .retain(|p| !matches!(p, Pending::Q(_) | Pending::Run | Pending::Stop));
+        // Cannot fail: other commands leave the last place free (`PENDING_NOT_STOP`).
+        self.pending
+            .insert(0, Pending::Stop)
+            .map_err(|_| CommandError::QueueFull)
     }
 
     pub fn ack_fault(&mut self) -> Result<(), CommandError> {
@@ -258,7 +289,7 @@ impl PlcLink {
             return Err(CommandError::NotConnected);
         }
         let chunks = DRIVE_LINES.div_ceil(CHUNK_LINES);
-        if self.pending.capacity() - self.pending.len() < chunks + 2 {
+        if self.room() < chunks + 2 {
             return Err(CommandError::QueueFull);
         }
         for (dst, line) in self
@@ -342,6 +373,7 @@ impl PlcLink {
         if self.events.is_full() {
             self.events.pop_front();
         }
+        // Room was made above: keeps the newest events.
         let _ = self.events.push_back(e);
     }
 
@@ -351,6 +383,7 @@ impl PlcLink {
         // go again below, the rest was reported dropped at the loss.
         for _ in self.s.start(now) {}
         self.pending.clear();
+        // At most 64 Q and a direction in an empty queue of 96: the pushes cannot fail.
         for (addr, v) in self.q_shadow.iter().enumerate() {
             if let Some(value) = *v {
                 let _ = self.pending.push(Pending::Q(QValue {
@@ -434,6 +467,7 @@ impl PlcLink {
     /// The next frame to send, written to `out`; returns its length, 0 when there is
     /// nothing to send now or `out` is smaller than the frame ([`MAX_WIRE_FRAME`] always
     /// fits). Call it whenever the UART can take more, and at least every millisecond.
+    #[must_use = "the frame in `out` must be sent"]
     pub fn poll_transmit(&mut self, now: Micros, out: &mut [u8]) -> usize {
         self.tick(now);
         if out.len() < MAX_WIRE_FRAME {
@@ -489,9 +523,13 @@ impl PlcLink {
         self.quiet_until = Some(Micros(now.0.saturating_add(quiet_us)));
     }
 
-    /// Move waiting commands into the window, turning runs of Q writes into one frame.
+    /// Move the next waiting command into the window (a run of Q writes becomes one
+    /// frame), only when the window has room and everything in it was sent: a message in
+    /// the window is numbered and can no longer be dropped or overtaken, so commands wait
+    /// in `pending` until their frame goes out. That keeps a STOP (which goes to the head
+    /// of `pending`) the next new frame, and lets Q writes coalesce until then.
     fn fill_window(&mut self) {
-        while !self.s.window_full() {
+        if !self.s.window_full() && !self.s.has_unsent() {
             if self.pending.is_empty() {
                 return;
             }
@@ -499,6 +537,8 @@ impl PlcLink {
             let msg = match first {
                 Pending::Q(q) => {
                     let mut v = heapless::Vec::<QValue, MAX_Q_PER_FRAME>::new();
+                    // Cannot fail: the first push into an empty vector, then only while
+                    // it is not full.
                     let _ = v.push(q);
                     while !v.is_full() {
                         match self.pending.first() {
@@ -528,9 +568,8 @@ impl PlcLink {
                 }
                 Pending::DownloadEnd => PlcMsg::DownloadEnd,
             };
-            if self.s.push(msg).is_err() {
-                return;
-            }
+            // Cannot fail: the window has room (checked above).
+            let _ = self.s.push(msg);
         }
     }
 }

@@ -59,6 +59,12 @@ impl<M, const W: usize> TxWindow<M, W> {
         self.entries.len()
     }
 
+    /// Whether a pushed message was never sent (they go out in order, so if any was not,
+    /// the newest was not).
+    pub fn has_unsent(&self) -> bool {
+        self.entries.back().is_some_and(|e| e.sent_at.is_none())
+    }
+
     /// Total number of frames sent again after a timeout.
     pub fn retransmits(&self) -> u32 {
         self.retransmits

@@ -163,6 +163,11 @@ impl<M: Serialize, const W: usize> Session<M, W> {
         self.tx.len()
     }
 
+    /// Whether the window holds a message that was never sent.
+    pub fn has_unsent(&self) -> bool {
+        self.tx.has_unsent()
+    }
+
     /// Number `msg` and keep it until acknowledged; gives it back when the window is full.
     pub fn push(&mut self, msg: M) -> Result<u8, M> {
         self.tx.push(msg)

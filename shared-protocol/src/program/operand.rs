@@ -3,6 +3,10 @@
 
 use super::model::Operand;
 
+/// Number of Q variables (Q00-Q63): the drive's copies, the PLC's shadows and the link's
+/// addresses all have this size.
+pub const Q_COUNT: usize = 64;
+
 /// The class of an operand: a lettered area or one named operand.
 ///
 /// The order of [`OperandClass::ALL`] is the order the keypad editor offers operands in.
@@ -67,7 +71,7 @@ impl OperandClass {
             OperandClass::B => 100,
             OperandClass::A => 4,
             OperandClass::K => 100,
-            OperandClass::Q => 64,
+            OperandClass::Q => Q_COUNT as u8,
             _ => 1,
         }
     }
