@@ -51,7 +51,7 @@ fn measure(label: &str, program: &str, mode: PwmMode) -> f64 {
             scen.clone(),
             duration,
             RunOptions::default(),
-            false,
+            hil_sim::decimate::KeepSamples::None,
             |s| last_pwm = s.lcd[1].map_or(0, |v| v as u32),
             |_| {},
         )

@@ -32,7 +32,16 @@ fn samples(program: &str, scenario: &str, duration_s: f64, sample_ms: f64) -> Re
         sample_ns: (sample_ms * 1e6).round() as u64,
         ..RunOptions::default()
     };
-    Ok(run(&p, s, duration_s, opts, true, |_| {}, |_| {})?.samples)
+    Ok(run(
+        &p,
+        s,
+        duration_s,
+        opts,
+        hil_sim::decimate::KeepSamples::All,
+        |_| {},
+        |_| {},
+    )?
+    .samples)
 }
 
 fn window(s: &[Sample], from_s: f64, to_s: f64) -> Vec<Sample> {

@@ -60,6 +60,50 @@ impl<T: Clone> Decimator<T> {
     }
 }
 
+/// Which samples a run keeps in its report (`on_sample` sees every one either way).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum KeepSamples {
+    /// None (a CSV-only or summary-only run).
+    None,
+    /// Every sample (tests and library users that analyse the record).
+    All,
+    /// For a plot: evenly decimated to at most [`PLOT_SAMPLES`] (bounded memory).
+    ForPlot,
+}
+
+/// Collects samples as [`KeepSamples`] says.
+#[derive(Debug, Clone)]
+pub struct Kept<T> {
+    keep: KeepSamples,
+    all: Vec<T>,
+    plot: Decimator<T>,
+}
+
+impl<T: Clone> Kept<T> {
+    pub fn new(keep: KeepSamples) -> Self {
+        Kept {
+            keep,
+            all: Vec::new(),
+            plot: Decimator::new(PLOT_SAMPLES),
+        }
+    }
+
+    pub fn push(&mut self, s: &T) {
+        match self.keep {
+            KeepSamples::None => {}
+            KeepSamples::All => self.all.push(s.clone()),
+            KeepSamples::ForPlot => self.plot.push(s),
+        }
+    }
+
+    pub fn into_vec(self) -> Vec<T> {
+        match self.keep {
+            KeepSamples::ForPlot => self.plot.into_vec(),
+            KeepSamples::None | KeepSamples::All => self.all,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -219,7 +219,11 @@ fn cmd_run(
         scen,
         duration_s,
         opts,
-        plot.is_some(),
+        if plot.is_some() {
+            hil_sim::decimate::KeepSamples::ForPlot
+        } else {
+            hil_sim::decimate::KeepSamples::None
+        },
         |s| {
             if let Some(w) = writer.as_mut() {
                 if let Err(e) = w.write(s) {
@@ -325,7 +329,11 @@ fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
         scen,
         duration_s,
         opts,
-        a.plot.is_some(),
+        if a.plot.is_some() {
+            hil_sim::decimate::KeepSamples::ForPlot
+        } else {
+            hil_sim::decimate::KeepSamples::None
+        },
         |s| {
             if let Some(w) = writer.as_mut() {
                 if let Err(e) = w.write(s) {

@@ -174,15 +174,15 @@ impl RunReport {
     }
 }
 
-/// Simulates `program` under `scenario` for `duration_s`. `keep_samples` keeps the
-/// samples in the report for the plot (evenly decimated to at most
-/// [`crate::decimate::PLOT_SAMPLES`]; `on_sample` sees every one, for the CSV); `progress` is called every simulated 0.1 s.
+/// Simulates `program` under `scenario` for `duration_s`. `keep_samples` says which
+/// samples the report keeps (all, none, or decimated for a plot; `on_sample` sees every
+/// one, for the CSV); `progress` is called every simulated 0.1 s.
 pub fn run(
     program: &Program,
     scenario: Scenario,
     duration_s: f64,
     opts: RunOptions,
-    keep_samples: bool,
+    keep_samples: crate::decimate::KeepSamples,
     mut on_sample: impl FnMut(&Sample),
     mut progress: impl FnMut(f64),
 ) -> Result<RunReport> {
@@ -195,7 +195,7 @@ pub fn run(
     let mut peak_current_a: f64 = 0.0;
     let mut peak_dc_v: f64 = 0.0;
     let end_ns = (duration_s * 1e9).round() as u64;
-    let mut samples = crate::decimate::Decimator::new(crate::decimate::PLOT_SAMPLES);
+    let mut samples = crate::decimate::Kept::new(keep_samples);
     let mut warnings: Vec<(f64, String)> = Vec::new();
     let mut seen: Vec<String> = Vec::new();
     let chunk_ns = 100_000_000;
@@ -214,9 +214,7 @@ pub fn run(
             peak_current_a = s.i_abc_a.iter().fold(peak_current_a, |m, i| m.max(i.abs()));
             peak_dc_v = peak_dc_v.max(s.u_dc_v);
             on_sample(s);
-            if keep_samples {
-                samples.push(s);
-            }
+            samples.push(s);
         });
         progress(t as f64 * 1e-9);
     }

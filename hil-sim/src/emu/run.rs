@@ -143,7 +143,7 @@ pub fn run(
     scenario: Scenario,
     duration_s: f64,
     opts: RunOptions,
-    keep_samples: bool,
+    keep_samples: crate::decimate::KeepSamples,
     mut on_sample: impl FnMut(&Sample),
     mut on_log: impl FnMut(&str, &LogLine),
 ) -> Result<EmuReport> {
@@ -153,7 +153,7 @@ pub fn run(
     let start = Instant::now();
     let mut sim = EmuSim::new(drive_elf, plc_elf, program, scenario, opts)?;
     let end_ns = (duration_s * 1e9).round() as u64;
-    let mut samples = crate::decimate::Decimator::new(crate::decimate::PLOT_SAMPLES);
+    let mut samples = crate::decimate::Kept::new(keep_samples);
     let mut shown = [0usize; 2];
     let mut log: Vec<(String, LogLine)> = Vec::new();
     let chunk_ns = 10_000_000;
@@ -162,9 +162,7 @@ pub fn run(
         t = (t + chunk_ns).min(end_ns);
         sim.run_until(t, |s| {
             on_sample(s);
-            if keep_samples {
-                samples.push(s);
-            }
+            samples.push(s);
         });
         let mut fresh: Vec<(String, LogLine)> = Vec::new();
         for (k, m) in [sim.drive(), sim.plc()].into_iter().enumerate() {

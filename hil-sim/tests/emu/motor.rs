@@ -14,7 +14,7 @@ fn motor_example_matches_the_simulation_of_the_cores() {
         Scenario::parse(MOTOR_TOML).expect("scenario"),
         3.0,
         RunOptions::default(),
-        true,
+        hil_sim::decimate::KeepSamples::All,
         |_| {},
         |_| {},
     )

@@ -81,7 +81,7 @@ fn csv_bytes(scenario: &str, seed: u64) -> String {
             seed,
             sample_ns: 1_000_000,
         },
-        false,
+        hil_sim::decimate::KeepSamples::None,
         |x| {
             out.push_str(&row(x));
             out.push('\n');

@@ -9,14 +9,29 @@ pub const MOTOR_PLC: &str = include_str!("../../../shared-protocol/programs/moto
 
 /// Runs `program` under the scenario text for `duration_s`, keeping every 1 ms sample.
 pub fn run_text(program: &str, scenario: &str, duration_s: f64) -> RunReport {
+    run_sampled(
+        program,
+        scenario,
+        duration_s,
+        RunOptions::default().sample_ns,
+    )
+}
+
+/// [`run_text`] with samples every `sample_ns` (peaks of waveforms need finer samples than
+/// 1 ms: at 50 Hz a 1 ms grid can miss a peak by a few per cent, depending on when the
+/// drive started).
+pub fn run_sampled(program: &str, scenario: &str, duration_s: f64, sample_ns: u64) -> RunReport {
     let p = parse_program(program, "test.plc").expect("program assembles");
     let s = Scenario::parse(scenario).expect("scenario parses");
     run(
         &p,
         s,
         duration_s,
-        RunOptions::default(),
-        true,
+        RunOptions {
+            sample_ns,
+            ..RunOptions::default()
+        },
+        hil_sim::decimate::KeepSamples::All,
         |_| {},
         |_| {},
     )

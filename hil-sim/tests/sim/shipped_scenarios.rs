@@ -12,7 +12,16 @@ fn run_file(name: &str, program: &str) -> Vec<u8> {
     let s = Scenario::load(&path).unwrap();
     let d = s.duration_s(None);
     let p = parse_program(program, name).unwrap();
-    let r = run(&p, s, d, RunOptions::default(), false, |_| {}, |_| {}).unwrap();
+    let r = run(
+        &p,
+        s,
+        d,
+        RunOptions::default(),
+        hil_sim::decimate::KeepSamples::None,
+        |_| {},
+        |_| {},
+    )
+    .unwrap();
     r.faults.iter().map(|f| f.code).collect()
 }
 
