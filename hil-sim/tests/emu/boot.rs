@@ -90,6 +90,18 @@ fn both_images_boot_to_idle_and_stop() {
             .collect::<Vec<_>>(),
         sim.plc().diagnostics()
     );
+    // Review D14: the LCD driver meets the HD44780's timing (RS and data stable before E
+    // rises, held while it falls, nothing sent while the controller is busy).
+    let lcd = sim.lcd_device();
+    assert_eq!(
+        (
+            lcd.setup_violations(),
+            lcd.hold_violations(),
+            lcd.busy_violations()
+        ),
+        (0, 0, 0),
+        "LCD timing violations (set-up, hold, busy)"
+    );
 }
 
 /// Review D4: the image users flash is for the bare B-G431B-ESC1. It puts OPAMP1-3 in PGA
