@@ -29,7 +29,9 @@
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
 use shared_protocol::link::drive::{DriveEvent as LinkEvent, DriveLink, DriveLinkState};
-use shared_protocol::link::{DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig};
+use shared_protocol::link::{
+    AckRefusal, DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig,
+};
 use shared_protocol::units::Micros;
 
 use crate::config::{DriveConfig, ResetCause};
@@ -61,6 +63,9 @@ pub enum AppEvent {
         command: DriveCommand,
         error: CommandError,
     },
+    /// An ACK was refused but the link's queue had no room for the reason (16 reports
+    /// waiting): the PLC shows no reason this time.
+    AckReasonLost,
     /// The link reported an accepted section but had none to hand over (cannot happen:
     /// `ProgramAccepted` is pushed with the section in place; kept so it would be seen).
     LoadFailed,
@@ -234,6 +239,18 @@ impl DriveApp {
     fn command(&mut self, command: DriveCommand) {
         if let Err(error) = self.core.command(command) {
             self.push(AppEvent::Refused { command, error });
+            // The PLC shows why an ACK was refused (issue 20): the fault stays latched
+            // and the user must know what to change.
+            let why = match error {
+                CommandError::CauseActive(f) => Some(AckRefusal::CauseActive(f)),
+                CommandError::FrequencyNotBelowFmn => Some(AckRefusal::FrequencyNotBelowFmn),
+                _ => None,
+            };
+            if let Some(why) = why {
+                if !self.link.report_ack_refused(why) {
+                    self.push(AppEvent::AckReasonLost);
+                }
+            }
         }
     }
 

@@ -564,6 +564,7 @@ impl<E: Eeprom> PlcApp<E> {
                         reason: reason.short(),
                     });
                 }
+                PlcEvent::AckRefused(why) => self.editor.notify(Notice::Text(why.message())),
                 PlcEvent::DriveFault { code, .. } => {
                     // The log and `FLT` keep the raw code (the log also holds events).
                     let code = code.code();

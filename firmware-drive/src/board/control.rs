@@ -66,7 +66,10 @@ pub async fn run() {
                     defmt::warn!("drive: {} refused: {}", command, error)
                 }
                 AppEvent::LoadFailed => {
-                    defmt::error!("drive: verified section refused by the core")
+                    defmt::error!("drive: accepted section missing at hand-over")
+                }
+                AppEvent::AckReasonLost => {
+                    defmt::warn!("drive: ACK refused, reason not sent (link queue full)")
                 }
             }
         }

@@ -165,3 +165,48 @@ fn the_sources_du_512_alternative_trips_oc_at_the_start() {
     let r = run_text(MOTOR_PLC, START_50HZ, 1.5);
     assert!(r.faults.is_empty());
 }
+
+/// Issue 20 item 2: a refused ACK says why on the PLC's LCD, and an ACK is accepted once
+/// the cause is gone and the frequency command is below fmn (keymap.md, `*` `9`).
+#[test]
+fn a_refused_ack_says_why_and_a_later_one_is_accepted() {
+    let p = parse_program(MOTOR_PLC, "motor.plc").unwrap();
+    // The supply rises to 45 V at 6 s: the DC-link comparator (OV_HW, 40 V) trips and stays
+    // high. *9 at 7 s with the supply still high; supply back at 8 s, *9 at 9 s with the
+    // pot still at 50 Hz; pot to 0 at 10 s (the program's 2.333 s lag brings the command
+    // below fmn = 5 Hz about 5.4 s later), *9 at 17 s.
+    let scen = format!(
+        "[plant]\nload_torque_nm = 0.03\n{START_50HZ}
+[[event]]\nat_s = 6.0\ndc_link_v = 45.0
+[[event]]\nat_s = 7.0\nkeys = \"*9\"
+[[event]]\nat_s = 8.0\ndc_link_v = 30.0
+[[event]]\nat_s = 9.0\nkeys = \"*9\"
+[[event]]\nat_s = 10.0\nset = {{ A01 = 0 }}
+[[event]]\nat_s = 17.0\nkeys = \"*9\"
+"
+    );
+    let mut sim =
+        Simulation::new(&p, Scenario::parse(&scen).unwrap(), RunOptions::default()).unwrap();
+    let status_rows = |sim: &mut Simulation, from_s: f64| {
+        let mut rows = Vec::new();
+        for k in 1..=10u64 {
+            sim.run_until((from_s * 1e9) as u64 + k * 50_000_000, |_| {});
+            rows.push(sim.plc().lcd().row(3).trim_end().to_string());
+        }
+        rows
+    };
+    sim.run_until(7_000_000_000, |_| {});
+    assert_eq!(
+        sim.faults().iter().map(|f| f.code).collect::<Vec<_>>(),
+        vec![3]
+    );
+    let rows = status_rows(&mut sim, 7.0);
+    assert!(rows.iter().any(|r| r == "ACK REFUSED: CAUSE"), "{rows:?}");
+    sim.run_until(9_000_000_000, |_| {});
+    let rows = status_rows(&mut sim, 9.0);
+    assert!(rows.iter().any(|r| r == "ACK REFUSED: F>=FMN"), "{rows:?}");
+    sim.run_until(18_000_000_000, |_| {});
+    let states: Vec<&str> = sim.drive_states().iter().map(|(_, s)| *s).collect();
+    assert_eq!(states.last(), Some(&"IDLE"), "{states:?}");
+    assert!(states.contains(&"FAULT"), "{states:?}");
+}

@@ -9,8 +9,8 @@
 use super::config::LinkConfig;
 use super::frame::{Frame, MAX_WIRE_FRAME};
 use super::message::{
-    verify_kind_code, DownloadResult, DriveMsg, DriveStatus, PlcMsg, RejectReason, MAX_Q_PER_FRAME,
-    PROTOCOL_VERSION,
+    verify_kind_code, AckRefusal, DownloadResult, DriveMsg, DriveStatus, PlcMsg, RejectReason,
+    MAX_Q_PER_FRAME, PROTOCOL_VERSION,
 };
 use super::plc::section_crc;
 use super::session::{earliest, Reliable, Session, AT_ONCE};
@@ -193,6 +193,13 @@ impl DriveLink {
                 drive_time_ms,
             })
             .is_ok()
+    }
+
+    /// Tell the PLC why an ACK was refused (reliable). Returns `false` when 16 messages
+    /// are already waiting (the PLC then shows no reason; the fault stays latched).
+    #[must_use = "a refusal that did not fit is not reported"]
+    pub fn report_ack_refused(&mut self, why: AckRefusal) -> bool {
+        self.pending.push_back(DriveMsg::AckRefused(why)).is_ok()
     }
 
     /// Bytes received from the UART, in order.

@@ -11,7 +11,8 @@ pub use crate::fault::{fault_name, fault_text, FaultCode};
 
 /// Protocol version stated in the handshake; bump on any incompatible wire change.
 /// 2: the status carries the hardware thresholds and the drive's run-time warning.
-pub const PROTOCOL_VERSION: u16 = 2;
+/// 3: `DriveMsg::AckRefused` (why the drive refused an acknowledgement).
+pub const PROTOCOL_VERSION: u16 = 3;
 
 /// Most Q writes carried by one frame (a scan that writes more sends several frames).
 pub const MAX_Q_PER_FRAME: usize = 8;
@@ -205,12 +206,38 @@ pub enum DriveMsg {
     Download(DownloadResult),
     /// Reliable: a trip, with the drive's millisecond clock at the trip.
     Fault { code: FaultCode, drive_time_ms: u32 },
+    /// Reliable: an ACK the drive refused, and why (the fault stays latched).
+    AckRefused(AckRefusal),
+}
+
+/// Why the drive refused to acknowledge its latched fault (`*` `9`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum AckRefusal {
+    /// The fault's cause is still present (e.g. the DC link still above `U>`).
+    CauseActive(FaultCode),
+    /// The drive section still commands a frequency at or above `fmn`: acknowledging
+    /// would restart the motor at once. Lower the setpoint first.
+    FrequencyNotBelowFmn,
+}
+
+impl AckRefusal {
+    /// The PLC's status-row message (at most 20 characters).
+    pub fn message(&self) -> &'static str {
+        match self {
+            AckRefusal::CauseActive(_) => "ACK REFUSED: CAUSE",
+            AckRefusal::FrequencyNotBelowFmn => "ACK REFUSED: F>=FMN",
+        }
+    }
 }
 
 impl DriveMsg {
     /// Whether this message is sequenced, acknowledged and retransmitted.
     pub fn is_reliable(&self) -> bool {
-        matches!(self, DriveMsg::Download(_) | DriveMsg::Fault { .. })
+        matches!(
+            self,
+            DriveMsg::Download(_) | DriveMsg::Fault { .. } | DriveMsg::AckRefused(_)
+        )
     }
 }
 

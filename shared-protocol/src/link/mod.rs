@@ -31,8 +31,8 @@ pub use config::LinkConfig;
 pub use drive::{DriveEvent, DriveLink, DriveLinkState};
 pub use frame::{FrameError, FrameReader, MAX_WIRE_FRAME};
 pub use message::{
-    fault_name, fault_text, DownloadResult, DriveMsg, DriveState, DriveStatus, DriveWarning,
-    FaultCode, PlcMsg, QValue, RejectReason, PROTOCOL_VERSION,
+    fault_name, fault_text, AckRefusal, DownloadResult, DriveMsg, DriveState, DriveStatus,
+    DriveWarning, FaultCode, PlcMsg, QValue, RejectReason, PROTOCOL_VERSION,
 };
 pub use plc::{CommandError, PlcEvent, PlcLink, PlcLinkState};
 

@@ -7,8 +7,8 @@
 use super::config::LinkConfig;
 use super::frame::{Frame, MAX_WIRE_FRAME};
 use super::message::{
-    DownloadResult, DriveMsg, DriveStatus, PlcMsg, QValue, CHUNK_BYTES, MAX_Q_PER_FRAME,
-    PROTOCOL_VERSION,
+    AckRefusal, DownloadResult, DriveMsg, DriveStatus, PlcMsg, QValue, CHUNK_BYTES,
+    MAX_Q_PER_FRAME, PROTOCOL_VERSION,
 };
 use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::{LinkStats, Q_COUNT};
@@ -60,6 +60,8 @@ pub enum PlcEvent {
     Download(DownloadResult),
     /// The drive tripped.
     DriveFault { code: FaultCode, drive_time_ms: u32 },
+    /// The drive refused an ACK (`ack_fault`), and why.
+    AckRefused(AckRefusal),
 }
 
 /// Why a command was refused.
@@ -365,6 +367,7 @@ impl PlcLink {
                 code,
                 drive_time_ms,
             }),
+            DriveMsg::AckRefused(r) => self.push_event(PlcEvent::AckRefused(r)),
             DriveMsg::HelloReply { .. } | DriveMsg::Ack => {}
         }
     }
