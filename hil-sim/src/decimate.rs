@@ -71,6 +71,17 @@ pub enum KeepSamples {
     ForPlot,
 }
 
+impl KeepSamples {
+    /// What a command-line run keeps: samples for its plot, if it draws one.
+    pub fn for_plot(plot: bool) -> Self {
+        if plot {
+            KeepSamples::ForPlot
+        } else {
+            KeepSamples::None
+        }
+    }
+}
+
 /// Collects samples as [`KeepSamples`] says.
 #[derive(Debug, Clone)]
 pub struct Kept<T> {

@@ -219,11 +219,7 @@ fn cmd_run(
         scen,
         duration_s,
         opts,
-        if plot.is_some() {
-            hil_sim::decimate::KeepSamples::ForPlot
-        } else {
-            hil_sim::decimate::KeepSamples::None
-        },
+        hil_sim::decimate::KeepSamples::for_plot(plot.is_some()),
         |s| {
             if let Some(w) = writer.as_mut() {
                 if let Err(e) = w.write(s) {
@@ -329,11 +325,7 @@ fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
         scen,
         duration_s,
         opts,
-        if a.plot.is_some() {
-            hil_sim::decimate::KeepSamples::ForPlot
-        } else {
-            hil_sim::decimate::KeepSamples::None
-        },
+        hil_sim::decimate::KeepSamples::for_plot(a.plot.is_some()),
         |s| {
             if let Some(w) = writer.as_mut() {
                 if let Err(e) = w.write(s) {

@@ -307,16 +307,12 @@ fn draw<DB: DrawingBackend>(
             let (wide, zoom) = area.split_horizontally(area.dim_in_pixel().0 * 68 / 100);
             panel.draw(&wide, samples, (t_start, t_end), &caption, &err)?;
             let (z0, z1) = zoom_window(samples, marks.zoom_at_s, (t_start, t_end));
-            let inside: Vec<Sample> = samples
-                .iter()
-                .filter(|s| {
-                    let t = s.t_ns as f64 * 1e-9;
-                    t >= z0 && t <= z1
-                })
-                .cloned()
-                .collect();
+            // The samples are in time order: the window is a slice, not a copy.
+            let first = samples.partition_point(|s| (s.t_ns as f64) * 1e-9 < z0);
+            let end = samples.partition_point(|s| (s.t_ns as f64) * 1e-9 <= z1);
+            let inside = samples.get(first..end).unwrap_or(&[]);
             let zoom_caption = format!("zoom {z0:.3}-{z1:.3} s");
-            panel.draw(&zoom, &inside, (z0, z1), &zoom_caption, &err)?;
+            panel.draw(&zoom, inside, (z0, z1), &zoom_caption, &err)?;
         } else {
             panel.draw(area, samples, (t_start, t_end), &caption, &err)?;
         }

@@ -363,12 +363,13 @@ impl Simulation {
             self.drive.tick_1ms(now);
             self.next_drive_tick_ns += MS_NS;
             app_ran[1] = true;
-            let f = self.drive.status().fault.map_or(0, |f| f.code());
+            let status = self.drive.status();
+            let f = status.fault.map_or(0, |f| f.code());
             if f != 0 && f != self.last_fault {
                 self.faults.push(FaultRecord { t_ns: t, code: f });
             }
             self.last_fault = f;
-            let state = self.drive.status().state.name();
+            let state = status.state.name();
             if self.states.last().is_none_or(|(_, s)| *s != state) {
                 self.states.push((t, state));
             }
