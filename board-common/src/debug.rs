@@ -32,3 +32,22 @@ pub fn halt() -> ! {
     }
     cortex_m::peripheral::SCB::sys_reset()
 }
+
+/// Logs a `core::panic!` without `core::fmt`: the message if it is a plain string (every
+/// `panic!("text")`, `expect("text")`, `unreachable!()`), else only that it had arguments,
+/// and the source location. Formatting the whole `PanicInfo` would link `core::fmt`
+/// (about 2.8 KiB of the drive's 64 KiB budget) for a message probe-rs's backtrace already
+/// locates.
+pub fn log_panic(info: &core::panic::PanicInfo) {
+    let message = info.message().as_str().unwrap_or("(formatted message)");
+    match info.location() {
+        Some(at) => defmt::error!(
+            "panic: {=str} at {=str}:{=u32}:{=u32}",
+            message,
+            at.file(),
+            at.line(),
+            at.column()
+        ),
+        None => defmt::error!("panic: {=str}", message),
+    }
+}

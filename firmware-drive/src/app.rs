@@ -196,8 +196,8 @@ impl DriveApp {
 
     /// The PWM interrupt: measurements and trips in, what the power stage does this period
     /// out (perform it with [`PeriodAction::apply`]).
-    #[inline]
     #[must_use = "the action must be applied to the power stage"]
+    #[inline(always)]
     pub fn pwm_period(&mut self, adc: &AdcSample) -> PeriodAction {
         let cmd: PwmCommand = self.core.pwm_period(adc);
         let wanted = self.core.pwm_timing();

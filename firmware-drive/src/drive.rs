@@ -497,8 +497,8 @@ impl DriveCore {
     }
 
     /// The PWM interrupt: measurements, software trips and the duties for the next period.
-    #[inline]
     #[must_use = "the command must reach the power stage"]
+    #[inline(always)]
     pub fn pwm_period(&mut self, raw: &AdcSample) -> PwmCommand {
         if self.state == DriveState::Boot {
             self.zero_cal.add(raw, &self.cfg.board.scaling);

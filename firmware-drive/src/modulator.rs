@@ -104,20 +104,16 @@ impl Modulator {
     }
 
     /// Duties in counts (0..=n) for this PWM period, then advance the angle by one period.
-    #[inline]
+    #[inline(always)]
     pub fn step(&mut self, n: u16) -> [u16; 3] {
         let p = &self.p;
         let nn = i64::from(n);
         // Half the period times m, Q16 counts: the sine's amplitude in counts.
         let half_amp_q16 = (u64::from(n) * u64::from(p.m_q16.min(M_LIMIT_Q16))) >> 1;
         let angle = (self.theta >> 32) as u32;
-        let mut v = [0i64; 3];
-        for k in 0..3 {
-            if let (Some(slot), Some(phi)) = (v.get_mut(k), p.phi.get(k)) {
-                let s = sin_q15(angle.wrapping_add(*phi));
-                *slot = (half_amp_q16 as i64 * i64::from(s)) >> 15;
-            }
-        }
+        let mut v = p
+            .phi
+            .map(|phi| (half_amp_q16 as i64 * i64::from(sin_q15(angle.wrapping_add(phi)))) >> 15);
         let all_sine = p.legs.iter().all(|l| *l == LegMode::Sine);
         if self.min_max_injection && all_sine {
             let [a, b, c] = v;

@@ -66,6 +66,7 @@ pub struct PeriodAction {
 impl PeriodAction {
     /// The action for the core's command `cmd`, given the timing TIM1 is programmed with
     /// (`programmed`) and the one the core wants (`wanted`).
+    #[inline(always)]
     pub fn from_command(cmd: &PwmCommand, programmed: &PwmTiming, wanted: &PwmTiming) -> Self {
         let timing = (programmed != wanted).then_some(*wanted);
         let max = wanted.arr.saturating_add(1);

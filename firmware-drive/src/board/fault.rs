@@ -49,7 +49,7 @@ pub fn fatal(reason: &'static str) -> ! {
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     safe_state();
-    defmt::error!("panic: {}", defmt::Display2Format(info));
+    board_common::debug::log_panic(info);
     halt()
 }
 

@@ -23,7 +23,7 @@ use crate::pins;
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     pins::force_outputs_low();
-    defmt::error!("panic: {}", defmt::Display2Format(info));
+    board_common::debug::log_panic(info);
     halt()
 }
 
