@@ -23,8 +23,11 @@
 //!   after the reconnection the PLC must ACK and send RUN again.
 //! * A download is checked by the link (CRC, decode, `verify_drive`, one step per
 //!   `poll_tx` so that no call holds the PWM interrupt off for long: review D13) and then
-//!   handed, as a `VerifiedDriveSection`, to [`DriveCore::load_verified`]; a reject trips
-//!   `PROG`.
+//!   handed, as a `VerifiedDriveSection`, to [`DriveCore::load_verified`] in a `poll_tx`
+//!   of its own (the pass after the one that sent the result: the load copies the section
+//!   and costs ~3 000 instructions, too much on top of a check step and a frame in one
+//!   critical section); `on_rx` loads a pending section first, so every command from the
+//!   PLC finds it loaded. A reject trips `PROG`.
 //! * Every fault the core latches is reported to the PLC (reliably, with the drive's
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
@@ -85,6 +88,9 @@ pub struct DriveApp {
     /// The timing TIM1 is programmed with (the last one a [`PeriodAction`] carried).
     programmed: PwmTiming,
     breaks: BreakMonitor,
+    /// The link accepted a section that the core has not loaded yet (the next `poll_tx`
+    /// or `on_rx` does).
+    load_pending: bool,
 }
 
 impl DriveApp {
@@ -97,6 +103,7 @@ impl DriveApp {
             unreported: heapless::Deque::new(),
             events: heapless::Deque::new(),
             breaks: BreakMonitor::default(),
+            load_pending: false,
         }
     }
 
@@ -138,6 +145,7 @@ impl DriveApp {
 
     /// Bytes from the UART: commands are applied to the core at once.
     pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
+        self.load_if_pending();
         self.link.receive(bytes, now);
         self.apply_link_events();
     }
@@ -146,6 +154,11 @@ impl DriveApp {
     /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes.
     #[must_use = "the frame in `out` must be sent"]
     pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        if self.load_if_pending() {
+            // This pass is the load's; the link's frames and timers wait for the next one,
+            // which is due at once (`poll_timeout`).
+            return 0;
+        }
         let n = self.link.poll_transmit(now, out);
         // A link loss is detected by the timers poll_transmit runs.
         self.apply_link_events();
@@ -254,6 +267,28 @@ impl DriveApp {
         }
     }
 
+    /// When `poll_tx` must run next: at once while a load is pending, else the link's
+    /// deadline.
+    pub fn poll_timeout(&self) -> Option<Micros> {
+        if self.load_pending {
+            Some(Micros(0))
+        } else {
+            self.link.poll_timeout()
+        }
+    }
+
+    /// Loads the section the link accepted, if one waits; whether it did (or found none).
+    fn load_if_pending(&mut self) -> bool {
+        if !core::mem::take(&mut self.load_pending) {
+            return false;
+        }
+        match self.link.take_program() {
+            Some(p) => self.core.load_verified(&p),
+            None => self.push(AppEvent::LoadFailed),
+        }
+        true
+    }
+
     fn apply_link_events(&mut self) {
         while let Some(e) = self.link.poll_event() {
             self.push(AppEvent::Link(e));
@@ -274,10 +309,7 @@ impl DriveApp {
                     self.command(DriveCommand::Direction { reverse })
                 }
                 LinkEvent::AckFault => self.command(DriveCommand::Ack),
-                LinkEvent::ProgramAccepted => match self.link.take_program() {
-                    Some(p) => self.core.load_verified(&p),
-                    None => self.push(AppEvent::LoadFailed),
-                },
+                LinkEvent::ProgramAccepted => self.load_pending = true,
                 LinkEvent::ProgramRejected { .. } => self.core.trip(FaultCode::Prog),
             }
         }

@@ -22,7 +22,7 @@ impl LinkEndpoint for DriveApp {
         DriveApp::poll_tx(self, now, out)
     }
     fn poll_timeout(&self) -> Option<Micros> {
-        self.link().poll_timeout()
+        DriveApp::poll_timeout(self)
     }
     fn line_error(&mut self) {
         self.on_line_error();

@@ -3,7 +3,7 @@
 //! and a PLC of another protocol version.
 
 use firmware_drive::app::{AppEvent, DriveApp};
-use firmware_drive::link::DriveLinkState;
+use firmware_drive::link::{DriveEvent as LinkEvent, DriveLinkState};
 use firmware_drive::{AdcSample, DriveConfig, DriveState, FaultCode, ResetCause};
 use shared_protocol::link::channel::{Channel, Impairments};
 use shared_protocol::link::frame::{encode_frame, Frame};
@@ -22,6 +22,10 @@ struct Rig {
     now: Micros,
     plc_events: Vec<PlcEvent>,
     pwm_on: bool,
+    /// Every `poll_tx` call: (bytes returned, section loaded before, loaded after, the
+    /// link accepted a section in this call).
+    tx_calls: Vec<(usize, bool, bool, bool)>,
+    drive_events: Vec<AppEvent>,
 }
 
 impl Rig {
@@ -35,6 +39,8 @@ impl Rig {
             now: Micros(0),
             plc_events: Vec::new(),
             pwm_on: false,
+            tx_calls: Vec::new(),
+            drive_events: Vec::new(),
         }
     }
 
@@ -69,12 +75,24 @@ impl Rig {
                     self.to_drive.send(&out[..n], now);
                 }
             }
-            if self.to_plc.is_idle(now) {
+            // As the pump: a frame when the line is free, else the endpoint's timers only.
+            let loaded = self.drive.status().program_loaded;
+            let n = if self.to_plc.is_idle(now) {
                 let n = self.drive.poll_tx(now, &mut out);
                 if n > 0 {
                     self.to_plc.send(&out[..n], now);
                 }
-            }
+                n
+            } else {
+                self.drive.poll_tx(now, &mut [])
+            };
+            let seen = self.drive_events.len();
+            self.drive_events
+                .extend(std::iter::from_fn(|| self.drive.poll_event()));
+            let accepted = self.drive_events[seen..]
+                .contains(&AppEvent::Link(LinkEvent::ProgramAccepted));
+            let after = self.drive.status().program_loaded;
+            self.tx_calls.push((n, loaded, after, accepted));
             self.plc_events
                 .extend(std::iter::from_fn(|| self.plc.poll_event()));
         }
@@ -133,6 +151,30 @@ fn accepted_section_runs_and_stops() {
     assert!(!r.pwm_on);
 }
 
+/// Review D13: the core's load (the section copy, ~3 000 instructions) is not in the
+/// critical section of the pass that sends the result; it has a pass of its own, due at
+/// once.
+#[test]
+fn an_accepted_section_is_loaded_in_a_pass_of_its_own() {
+    let mut r = connected();
+    r.tx_calls.clear();
+    assert_eq!(r.download(SPIN, None), DownloadResult::Accepted);
+    let at = r
+        .tx_calls
+        .iter()
+        .position(|&(_, before, after, _)| !before && after)
+        .expect("the section was loaded in a poll_tx call");
+    let (n, _, _, accepted_here) = r.tx_calls[at];
+    assert_eq!(n, 0, "the loading pass sends no frame");
+    assert!(!accepted_here, "the load is not in the accepting pass");
+    let (_, _, loaded, accepted) = r.tx_calls[at - 1];
+    assert!(
+        accepted && !loaded,
+        "the pass just before accepted the section and left the load pending"
+    );
+    assert!(r.drive.status().program_loaded);
+}
+
 #[test]
 fn rejected_section_trips_prog_and_names_the_line() {
     let mut r = connected();
@@ -186,14 +228,9 @@ fn lost_link_in_run_trips_link_and_switches_off() {
     assert!(r.now.0 - cut.0 <= 51_000);
     r.run_for(200);
     assert!(!r.pwm_on);
-    let mut saw = false;
-    while let Some(e) = r.drive.poll_event() {
-        saw |= matches!(
-            e,
-            AppEvent::Link(firmware_drive::link::DriveEvent::LinkLost)
-        );
-    }
-    assert!(saw);
+    assert!(r
+        .drive_events
+        .contains(&AppEvent::Link(LinkEvent::LinkLost)));
 }
 
 #[test]

@@ -760,8 +760,11 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
                 drive.poll_timeout().is_some_and(|t| t <= now),
                 "a pending step is due at once"
             );
-            drive.poll_transmit(now, &mut out);
+            let sent = drive.poll_transmit(now, &mut out);
             calls += 1;
+            // A step is a call of its own: no frame with it (the acknowledgement and the
+            // result go out in the calls after).
+            assert_eq!(sent, 0, "a check step sends no frame in the same call");
             if let Some(e) = drive.poll_event() {
                 break e;
             }
@@ -785,6 +788,10 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
             assert_eq!(
                 drive.take_program().map(|v| v.section().clone()),
                 Some(section)
+            );
+            assert!(
+                drive.poll_transmit(now, &mut out) > 0,
+                "then the answer goes out"
             );
         }
     }

@@ -32,7 +32,7 @@ pub async fn run(port: LinkPort) {
 /// Wakes the link task when the application has something due (a status change, a
 /// fault report); the task otherwise sleeps until the deadline it knew.
 pub fn kick_if_due() {
-    let deadline = shared::with(|s| s.app.link().poll_timeout()).flatten();
+    let deadline = shared::with(|s| s.app.poll_timeout()).flatten();
     if is_due(deadline, shared::now()) {
         common::kick();
     }
