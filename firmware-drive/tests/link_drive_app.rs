@@ -89,8 +89,8 @@ impl Rig {
             let seen = self.drive_events.len();
             self.drive_events
                 .extend(std::iter::from_fn(|| self.drive.poll_event()));
-            let accepted = self.drive_events[seen..]
-                .contains(&AppEvent::Link(LinkEvent::ProgramAccepted));
+            let accepted =
+                self.drive_events[seen..].contains(&AppEvent::Link(LinkEvent::ProgramAccepted));
             let after = self.drive.status().program_loaded;
             self.tx_calls.push((n, loaded, after, accepted));
             self.plc_events
