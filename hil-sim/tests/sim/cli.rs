@@ -11,6 +11,26 @@ fn repo(p: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join(p)
 }
 
+/// `hil-sim run` of the source's motor program under `scenarios/motor.toml`.
+fn run_motor(duration_s: &str, sample_ms: &str) -> Command {
+    let mut c = bin();
+    c.arg("run")
+        .arg(repo("shared-protocol/programs/motor.plc"))
+        .arg("--scenario")
+        .arg(repo("hil-sim/scenarios/motor.toml"))
+        .args(["--duration", duration_s, "--sample-ms", sample_ms]);
+    c
+}
+
+/// Exit 0, else the command's stderr.
+fn assert_success(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn tmp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("hil-sim-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
@@ -21,23 +41,14 @@ fn tmp(name: &str) -> PathBuf {
 fn run_writes_csv_and_plot_and_prints_a_summary() {
     let csv = tmp("motor.csv");
     let png = tmp("motor.png");
-    let out = bin()
-        .arg("run")
-        .arg(repo("shared-protocol/programs/motor.plc"))
-        .arg("--scenario")
-        .arg(repo("hil-sim/scenarios/motor.toml"))
-        .args(["--duration", "2", "--sample-ms", "10"])
+    let out = run_motor("2", "10")
         .arg("--csv")
         .arg(&csv)
         .arg("--plot")
         .arg(&png)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("simulated 2.000 s"), "{stdout}");
     assert!(stdout.contains("faults: none"), "{stdout}");
@@ -115,11 +126,7 @@ fn asm_writes_the_eeprom_image_and_disasm_reads_it_back() {
         .arg(&img)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     assert_eq!(std::fs::metadata(&img).unwrap().len(), 32768);
     let from_text = bin()
         .arg("disasm")
@@ -218,21 +225,12 @@ fn a_too_fine_sampling_or_an_unknown_plot_format_is_refused_before_the_run() {
 #[test]
 fn an_svg_plot_is_written_complete_with_the_summary() {
     let svg = tmp("motor.svg");
-    let out = bin()
-        .arg("run")
-        .arg(repo("shared-protocol/programs/motor.plc"))
-        .arg("--scenario")
-        .arg(repo("hil-sim/scenarios/motor.toml"))
-        .args(["--duration", "1", "--sample-ms", "5"])
+    let out = run_motor("1", "5")
         .arg("--plot")
         .arg(&svg)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let text = std::fs::read_to_string(&svg).unwrap();
     assert!(
         text.starts_with("<svg") || text.starts_with("<?xml"),
