@@ -5,7 +5,7 @@ use firmware_drive::app::DriveApp;
 use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
 use firmware_drive::{AdcSample, DriveConfig, DriveCore, DriveStatus, PwmTiming, ResetCause};
-use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
+use shared_protocol::link::pump::{Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
 

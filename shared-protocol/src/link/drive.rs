@@ -216,6 +216,7 @@ impl DriveLink {
         if self.events.is_full() {
             self.events.pop_front();
         }
+        // Cannot fail: room was made above (the newest events are kept).
         let _ = self.events.push_back(e);
     }
 
@@ -305,6 +306,7 @@ impl DriveLink {
         // Reports not yet acknowledged go out again in the new session, oldest first.
         let mut carried: heapless::Vec<DriveMsg, DRIVE_WINDOW> = heapless::Vec::new();
         for m in self.s.start(now) {
+            // Cannot fail: the session holds at most DRIVE_WINDOW unacknowledged messages.
             let _ = carried.push(m);
         }
         for m in carried.into_iter().rev() {
@@ -411,6 +413,9 @@ impl DriveLink {
     fn report_download(&mut self, result: DownloadResult) {
         if self.pending.push_back(DriveMsg::Download(result)).is_err() {
             // Keep the answer even if fault reports fill the queue: drop the oldest report.
+            // The dropped report's fault stays latched and is in every status frame, so
+            // the PLC still shows it; only its fault-log entry is lost. This needs 16
+            // reports unacknowledged during a download, i.e. a PLC that is not reading.
             self.pending.pop_front();
             let _ = self.pending.push_back(DriveMsg::Download(result));
         }
@@ -469,6 +474,7 @@ impl DriveLink {
 
     /// The next frame to send, written to `out`; returns its length, 0 when there is
     /// nothing to send now or `out` is smaller than [`MAX_WIRE_FRAME`].
+    #[must_use = "the frame in `out` must be sent"]
     pub fn poll_transmit(&mut self, now: Micros, out: &mut [u8]) -> usize {
         self.tick(now);
         if self.state == DriveLinkState::Up && self.download.check != Check::Idle {
@@ -497,6 +503,7 @@ impl DriveLink {
                 break;
             };
             if let Err(m) = self.s.push(m) {
+                // Cannot fail: `m` was popped from this queue just above.
                 let _ = self.pending.push_front(m);
                 break;
             }
