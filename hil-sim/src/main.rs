@@ -27,29 +27,8 @@ struct Cli {
 enum Cmd {
     /// Run a program on the simulated rig.
     Run {
-        /// The program (.plc text or an EEPROM image).
-        program: PathBuf,
-        /// Scenario file (TOML); without it all inputs stay 0.
-        #[arg(long)]
-        scenario: Option<PathBuf>,
-        /// Simulated seconds (default: the scenario's duration_s, else 10).
-        #[arg(long)]
-        duration: Option<f64>,
-        /// Write the record as CSV.
-        #[arg(long)]
-        csv: Option<PathBuf>,
-        /// Write a plot: PNG or SVG, by the file name's extension.
-        #[arg(long)]
-        plot: Option<PathBuf>,
-        /// End of the plot's phase-current zoom (a few periods), s; default: the end.
-        #[arg(long)]
-        zoom_at: Option<f64>,
-        /// CSV sampling period, ms.
-        #[arg(long, default_value_t = 1.0)]
-        sample_ms: f64,
-        /// Seed of the link's bit errors.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
+        #[command(flatten)]
+        record: RecordArgs,
     },
     /// Assemble a program: print errors, or write the EEPROM image with -o.
     Asm {
@@ -63,23 +42,8 @@ enum Cmd {
     Panel { program: Option<PathBuf> },
     /// The same run on the real firmware images, in an emulator of both boards.
     Emu {
-        /// The program (.plc text or an EEPROM image).
-        program: PathBuf,
-        /// Scenario file (TOML); without it all inputs stay 0.
-        #[arg(long)]
-        scenario: Option<PathBuf>,
-        /// Simulated seconds (default: the scenario's duration_s, else 10).
-        #[arg(long)]
-        duration: Option<f64>,
-        /// Write the record as CSV (the columns of `run`).
-        #[arg(long)]
-        csv: Option<PathBuf>,
-        /// Write a plot: PNG or SVG, by the file name's extension.
-        #[arg(long)]
-        plot: Option<PathBuf>,
-        /// End of the plot's phase-current zoom (a few periods), s; default: the end.
-        #[arg(long)]
-        zoom_at: Option<f64>,
+        #[command(flatten)]
+        record: RecordArgs,
         /// The drive's ELF (default: the release image in the workspace's target directory).
         #[arg(long)]
         drive_elf: Option<PathBuf>,
@@ -89,13 +53,125 @@ enum Cmd {
         /// Print both images' defmt logs, in virtual time.
         #[arg(long)]
         log: bool,
-        /// CSV sampling period, ms.
-        #[arg(long, default_value_t = 1.0)]
-        sample_ms: f64,
-        /// Seed of the link's bit errors.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
     },
+}
+
+/// What `run` and `emu` share: the program, the scenario and the record.
+#[derive(clap::Args)]
+struct RecordArgs {
+    /// The program (.plc text or an EEPROM image).
+    program: PathBuf,
+    /// Scenario file (TOML); without it all inputs stay 0.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Simulated seconds (default: the scenario's duration_s, else 10).
+    #[arg(long)]
+    duration: Option<f64>,
+    /// Write the record as CSV.
+    #[arg(long)]
+    csv: Option<PathBuf>,
+    /// Write a plot: PNG or SVG, by the file name's extension.
+    #[arg(long)]
+    plot: Option<PathBuf>,
+    /// End of the plot's phase-current zoom (a few periods), s; default: the end.
+    #[arg(long)]
+    zoom_at: Option<f64>,
+    /// CSV sampling period, ms.
+    #[arg(long, default_value_t = 1.0)]
+    sample_ms: f64,
+    /// Seed of the link's bit errors.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+/// A run's inputs, checked.
+struct Prepared {
+    prog: shared_protocol::program::Program,
+    scen: Scenario,
+    duration_s: f64,
+    opts: RunOptions,
+}
+
+impl RecordArgs {
+    /// Everything is checked before anything is simulated: the program, the scenario,
+    /// the duration, the sampling and the plot's file type (fail now, not after a long
+    /// run).
+    fn prepare(&self) -> Result<Prepared> {
+        let prog = load_program(&self.program)?;
+        let scen = match &self.scenario {
+            Some(p) => Scenario::load(p)?,
+            None => Scenario::default(),
+        };
+        let duration_s = scen.duration_s(self.duration);
+        if !(duration_s.is_finite() && duration_s > 0.0) {
+            anyhow::bail!("--duration must be a positive number of seconds, got {duration_s}");
+        }
+        let sample_ns = sample_period_ns(self.sample_ms)?;
+        if let Some(p) = &self.plot {
+            hil_sim::plot::check_target(p)?;
+        }
+        Ok(Prepared {
+            prog,
+            scen,
+            duration_s,
+            opts: RunOptions {
+                seed: self.seed,
+                sample_ns,
+            },
+        })
+    }
+
+    fn csv_writer(&self) -> Result<Option<CsvWriter<BufWriter<File>>>> {
+        let Some(p) = &self.csv else {
+            return Ok(None);
+        };
+        let file = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
+        Ok(Some(CsvWriter::new(BufWriter::new(file)).with_context(
+            || format!("cannot write {}", p.display()),
+        )?))
+    }
+
+    fn keep_samples(&self) -> hil_sim::decimate::KeepSamples {
+        hil_sim::decimate::KeepSamples::for_plot(self.plot.is_some())
+    }
+
+    /// After the run: the CSV closed, the summary printed first (a plot that fails still
+    /// leaves the run's result on screen), then the plot.
+    fn finish(
+        &self,
+        csv: (Option<CsvWriter<BufWriter<File>>>, Option<std::io::Error>),
+        summary: &str,
+        samples: &[hil_sim::sim::Sample],
+        title: &str,
+        marks: hil_sim::plot::Marks,
+    ) -> Result<()> {
+        if std::io::stderr().is_terminal() {
+            eprintln!();
+        }
+        let (writer, err) = csv;
+        if let Some(e) = err {
+            return Err(e).context("writing the CSV");
+        }
+        if let Some(w) = writer {
+            w.finish().context("writing the CSV")?;
+        }
+        print!("{summary}");
+        if let Some(p) = &self.plot {
+            let marks = hil_sim::plot::Marks {
+                zoom_at_s: self.zoom_at,
+                ..marks
+            };
+            hil_sim::plot::plot(p, samples, title, &marks)?;
+        }
+        Ok(())
+    }
+
+    /// The scenario as the plot's title names it.
+    fn scenario_name(&self) -> String {
+        self.scenario
+            .as_deref()
+            .map_or_else(|| "default".to_string(), |p| p.display().to_string())
+    }
 }
 
 fn main() -> ExitCode {
@@ -110,52 +186,16 @@ fn main() -> ExitCode {
 
 fn real_main() -> Result<()> {
     match Cli::parse().cmd {
-        Cmd::Run {
-            program,
-            scenario,
-            duration,
-            csv,
-            plot,
-            zoom_at,
-            sample_ms,
-            seed,
-        } => cmd_run(
-            &program,
-            scenario.as_deref(),
-            duration,
-            csv.as_deref(),
-            (plot.as_deref(), zoom_at),
-            sample_ms,
-            seed,
-        ),
+        Cmd::Run { record } => cmd_run(&record),
         Cmd::Asm { program, output } => cmd_asm(&program, output.as_deref()),
         Cmd::Disasm { program } => cmd_disasm(&program),
         Cmd::Panel { program } => hil_sim::panel_command(program.as_deref()),
         Cmd::Emu {
-            program,
-            scenario,
-            duration,
-            csv,
-            plot,
-            zoom_at,
+            record,
             drive_elf,
             plc_elf,
             log,
-            sample_ms,
-            seed,
-        } => cmd_emu(EmuArgs {
-            program: &program,
-            scenario: scenario.as_deref(),
-            duration,
-            csv: csv.as_deref(),
-            plot: plot.as_deref(),
-            zoom_at,
-            drive_elf: drive_elf.as_deref(),
-            plc_elf: plc_elf.as_deref(),
-            log,
-            sample_ms,
-            seed,
-        }),
+        } => cmd_emu(&record, drive_elf.as_deref(), plc_elf.as_deref(), log),
     }
 }
 
@@ -173,45 +213,14 @@ fn sample_period_ns(sample_ms: f64) -> Result<u64> {
 
 const MIN_SAMPLE_MS: f64 = 0.001;
 
-/// The scenario as the plot's title names it.
-fn scenario_name(path: Option<&Path>) -> String {
-    path.map_or_else(|| "default".to_string(), |p| p.display().to_string())
-}
-
-fn cmd_run(
-    program: &Path,
-    scenario: Option<&Path>,
-    duration: Option<f64>,
-    csv: Option<&Path>,
-    (plot, zoom_at): (Option<&Path>, Option<f64>),
-    sample_ms: f64,
-    seed: u64,
-) -> Result<()> {
-    // Everything is checked before anything is simulated.
-    let prog = load_program(program)?;
-    let scen = match scenario {
-        Some(p) => Scenario::load(p)?,
-        None => Scenario::default(),
-    };
-    let duration_s = scen.duration_s(duration);
-    if !(duration_s.is_finite() && duration_s > 0.0) {
-        anyhow::bail!("--duration must be a positive number of seconds, got {duration_s}");
-    }
-    let sample_ns = sample_period_ns(sample_ms)?;
-    let opts = RunOptions { seed, sample_ns };
-    if let Some(p) = plot {
-        // Fail now, not after a long run.
-        hil_sim::plot::check_target(p)?;
-    }
-    let mut writer = match csv {
-        Some(p) => Some(
-            CsvWriter::new(BufWriter::new(
-                File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-            ))
-            .with_context(|| format!("cannot write {}", p.display()))?,
-        ),
-        None => None,
-    };
+fn cmd_run(a: &RecordArgs) -> Result<()> {
+    let Prepared {
+        prog,
+        scen,
+        duration_s,
+        opts,
+    } = a.prepare()?;
+    let mut writer = a.csv_writer()?;
     let mut csv_err = None;
     let tty = std::io::stderr().is_terminal();
     let report = run(
@@ -219,7 +228,7 @@ fn cmd_run(
         scen,
         duration_s,
         opts,
-        hil_sim::decimate::KeepSamples::for_plot(plot.is_some()),
+        a.keep_samples(),
         |s| {
             if let Some(w) = writer.as_mut() {
                 if let Err(e) = w.write(s) {
@@ -234,86 +243,45 @@ fn cmd_run(
             }
         },
     )?;
-    if tty {
-        eprintln!();
-    }
-    if let Some(e) = csv_err {
-        return Err(e).context("writing the CSV");
-    }
-    if let Some(w) = writer {
-        w.finish().context("writing the CSV")?;
-    }
-    // The summary first: a plot that fails still leaves the run's result on screen.
-    print!("{}", report.summary());
-    if let Some(p) = plot {
-        let title = format!(
-            "{}, scenario {} ({duration_s} s)",
-            program.display(),
-            scenario_name(scenario)
-        );
-        let marks = hil_sim::plot::Marks {
-            zoom_at_s: zoom_at,
-            ..report.marks.clone()
-        };
-        hil_sim::plot::plot(p, &report.samples, &title, &marks)?;
-    }
-    Ok(())
+    let title = format!(
+        "{}, scenario {} ({duration_s} s)",
+        a.program.display(),
+        a.scenario_name()
+    );
+    a.finish(
+        (writer, csv_err),
+        &report.summary(),
+        &report.samples,
+        &title,
+        report.marks.clone(),
+    )
 }
 
-struct EmuArgs<'a> {
-    program: &'a Path,
-    scenario: Option<&'a Path>,
-    duration: Option<f64>,
-    csv: Option<&'a Path>,
-    plot: Option<&'a Path>,
-    zoom_at: Option<f64>,
-    drive_elf: Option<&'a Path>,
-    plc_elf: Option<&'a Path>,
+fn cmd_emu(
+    a: &RecordArgs,
+    drive_elf: Option<&Path>,
+    plc_elf: Option<&Path>,
     log: bool,
-    sample_ms: f64,
-    seed: u64,
-}
-
-fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
+) -> Result<()> {
     use hil_sim::emu::images::{existing, Firmware};
-    // Everything is checked before anything is emulated.
-    let prog = load_program(a.program)?;
-    let scen = match a.scenario {
-        Some(p) => Scenario::load(p)?,
-        None => Scenario::default(),
-    };
-    let duration_s = scen.duration_s(a.duration);
-    if !(duration_s.is_finite() && duration_s > 0.0) {
-        anyhow::bail!("--duration must be a positive number of seconds, got {duration_s}");
-    }
-    let sample_ns = sample_period_ns(a.sample_ms)?;
-    let drive_elf = match a.drive_elf {
+    let Prepared {
+        prog,
+        scen,
+        duration_s,
+        opts,
+    } = a.prepare()?;
+    let drive_elf = match drive_elf {
         Some(p) => p.to_path_buf(),
         None => existing(Firmware::Drive)?,
     };
-    let plc_elf = match a.plc_elf {
+    let plc_elf = match plc_elf {
         Some(p) => p.to_path_buf(),
         None => existing(Firmware::Plc)?,
     };
     for p in [&drive_elf, &plc_elf] {
         g431_emu::elf::Image::load(p)?;
     }
-    let opts = RunOptions {
-        seed: a.seed,
-        sample_ns,
-    };
-    if let Some(p) = a.plot {
-        hil_sim::plot::check_target(p)?;
-    }
-    let mut writer = match a.csv {
-        Some(p) => Some(
-            CsvWriter::new(BufWriter::new(
-                File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-            ))
-            .with_context(|| format!("cannot write {}", p.display()))?,
-        ),
-        None => None,
-    };
+    let mut writer = a.csv_writer()?;
     let mut csv_err = None;
     let tty = std::io::stderr().is_terminal();
     let mut last_progress = 0.0;
@@ -325,7 +293,7 @@ fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
         scen,
         duration_s,
         opts,
-        hil_sim::decimate::KeepSamples::for_plot(a.plot.is_some()),
+        a.keep_samples(),
         |s| {
             if let Some(w) = writer.as_mut() {
                 if let Err(e) = w.write(s) {
@@ -340,7 +308,7 @@ fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
             }
         },
         |image, line| {
-            if a.log {
+            if log {
                 if tty {
                     eprint!("\r");
                 }
@@ -348,30 +316,22 @@ fn cmd_emu(a: EmuArgs<'_>) -> Result<()> {
             }
         },
     )?;
-    if tty {
-        eprintln!();
-    }
-    if let Some(e) = csv_err {
-        return Err(e).context("writing the CSV");
-    }
-    if let Some(w) = writer {
-        w.finish().context("writing the CSV")?;
-    }
-    print!("{}", report.summary());
-    if let Some(p) = a.plot {
-        let title = format!(
-            "{} on the real images, scenario {} ({duration_s} s)",
-            a.program.display(),
-            scenario_name(a.scenario)
-        );
-        let marks = hil_sim::plot::Marks {
-            events: hil_sim::run::event_marks(&actions, &report.faults),
-            zoom_at_s: a.zoom_at,
-            ..Default::default()
-        };
-        hil_sim::plot::plot(p, &report.samples, &title, &marks)?;
-    }
-    Ok(())
+    let title = format!(
+        "{} on the real images, scenario {} ({duration_s} s)",
+        a.program.display(),
+        a.scenario_name()
+    );
+    let marks = hil_sim::plot::Marks {
+        events: hil_sim::run::event_marks(&actions, &report.faults),
+        ..Default::default()
+    };
+    a.finish(
+        (writer, csv_err),
+        &report.summary(),
+        &report.samples,
+        &title,
+        marks,
+    )
 }
 
 fn cmd_asm(program: &Path, output: Option<&Path>) -> Result<()> {

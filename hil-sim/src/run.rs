@@ -76,6 +76,27 @@ pub struct RunReport {
     pub peak_dc_v: f64,
 }
 
+/// The summary's fault lines (`faults: none`, or one line per trip with its time),
+/// naming each code with `name` (`emu` adds the images' own events).
+pub fn faults_summary<T: std::fmt::Display>(
+    faults: &[FaultRecord],
+    name: impl Fn(u8) -> T,
+) -> String {
+    if faults.is_empty() {
+        return "faults: none\n".into();
+    }
+    let mut s = String::from("faults:\n");
+    for f in faults {
+        s.push_str(&format!(
+            "  {:.3} s  {} {}\n",
+            f.t_ns as f64 * 1e-9,
+            f.code,
+            name(f.code)
+        ));
+    }
+    s
+}
+
 /// A scenario action as a plot marker label.
 pub fn action_label(a: &Action) -> String {
     let input = |i: &Input| match *i {
@@ -134,19 +155,7 @@ impl RunReport {
             self.final_f_hz,
             self.final_speed_rpm
         ));
-        if self.faults.is_empty() {
-            s.push_str("faults: none\n");
-        } else {
-            s.push_str("faults:\n");
-            for f in &self.faults {
-                s.push_str(&format!(
-                    "  {:.3} s  {} {}\n",
-                    f.t_ns as f64 * 1e-9,
-                    f.code,
-                    fault_name(f.code)
-                ));
-            }
-        }
+        s.push_str(&faults_summary(&self.faults, fault_name));
         if self.warnings.is_empty() {
             s.push_str("warnings: none\n");
         } else {

@@ -61,19 +61,7 @@ impl EmuReport {
             "final: f = {:.1} Hz, speed = {:.0} rpm\n",
             self.final_f_hz, self.final_speed_rpm
         ));
-        if self.faults.is_empty() {
-            s.push_str("faults: none\n");
-        } else {
-            s.push_str("faults:\n");
-            for f in &self.faults {
-                s.push_str(&format!(
-                    "  {:.3} s  {} {}\n",
-                    f.t_ns as f64 * 1e-9,
-                    f.code,
-                    fault_text(f.code)
-                ));
-            }
-        }
+        s.push_str(&crate::run::faults_summary(&self.faults, fault_text));
         for (k, name) in ["drive", "PLC"].iter().enumerate() {
             match self.longest_feed_gap_us[k] {
                 Some(us) => s.push_str(&format!(
