@@ -42,6 +42,8 @@ fn typing_a_short_program_shows_on_the_lcd() {
         "{t}"
     );
     assert!(t.contains("D00-07"), "{t}");
+    // Acknowledging a fault is discoverable in the key box (issue 20 item 3).
+    assert!(t.contains("*9 acknowledge the drive's fault"), "{t}");
     // Save into slot 2 (the board's storage writes a page per millisecond): the LCD says
     // so.
     type_keys(&mut app, "c2");

@@ -16,13 +16,14 @@ const LCD_FG: Color = Color::Rgb(20, 30, 10);
 const BLINK_MS: u64 = 400;
 
 /// Key map lines shown under the keypad (the PC key in brackets where it differs).
-const KEYMAP: [&str; 9] = [
+const KEYMAP: [&str; 10] = [
     "2/8 up/down   4/6 field   5 edit/ok",
     "1/7 -+10 lines 3/9 -+100  0 next used",
     "A RUN/STOP   B next page",
     "C n save slot n   D n load, D 0 new",
     "# nnn go to line  * cancel edit",
     "*1 insert *3 delete *0 clear *5 check",
+    "*9 acknowledge the drive's fault",
     "editing: 2/8 value, 1/7 -+10,",
     "  3/9 operand area, 4/6 field/digit",
     "PC: arrows=2/4/6/8 Enter=5 PgUp/Dn=1/7",
