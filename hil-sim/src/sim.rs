@@ -250,6 +250,11 @@ impl Simulation {
         &self.plc
     }
 
+    /// The PLC board, for a host that reaches into it (the PC panel's EEPROM file).
+    pub fn plc_mut(&mut self) -> &mut PlcBoard {
+        &mut self.plc
+    }
+
     pub fn pins(&self) -> PlcPins {
         self.pins
     }

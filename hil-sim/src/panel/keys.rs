@@ -13,7 +13,35 @@ pub enum Input {
     Pulse(u8),
     /// Move analog input An by the given counts.
     Analog(u8, i16),
+    /// Esc: cancels what the editor waits for (an edit, a two-key command, a question:
+    /// sends `*`), else quits (asking first when the program is unsaved).
+    Esc,
+    /// Ctrl-C: quit (asking first when the program is unsaved).
     Quit,
+    /// Ctrl-E: export the program in RAM to a `.plc` file (asks for the name).
+    Export,
+}
+
+/// A key while the panel asks something (quit? file name?): typed text and answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TextKey {
+    Char(char),
+    Backspace,
+    Enter,
+    Esc,
+}
+
+/// The PC key as an answer to the panel's question, if it is one.
+pub fn map_text_key(ev: KeyEvent) -> Option<TextKey> {
+    let ctrl = ev.modifiers.contains(KeyModifiers::CONTROL);
+    Some(match ev.code {
+        KeyCode::Char('c') if ctrl => TextKey::Esc,
+        KeyCode::Char(c) if !ctrl => TextKey::Char(c),
+        KeyCode::Backspace => TextKey::Backspace,
+        KeyCode::Enter => TextKey::Enter,
+        KeyCode::Esc => TextKey::Esc,
+        _ => return None,
+    })
 }
 
 /// How long a push-button press lasts.
@@ -31,7 +59,9 @@ pub fn map_key(ev: KeyEvent) -> Option<Input> {
     let ctrl = ev.modifiers.contains(KeyModifiers::CONTROL);
     Some(match ev.code {
         KeyCode::Char('c') if ctrl => Input::Quit,
-        KeyCode::Esc => Input::Quit,
+        KeyCode::Char('e') if ctrl => Input::Export,
+        KeyCode::Char(_) if ctrl => return None,
+        KeyCode::Esc => Input::Esc,
         KeyCode::Up => Input::Keypad(Key::Digit(2)),
         KeyCode::Down => Input::Keypad(Key::Digit(8)),
         KeyCode::Left => Input::Keypad(Key::Digit(4)),

@@ -7,6 +7,7 @@
 //! switches and pots are the PLC's input pins. No key handling of its own.
 
 use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
 
 use firmware_plc::editor::{Key, Screen};
 use firmware_plc::storage::image::{program_image, ImageOptions};
@@ -18,6 +19,8 @@ use shared_protocol::units::Micros;
 use crate::mcu::{DriveBoard, PlcBoard, PlcPins};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};
+
+use super::files::{read_eeprom_image, write_atomically};
 
 /// How long a panel key is held down, and then left up before the next one, in ms: the
 /// keypad debouncing's 10 samples each way (`firmware_plc::app::KEY_DEBOUNCE_SAMPLES`),
@@ -57,27 +60,87 @@ pub struct SimBackend {
     /// The key being pressed and the milliseconds left in its press (down, then up).
     pressing: Option<(char, u32)>,
     pins: PlcPins,
+    /// The file behind the EEPROM (`--eeprom`), and its write count when last written.
+    eeprom_file: Option<PathBuf>,
+    persisted_writes: u32,
+    /// The last failure to write the EEPROM file (shown on the panel; retried).
+    pub persist_error: Option<String>,
+}
+
+/// The image of a fresh EEPROM with `program` (if any) in slot 1, loaded at power-up but
+/// not run.
+fn fresh_image(program: Option<&Program>) -> anyhow::Result<MemEeprom> {
+    Ok(match program {
+        Some(p) => {
+            let image = program_image(
+                p,
+                &ImageOptions {
+                    slot: 1,
+                    run_at_power_up: false,
+                },
+            )
+            .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))?;
+            MemEeprom::from_image(&image)
+        }
+        None => MemEeprom::new(),
+    })
 }
 
 impl SimBackend {
     /// Power up the rig with `program` (if any) stored in slot 1 of the PLC's EEPROM and
     /// loaded at power-up, but not running: RUN is the user's `A`.
     pub fn new(program: Option<&Program>) -> anyhow::Result<Self> {
-        let eeprom = match program {
-            Some(p) => {
-                let image = program_image(
-                    p,
-                    &ImageOptions {
-                        slot: 1,
-                        run_at_power_up: false,
-                    },
-                )
-                .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))?;
-                MemEeprom::from_image(&image)
-            }
-            None => MemEeprom::new(),
+        Ok(Self::with_eeprom(fresh_image(program)?))
+    }
+
+    /// Power up the rig with the EEPROM kept in `path` (`--eeprom`): the saved slots of
+    /// earlier sessions, and every completed save written back to the file.
+    ///
+    /// * No such file: it is created, holding `program` in slot 1 (as [`Self::new`]).
+    /// * The file exists: the PLC powers up from it (the boot record's slot, run if it
+    ///   was running); then `program`, if given and different, replaces the program in
+    ///   RAM as an unsaved program (no slot is overwritten). Not while the PLC runs at
+    ///   power-up: the returned note says so.
+    /// * A file that is not a 32 KiB image is refused and left unchanged.
+    pub fn with_eeprom_file(
+        program: Option<&Program>,
+        path: &Path,
+    ) -> anyhow::Result<(Self, Option<String>)> {
+        let existing = read_eeprom_image(path)?;
+        let created = existing.is_none();
+        let eeprom = match &existing {
+            Some(bytes) => MemEeprom::from_image(bytes),
+            None => fresh_image(program)?,
         };
-        Ok(Self::with_eeprom(eeprom))
+        let mut b = Self::with_eeprom(eeprom);
+        b.eeprom_file = Some(path.to_path_buf());
+        let mut note = None;
+        if created {
+            b.write_eeprom_file()?;
+            note = Some(format!("created {}", path.display()));
+        } else if let Some(p) = program {
+            let app = b.sim.plc_mut().app_mut();
+            if app.program() != p {
+                note = Some(if app.replace_program(p) {
+                    format!(
+                        "{}: slots kept; the program file is in RAM, unsaved (C n saves it)",
+                        path.display()
+                    )
+                } else {
+                    format!(
+                        "{}: the PLC runs its saved program at power-up; the program file \
+                         was not loaded",
+                        path.display()
+                    )
+                });
+            }
+        }
+        // The power-up wrote the boot record (power-cycle count): the file has it too.
+        b.persist();
+        if let Some(e) = b.persist_error.take() {
+            anyhow::bail!(e);
+        }
+        Ok((b, note))
     }
 
     /// Power up the rig with `eeprom` in the PLC's socket.
@@ -97,7 +160,88 @@ impl SimBackend {
             keys: VecDeque::new(),
             pressing: None,
             pins: PlcPins::default(),
+            eeprom_file: None,
+            persisted_writes: 0,
+            persist_error: None,
         }
+    }
+
+    /// The file behind the EEPROM, if any.
+    pub fn eeprom_file(&self) -> Option<&Path> {
+        self.eeprom_file.as_deref()
+    }
+
+    fn eeprom_writes(&mut self) -> u32 {
+        self.sim
+            .plc_mut()
+            .app_mut()
+            .storage()
+            .eeprom()
+            .bytes_written()
+    }
+
+    fn write_eeprom_file(&mut self) -> anyhow::Result<()> {
+        let Some(path) = self.eeprom_file.clone() else {
+            return Ok(());
+        };
+        let writes = self.eeprom_writes();
+        let image = *self.sim.plc_mut().app_mut().storage().eeprom().image();
+        write_atomically(&path, &image)?;
+        self.persisted_writes = writes;
+        Ok(())
+    }
+
+    /// Writes the EEPROM back to its file when it changed and no storage job is under
+    /// way (a save is written to the file once it is complete, never half-done).
+    fn persist(&mut self) {
+        if self.eeprom_file.is_none() || self.sim.plc_mut().app_mut().storage().busy() {
+            return;
+        }
+        if self.eeprom_writes() != self.persisted_writes {
+            self.persist_error = self.write_eeprom_file().err().map(|e| format!("{e:#}"));
+        }
+    }
+
+    /// Before quitting: a save under way is finished (at most 5 s of simulated time),
+    /// then the EEPROM is written to its file.
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        for _ in 0..500 {
+            if self.keys_idle() && !self.sim.plc_mut().app_mut().storage().busy() {
+                break;
+            }
+            self.advance(10);
+        }
+        if self.eeprom_file.is_some() && self.eeprom_writes() != self.persisted_writes {
+            self.write_eeprom_file()?;
+        }
+        Ok(())
+    }
+
+    /// No keypad key is queued or being pressed.
+    pub fn keys_idle(&self) -> bool {
+        self.keys.is_empty() && self.pressing.is_none()
+    }
+
+    /// The program in the PLC's RAM (what the editor shows and a save stores).
+    pub fn program(&self) -> &Program {
+        self.sim.plc().program()
+    }
+
+    /// The program differs from the one last saved or loaded, or a field is being
+    /// edited: quitting would lose it.
+    pub fn unsaved(&self) -> bool {
+        let ed = self.sim.plc().editor();
+        ed.modified() || ed.editing()
+    }
+
+    /// A field is being edited (its pending value is not in the program yet).
+    pub fn editing(&self) -> bool {
+        self.sim.plc().editor().editing()
+    }
+
+    /// The editor waits for keys to finish a command or an edit (`*` cancels it).
+    pub fn awaiting_keys(&self) -> bool {
+        self.sim.plc().editor().awaiting_keys()
     }
 
     pub fn simulation(&self) -> &Simulation {
@@ -134,6 +278,7 @@ impl SimBackend {
                 .pressing
                 .and_then(|(c, n)| (n > 1).then_some((c, n - 1)));
         }
+        self.persist();
     }
 
     fn run(&mut self, ms: u32) {

@@ -1,6 +1,6 @@
 //! Drawing the panel: LCD, keypad with its key map, and the rig beside them.
 
-use super::app::PanelApp;
+use super::app::{Modal, PanelApp};
 use super::keys::{ANALOG_KEYS, DIGITAL_KEYS};
 use firmware_plc::editor::{Key, Screen};
 use ratatui::layout::{Constraint, Layout, Rect};
@@ -16,7 +16,7 @@ const LCD_FG: Color = Color::Rgb(20, 30, 10);
 const BLINK_MS: u64 = 400;
 
 /// Key map lines shown under the keypad (the PC key in brackets where it differs).
-const KEYMAP: [&str; 10] = [
+const KEYMAP: [&str; 12] = [
     "2/8 up/down   4/6 field   5 edit/ok",
     "1/7 -+10 lines 3/9 -+100  0 next used",
     "A RUN/STOP   B next page",
@@ -27,6 +27,8 @@ const KEYMAP: [&str; 10] = [
     "editing: 2/8 value, 1/7 -+10,",
     "  3/9 operand area, 4/6 field/digit",
     "PC: arrows=2/4/6/8 Enter=5 PgUp/Dn=1/7",
+    "Esc: cancel edit/command (= *), else quit",
+    "Ctrl-E: export the program to .plc",
 ];
 
 fn lcd_lines(s: &Screen, blink_on: bool) -> Vec<Line<'static>> {
@@ -195,11 +197,41 @@ pub fn draw(frame: &mut Frame<'_>, app: &PanelApp) {
         Paragraph::new(rig_lines(app)).block(Block::bordered().title("Rig")),
         right,
     );
-    frame.render_widget(
-        Paragraph::new(Line::from(Span::styled(
-            " Esc quits | keypad 0-9 a-d * # | inputs q..i F1-F8 | pots z/x n/m j/k o/p",
-            Style::default().fg(Color::DarkGray),
-        ))),
-        footer,
-    );
+    frame.render_widget(Paragraph::new(footer_line(app)), footer);
+}
+
+/// The bottom line: the question being asked, else the panel's last message, else help.
+fn footer_line(app: &PanelApp) -> Line<'static> {
+    let ask = Style::default()
+        .fg(Color::Black)
+        .bg(Color::Yellow)
+        .add_modifier(Modifier::BOLD);
+    match &app.modal {
+        Some(Modal::ConfirmQuit) => Line::from(Span::styled(
+            " The program has unsaved changes (C n saves it). Quit anyway? y/n ",
+            ask,
+        )),
+        Some(Modal::Export { name, overwrite }) => {
+            let text = if *overwrite {
+                format!(" {name} exists: Enter overwrites it, Backspace edits, Esc cancels ")
+            } else {
+                format!(" Export the program to: {name}_  (Enter writes, Esc cancels) ")
+            };
+            Line::from(Span::styled(text, ask))
+        }
+        None => match (&app.notice, &app.backend().persist_error) {
+            (_, Some(e)) => Line::from(Span::styled(
+                format!(" {e}"),
+                Style::default().fg(Color::Red).add_modifier(Modifier::BOLD),
+            )),
+            (Some(n), None) => Line::from(Span::styled(
+                format!(" {n}"),
+                Style::default().fg(Color::Cyan),
+            )),
+            (None, None) => Line::from(Span::styled(
+                " Esc quits | keypad 0-9 a-d * # | inputs q..i F1-F8 | pots z/x n/m j/k o/p",
+                Style::default().fg(Color::DarkGray),
+            )),
+        },
+    }
 }
