@@ -12,6 +12,7 @@
 pub mod app;
 pub mod files;
 pub mod keys;
+pub mod rms;
 pub mod sim_backend;
 pub mod ui;
 

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use super::files::{program_text, write_atomically};
-use super::keys::{Input, TextKey, PULSE_MS};
+use super::keys::{Input, RigAction, TextKey, PULSE_MS};
 use super::sim_backend::{RigStatus, SimBackend};
 use firmware_plc::editor::{Key, Screen};
 
@@ -94,6 +94,7 @@ impl PanelApp {
                     self.esc_deferred = true;
                 }
             }
+            Input::Rig(a) => self.rig(a),
             Input::Quit => self.request_quit(),
             Input::Export => {
                 self.modal = Some(Modal::Export {
@@ -101,6 +102,22 @@ impl PanelApp {
                     overwrite: false,
                 });
             }
+        }
+    }
+
+    fn rig(&mut self, a: RigAction) {
+        let b = &mut self.backend;
+        match a {
+            RigAction::SupplyV(dv) => b.adjust_supply(dv),
+            RigAction::LoadNm(dt) => b.adjust_load(dt),
+            RigAction::LockedRotor => b.toggle_locked_rotor(),
+            RigAction::Link => b.toggle_link(),
+            RigAction::CurrentSpike => b.current_spike(),
+            RigAction::VoltageSpike => b.voltage_spike(),
+            RigAction::SensorFault => b.toggle_sensor_fault(),
+            RigAction::PowerCycleDrive => b.power_cycle_drive(),
+            RigAction::WatchdogReset => b.watchdog_reset_drive(),
+            RigAction::GarbleDownload => b.toggle_garble_download(),
         }
     }
 

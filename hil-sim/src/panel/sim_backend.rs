@@ -17,10 +17,13 @@ use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, PlcBoard, PlcPins};
+use crate::plant::{SenseSpike, UdcSenseSpike};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};
+use firmware_drive::ResetCause;
 
 use super::files::{read_eeprom_image, write_atomically};
+use super::rms::RmsWindow;
 
 /// How long a panel key is held down, and then left up before the next one, in ms: the
 /// keypad debouncing's 10 samples each way (`firmware_plc::app::KEY_DEBOUNCE_SAMPLES`),
@@ -41,6 +44,24 @@ pub struct RigStatus {
     pub speed_rpm: f64,
     pub u_dc_v: f64,
     pub i_max_a: f64,
+    /// RMS phase current over whole periods ([`super::rms::RmsWindow`]), A.
+    pub i_rms_a: f64,
+    /// The drive section's frequency command (what the ramp heads for), Hz.
+    pub f_set_hz: f64,
+    /// Electromagnetic torque, N m.
+    pub torque_nm: f64,
+    /// The inverter outputs switch (enabled and no hardware break).
+    pub pwm_on: bool,
+    /// The rig's settings the panel changes: supply voltage, load torque, locked rotor,
+    /// UART wires cut, phase-1 sensor offset (counts), next download garbled.
+    pub supply_v: f64,
+    pub load_nm: f64,
+    pub locked_rotor: bool,
+    pub link_cut: bool,
+    pub sensor_offset: i16,
+    pub garble_download: bool,
+    /// The drive's limits in effect: `U<`, `U>`, `I>` (0 = off) and `U>>`, `I>>`.
+    pub limits: Limits,
     pub fault: u8,
     pub brake: bool,
     /// D00..D07, bit n = Dn.
@@ -51,6 +72,20 @@ pub struct RigStatus {
     pub analog: [u16; 4],
 }
 
+/// The drive's protection limits in effect (for the rig box: what a trip needs).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Limits {
+    pub u_min_v: f64,
+    pub u_max_v: f64,
+    pub i_max_a: f64,
+    pub ov_hw_v: f64,
+    pub oc_hw_a: f64,
+}
+
+/// The sensor offset the panel's sensor fault adds to phase 1's current, ADC counts: far
+/// beyond the drive's boot self-test tolerance.
+pub const SENSOR_FAULT_COUNTS: i16 = 400;
+
 /// The co-simulated rig behind the panel, in virtual time that the panel advances.
 pub struct SimBackend {
     sim: Simulation,
@@ -60,6 +95,8 @@ pub struct SimBackend {
     /// The key being pressed and the milliseconds left in its press (down, then up).
     pressing: Option<(char, u32)>,
     pins: PlcPins,
+    rms: RmsWindow,
+    link_cut: bool,
     /// The file behind the EEPROM (`--eeprom`), and its write count when last written.
     eeprom_file: Option<PathBuf>,
     persisted_writes: u32,
@@ -150,8 +187,9 @@ impl SimBackend {
         let plc = PlcBoard::new(eeprom, link, Micros(0));
         let drive = DriveBoard::new(link);
         let opts = RunOptions {
-            // The side panel needs a few values per frame, not every millisecond.
-            sample_ns: 20_000_000,
+            // The RMS current needs a few samples per period of the output (70 Hz at
+            // most): 2 kHz.
+            sample_ns: 500_000,
             ..RunOptions::default()
         };
         SimBackend {
@@ -160,6 +198,8 @@ impl SimBackend {
             keys: VecDeque::new(),
             pressing: None,
             pins: PlcPins::default(),
+            rms: RmsWindow::default(),
+            link_cut: false,
             eeprom_file: None,
             persisted_writes: 0,
             persist_error: None,
@@ -284,7 +324,11 @@ impl SimBackend {
     fn run(&mut self, ms: u32) {
         let end = self.sim.now_ns() + u64::from(ms) * MS_NS;
         let mut last = None;
-        self.sim.run_until(end, |s| last = Some(s.clone()));
+        let rms = &mut self.rms;
+        self.sim.run_until(end, |s| {
+            rms.push(s.t_ns, s.i_abc_a);
+            last = Some(s.clone());
+        });
         if last.is_some() {
             self.last = last;
         }
@@ -315,8 +359,102 @@ impl SimBackend {
             st.u_dc_v = s.u_dc_v;
             st.i_max_a = s.i_abc_a.iter().fold(0.0f64, |m, i| m.max(i.abs()));
             st.brake = s.brake;
+            st.torque_nm = s.torque_nm;
+            st.pwm_on = s.pwm_on;
         }
+        st.i_rms_a = self.rms.rms_a(st.f_hz);
+        st.f_set_hz = f64::from(d.f_command.0) / 10.0;
+        let rig = self.sim.plant().params();
+        st.supply_v = rig.supply_v;
+        st.load_nm = rig.motor.load_torque_nm;
+        st.locked_rotor = rig.motor.locked_rotor;
+        st.link_cut = self.link_cut;
+        st.sensor_offset = self.sim.current_sensor_offset();
+        st.garble_download = self.sim.download_garbling();
+        let settings = *self.sim.drive().core().vm().settings();
+        st.limits = Limits {
+            u_min_v: f64::from(settings.u_min_volts),
+            u_max_v: f64::from(settings.u_max_volts),
+            i_max_a: f64::from(settings.i_max_centiamps) / 100.0,
+            ov_hw_v: f64::from(d.hw.ov_hw.0),
+            oc_hw_a: f64::from(d.hw.oc_hw.0) / 100.0,
+        };
         st
+    }
+
+    /// Changes the DC-link supply's open-circuit voltage by `dv` (0..60 V).
+    pub fn adjust_supply(&mut self, dv: f64) {
+        let p = self.sim.plant_mut().params_mut();
+        p.supply_v = ((p.supply_v + dv).clamp(0.0, 60.0) * 10.0).round() / 10.0;
+    }
+
+    /// Changes the constant load torque by `dt` (0..1 N m).
+    pub fn adjust_load(&mut self, dt: f64) {
+        let m = &mut self.sim.plant_mut().params_mut().motor;
+        m.load_torque_nm = ((m.load_torque_nm + dt).clamp(0.0, 1.0) * 1000.0).round() / 1000.0;
+    }
+
+    pub fn toggle_locked_rotor(&mut self) {
+        let m = &mut self.sim.plant_mut().params_mut().motor;
+        m.locked_rotor = !m.locked_rotor;
+    }
+
+    /// Cuts the UART wires, or restores them.
+    pub fn toggle_link(&mut self) {
+        self.link_cut = !self.link_cut;
+        self.sim.set_link_cut(self.link_cut);
+    }
+
+    /// A current spike on phase 1 that the overcurrent comparator sees for the last
+    /// 30 % of the next PWM period (outside the blanking window around its middle, and
+    /// still there when the break interrupt runs): 1 A above `I>>`.
+    pub fn current_spike(&mut self) {
+        let oc_hw = f64::from(self.sim.drive().status().hw.oc_hw.0) / 100.0;
+        let i_now = self.last.as_ref().map_or(0.0, |s| s.i_abc_a[0].abs());
+        let period = self.sim.plant().period_ns();
+        self.sim.plant_mut().inject_sense_spike(SenseSpike {
+            phase: 0,
+            amps: oc_hw + i_now + 1.0,
+            from_ns: 7 * period / 10,
+            to_ns: period,
+        });
+    }
+
+    /// A DC-link voltage spike that the overvoltage comparator sees for the last 30 % of
+    /// the next PWM period: 5 V above `U>>`. (A pulse gone before the break interrupt
+    /// runs is blamed on overcurrent by the drive, `BreakMonitor::fired`.)
+    pub fn voltage_spike(&mut self) {
+        let ov_hw = f64::from(self.sim.drive().status().hw.ov_hw.0);
+        let u_now = self.sim.plant().outputs().u_dc_v;
+        let period = self.sim.plant().period_ns();
+        self.sim.plant_mut().inject_udc_sense_spike(UdcSenseSpike {
+            volts: (ov_hw - u_now).max(0.0) + 5.0,
+            from_ns: 7 * period / 10,
+            to_ns: period,
+        });
+    }
+
+    /// Cycles the drive board's supply: the drive restarts (boot self-test, handshake).
+    pub fn power_cycle_drive(&mut self) {
+        self.sim.restart_drive(ResetCause::PowerOn);
+    }
+
+    /// The drive's watchdog resets it (fault WDG after the restart).
+    pub fn watchdog_reset_drive(&mut self) {
+        self.sim.restart_drive(ResetCause::Watchdog);
+    }
+
+    /// Phase 1's current sensor gets (or loses) an offset of [`SENSOR_FAULT_COUNTS`].
+    pub fn toggle_sensor_fault(&mut self) {
+        let on = self.sim.current_sensor_offset() == 0;
+        self.sim
+            .set_current_sensor_offset(if on { SENSOR_FAULT_COUNTS } else { 0 });
+    }
+
+    /// Arms (or disarms) a garbled next download.
+    pub fn toggle_garble_download(&mut self) {
+        let on = !self.sim.download_garbling();
+        self.sim.garble_next_download(on);
     }
 
     /// Set digital input `n` (0..8).
