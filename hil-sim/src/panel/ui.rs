@@ -33,7 +33,7 @@ const KEYMAP: [&str; 20] = [
     "editing: 2/8 value, 1/7 -+10,",
     "  3/9 operand area, 4/6 field/digit",
     "PC: arrows=2/4/6/8 Enter=5 PgUp/Dn=1/7",
-    "Esc: cancel edit/command (= *), else quit",
+    "Esc cancel edit/command (*), else quit",
     "Ctrl-E: export the program to .plc",
     "-- rig --",
     "[ ] supply -/+1 V    { } -/+5 V",
@@ -142,10 +142,22 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
     };
     v.push(Line::from(fault));
     let l = s.limits;
+    // 0 = not set by the program (no check).
+    let lim = |x: f64, decimals: usize| {
+        if x > 0.0 {
+            format!("{x:.decimals$}")
+        } else {
+            "off".to_string()
+        }
+    };
     v.push(Line::from(Span::styled(
         format!(
-            "limits U< {:.0} U> {:.0} I> {:.2}  U>> {:.0} I>> {:.2}",
-            l.u_min_v, l.u_max_v, l.i_max_a, l.ov_hw_v, l.oc_hw_a
+            "limits U< {} U> {} I> {}  U>> {:.0} I>> {:.2}",
+            lim(l.u_min_v, 0),
+            lim(l.u_max_v, 0),
+            lim(l.i_max_a, 2),
+            l.ov_hw_v,
+            l.oc_hw_a
         ),
         Style::default().fg(Color::DarkGray),
     )));
