@@ -278,6 +278,18 @@ impl<E: Eeprom> PlcApp<E> {
         &mut self.program
     }
 
+    /// Replaces the program in RAM from elsewhere (e.g. the PC panel's program file) while
+    /// stopped; it is unsaved and belongs to no slot, so `D` `n` asks before discarding it.
+    /// Refused (false) in RUN.
+    pub fn replace_program(&mut self, program: &Program) -> bool {
+        if self.run != RunState::Stopped {
+            return false;
+        }
+        self.program.clone_from(program);
+        self.editor.mark_modified();
+        true
+    }
+
     pub fn vm(&self) -> &PlcVm {
         &self.vm
     }

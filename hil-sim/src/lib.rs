@@ -41,8 +41,15 @@ pub fn image_bytes(program: &shared_protocol::program::Program) -> anyhow::Resul
 }
 
 /// `hil-sim panel`: the interactive front panel.
-pub fn panel_command(program: Option<&Path>) -> anyhow::Result<()> {
+pub fn panel_command(program: Option<&Path>, eeprom: Option<&Path>) -> anyhow::Result<()> {
     use std::io::IsTerminal;
+    // Bad files first, with or without a terminal (nothing is created or changed yet).
+    if let Some(p) = program {
+        panel::read_program(p)?;
+    }
+    if let Some(e) = eeprom {
+        panel::files::read_eeprom_image(e)?;
+    }
     // ratatui panics without a terminal (piped stdin, CI, ssh without -t): say so instead.
     if !(std::io::stdin().is_terminal() && std::io::stdout().is_terminal()) {
         anyhow::bail!(
@@ -50,5 +57,5 @@ pub fn panel_command(program: Option<&Path>) -> anyhow::Result<()> {
              for scripted runs use `hil-sim run`"
         );
     }
-    panel::run(program)
+    panel::run(program, eeprom)
 }

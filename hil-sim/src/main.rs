@@ -39,7 +39,13 @@ enum Cmd {
     /// Print a program (.plc or EEPROM image) in canonical text.
     Disasm { program: PathBuf },
     /// Interactive virtual front panel (LCD + keypad) in the terminal.
-    Panel { program: Option<PathBuf> },
+    Panel {
+        program: Option<PathBuf>,
+        /// The 24C256 image that keeps the saved slots between sessions (created if
+        /// absent; 32 KiB, as `asm -o` writes). Without it the EEPROM lives in memory.
+        #[arg(long)]
+        eeprom: Option<PathBuf>,
+    },
     /// The same run on the real firmware images, in an emulator of both boards.
     Emu {
         #[command(flatten)]
@@ -189,7 +195,9 @@ fn real_main() -> Result<()> {
         Cmd::Run { record } => cmd_run(&record),
         Cmd::Asm { program, output } => cmd_asm(&program, output.as_deref()),
         Cmd::Disasm { program } => cmd_disasm(&program),
-        Cmd::Panel { program } => hil_sim::panel_command(program.as_deref()),
+        Cmd::Panel { program, eeprom } => {
+            hil_sim::panel_command(program.as_deref(), eeprom.as_deref())
+        }
         Cmd::Emu {
             record,
             drive_elf,

@@ -10,7 +10,9 @@
 //! Simulated time follows the wall clock (at most 100 ms per frame).
 
 pub mod app;
+pub mod files;
 pub mod keys;
+pub mod rms;
 pub mod sim_backend;
 pub mod ui;
 
@@ -37,12 +39,41 @@ pub fn read_program(path: &Path) -> Result<Program> {
     assemble(&text).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))
 }
 
-/// Run the panel until Esc / Ctrl-C.
-pub fn run(program: Option<&Path>) -> Result<()> {
-    let program = program.map(read_program).transpose()?;
-    let mut app = PanelApp::new(SimBackend::new(program.as_ref())?);
+/// The panel with `program_path` (if any) and the EEPROM in `eeprom` (if any, else in
+/// memory), before the terminal is touched: every file error is reported here.
+pub fn open(program_path: Option<&Path>, eeprom: Option<&Path>) -> Result<PanelApp> {
+    let program = program_path.map(read_program).transpose()?;
+    let (backend, note) = match eeprom {
+        Some(path) => SimBackend::with_eeprom_file(program.as_ref(), path)?,
+        None => (SimBackend::new(program.as_ref())?, None),
+    };
+    let mut app = PanelApp::new(backend);
+    app.notice = note;
+    let stem = program_path
+        .and_then(|p| p.file_stem())
+        .map_or("program".into(), |s| s.to_string_lossy().into_owned());
+    app.export_default = files::export_name(Path::new("."), &stem);
+    if let Some(name) = app
+        .export_default
+        .strip_prefix(".")
+        .ok()
+        .map(Path::to_path_buf)
+    {
+        app.export_default = name;
+    }
+    Ok(app)
+}
+
+/// Run the panel until it is quit (Esc / Ctrl-C, confirmed when the program is unsaved).
+pub fn run(program: Option<&Path>, eeprom: Option<&Path>) -> Result<()> {
+    let mut app = open(program, eeprom)?;
+    run_app(&mut app)
+}
+
+/// Run `app` in the terminal until it is quit.
+pub fn run_app(app: &mut PanelApp) -> Result<()> {
     let mut terminal = ratatui::init();
-    let result = event_loop(&mut terminal, &mut app);
+    let result = event_loop(&mut terminal, app);
     ratatui::restore();
     result
 }
@@ -54,7 +85,11 @@ fn event_loop(terminal: &mut ratatui::DefaultTerminal, app: &mut PanelApp) -> Re
         if event::poll(Duration::from_millis(25))? {
             if let Event::Key(k) = event::read()? {
                 if k.kind != KeyEventKind::Release {
-                    if let Some(input) = keys::map_key(k) {
+                    if app.modal.is_some() {
+                        if let Some(t) = keys::map_text_key(k) {
+                            app.modal_key(t);
+                        }
+                    } else if let Some(input) = keys::map_key(k) {
                         app.input(input);
                     }
                 }

@@ -10,7 +10,7 @@
 //! sample), so a run is a pure function of its inputs and the seed.
 
 use anyhow::{Context, Result};
-use firmware_drive::{AdcSample, DriveConfig};
+use firmware_drive::{AdcSample, DriveConfig, ResetCause};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::channel::{Channel, Impairments};
@@ -20,7 +20,7 @@ use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, PlcBoard, PlcPins, Warnings};
-use crate::plant::{Comparators, Plant, PlantOutputs, RigParams};
+use crate::plant::{Comparators, GateCommand, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
 use crate::tim1::SimTim1;
 
@@ -110,6 +110,12 @@ pub struct Simulation {
     last_fault: u8,
     /// The drive's state changes (time, state name), for the run summary's RUN/ACK history.
     states: Vec<(u64, &'static str)>,
+    /// Added to the drive's ADC reading of phase 1's current, counts (a sensor fault the
+    /// panel injects: the drive's boot self-test measures the zero).
+    i_a_offset_counts: i16,
+    /// The next download's `DownloadBegin` goes out with a wrong section CRC (the
+    /// panel's "garbled download": the drive rejects the section, fault PROG).
+    garble_download: bool,
 }
 
 impl Simulation {
@@ -158,6 +164,29 @@ fn receive_all(wire: &mut Channel, now: Micros) -> Vec<u8> {
         }
         all.extend_from_slice(buf.get(..n).unwrap_or(&[]));
     }
+}
+
+/// The wire frame `tx` with its section CRC flipped, if it is a `DownloadBegin`; the frame
+/// CRC is made anew, so only the drive's check of the whole section sees the damage.
+fn garble_download_begin(tx: &[u8]) -> Option<Vec<u8>> {
+    use shared_protocol::link::frame::{encode_frame, FrameReader};
+    use shared_protocol::link::PlcMsg;
+    let mut reader = FrameReader::new();
+    let mut frame = None;
+    for &b in tx {
+        if let Some(Ok(f)) = reader.push::<PlcMsg>(b) {
+            frame = Some(f);
+        }
+    }
+    let mut frame = frame?;
+    let PlcMsg::DownloadBegin { crc } = frame.msg else {
+        return None;
+    };
+    frame.msg = PlcMsg::DownloadBegin { crc: crc ^ 1 };
+    let mut out = vec![0u8; MAX_WIRE_FRAME];
+    let n = encode_frame(&frame, tx.first() == Some(&0), &mut out).ok()?;
+    out.truncate(n);
+    Some(out)
 }
 
 fn timer_period_ns(epoch: u64, k: u64, ticks: u64, f_tim: u32) -> u64 {
@@ -225,8 +254,58 @@ impl Simulation {
             faults: Vec::new(),
             last_fault: 0,
             states: Vec::new(),
+            i_a_offset_counts: 0,
+            garble_download: false,
             scenario,
         }
+    }
+
+    /// Cuts (`true`) or restores the UART wires now, both directions (the panel's link
+    /// switch). The scenario's `cut_at_s` no longer applies afterwards.
+    pub fn set_link_cut(&mut self, cut: bool) {
+        self.cut = true;
+        self.scenario.cut_at_ns = u64::MAX;
+        self.to_drive.set_cut(cut);
+        self.to_plc.set_cut(cut);
+    }
+
+    /// Restarts the drive MCU now with reset cause `cause` (its supply cycled, or its
+    /// watchdog): the board's firmware starts from scratch (boot self-test, link
+    /// handshake), TIM1 is reset (outputs off), the plant and the PLC carry on.
+    pub fn restart_drive(&mut self, cause: ResetCause) {
+        let cfg = *self.drive.core().config();
+        let link = LinkConfig::at_baud(self.scenario.baud);
+        self.drive = DriveBoard::with_reset(link, cfg, cause);
+        let timing = self.drive.pwm_timing();
+        self.tim1 = SimTim1::new(timing, self.drive.timer_clock_hz());
+        self.pwm_key = (timing.arr, timing.psc);
+        self.pwm_epoch_ns = self.now_ns;
+        self.pwm_k = 0;
+        self.next_pwm_ns = self.now_ns;
+        self.plant.set_command(GateCommand::OFF);
+        self.plant.set_brake(false);
+        self.tx_wake_ns[1] = None;
+    }
+
+    /// A fault of the drive's phase-1 current sensor: `counts` added to its ADC reading
+    /// (0: healthy). The drive measures the zero at boot only: a restart with an offset
+    /// beyond its tolerance fails the self-test (fault BOOT).
+    pub fn set_current_sensor_offset(&mut self, counts: i16) {
+        self.i_a_offset_counts = counts;
+    }
+
+    pub fn current_sensor_offset(&self) -> i16 {
+        self.i_a_offset_counts
+    }
+
+    /// Garbles the next program download (its section CRC), so that the drive rejects
+    /// it (fault PROG), as a download corrupted past the frame CRC would be.
+    pub fn garble_next_download(&mut self, on: bool) {
+        self.garble_download = on;
+    }
+
+    pub fn download_garbling(&self) -> bool {
+        self.garble_download
     }
 
     pub fn now_ns(&self) -> u64 {
@@ -248,6 +327,11 @@ impl Simulation {
 
     pub fn plc(&self) -> &PlcBoard {
         &self.plc
+    }
+
+    /// The PLC board, for a host that reaches into it (the PC panel's EEPROM file).
+    pub fn plc_mut(&mut self) -> &mut PlcBoard {
+        &mut self.plc
     }
 
     pub fn pins(&self) -> PlcPins {
@@ -426,7 +510,16 @@ impl Simulation {
             (p, self.drive.link_tx())
         };
         if !tx.is_empty() {
-            chan.send(tx, now);
+            if side == 0 && self.garble_download {
+                if let Some(bad) = garble_download_begin(tx) {
+                    self.garble_download = false;
+                    chan.send(&bad, now);
+                } else {
+                    chan.send(tx, now);
+                }
+            } else {
+                chan.send(tx, now);
+            }
         }
         let mut wake = pass.wake_at.0.saturating_mul(1000);
         if wake <= t && !chan.is_idle(now) {
@@ -494,7 +587,7 @@ impl Simulation {
             .set_blanking(self.tim1.blanking_ccr5(), timing.arr);
         let s = self.plant.adc_sample();
         let adc = AdcSample {
-            i_a: s.i_a_counts,
+            i_a: s.i_a_counts.saturating_add_signed(self.i_a_offset_counts),
             i_b: s.i_b_counts,
             u_dc: s.u_dc_counts,
             aux: self.aux_counts,

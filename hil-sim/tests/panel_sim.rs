@@ -108,3 +108,46 @@ fn bit_flip_in_the_eeprom_is_reported_on_the_lcd_at_power_up() {
     app.advance(500);
     assert!(app.status().plc_running, "{}", lcd_text(&app));
 }
+
+/// Issue 20 item 5: the RMS phase current stands still in steady state (over whole
+/// periods), where the instantaneous peak of the three phases moved by 13 %.
+#[test]
+fn the_rms_current_is_steady_where_the_instantaneous_peak_is_not() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared-protocol/programs/motor.plc"
+    );
+    let p = read_program(std::path::Path::new(path)).unwrap();
+    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    app.advance(100);
+    app.input(Input::Analog(0, 512));
+    app.input(Input::Analog(1, 300));
+    type_keys(&mut app, "a");
+    app.advance(500);
+    app.input(Input::Pulse(0));
+    // Up to speed (the setpoint's lag is 2.3 s), with some load.
+    type_keys(&mut app, ">");
+    app.advance(12_000);
+    let (mut rms, mut peak) = (Vec::new(), Vec::new());
+    for _ in 0..50 {
+        app.advance(37);
+        let s = app.status();
+        rms.push(s.i_rms_a);
+        peak.push(s.i_max_a);
+    }
+    let spread = |v: &[f64]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::MAX, 0.0f64), |(lo, hi), x| (lo.min(*x), hi.max(*x)));
+        (hi - lo) / hi
+    };
+    let s = app.status();
+    assert!(s.f_hz > 25.0 && s.fault == 0, "{s:?}");
+    assert!(rms[0] > 0.2, "{rms:?}");
+    assert!(spread(&rms) < 0.02, "RMS {rms:?}");
+    assert!(spread(&peak) > 0.05, "the peak moves: {peak:?}");
+    // A sine's peak over its RMS: sqrt(2) (the peak of three phases sits between
+    // sqrt(2)*cos(30 deg) and sqrt(2)).
+    let ratio = peak.iter().cloned().fold(0.0, f64::max) / rms[0];
+    assert!(ratio > 1.3 && ratio < 1.5, "{ratio}");
+}

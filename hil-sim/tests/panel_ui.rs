@@ -42,6 +42,8 @@ fn typing_a_short_program_shows_on_the_lcd() {
         "{t}"
     );
     assert!(t.contains("D00-07"), "{t}");
+    // Acknowledging a fault is discoverable in the key box (issue 20 item 3).
+    assert!(t.contains("*9 acknowledge the drive's fault"), "{t}");
     // Save into slot 2 (the board's storage writes a page per millisecond): the LCD says
     // so.
     type_keys(&mut app, "c2");
@@ -99,4 +101,69 @@ fn program_file_loads_into_the_panel() {
     let t = text(&term);
     assert!(t.contains(">150 LD   D00"), "{t}");
     assert!(t.contains(" 151 LET  B00"), "{t}");
+}
+
+/// Issue 20 item 5: a terminal too small for the LCD and the key box gets one message
+/// with the size needed, not a clipped LCD; at the minimum size everything is drawn.
+#[test]
+fn a_too_small_terminal_says_so_instead_of_clipping() {
+    let app = PanelApp::new(SimBackend::with_eeprom(MemEeprom::new()));
+    for (w, h) in [(80, 24), (89, 40), (120, 28), (40, 10), (20, 3)] {
+        let mut term = Terminal::new(TestBackend::new(w, h)).unwrap();
+        term.draw(|f| ui::draw(f, &app)).unwrap();
+        let t = text(&term);
+        assert!(
+            t.contains("Terminal too small") && t.contains("needs 90x29"),
+            "{w}x{h}:\n{t}"
+        );
+        assert!(!t.contains("Keypad") && !t.contains("LCD"), "{w}x{h}:\n{t}");
+    }
+    let mut term = Terminal::new(TestBackend::new(ui::MIN_WIDTH, ui::MIN_HEIGHT)).unwrap();
+    term.draw(|f| ui::draw(f, &app)).unwrap();
+    let t = text(&term);
+    assert!(!t.contains("too small"), "{t}");
+    for want in [
+        "LCD",
+        "Keypad",
+        "*9 acknowledge the drive's fault",
+        "V drive power cycle  G drive watchdog",
+        "q..i F1-F8 inputs",
+        "A03",
+        "EEPROM in memory",
+        "limits U<",
+    ] {
+        assert!(t.contains(want), "{want}:\n{t}");
+    }
+}
+
+/// The rig box shows outputs on/off, the frequency setpoint, torque and the RMS current,
+/// and the rig's keys change what it shows.
+#[test]
+fn the_rig_box_shows_setpoint_outputs_torque_rms_and_the_rig_settings() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared-protocol/programs/motor.plc"
+    );
+    let p = read_program(std::path::Path::new(path)).unwrap();
+    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    app.advance(100);
+    app.input(Input::Analog(0, 512));
+    app.input(Input::Analog(1, 300));
+    type_keys(&mut app, "a");
+    app.advance(500);
+    app.input(Input::Pulse(0));
+    type_keys(&mut app, "]]..l");
+    app.advance(300);
+    let mut term = Terminal::new(TestBackend::new(110, 32)).unwrap();
+    term.draw(|f| ui::draw(f, &app)).unwrap();
+    let t = text(&term);
+    assert!(t.contains("outputs ON"), "{t}");
+    assert!(t.contains("(set "), "{t}");
+    assert!(t.contains("Irms") && t.contains(" Nm"), "{t}");
+    assert!(t.contains("supply 32.0 V   load 0.020 Nm"), "{t}");
+    assert!(t.contains("LOCKED ROTOR"), "{t}");
+    let s = app.status();
+    assert_eq!(s.supply_v, 32.0);
+    assert_eq!(s.load_nm, 0.02);
+    assert!(s.locked_rotor);
 }

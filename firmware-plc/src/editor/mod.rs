@@ -15,6 +15,11 @@
 //! * Insert and delete shift lines inside the line's own section only (000-149 or
 //!   150-999), so no line ever changes section; insert is refused when the section's
 //!   last line is in use.
+//! * The editor knows whether the program differs from the one last loaded or saved
+//!   ([`Editor::modified`]): `D` `0` (new) and `D` `1`..`4` (load) ask before discarding
+//!   unsaved changes (`DISCARD EDITS? #=YES`; `#` confirms, any other key cancels), as a
+//!   user of the real device loses work the same way. A program equal to the saved one
+//!   after edits that undo each other still counts as changed (no 6 KB copy to compare).
 //! * `A` (RUN) verifies first; on an error the listing jumps to the bad line and the
 //!   status row shows `NNN:reason`, and no RUN is requested.
 
@@ -188,6 +193,18 @@ enum Mode {
         value: u16,
         digits: u8,
     },
+    /// `D` `n` with unsaved changes: `#` discards them and carries out `then`, any other
+    /// key cancels (`DISCARD EDITS? #=YES`).
+    ConfirmDiscard {
+        then: Discard,
+    },
+}
+
+/// What discards the program in RAM: a load (`D` `1`..`4`) or a new program (`D` `0`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Discard {
+    Load(u8),
+    New,
 }
 
 type Message = heapless::String<{ MAX_COLS }>;
@@ -290,9 +307,24 @@ impl Editor {
         }
     }
 
-    /// Whether the program changed since it was last loaded or saved.
+    /// Whether the program changed since it was last loaded or saved (the dirty flag):
+    /// `D` `0` and `D` `1`..`4` ask before discarding it, and a host (the PC panel)
+    /// asks before quitting.
     pub fn modified(&self) -> bool {
         self.modified
+    }
+
+    /// The application replaced the program in RAM by other means than a load (e.g. the
+    /// PC panel put a program file there): it is unsaved, and belongs to no slot.
+    pub fn mark_modified(&mut self) {
+        self.modified = true;
+    }
+
+    /// Whether keys are awaited to finish something: a field being edited, a two-key
+    /// command (`C`, `D`, `*`, `#`) or a confirmation. `*` cancels any of them (the PC
+    /// panel's Esc sends `*` then, and quits otherwise).
+    pub fn awaiting_keys(&self) -> bool {
+        self.mode != Mode::Browse
     }
 
     /// The status-row message, if one is showing.
@@ -411,6 +443,51 @@ impl Editor {
                 None
             }
             Mode::Edit { pending, digit } => self.edit_key(key, pending, digit, program, running),
+            Mode::ConfirmDiscard { then } => {
+                self.mode = Mode::Browse;
+                if key == Key::Hash {
+                    self.discard(then, program, running)
+                } else {
+                    self.set_message(format_args!("CANCELLED"));
+                    None
+                }
+            }
+        }
+    }
+
+    /// `D` `n`: at once when nothing is unsaved, else after `#` confirms.
+    fn ask_discard(
+        &mut self,
+        then: Discard,
+        program: &mut Program,
+        running: bool,
+    ) -> Option<Request> {
+        if self.refuse_while_running(running) {
+            return None;
+        }
+        if self.modified {
+            self.mode = Mode::ConfirmDiscard { then };
+            return None;
+        }
+        self.discard(then, program, running)
+    }
+
+    fn discard(&mut self, then: Discard, program: &mut Program, running: bool) -> Option<Request> {
+        // Checked again: RUN or a storage job may have started since the question.
+        if self.refuse_while_running(running) {
+            return None;
+        }
+        match then {
+            Discard::Load(slot) => Some(Request::Load(slot)),
+            Discard::New => {
+                // In place: a 6 KB temporary would not fit the MCU's stack budget.
+                program.lines.fill(None);
+                self.slot = None;
+                self.modified = false;
+                self.goto_line(0);
+                self.set_message(format_args!("NEW PROGRAM"));
+                Some(Request::New)
+            }
         }
     }
 
@@ -517,23 +594,9 @@ impl Editor {
                 Some(Request::Save(d))
             }
             Prefix::Load if (1..=SLOTS).contains(&d) => {
-                if self.refuse_while_running(running) {
-                    return None;
-                }
-                Some(Request::Load(d))
+                self.ask_discard(Discard::Load(d), program, running)
             }
-            Prefix::Load if d == 0 => {
-                if self.refuse_while_running(running) {
-                    return None;
-                }
-                // In place: a 6 KB temporary would not fit the MCU's stack budget.
-                program.lines.fill(None);
-                self.slot = None;
-                self.modified = false;
-                self.goto_line(0);
-                self.set_message(format_args!("NEW PROGRAM"));
-                Some(Request::New)
-            }
+            Prefix::Load if d == 0 => self.ask_discard(Discard::New, program, running),
             Prefix::Line if d == 9 => Some(Request::AckFaults),
             Prefix::Line if self.page == Page::FaultLog && d == 0 => {
                 self.log_index.set(0);

@@ -143,6 +143,8 @@ fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
         Mode::Prefix(Prefix::Line) if faulted => "9=ACK 1INS 3DEL 0CLR",
         Mode::Prefix(Prefix::Line) if narrow => "1IN 3DL 0CL 5CHK",
         Mode::Prefix(Prefix::Line) => "1INS 3DEL 0CLR 5CHK",
+        Mode::ConfirmDiscard { .. } if narrow => "DISCARD? #=YES",
+        Mode::ConfirmDiscard { .. } => "DISCARD EDITS? #=YES",
         Mode::Goto { value, digits } => {
             push(s, format_args!("GOTO LINE "));
             if digits > 0 {

@@ -575,3 +575,92 @@ fn acknowledging_is_offered_wherever_a_fault_is_shown() {
         "0=CLR LOG 9=ACK"
     );
 }
+
+#[test]
+fn the_dirty_flag_follows_edits_saves_loads_and_new() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    assert!(!ed.modified());
+    // Browsing and a cancelled edit change nothing.
+    press(&mut ed, &mut p, false, "#150888588*");
+    assert!(!ed.modified());
+    // A committed edit does.
+    press(&mut ed, &mut p, false, "585");
+    assert!(ed.modified());
+    assert_eq!(ed.slot(), None);
+    ed.notify(Notice::Saved { slot: 3 });
+    assert!(!ed.modified());
+    assert_eq!(ed.slot(), Some(3));
+    // Clearing a line, insert and delete count as changes.
+    for keys in ["*0", "*1", "*3"] {
+        ed.notify(Notice::Saved { slot: 3 });
+        press(&mut ed, &mut p, false, keys);
+        assert!(ed.modified(), "{keys}");
+    }
+    ed.notify(Notice::Loaded(LoadReport {
+        slot: 2,
+        used: SlotCopy::A,
+        generation: 1,
+        other: OtherCopy::Same,
+    }));
+    assert!(!ed.modified());
+    ed.mark_modified();
+    assert!(ed.modified());
+    assert_eq!(ed.slot(), None);
+}
+
+#[test]
+fn new_and_load_ask_before_discarding_unsaved_changes() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    press(&mut ed, &mut p, false, "#150585");
+    assert!(ed.modified());
+    let edited = p.clone();
+    // D 0: asked on the LCD; any key but # cancels and keeps the program.
+    assert_eq!(press(&mut ed, &mut p, false, "D0"), vec![]);
+    assert!(ed.awaiting_keys());
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(3).trim_end(), "DISCARD EDITS? #=YES");
+    assert_eq!(press(&mut ed, &mut p, false, "*"), vec![]);
+    assert_eq!(ed.message(), Some("CANCELLED"));
+    assert!(!ed.awaiting_keys());
+    assert_eq!(p, edited);
+    assert!(ed.modified());
+    // D 2 then #: the load goes ahead.
+    assert_eq!(press(&mut ed, &mut p, false, "D2"), vec![]);
+    assert_eq!(press(&mut ed, &mut p, false, "#"), vec![Request::Load(2)]);
+    // D 0 then #: the program is emptied.
+    assert_eq!(press(&mut ed, &mut p, false, "D0#"), vec![Request::New]);
+    assert_eq!(p, Program::default());
+    assert!(!ed.modified());
+    // Nothing unsaved: no question.
+    assert_eq!(press(&mut ed, &mut p, false, "D1"), vec![Request::Load(1)]);
+    // RUN started while the question was up: the answer is refused, nothing discarded.
+    press(&mut ed, &mut p, false, "#150585D0");
+    let edited = p.clone();
+    assert_eq!(press(&mut ed, &mut p, true, "#"), vec![]);
+    assert_eq!(ed.message(), Some("STOP FIRST (A)"));
+    assert_eq!(p, edited);
+    // Narrow LCD: a shorter question.
+    let mut ed = Editor::new(16, 2);
+    ed.mark_modified();
+    press(&mut ed, &mut p, false, "D3");
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(1).trim_end(), "DISCARD? #=YES");
+}
+
+#[test]
+fn star_cancels_whatever_awaits_keys() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[0] = Some(ins(Mnemonic::Sn2, None, 0));
+    for keys in ["58", "C", "D", "*", "#1"] {
+        press(&mut ed, &mut p, false, keys);
+        assert!(ed.awaiting_keys(), "{keys}");
+        assert_eq!(press(&mut ed, &mut p, false, "*"), vec![], "{keys}");
+        assert!(!ed.awaiting_keys(), "{keys}");
+        assert_eq!(ed.message(), Some("CANCELLED"), "{keys}");
+    }
+    assert_eq!(p.lines[0], Some(ins(Mnemonic::Sn2, None, 0)));
+    assert!(!ed.modified());
+}

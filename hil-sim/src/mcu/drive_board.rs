@@ -23,9 +23,14 @@ impl DriveBoard {
 
     /// A board with its own configuration (e.g. the rig's default hardware thresholds).
     pub fn with_config(link_cfg: LinkConfig, cfg: DriveConfig) -> Self {
+        Self::with_reset(link_cfg, cfg, ResetCause::PowerOn)
+    }
+
+    /// A board coming out of reset with `cause` (power-on, or its watchdog).
+    pub fn with_reset(link_cfg: LinkConfig, cfg: DriveConfig, cause: ResetCause) -> Self {
         DriveBoard {
             timer_clock_hz: cfg.timer_clock_hz,
-            app: DriveApp::new(cfg, ResetCause::PowerOn, link_cfg),
+            app: DriveApp::new(cfg, cause, link_cfg),
             pump: Pump::new(MAX_IDLE_US),
         }
     }

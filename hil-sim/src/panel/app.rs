@@ -1,8 +1,22 @@
 //! The panel's state between frames: the co-simulated rig plus the PC-side input state.
 
-use super::keys::{Input, PULSE_MS};
+use std::path::PathBuf;
+
+use super::files::{program_text, write_atomically};
+use super::keys::{Input, RigAction, TextKey, PULSE_MS};
 use super::sim_backend::{RigStatus, SimBackend};
 use firmware_plc::editor::{Key, Screen};
+
+/// A question the panel asks on its bottom line; keys answer it instead of reaching the
+/// keypad.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Modal {
+    /// Quit with the program unsaved? `y` quits, `n` or Esc goes back.
+    ConfirmQuit,
+    /// The file to export the program to, being typed; `overwrite` once Enter was
+    /// pressed on an existing file (Enter again overwrites it).
+    Export { name: String, overwrite: bool },
+}
 
 /// The virtual front panel, independent of the terminal (drawn by [`super::ui`]).
 pub struct PanelApp {
@@ -17,6 +31,14 @@ pub struct PanelApp {
     pub last_key: Option<Key>,
     /// The panel said goodbye.
     pub quit: bool,
+    /// The question being asked, if any.
+    pub modal: Option<Modal>,
+    /// The panel's last message (export done, file errors), on its bottom line.
+    pub notice: Option<String>,
+    /// The name offered for an export.
+    pub export_default: PathBuf,
+    /// Esc came while keypad keys were still queued: decided once they are pressed.
+    esc_deferred: bool,
 }
 
 impl PanelApp {
@@ -30,11 +52,19 @@ impl PanelApp {
             blink_ms: 0,
             last_key: None,
             quit: false,
+            modal: None,
+            notice: None,
+            export_default: PathBuf::from("program-panel.plc"),
+            esc_deferred: false,
         }
     }
 
     /// Apply one input.
     pub fn input(&mut self, input: Input) {
+        if self.modal.is_some() {
+            // Keys answer the question (the event loop sends them as `TextKey`s).
+            return;
+        }
         match input {
             Input::Keypad(k) => {
                 self.last_key = Some(k);
@@ -57,8 +87,130 @@ impl PanelApp {
                     self.backend.set_analog(n, *a);
                 }
             }
-            Input::Quit => self.quit = true,
+            Input::Esc => {
+                if self.backend.keys_idle() {
+                    self.esc();
+                } else {
+                    self.esc_deferred = true;
+                }
+            }
+            Input::Rig(a) => self.rig(a),
+            Input::Quit => self.request_quit(),
+            Input::Export => {
+                self.modal = Some(Modal::Export {
+                    name: self.export_default.display().to_string(),
+                    overwrite: false,
+                });
+            }
         }
+    }
+
+    fn rig(&mut self, a: RigAction) {
+        let b = &mut self.backend;
+        match a {
+            RigAction::SupplyV(dv) => b.adjust_supply(dv),
+            RigAction::LoadNm(dt) => b.adjust_load(dt),
+            RigAction::LockedRotor => b.toggle_locked_rotor(),
+            RigAction::Link => b.toggle_link(),
+            RigAction::CurrentSpike => b.current_spike(),
+            RigAction::VoltageSpike => b.voltage_spike(),
+            RigAction::SensorFault => b.toggle_sensor_fault(),
+            RigAction::PowerCycleDrive => b.power_cycle_drive(),
+            RigAction::WatchdogReset => b.watchdog_reset_drive(),
+            RigAction::GarbleDownload => b.toggle_garble_download(),
+        }
+    }
+
+    /// Esc with the keypad idle: `*` (cancel) when the editor waits for keys, else quit.
+    fn esc(&mut self) {
+        if self.backend.awaiting_keys() {
+            self.input(Input::Keypad(Key::Star));
+        } else {
+            self.request_quit();
+        }
+    }
+
+    /// Quit, asking first when the program is unsaved.
+    fn request_quit(&mut self) {
+        if self.backend.unsaved() {
+            self.modal = Some(Modal::ConfirmQuit);
+        } else {
+            self.finish_quit();
+        }
+    }
+
+    fn finish_quit(&mut self) {
+        self.modal = None;
+        match self.backend.flush() {
+            Ok(()) => self.quit = true,
+            // Keep the panel open: quitting now would lose the saved slots.
+            Err(e) => self.notice = Some(format!("EEPROM file not written, not quitting: {e:#}")),
+        }
+    }
+
+    /// A key while a question is asked.
+    pub fn modal_key(&mut self, key: TextKey) {
+        let Some(modal) = self.modal.take() else {
+            return;
+        };
+        match modal {
+            Modal::ConfirmQuit => match key {
+                TextKey::Char('y' | 'Y') => self.finish_quit(),
+                TextKey::Char('n' | 'N') | TextKey::Esc => {}
+                _ => self.modal = Some(Modal::ConfirmQuit),
+            },
+            Modal::Export {
+                mut name,
+                overwrite,
+            } => match key {
+                TextKey::Esc => self.notice = Some("export cancelled".into()),
+                TextKey::Enter => {
+                    let path = PathBuf::from(name.trim());
+                    if name.trim().is_empty() {
+                        self.modal = Some(Modal::Export { name, overwrite });
+                    } else if path.exists() && !overwrite {
+                        self.modal = Some(Modal::Export {
+                            name,
+                            overwrite: true,
+                        });
+                    } else {
+                        self.export(&path);
+                    }
+                }
+                TextKey::Backspace => {
+                    name.pop();
+                    self.modal = Some(Modal::Export {
+                        name,
+                        overwrite: false,
+                    });
+                }
+                TextKey::Char(c) => {
+                    name.push(c);
+                    self.modal = Some(Modal::Export {
+                        name,
+                        overwrite: false,
+                    });
+                }
+            },
+        }
+    }
+
+    /// Writes the program in RAM to `path` as `.plc` text.
+    fn export(&mut self, path: &std::path::Path) {
+        let program = self.backend.program();
+        let lines = program.lines.iter().filter(|l| l.is_some()).count();
+        let text = program_text(program);
+        self.notice = Some(match write_atomically(path, text.as_bytes()) {
+            Ok(()) => {
+                let editing = if self.backend.editing() {
+                    " (the field being edited is not in it: 5 first)"
+                } else {
+                    ""
+                };
+                format!("exported {lines} lines to {}{editing}", path.display())
+            }
+            Err(e) => format!("export failed: {e:#}"),
+        });
     }
 
     /// Let `dt_ms` pass (simulated time and the blink clock), in 1..=10 ms steps so
@@ -86,6 +238,10 @@ impl PanelApp {
                     }
                 }
             }
+            if self.esc_deferred && self.backend.keys_idle() {
+                self.esc_deferred = false;
+                self.esc();
+            }
         }
     }
 
@@ -96,6 +252,10 @@ impl PanelApp {
     /// The rig behind the panel.
     pub fn backend(&self) -> &SimBackend {
         &self.backend
+    }
+
+    pub fn backend_mut(&mut self) -> &mut SimBackend {
+        &mut self.backend
     }
 
     pub fn status(&self) -> RigStatus {

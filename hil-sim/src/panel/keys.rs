@@ -4,7 +4,7 @@ use firmware_plc::editor::Key;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 
 /// What a PC key does on the panel.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Input {
     Keypad(Key),
     /// Toggle digital input Dn.
@@ -13,7 +13,85 @@ pub enum Input {
     Pulse(u8),
     /// Move analog input An by the given counts.
     Analog(u8, i16),
+    /// Esc: cancels what the editor waits for (an edit, a two-key command, a question:
+    /// sends `*`), else quits (asking first when the program is unsaved).
+    Esc,
+    /// Ctrl-C: quit (asking first when the program is unsaved).
     Quit,
+    /// Ctrl-E: export the program in RAM to a `.plc` file (asks for the name).
+    Export,
+    /// A change to the rig behind the drive.
+    Rig(RigAction),
+}
+
+/// What the panel does to the rig (the plant, the wires, the drive board).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RigAction {
+    /// DC-link supply voltage up/down by this many volts.
+    SupplyV(f64),
+    /// Load torque up/down by this many N m.
+    LoadNm(f64),
+    LockedRotor,
+    /// Cut the UART wires, or restore them.
+    Link,
+    /// A phase-current spike the overcurrent comparator sees (OC_HW).
+    CurrentSpike,
+    /// A DC-link voltage spike the overvoltage comparator sees (OV_HW).
+    VoltageSpike,
+    /// Phase 1's current sensor offset on/off (BOOT at the next drive restart).
+    SensorFault,
+    /// Cycle the drive board's supply (restart; clears BOOT once the sensor is fine).
+    PowerCycleDrive,
+    /// The drive's watchdog resets it (WDG).
+    WatchdogReset,
+    /// Garble the next program download, or not (PROG).
+    GarbleDownload,
+}
+
+/// The rig's keys: (character, action, what the key box says).
+pub const RIG_KEYS: [(char, RigAction); 14] = [
+    ('[', RigAction::SupplyV(-1.0)),
+    (']', RigAction::SupplyV(1.0)),
+    ('{', RigAction::SupplyV(-5.0)),
+    ('}', RigAction::SupplyV(5.0)),
+    (',', RigAction::LoadNm(-0.01)),
+    ('.', RigAction::LoadNm(0.01)),
+    ('<', RigAction::LoadNm(-0.05)),
+    ('>', RigAction::LoadNm(0.05)),
+    ('l', RigAction::LockedRotor),
+    ('s', RigAction::Link),
+    ('h', RigAction::CurrentSpike),
+    ('H', RigAction::VoltageSpike),
+    ('f', RigAction::SensorFault),
+    ('g', RigAction::GarbleDownload),
+];
+
+/// Keys that restart the drive board (upper case only: not hit by accident).
+pub const DRIVE_RESET_KEYS: [(char, RigAction); 2] = [
+    ('V', RigAction::PowerCycleDrive),
+    ('G', RigAction::WatchdogReset),
+];
+
+/// A key while the panel asks something (quit? file name?): typed text and answers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TextKey {
+    Char(char),
+    Backspace,
+    Enter,
+    Esc,
+}
+
+/// The PC key as an answer to the panel's question, if it is one.
+pub fn map_text_key(ev: KeyEvent) -> Option<TextKey> {
+    let ctrl = ev.modifiers.contains(KeyModifiers::CONTROL);
+    Some(match ev.code {
+        KeyCode::Char('c') if ctrl => TextKey::Esc,
+        KeyCode::Char(c) if !ctrl => TextKey::Char(c),
+        KeyCode::Backspace => TextKey::Backspace,
+        KeyCode::Enter => TextKey::Enter,
+        KeyCode::Esc => TextKey::Esc,
+        _ => return None,
+    })
 }
 
 /// How long a push-button press lasts.
@@ -31,7 +109,9 @@ pub fn map_key(ev: KeyEvent) -> Option<Input> {
     let ctrl = ev.modifiers.contains(KeyModifiers::CONTROL);
     Some(match ev.code {
         KeyCode::Char('c') if ctrl => Input::Quit,
-        KeyCode::Esc => Input::Quit,
+        KeyCode::Char('e') if ctrl => Input::Export,
+        KeyCode::Char(_) if ctrl => return None,
+        KeyCode::Esc => Input::Esc,
         KeyCode::Up => Input::Keypad(Key::Digit(2)),
         KeyCode::Down => Input::Keypad(Key::Digit(8)),
         KeyCode::Left => Input::Keypad(Key::Digit(4)),
@@ -49,6 +129,13 @@ pub fn map_key(ev: KeyEvent) -> Option<Input> {
 pub fn map_char(c: char) -> Option<Input> {
     if let Some(k) = Key::from_char(c) {
         return Some(Input::Keypad(k));
+    }
+    if let Some((_, a)) = RIG_KEYS
+        .iter()
+        .chain(DRIVE_RESET_KEYS.iter())
+        .find(|(k, _)| *k == c)
+    {
+        return Some(Input::Rig(*a));
     }
     if let Some(n) = DIGITAL_KEYS.iter().position(|&d| d == c) {
         return Some(Input::Toggle(n as u8));
@@ -89,6 +176,33 @@ mod tests {
         assert_eq!(map_char('W'), Some(Input::Pulse(1)));
         assert_eq!(map_char('x'), Some(Input::Analog(0, 32)));
         assert_eq!(map_char('M'), Some(Input::Analog(1, 128)));
-        assert_eq!(map_char('g'), None);
+        assert_eq!(map_char('v'), None);
+        assert_eq!(map_char('V'), Some(Input::Rig(RigAction::PowerCycleDrive)));
+        assert_eq!(map_char(']'), Some(Input::Rig(RigAction::SupplyV(1.0))));
+    }
+
+    #[test]
+    fn every_key_does_one_thing() {
+        let mut all: Vec<char> = Vec::new();
+        for c in "0123456789abcdABCD*#".chars() {
+            all.push(c);
+        }
+        for d in DIGITAL_KEYS {
+            all.push(d);
+            all.push(d.to_ascii_uppercase());
+        }
+        for (d, u) in ANALOG_KEYS {
+            all.extend([d, u, d.to_ascii_uppercase(), u.to_ascii_uppercase()]);
+        }
+        all.extend(
+            RIG_KEYS
+                .iter()
+                .chain(DRIVE_RESET_KEYS.iter())
+                .map(|(c, _)| *c),
+        );
+        let n = all.len();
+        all.sort();
+        all.dedup();
+        assert_eq!(all.len(), n, "a key with two meanings");
     }
 }

@@ -7,6 +7,7 @@
 //! switches and pots are the PLC's input pins. No key handling of its own.
 
 use std::collections::VecDeque;
+use std::path::{Path, PathBuf};
 
 use firmware_plc::editor::{Key, Screen};
 use firmware_plc::storage::image::{program_image, ImageOptions};
@@ -16,8 +17,13 @@ use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, PlcBoard, PlcPins};
+use crate::plant::{SenseSpike, UdcSenseSpike};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};
+use firmware_drive::ResetCause;
+
+use super::files::{read_eeprom_image, write_atomically};
+use super::rms::RmsWindow;
 
 /// How long a panel key is held down, and then left up before the next one, in ms: the
 /// keypad debouncing's 10 samples each way (`firmware_plc::app::KEY_DEBOUNCE_SAMPLES`),
@@ -38,6 +44,24 @@ pub struct RigStatus {
     pub speed_rpm: f64,
     pub u_dc_v: f64,
     pub i_max_a: f64,
+    /// RMS phase current over whole periods ([`super::rms::RmsWindow`]), A.
+    pub i_rms_a: f64,
+    /// The drive section's frequency command (what the ramp heads for), Hz.
+    pub f_set_hz: f64,
+    /// Electromagnetic torque, N m.
+    pub torque_nm: f64,
+    /// The inverter outputs switch (enabled and no hardware break).
+    pub pwm_on: bool,
+    /// The rig's settings the panel changes: supply voltage, load torque, locked rotor,
+    /// UART wires cut, phase-1 sensor offset (counts), next download garbled.
+    pub supply_v: f64,
+    pub load_nm: f64,
+    pub locked_rotor: bool,
+    pub link_cut: bool,
+    pub sensor_offset: i16,
+    pub garble_download: bool,
+    /// The drive's limits in effect: `U<`, `U>`, `I>` (0 = off) and `U>>`, `I>>`.
+    pub limits: Limits,
     pub fault: u8,
     pub brake: bool,
     /// D00..D07, bit n = Dn.
@@ -48,6 +72,20 @@ pub struct RigStatus {
     pub analog: [u16; 4],
 }
 
+/// The drive's protection limits in effect (for the rig box: what a trip needs).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Limits {
+    pub u_min_v: f64,
+    pub u_max_v: f64,
+    pub i_max_a: f64,
+    pub ov_hw_v: f64,
+    pub oc_hw_a: f64,
+}
+
+/// The sensor offset the panel's sensor fault adds to phase 1's current, ADC counts: far
+/// beyond the drive's boot self-test tolerance.
+pub const SENSOR_FAULT_COUNTS: i16 = 400;
+
 /// The co-simulated rig behind the panel, in virtual time that the panel advances.
 pub struct SimBackend {
     sim: Simulation,
@@ -57,27 +95,89 @@ pub struct SimBackend {
     /// The key being pressed and the milliseconds left in its press (down, then up).
     pressing: Option<(char, u32)>,
     pins: PlcPins,
+    rms: RmsWindow,
+    link_cut: bool,
+    /// The file behind the EEPROM (`--eeprom`), and its write count when last written.
+    eeprom_file: Option<PathBuf>,
+    persisted_writes: u32,
+    /// The last failure to write the EEPROM file (shown on the panel; retried).
+    pub persist_error: Option<String>,
+}
+
+/// The image of a fresh EEPROM with `program` (if any) in slot 1, loaded at power-up but
+/// not run.
+fn fresh_image(program: Option<&Program>) -> anyhow::Result<MemEeprom> {
+    Ok(match program {
+        Some(p) => {
+            let image = program_image(
+                p,
+                &ImageOptions {
+                    slot: 1,
+                    run_at_power_up: false,
+                },
+            )
+            .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))?;
+            MemEeprom::from_image(&image)
+        }
+        None => MemEeprom::new(),
+    })
 }
 
 impl SimBackend {
     /// Power up the rig with `program` (if any) stored in slot 1 of the PLC's EEPROM and
     /// loaded at power-up, but not running: RUN is the user's `A`.
     pub fn new(program: Option<&Program>) -> anyhow::Result<Self> {
-        let eeprom = match program {
-            Some(p) => {
-                let image = program_image(
-                    p,
-                    &ImageOptions {
-                        slot: 1,
-                        run_at_power_up: false,
-                    },
-                )
-                .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))?;
-                MemEeprom::from_image(&image)
-            }
-            None => MemEeprom::new(),
+        Ok(Self::with_eeprom(fresh_image(program)?))
+    }
+
+    /// Power up the rig with the EEPROM kept in `path` (`--eeprom`): the saved slots of
+    /// earlier sessions, and every completed save written back to the file.
+    ///
+    /// * No such file: it is created, holding `program` in slot 1 (as [`Self::new`]).
+    /// * The file exists: the PLC powers up from it (the boot record's slot, run if it
+    ///   was running); then `program`, if given and different, replaces the program in
+    ///   RAM as an unsaved program (no slot is overwritten). Not while the PLC runs at
+    ///   power-up: the returned note says so.
+    /// * A file that is not a 32 KiB image is refused and left unchanged.
+    pub fn with_eeprom_file(
+        program: Option<&Program>,
+        path: &Path,
+    ) -> anyhow::Result<(Self, Option<String>)> {
+        let existing = read_eeprom_image(path)?;
+        let created = existing.is_none();
+        let eeprom = match &existing {
+            Some(bytes) => MemEeprom::from_image(bytes),
+            None => fresh_image(program)?,
         };
-        Ok(Self::with_eeprom(eeprom))
+        let mut b = Self::with_eeprom(eeprom);
+        b.eeprom_file = Some(path.to_path_buf());
+        let mut note = None;
+        if created {
+            b.write_eeprom_file()?;
+            note = Some(format!("created {}", path.display()));
+        } else if let Some(p) = program {
+            let app = b.sim.plc_mut().app_mut();
+            if app.program() != p {
+                note = Some(if app.replace_program(p) {
+                    format!(
+                        "{}: slots kept; the program file is in RAM, unsaved (C n saves it)",
+                        path.display()
+                    )
+                } else {
+                    format!(
+                        "{}: the PLC runs its saved program at power-up; the program file \
+                         was not loaded",
+                        path.display()
+                    )
+                });
+            }
+        }
+        // The power-up wrote the boot record (power-cycle count): the file has it too.
+        b.persist();
+        if let Some(e) = b.persist_error.take() {
+            anyhow::bail!(e);
+        }
+        Ok((b, note))
     }
 
     /// Power up the rig with `eeprom` in the PLC's socket.
@@ -87,8 +187,9 @@ impl SimBackend {
         let plc = PlcBoard::new(eeprom, link, Micros(0));
         let drive = DriveBoard::new(link);
         let opts = RunOptions {
-            // The side panel needs a few values per frame, not every millisecond.
-            sample_ns: 20_000_000,
+            // The RMS current needs a few samples per period of the output (70 Hz at
+            // most): 2 kHz.
+            sample_ns: 500_000,
             ..RunOptions::default()
         };
         SimBackend {
@@ -97,7 +198,90 @@ impl SimBackend {
             keys: VecDeque::new(),
             pressing: None,
             pins: PlcPins::default(),
+            rms: RmsWindow::default(),
+            link_cut: false,
+            eeprom_file: None,
+            persisted_writes: 0,
+            persist_error: None,
         }
+    }
+
+    /// The file behind the EEPROM, if any.
+    pub fn eeprom_file(&self) -> Option<&Path> {
+        self.eeprom_file.as_deref()
+    }
+
+    fn eeprom_writes(&mut self) -> u32 {
+        self.sim
+            .plc_mut()
+            .app_mut()
+            .storage()
+            .eeprom()
+            .bytes_written()
+    }
+
+    fn write_eeprom_file(&mut self) -> anyhow::Result<()> {
+        let Some(path) = self.eeprom_file.clone() else {
+            return Ok(());
+        };
+        let writes = self.eeprom_writes();
+        let image = *self.sim.plc_mut().app_mut().storage().eeprom().image();
+        write_atomically(&path, &image)?;
+        self.persisted_writes = writes;
+        Ok(())
+    }
+
+    /// Writes the EEPROM back to its file when it changed and no storage job is under
+    /// way (a save is written to the file once it is complete, never half-done).
+    fn persist(&mut self) {
+        if self.eeprom_file.is_none() || self.sim.plc_mut().app_mut().storage().busy() {
+            return;
+        }
+        if self.eeprom_writes() != self.persisted_writes {
+            self.persist_error = self.write_eeprom_file().err().map(|e| format!("{e:#}"));
+        }
+    }
+
+    /// Before quitting: a save under way is finished (at most 5 s of simulated time),
+    /// then the EEPROM is written to its file.
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        for _ in 0..500 {
+            if self.keys_idle() && !self.sim.plc_mut().app_mut().storage().busy() {
+                break;
+            }
+            self.advance(10);
+        }
+        if self.eeprom_file.is_some() && self.eeprom_writes() != self.persisted_writes {
+            self.write_eeprom_file()?;
+        }
+        Ok(())
+    }
+
+    /// No keypad key is queued or being pressed.
+    pub fn keys_idle(&self) -> bool {
+        self.keys.is_empty() && self.pressing.is_none()
+    }
+
+    /// The program in the PLC's RAM (what the editor shows and a save stores).
+    pub fn program(&self) -> &Program {
+        self.sim.plc().program()
+    }
+
+    /// The program differs from the one last saved or loaded, or a field is being
+    /// edited: quitting would lose it.
+    pub fn unsaved(&self) -> bool {
+        let ed = self.sim.plc().editor();
+        ed.modified() || ed.editing()
+    }
+
+    /// A field is being edited (its pending value is not in the program yet).
+    pub fn editing(&self) -> bool {
+        self.sim.plc().editor().editing()
+    }
+
+    /// The editor waits for keys to finish a command or an edit (`*` cancels it).
+    pub fn awaiting_keys(&self) -> bool {
+        self.sim.plc().editor().awaiting_keys()
     }
 
     pub fn simulation(&self) -> &Simulation {
@@ -134,12 +318,17 @@ impl SimBackend {
                 .pressing
                 .and_then(|(c, n)| (n > 1).then_some((c, n - 1)));
         }
+        self.persist();
     }
 
     fn run(&mut self, ms: u32) {
         let end = self.sim.now_ns() + u64::from(ms) * MS_NS;
         let mut last = None;
-        self.sim.run_until(end, |s| last = Some(s.clone()));
+        let rms = &mut self.rms;
+        self.sim.run_until(end, |s| {
+            rms.push(s.t_ns, s.i_abc_a);
+            last = Some(s.clone());
+        });
         if last.is_some() {
             self.last = last;
         }
@@ -170,8 +359,102 @@ impl SimBackend {
             st.u_dc_v = s.u_dc_v;
             st.i_max_a = s.i_abc_a.iter().fold(0.0f64, |m, i| m.max(i.abs()));
             st.brake = s.brake;
+            st.torque_nm = s.torque_nm;
+            st.pwm_on = s.pwm_on;
         }
+        st.i_rms_a = self.rms.rms_a(st.f_hz);
+        st.f_set_hz = f64::from(d.f_command.0) / 10.0;
+        let rig = self.sim.plant().params();
+        st.supply_v = rig.supply_v;
+        st.load_nm = rig.motor.load_torque_nm;
+        st.locked_rotor = rig.motor.locked_rotor;
+        st.link_cut = self.link_cut;
+        st.sensor_offset = self.sim.current_sensor_offset();
+        st.garble_download = self.sim.download_garbling();
+        let settings = *self.sim.drive().core().vm().settings();
+        st.limits = Limits {
+            u_min_v: f64::from(settings.u_min_volts),
+            u_max_v: f64::from(settings.u_max_volts),
+            i_max_a: f64::from(settings.i_max_centiamps) / 100.0,
+            ov_hw_v: f64::from(d.hw.ov_hw.0),
+            oc_hw_a: f64::from(d.hw.oc_hw.0) / 100.0,
+        };
         st
+    }
+
+    /// Changes the DC-link supply's open-circuit voltage by `dv` (0..60 V).
+    pub fn adjust_supply(&mut self, dv: f64) {
+        let p = self.sim.plant_mut().params_mut();
+        p.supply_v = ((p.supply_v + dv).clamp(0.0, 60.0) * 10.0).round() / 10.0;
+    }
+
+    /// Changes the constant load torque by `dt` (0..1 N m).
+    pub fn adjust_load(&mut self, dt: f64) {
+        let m = &mut self.sim.plant_mut().params_mut().motor;
+        m.load_torque_nm = ((m.load_torque_nm + dt).clamp(0.0, 1.0) * 1000.0).round() / 1000.0;
+    }
+
+    pub fn toggle_locked_rotor(&mut self) {
+        let m = &mut self.sim.plant_mut().params_mut().motor;
+        m.locked_rotor = !m.locked_rotor;
+    }
+
+    /// Cuts the UART wires, or restores them.
+    pub fn toggle_link(&mut self) {
+        self.link_cut = !self.link_cut;
+        self.sim.set_link_cut(self.link_cut);
+    }
+
+    /// A current spike on phase 1 that the overcurrent comparator sees for the last
+    /// 30 % of the next PWM period (outside the blanking window around its middle, and
+    /// still there when the break interrupt runs): 1 A above `I>>`.
+    pub fn current_spike(&mut self) {
+        let oc_hw = f64::from(self.sim.drive().status().hw.oc_hw.0) / 100.0;
+        let i_now = self.last.as_ref().map_or(0.0, |s| s.i_abc_a[0].abs());
+        let period = self.sim.plant().period_ns();
+        self.sim.plant_mut().inject_sense_spike(SenseSpike {
+            phase: 0,
+            amps: oc_hw + i_now + 1.0,
+            from_ns: 7 * period / 10,
+            to_ns: period,
+        });
+    }
+
+    /// A DC-link voltage spike that the overvoltage comparator sees for the last 30 % of
+    /// the next PWM period: 5 V above `U>>`. (A pulse gone before the break interrupt
+    /// runs is blamed on overcurrent by the drive, `BreakMonitor::fired`.)
+    pub fn voltage_spike(&mut self) {
+        let ov_hw = f64::from(self.sim.drive().status().hw.ov_hw.0);
+        let u_now = self.sim.plant().outputs().u_dc_v;
+        let period = self.sim.plant().period_ns();
+        self.sim.plant_mut().inject_udc_sense_spike(UdcSenseSpike {
+            volts: (ov_hw - u_now).max(0.0) + 5.0,
+            from_ns: 7 * period / 10,
+            to_ns: period,
+        });
+    }
+
+    /// Cycles the drive board's supply: the drive restarts (boot self-test, handshake).
+    pub fn power_cycle_drive(&mut self) {
+        self.sim.restart_drive(ResetCause::PowerOn);
+    }
+
+    /// The drive's watchdog resets it (fault WDG after the restart).
+    pub fn watchdog_reset_drive(&mut self) {
+        self.sim.restart_drive(ResetCause::Watchdog);
+    }
+
+    /// Phase 1's current sensor gets (or loses) an offset of [`SENSOR_FAULT_COUNTS`].
+    pub fn toggle_sensor_fault(&mut self) {
+        let on = self.sim.current_sensor_offset() == 0;
+        self.sim
+            .set_current_sensor_offset(if on { SENSOR_FAULT_COUNTS } else { 0 });
+    }
+
+    /// Arms (or disarms) a garbled next download.
+    pub fn toggle_garble_download(&mut self) {
+        let on = !self.sim.download_garbling();
+        self.sim.garble_next_download(on);
     }
 
     /// Set digital input `n` (0..8).

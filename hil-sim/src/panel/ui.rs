@@ -1,6 +1,6 @@
 //! Drawing the panel: LCD, keypad with its key map, and the rig beside them.
 
-use super::app::PanelApp;
+use super::app::{Modal, PanelApp};
 use super::keys::{ANALOG_KEYS, DIGITAL_KEYS};
 use firmware_plc::editor::{Key, Screen};
 use ratatui::layout::{Constraint, Layout, Rect};
@@ -15,17 +15,34 @@ const LCD_FG: Color = Color::Rgb(20, 30, 10);
 /// Half period of the blinking cursor.
 const BLINK_MS: u64 = 400;
 
-/// Key map lines shown under the keypad (the PC key in brackets where it differs).
-const KEYMAP: [&str; 9] = [
+/// The smallest terminal that shows the whole panel (LCD, keypad, key box, rig);
+/// below it the panel says so instead of clipping.
+pub const MIN_WIDTH: u16 = 90;
+pub const MIN_HEIGHT: u16 = 29;
+
+/// Key map lines shown under the keypad (the PC key in brackets where it differs), then
+/// the rig's keys.
+const KEYMAP: [&str; 20] = [
     "2/8 up/down   4/6 field   5 edit/ok",
     "1/7 -+10 lines 3/9 -+100  0 next used",
     "A RUN/STOP   B next page",
     "C n save slot n   D n load, D 0 new",
     "# nnn go to line  * cancel edit",
     "*1 insert *3 delete *0 clear *5 check",
+    "*9 acknowledge the drive's fault",
     "editing: 2/8 value, 1/7 -+10,",
     "  3/9 operand area, 4/6 field/digit",
     "PC: arrows=2/4/6/8 Enter=5 PgUp/Dn=1/7",
+    "Esc cancel edit/command (*), else quit",
+    "Ctrl-E: export the program to .plc",
+    "-- rig --",
+    "[ ] supply -/+1 V    { } -/+5 V",
+    ", . load -/+0.01 Nm  < > -/+0.05 Nm",
+    "l locked rotor   s link cut/restore",
+    "h current spike (OC_HW)  H Udc (OV_HW)",
+    "f sensor offset fault  g garble download",
+    "V drive power cycle  G drive watchdog",
+    "q..i F1-F8 inputs  z/x n/m j/k o/p pots",
 ];
 
 fn lcd_lines(s: &Screen, blink_on: bool) -> Vec<Line<'static>> {
@@ -93,18 +110,27 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
         s.drive_state
     )));
     v.push(Line::from(format!(
-        "f {:6.1} Hz {}  speed {:6.0} rpm",
+        "f {:5.1} Hz {} (set {:5.1} Hz)",
         s.f_hz,
         if s.reverse { "REV" } else { "FWD" },
-        s.speed_rpm
+        s.f_set_hz
     )));
+    v.push(Line::from(vec![
+        Span::raw("outputs "),
+        if s.pwm_on {
+            Span::styled("ON", Style::default().fg(Color::Black).bg(Color::Green))
+        } else {
+            Span::raw("off")
+        },
+        Span::raw(format!(
+            "  brake {}  speed {:5.0} rpm",
+            if s.brake { "ON" } else { "off" },
+            s.speed_rpm
+        )),
+    ]));
     v.push(Line::from(format!(
-        "Udc {:5.1} V  Imax {:5.2} A",
-        s.u_dc_v, s.i_max_a
-    )));
-    v.push(Line::from(format!(
-        "brake {}",
-        if s.brake { "ON" } else { "off" }
+        "Udc {:5.1} V  Irms {:5.2} A  T {:6.3} Nm",
+        s.u_dc_v, s.i_rms_a, s.torque_nm
     )));
     let fault = if s.fault == 0 {
         Span::raw("fault: none")
@@ -115,7 +141,53 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
         )
     };
     v.push(Line::from(fault));
-    v.push(Line::from(""));
+    let l = s.limits;
+    // 0 = not set by the program (no check).
+    let lim = |x: f64, decimals: usize| {
+        if x > 0.0 {
+            format!("{x:.decimals$}")
+        } else {
+            "off".to_string()
+        }
+    };
+    v.push(Line::from(Span::styled(
+        format!(
+            "limits U< {} U> {} I> {}  U>> {:.0} I>> {:.2}",
+            lim(l.u_min_v, 0),
+            lim(l.u_max_v, 0),
+            lim(l.i_max_a, 2),
+            l.ov_hw_v,
+            l.oc_hw_a
+        ),
+        Style::default().fg(Color::DarkGray),
+    )));
+    let flag = |on: bool, text: &'static str| {
+        if on {
+            Span::styled(text, Style::default().fg(Color::Black).bg(Color::Yellow))
+        } else {
+            Span::styled(text, Style::default().fg(Color::DarkGray))
+        }
+    };
+    v.push(Line::from(format!(
+        "supply {:4.1} V   load {:5.3} Nm",
+        s.supply_v, s.load_nm
+    )));
+    v.push(Line::from(vec![
+        flag(s.locked_rotor, "LOCKED ROTOR"),
+        Span::raw(" "),
+        flag(s.link_cut, "LINK CUT"),
+        Span::raw(" "),
+        flag(s.sensor_offset != 0, "SENSOR FAULT"),
+        Span::raw(" "),
+        flag(s.garble_download, "GARBLE DL"),
+    ]));
+    v.push(Line::from(Span::styled(
+        match app.backend().eeprom_file() {
+            Some(p) => format!("EEPROM file {}", p.display()),
+            None => "EEPROM in memory (--eeprom FILE keeps it)".to_string(),
+        },
+        Style::default().fg(Color::DarkGray),
+    )));
     let mut d = vec![Span::raw("D00-07 ")];
     for n in 0..8 {
         d.push(on_off(s.digital_in & (1 << n) != 0));
@@ -124,11 +196,7 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
     v.push(Line::from(d));
     let keys: String = DIGITAL_KEYS.iter().map(|c| format!("{c} ")).collect();
     v.push(Line::from(Span::styled(
-        format!("  keys {keys}"),
-        Style::default().fg(Color::DarkGray),
-    )));
-    v.push(Line::from(Span::styled(
-        "  q: toggle D00, Q: push 0.2 s",
+        format!("  keys {keys}(Q..I: push 0.2 s)"),
         Style::default().fg(Color::DarkGray),
     )));
     let mut o = vec![Span::raw("O00-05 ")];
@@ -154,9 +222,31 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
     v
 }
 
-/// Draw the whole panel.
+/// Draw the whole panel, or, in a terminal too small for it, one message saying so.
 pub fn draw(frame: &mut Frame<'_>, app: &PanelApp) {
     let area = frame.area();
+    if area.width < MIN_WIDTH || area.height < MIN_HEIGHT {
+        let text = format!(
+            "Terminal too small ({}x{}): the panel needs {}x{}. Enlarge the window (Esc quits).",
+            area.width, area.height, MIN_WIDTH, MIN_HEIGHT
+        );
+        let y = area.height / 2;
+        frame.render_widget(
+            Paragraph::new(text)
+                .wrap(ratatui::widgets::Wrap { trim: true })
+                .style(
+                    Style::default()
+                        .fg(Color::Yellow)
+                        .add_modifier(Modifier::BOLD),
+                ),
+            Rect {
+                y: area.y + y.saturating_sub(1),
+                height: area.height - y.saturating_sub(1),
+                ..area
+            },
+        );
+        return;
+    }
     let [main, footer] = Layout::vertical([Constraint::Min(10), Constraint::Length(1)]).areas(area);
     let [left, right] =
         Layout::horizontal([Constraint::Length(42), Constraint::Min(30)]).areas(main);
@@ -194,11 +284,41 @@ pub fn draw(frame: &mut Frame<'_>, app: &PanelApp) {
         Paragraph::new(rig_lines(app)).block(Block::bordered().title("Rig")),
         right,
     );
-    frame.render_widget(
-        Paragraph::new(Line::from(Span::styled(
-            " Esc quits | keypad 0-9 a-d * # | inputs q..i F1-F8 | pots z/x n/m j/k o/p",
-            Style::default().fg(Color::DarkGray),
-        ))),
-        footer,
-    );
+    frame.render_widget(Paragraph::new(footer_line(app)), footer);
+}
+
+/// The bottom line: the question being asked, else the panel's last message, else help.
+fn footer_line(app: &PanelApp) -> Line<'static> {
+    let ask = Style::default()
+        .fg(Color::Black)
+        .bg(Color::Yellow)
+        .add_modifier(Modifier::BOLD);
+    match &app.modal {
+        Some(Modal::ConfirmQuit) => Line::from(Span::styled(
+            " The program has unsaved changes (C n saves it). Quit anyway? y/n ",
+            ask,
+        )),
+        Some(Modal::Export { name, overwrite }) => {
+            let text = if *overwrite {
+                format!(" {name} exists: Enter overwrites it, Backspace edits, Esc cancels ")
+            } else {
+                format!(" Export the program to: {name}_  (Enter writes, Esc cancels) ")
+            };
+            Line::from(Span::styled(text, ask))
+        }
+        None => match (&app.notice, &app.backend().persist_error) {
+            (_, Some(e)) => Line::from(Span::styled(
+                format!(" {e}"),
+                Style::default().fg(Color::Red).add_modifier(Modifier::BOLD),
+            )),
+            (Some(n), None) => Line::from(Span::styled(
+                format!(" {n}"),
+                Style::default().fg(Color::Cyan),
+            )),
+            (None, None) => Line::from(Span::styled(
+                " Esc quits | keypad 0-9 a-d * # | inputs q..i F1-F8 | pots z/x n/m j/k o/p",
+                Style::default().fg(Color::DarkGray),
+            )),
+        },
+    }
 }

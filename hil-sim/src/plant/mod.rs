@@ -148,6 +148,17 @@ pub struct SenseSpike {
     pub to_ns: u64,
 }
 
+/// A disturbance of the sensed DC-link voltage during part of a PWM period (a transient
+/// on the divider): what the overvoltage comparator sees, not the capacitor's voltage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UdcSenseSpike {
+    /// Added to the sensed DC-link voltage, V.
+    pub volts: f64,
+    /// From/to this time into the period, ns.
+    pub from_ns: u64,
+    pub to_ns: u64,
+}
+
 /// The rig's state and the command it is under.
 #[derive(Debug, Clone)]
 pub struct Plant {
@@ -177,6 +188,8 @@ pub struct Plant {
     /// A disturbance of the sensed current in this period (armed for the next one).
     spike: Option<SenseSpike>,
     armed_spike: Option<SenseSpike>,
+    udc_spike: Option<UdcSenseSpike>,
+    armed_udc_spike: Option<UdcSenseSpike>,
     /// Mechanical angle, rad (for plots and tests of reversal).
     angle_rad: f64,
     /// Integrals over the running PWM period: leg fractions, line voltage a-b, time (s).
@@ -205,6 +218,8 @@ impl Plant {
             blank_half_ns: 0,
             spike: None,
             armed_spike: None,
+            udc_spike: None,
+            armed_udc_spike: None,
             angle_rad: 0.0,
             period_acc: ([0.0; 3], 0.0, 0.0),
             period_avg: ([0.0; 3], 0.0),
@@ -231,6 +246,7 @@ impl Plant {
         self.period_ns = period_ns.max(1);
         self.tau_ns = 0;
         self.spike = self.armed_spike.take();
+        self.udc_spike = self.armed_udc_spike.take();
         self.set_command(cmd);
     }
 
@@ -256,6 +272,12 @@ impl Plant {
     /// the motor does not: a switching spike or ringing on a shunt).
     pub fn inject_sense_spike(&mut self, spike: SenseSpike) {
         self.armed_spike = Some(spike);
+    }
+
+    /// Adds `spike` to the sensed DC-link voltage of the next PWM period (the overvoltage
+    /// comparator sees it; the capacitor does not).
+    pub fn inject_udc_sense_spike(&mut self, spike: UdcSenseSpike) {
+        self.armed_udc_spike = Some(spike);
     }
 
     /// Changes the gate command now, inside the period (MOE or an output enable written).
@@ -426,7 +448,7 @@ impl Plant {
     /// itself (a blanking-window or sense-spike edge), so that a step ends there.
     fn next_sense_boundary(&self, tau_ns: u64) -> u64 {
         let mid = self.period_ns / 2;
-        let mut edges = [u64::MAX; 4];
+        let mut edges = [u64::MAX; 6];
         if self.blank_half_ns > 0 {
             edges[0] = mid.saturating_sub(self.blank_half_ns);
             edges[1] = mid + self.blank_half_ns;
@@ -434,6 +456,10 @@ impl Plant {
         if let Some(s) = self.spike {
             edges[2] = s.from_ns;
             edges[3] = s.to_ns;
+        }
+        if let Some(s) = self.udc_spike {
+            edges[4] = s.from_ns;
+            edges[5] = s.to_ns;
         }
         edges
             .into_iter()
@@ -520,7 +546,13 @@ impl Plant {
                 }
             }
         }
-        let mut levels = self.comparators.levels(sensed, o.u_dc_v);
+        let mut u_sensed = o.u_dc_v;
+        if let Some(sp) = self.udc_spike {
+            if (sp.from_ns..=sp.to_ns).contains(&tau_end_ns) {
+                u_sensed += sp.volts;
+            }
+        }
+        let mut levels = self.comparators.levels(sensed, u_sensed);
         if self.blanking_at(tau_end_ns) {
             // RM0440: a blanked comparator's output (and VALUE) is 0 during the window.
             for spec in self

@@ -186,6 +186,29 @@ fn the_panel_without_a_terminal_exits_1_with_one_line() {
     assert!(err.contains("interactive terminal"), "{err}");
 }
 
+/// Issue 20: `panel --eeprom FILE` refuses a file that is not a 32 KiB 24C256 image with
+/// one line and exit 1, before anything else, and leaves the file as it was.
+#[test]
+fn the_panel_refuses_an_eeprom_file_of_the_wrong_size_and_leaves_it_alone() {
+    let f = tmp("short-eeprom.bin");
+    std::fs::write(&f, [0u8; 1000]).unwrap();
+    let out = bin()
+        .arg("panel")
+        .arg("--eeprom")
+        .arg(&f)
+        .stdin(std::process::Stdio::piped())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("1000 bytes, not a 24C256 image (32768 bytes"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read(&f).unwrap(), vec![0u8; 1000]);
+}
+
 /// Issue 20: a sampling period below the simulation's 1 us step is refused before the run
 /// (0.0001 ms once wrote 1.18 GB for one simulated second), and so is a plot format that
 /// cannot be written; neither leaves a file behind.

@@ -1,0 +1,228 @@
+//! Issue 20 item 5: every fault the drive has is triggered from the panel with the rig's
+//! keys (the table in `hil-sim/docs/cli.md`), seen on the LCD, and acknowledged with `*`
+//! `9` once its cause is removed.
+
+use hil_sim::panel::keys::{map_char, Input};
+use hil_sim::panel::{read_program, PanelApp, SimBackend};
+use shared_protocol::fault::FaultCode;
+
+fn motor_panel() -> PanelApp {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared-protocol/programs/motor.plc"
+    );
+    let p = read_program(std::path::Path::new(path)).unwrap();
+    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    app.advance(100);
+    app
+}
+
+/// Keys as typed on the PC, 50 ms apart.
+fn keys(app: &mut PanelApp, s: &str) {
+    for c in s.chars() {
+        app.input(map_char(c).unwrap_or_else(|| panic!("no key {c:?}")));
+        app.advance(50);
+    }
+}
+
+fn lcd(app: &PanelApp) -> String {
+    app.lcd().to_string()
+}
+
+/// RUN, the switching-frequency pot at 512 (5120 Hz), the speed pot at `speed` counts
+/// (0.1 Hz), START: the motor runs up.
+fn run_motor(app: &mut PanelApp, speed: i16) {
+    app.input(Input::Analog(0, 512));
+    app.input(Input::Analog(1, speed));
+    keys(app, "a");
+    app.advance(300);
+    assert!(app.status().plc_running, "{}", lcd(app));
+    app.input(Input::Pulse(0));
+    app.advance(300);
+}
+
+/// Waits up to `ms` for the LCD to show fault `code` (the status row rotates every 2 s).
+fn wait_for_fault_on_lcd(app: &mut PanelApp, code: FaultCode, ms: u32) {
+    let want = format!("F{} ", code.code());
+    for _ in 0..ms / 50 {
+        app.advance(50);
+        if app.status().fault == code.code() && lcd(app).contains(&want) {
+            return;
+        }
+    }
+    panic!(
+        "{code:?} not on the LCD: fault {} {:?}\n{}",
+        app.status().fault,
+        app.status(),
+        lcd(app)
+    );
+}
+
+/// Speed pot to 0: the frequency command ramps below fmn (5 Hz) within `ms`.
+fn setpoint_to_zero(app: &mut PanelApp, ms: u32) {
+    app.input(Input::Analog(1, -1023));
+    for _ in 0..ms / 100 {
+        app.advance(100);
+        if app.status().f_set_hz < 5.0 {
+            return;
+        }
+    }
+    panic!("the command stays at {} Hz", app.status().f_set_hz);
+}
+
+/// `*9`: the drive leaves FAULT (to IDLE) and the LCD drops the fault.
+fn ack(app: &mut PanelApp, code: FaultCode) {
+    keys(app, "*9");
+    for _ in 0..20 {
+        app.advance(50);
+        if app.status().fault == 0 {
+            break;
+        }
+    }
+    let s = app.status();
+    assert_eq!(s.fault, 0, "{code:?} acknowledged: {s:?}\n{}", lcd(app));
+    assert_eq!(s.drive_state, "IDLE", "{}", lcd(app));
+    app.advance(2500);
+    assert!(
+        !lcd(app).contains(&format!("F{} ", code.code())),
+        "{}",
+        lcd(app)
+    );
+}
+
+/// `*9` while the cause stands: refused, and the LCD says why.
+fn ack_refused(app: &mut PanelApp, code: FaultCode, why: &str) {
+    keys(app, "*9");
+    let mut seen = false;
+    for _ in 0..10 {
+        app.advance(50);
+        seen |= lcd(app).contains(why);
+    }
+    assert!(seen, "{why}: {}", lcd(app));
+    assert_eq!(app.status().fault, code.code());
+}
+
+#[test]
+fn oc_from_a_locked_rotor() {
+    let mut app = motor_panel();
+    keys(&mut app, "l");
+    run_motor(&mut app, 500);
+    wait_for_fault_on_lcd(&mut app, FaultCode::Oc, 8000);
+    keys(&mut app, "l");
+    setpoint_to_zero(&mut app, 8000);
+    ack(&mut app, FaultCode::Oc);
+}
+
+#[test]
+fn oc_hw_from_a_current_spike() {
+    let mut app = motor_panel();
+    run_motor(&mut app, 300);
+    app.advance(2000);
+    assert_eq!(app.status().fault, 0, "{}", lcd(&app));
+    keys(&mut app, "h");
+    wait_for_fault_on_lcd(&mut app, FaultCode::OcHw, 3000);
+    // The spike is over, the command still high: the reason is the frequency.
+    ack_refused(&mut app, FaultCode::OcHw, "ACK REFUSED: F>=FMN");
+    setpoint_to_zero(&mut app, 8000);
+    ack(&mut app, FaultCode::OcHw);
+}
+
+#[test]
+fn ov_hw_from_a_voltage_spike_and_from_the_supply() {
+    let mut app = motor_panel();
+    run_motor(&mut app, 300);
+    app.advance(1000);
+    keys(&mut app, "H");
+    wait_for_fault_on_lcd(&mut app, FaultCode::OvHw, 3000);
+    setpoint_to_zero(&mut app, 8000);
+    ack(&mut app, FaultCode::OvHw);
+    // The supply above U>> (40 V): the comparator stays high, the ACK is refused until
+    // the supply is back.
+    keys(&mut app, "}}}");
+    wait_for_fault_on_lcd(&mut app, FaultCode::OvHw, 3000);
+    ack_refused(&mut app, FaultCode::OvHw, "ACK REFUSED: CAUSE");
+    keys(&mut app, "{{{");
+    app.advance(500);
+    ack(&mut app, FaultCode::OvHw);
+}
+
+#[test]
+fn uv_from_a_low_supply_while_running() {
+    let mut app = motor_panel();
+    run_motor(&mut app, 300);
+    app.advance(1500);
+    keys(&mut app, "{{");
+    wait_for_fault_on_lcd(&mut app, FaultCode::Uv, 3000);
+    keys(&mut app, "}}");
+    setpoint_to_zero(&mut app, 8000);
+    ack(&mut app, FaultCode::Uv);
+}
+
+#[test]
+fn link_from_cutting_the_wires_in_run() {
+    let mut app = motor_panel();
+    run_motor(&mut app, 300);
+    app.advance(1000);
+    keys(&mut app, "s");
+    app.advance(500);
+    assert_eq!(app.status().fault, FaultCode::Link.code());
+    assert!(lcd(&app).contains("LINK LOST"), "{}", lcd(&app));
+    keys(&mut app, "s");
+    wait_for_fault_on_lcd(&mut app, FaultCode::Link, 3000);
+    setpoint_to_zero(&mut app, 8000);
+    ack(&mut app, FaultCode::Link);
+}
+
+#[test]
+fn prog_from_a_garbled_download() {
+    let mut app = motor_panel();
+    keys(&mut app, "g");
+    keys(&mut app, "a");
+    wait_for_fault_on_lcd(&mut app, FaultCode::Prog, 3000);
+    // No program in the drive: the cause stands until a good download (RUN again).
+    ack_refused(&mut app, FaultCode::Prog, "ACK REFUSED: CAUSE");
+    if app.status().plc_running {
+        keys(&mut app, "a");
+    }
+    keys(&mut app, "a");
+    app.advance(500);
+    ack(&mut app, FaultCode::Prog);
+}
+
+#[test]
+fn wdg_from_a_drive_watchdog_reset() {
+    let mut app = motor_panel();
+    run_motor(&mut app, 300);
+    app.advance(1000);
+    keys(&mut app, "G");
+    wait_for_fault_on_lcd(&mut app, FaultCode::Wdg, 3000);
+    setpoint_to_zero(&mut app, 8000);
+    ack(&mut app, FaultCode::Wdg);
+}
+
+#[test]
+fn boot_from_a_sensor_fault_at_a_drive_restart() {
+    let mut app = motor_panel();
+    keys(&mut app, "fV");
+    wait_for_fault_on_lcd(&mut app, FaultCode::Boot, 3000);
+    // A failed self-test is never acknowledged: it needs a power cycle of the drive.
+    keys(&mut app, "f");
+    ack_refused(&mut app, FaultCode::Boot, "ACK REFUSED: CAUSE");
+    keys(&mut app, "V");
+    app.advance(1000);
+    assert_eq!(app.status().fault, 0, "{}", lcd(&app));
+    assert_eq!(app.status().drive_state, "IDLE");
+}
+
+/// A new fault code needs a panel action, a row in the doc's table and a test here.
+#[test]
+fn every_fault_code_has_a_panel_action_a_doc_row_and_a_test() {
+    let doc = include_str!("../docs/cli.md");
+    let tests = include_str!("panel_faults.rs");
+    for f in FaultCode::ALL {
+        let row = format!("| {} | {} |", f.code(), f.name());
+        assert!(doc.contains(&row), "cli.md has no row {row}");
+        let call = format!("wait_for_fault_on_lcd(&mut app, FaultCode::{f:?},");
+        assert!(tests.contains(&call), "no panel test for {f:?}");
+    }
+}
