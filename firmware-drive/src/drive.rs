@@ -204,6 +204,8 @@ pub struct DriveCore {
     /// The hardware thresholds in effect and their DAC values (updated at download).
     hw: HwThresholds,
     dacs: DacValues,
+    /// The requested safety functions (bit n = function n, safety.md 2).
+    safety_requested: u16,
 }
 
 impl DriveCore {
@@ -241,6 +243,7 @@ impl DriveCore {
                 ov_hw: Volts(0),
             },
             dacs: DacValues::default(),
+            safety_requested: 0,
         };
         core.update_hw_thresholds();
         core
@@ -618,6 +621,17 @@ impl DriveCore {
             FaultCode::Wdg => true,
             // A failed self-test needs a power cycle.
             FaultCode::Boot => false,
+            // Safety codes 9-16 (safety.md 7): 9 and 10 need their request released.
+            FaultCode::Sto
+            | FaultCode::Ss1
+            | FaultCode::Ramp
+            | FaultCode::Sos
+            | FaultCode::Sls
+            | FaultCode::Sli
+            | FaultCode::Sdi
+            | FaultCode::Sla => {
+                crate::safety::cause_gone(f, self.safety_requested).unwrap_or(false)
+            }
         }
     }
 

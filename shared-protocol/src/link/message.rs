@@ -331,7 +331,7 @@ mod tests {
     #[test]
     fn an_undefined_fault_code_makes_the_frame_unparsable() {
         let mut wire = [0u8; 128];
-        for code in [0u8, 9, 200] {
+        for code in [0u8, 17, 200] {
             let frame = Frame {
                 seq: 0,
                 ack: 0,
@@ -359,7 +359,7 @@ mod tests {
         .len();
         let fault_at = 2 + 1 + 1; // seq, ack, message type, state
         assert_eq!(raw[fault_at], 0);
-        raw[fault_at] = 9;
+        raw[fault_at] = 17;
         let crc = crate::link::frame::CRC.checksum(&raw[..ok]);
         raw[ok..ok + 4].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(
