@@ -40,7 +40,7 @@ use shared_protocol::link::{
     fault_text, DownloadResult, DriveState, DriveStatus, DriveWarning, FaultCode, LinkConfig,
     RejectReason,
 };
-use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section};
+use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section, ShortText};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
 
 use crate::debounce::{Debouncer, KeyMatrix};
@@ -500,6 +500,7 @@ impl<E: Eeprom> PlcApp<E> {
                 fault_latched: s.fault.is_some(),
                 ihw: CentiAmps(s.oc_hw_ca),
                 uhw: Volts(s.ov_hw_v),
+                ..DriveView::default()
             },
             None => DriveView::default(),
         }
@@ -561,7 +562,7 @@ impl<E: Eeprom> PlcApp<E> {
                             RejectReason::Verify(_) | RejectReason::Decode => Some(line),
                             RejectReason::Crc | RejectReason::Incomplete => None,
                         },
-                        reason: reason.short(),
+                        reason: ShortText::Fixed(reason.short()),
                     });
                 }
                 PlcEvent::AckRefused(why) => self.editor.notify(Notice::Text(why.message())),

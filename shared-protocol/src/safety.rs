@@ -74,6 +74,25 @@ impl SafetyFunction {
         }
     }
 
+    /// The function with this bit number, [`SafetyFunction::Sla`] above 11 (for the
+    /// operand tables, which check the range themselves).
+    pub const fn from_bit_saturating(bit: u8) -> SafetyFunction {
+        match bit {
+            0 => SafetyFunction::Sto,
+            1 => SafetyFunction::Ss1,
+            2 => SafetyFunction::Ss2,
+            3 => SafetyFunction::Sos,
+            4 => SafetyFunction::Sl1,
+            5 => SafetyFunction::Sl2,
+            6 => SafetyFunction::Sl3,
+            7 => SafetyFunction::Sl4,
+            8 => SafetyFunction::Sli,
+            9 => SafetyFunction::Sdp,
+            10 => SafetyFunction::Sdn,
+            _ => SafetyFunction::Sla,
+        }
+    }
+
     /// The function with this bit number.
     pub fn from_bit(bit: u8) -> Option<SafetyFunction> {
         SafetyFunction::ALL.get(usize::from(bit)).copied()

@@ -29,7 +29,10 @@ pub use screen::{Screen, MAX_COLS, MAX_ROWS};
 use crate::storage::{FaultEntry, LoadReport, OtherCopy, ProgramUse, StorageError, SLOTS};
 use core::fmt::Write;
 use shared_protocol::link::DriveState;
-use shared_protocol::program::{verify, Instruction, Program, Section, LINES, PLC_FIRST_LINE};
+use shared_protocol::program::{
+    safety_settings, uses_safety, verify, Instruction, Program, Section, ShortText, LINES,
+    PLC_FIRST_LINE,
+};
 
 /// What the application must do after a key.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -74,7 +77,7 @@ pub enum Notice {
     /// short reason (at most 16 characters).
     RunRefused {
         line: Option<u16>,
-        reason: &'static str,
+        reason: ShortText,
     },
     /// Any other short text (at most 20 characters).
     Text(&'static str),
@@ -558,6 +561,17 @@ impl Editor {
         self.page = Page::Listing;
         match d {
             5 => match verify(program) {
+                // safety.md 8: the signature of a program using the safety functions.
+                // On a 16-column LCD the signature comes first.
+                Ok(()) if uses_safety(program) => self.set_message(format_args!(
+                    "{}SIG {:04X}",
+                    if self.cols >= 19 {
+                        "PROGRAM OK "
+                    } else {
+                        "OK "
+                    },
+                    safety_settings(program.lines.iter()).signature()
+                )),
                 Ok(()) => self.set_message(format_args!("PROGRAM OK")),
                 Err(e) => {
                     self.goto_line(e.line);

@@ -575,3 +575,40 @@ fn acknowledging_is_offered_wherever_a_fault_is_shown() {
         "0=CLR LOG 9=ACK"
     );
 }
+
+/// `*` `5` (safety.md 4, 8): the needed-settings rule at the `SFR` line, and the signature
+/// of a program that uses the safety functions.
+#[test]
+fn star_5_checks_the_safety_rules_and_shows_the_signature() {
+    use shared_protocol::safety::{SafetyFunction, SafetySetting};
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[10] = Some(ins(Mnemonic::Fss, Some(Operand::K(0)), 40));
+    p.lines[11] = Some(ins(Mnemonic::Pss, Some(Operand::K(1)), 200));
+    p.lines[197] = Some(ins(
+        Mnemonic::Sfr,
+        Some(Operand::Sf(SafetyFunction::Ss2)),
+        0,
+    ));
+    press(&mut ed, &mut p, false, "*5");
+    assert_eq!(ed.message(), Some("197:SS2 needs ts2"));
+    assert_eq!(ed.line(), 197);
+    p.lines[12] = Some(ins(Mnemonic::Ts2, Some(Operand::K(2)), 100));
+    press(&mut ed, &mut p, false, "*5");
+    let mut s = shared_protocol::safety::SafetySettings::default();
+    s.set(SafetySetting::Fss, Some(40));
+    s.set(SafetySetting::Pss, Some(200));
+    s.set(SafetySetting::Ts2, Some(100));
+    let want = std::format!("PROGRAM OK SIG {:04X}", s.signature());
+    assert_eq!(ed.message(), Some(want.as_str()));
+    // A setting twice: at the second line.
+    p.lines[13] = Some(ins(Mnemonic::Fss, Some(Operand::K(3)), 41));
+    press(&mut ed, &mut p, false, "*5");
+    assert_eq!(ed.message(), Some("013:fss twice"));
+    // 16 columns: the signature first.
+    p.lines[13] = None;
+    let mut ed = Editor::new(16, 2);
+    press(&mut ed, &mut p, false, "*5");
+    let want = std::format!("OK SIG {:04X}", s.signature());
+    assert_eq!(ed.message(), Some(want.as_str()));
+}

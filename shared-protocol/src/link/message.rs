@@ -182,6 +182,9 @@ pub fn verify_kind_code(kind: &crate::program::VerifyErrorKind) -> u8 {
         K::ConstantOutOfRange { .. } => 8,
         K::ConstantWithoutK { .. } => 9,
         K::StackUnderflow { .. } => 10,
+        K::SettingTwice { .. } => 11,
+        K::SafetyNeeds { .. } => 12,
+        K::SafetyNeedsSine { .. } => 13,
     }
 }
 
