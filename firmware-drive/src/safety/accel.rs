@@ -2,7 +2,7 @@
 //! window of the command (v = 0 before RUN), against the limit of the quadrant.
 
 use shared_protocol::fault::FaultCode;
-use shared_protocol::safety::SafetyFunction;
+use shared_protocol::safety::{SafetyFunction, SafetySetting as S};
 
 use super::{Eval, Limits};
 
@@ -31,26 +31,40 @@ impl Default for Sla {
 /// The limit for acceleration `a` at signed speed `v` (safety.md 3.4's table).
 pub(super) fn limit(lim: &Limits, v: i32, a: i32) -> i32 {
     let up = a > 0;
-    if v > lim.fss {
+    let fss = lim.fss();
+    let (aap, adp, aan, adn) = (
+        lim.speed(S::Aap),
+        lim.speed(S::Adp),
+        lim.speed(S::Aan),
+        lim.speed(S::Adn),
+    );
+    if v > fss {
         if up {
-            lim.aap
+            aap
         } else {
-            lim.adp
+            adp
         }
-    } else if v < -lim.fss {
+    } else if v < -fss {
         if up {
-            lim.adn
+            adn
         } else {
-            lim.aan
+            aan
         }
     } else if up {
-        lim.aap.min(lim.adn)
+        aap.min(adn)
     } else {
-        lim.adp.min(lim.aan)
+        adp.min(aan)
     }
 }
 
 impl Sla {
+    /// RUN starts: v = 0 before RUN.
+    pub(super) fn clear(&mut self) {
+        self.window.fill(0);
+        self.at = 0;
+        self.k_a = 0;
+    }
+
     /// Every RUN tick (the window runs whether or not SLA is requested).
     pub(super) fn tick(
         &mut self,
@@ -71,7 +85,7 @@ impl Sla {
             return;
         }
         if rise {
-            self.k_a = k.saturating_add(lim.tla);
+            self.k_a = k.saturating_add(lim.ticks(S::Tla));
         }
         if k < self.k_a {
             return;

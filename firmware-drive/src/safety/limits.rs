@@ -1,82 +1,66 @@
-//! The 24 settings in the monitor's units, converted once per download so that a tick
-//! only adds and compares: T(s) = 100·s ticks for 0.1 s, n turns = n·10⁴ units of x.
-//! Absent settings are 0 (safety.md 4: 0 is every optional setting's default, and the
-//! strictest value of a needed one that the verifier should have refused).
+//! The 24 settings as the monitor reads them: one table of the written values (absent =
+//! 0), with accessors that convert on use: T(s) = 100·s ticks for 0.1 s, n turns = n·10⁴
+//! units of x. A multiply per use is cheaper in flash than a converted copy of every
+//! setting (the drive image has a 64 KiB budget). Absent settings are 0 (safety.md 4: 0 is
+//! every optional setting's default, and the strictest value of a needed one that the
+//! verifier should have refused).
 
-use shared_protocol::safety::{SafetySetting as S, SafetySettings};
-
-/// Ticks of a setting in 0.1 s.
-const fn ticks(ds: u16) -> u32 {
-    ds as u32 * 100
-}
-
-/// 10⁻⁴ turn of a setting in turns.
-const fn turns_e4(t: u16) -> i64 {
-    t as i64 * 10_000
-}
+use shared_protocol::safety::{SafetySetting as S, SafetySettings, SETTINGS};
 
 /// The settings as the monitor uses them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Limits {
-    /// `fss`, 0.1 Hz.
-    pub fss: i32,
-    /// `pss`, 10⁻⁴ turn.
-    pub pss: i64,
-    /// `trd`, ticks.
-    pub trd: u32,
-    /// `ard`, 0.1 Hz/s (0 = off).
-    pub ard: u16,
-    /// `tel`, ticks (0 = off).
-    pub tel: u32,
-    /// `ts1`, `ts2`, ticks.
-    pub ts: [u32; 2],
-    /// `fl1`..`fl4`, 0.1 Hz.
-    pub fl: [i32; 4],
-    /// `tl1`..`tl4`, ticks.
-    pub tl: [u32; 4],
-    /// `pli`, 10⁻⁴ turn.
-    pub pli: i64,
-    /// `tli`, `tdi`, `tla`, ticks.
-    pub tli: u32,
-    pub tdi: u32,
-    pub tla: u32,
-    /// `aap` `adp` `aan` `adn`, 0.1 Hz/s.
-    pub aap: i32,
-    pub adp: i32,
-    pub aan: i32,
-    pub adn: i32,
-    /// `asr`, 0.1 Hz/s (0 = off).
-    pub asr: u16,
+    raw: [u16; SETTINGS],
 }
 
 impl Limits {
     pub fn from_settings(s: &SafetySettings) -> Self {
-        let g = |k| s.or_zero(k);
-        let gi = |k| i32::from(s.or_zero(k));
-        Limits {
-            fss: gi(S::Fss),
-            pss: turns_e4(g(S::Pss)),
-            trd: ticks(g(S::Trd)),
-            ard: g(S::Ard),
-            tel: ticks(g(S::Tel)),
-            ts: [ticks(g(S::Ts1)), ticks(g(S::Ts2))],
-            fl: [gi(S::Fl1), gi(S::Fl2), gi(S::Fl3), gi(S::Fl4)],
-            tl: [
-                ticks(g(S::Tl1)),
-                ticks(g(S::Tl2)),
-                ticks(g(S::Tl3)),
-                ticks(g(S::Tl4)),
-            ],
-            pli: turns_e4(g(S::Pli)),
-            tli: ticks(g(S::Tli)),
-            tdi: ticks(g(S::Tdi)),
-            tla: ticks(g(S::Tla)),
-            aap: gi(S::Aap),
-            adp: gi(S::Adp),
-            aan: gi(S::Aan),
-            adn: gi(S::Adn),
-            asr: g(S::Asr),
+        let mut l = Limits::default();
+        l.load(s);
+        l
+    }
+
+    /// Take new settings, in place.
+    pub fn load(&mut self, s: &SafetySettings) {
+        for (dst, k) in self.raw.iter_mut().zip(S::ALL) {
+            *dst = s.or_zero(k);
         }
+    }
+
+    /// The value as written (0 when absent).
+    #[inline(always)]
+    pub fn get(&self, s: S) -> u16 {
+        self.raw.get(s.index()).copied().unwrap_or(0)
+    }
+
+    /// A setting in 0.1 s, as ticks.
+    #[inline(always)]
+    pub fn ticks(&self, s: S) -> u32 {
+        u32::from(self.get(s)) * 100
+    }
+
+    /// A speed or rate setting (0.1 Hz, 0.1 Hz/s) as a signed value.
+    #[inline(always)]
+    pub fn speed(&self, s: S) -> i32 {
+        i32::from(self.get(s))
+    }
+
+    /// A setting in turns, as 10⁻⁴ turn.
+    #[inline(always)]
+    pub fn turns_e4(&self, s: S) -> i64 {
+        i64::from(self.get(s)) * 10_000
+    }
+
+    /// `fss`, 0.1 Hz.
+    #[inline(always)]
+    pub fn fss(&self) -> i32 {
+        self.speed(S::Fss)
+    }
+
+    /// `pss`, 10⁻⁴ turn.
+    #[inline(always)]
+    pub fn pss(&self) -> i64 {
+        self.turns_e4(S::Pss)
     }
 }
 
@@ -123,11 +107,19 @@ mod tests {
         s.set(S::Pli, Some(9999));
         let l = Limits::from_settings(&s);
         assert_eq!(
-            (l.fss, l.pss, l.trd, l.ts[0]),
+            (l.fss(), l.pss(), l.ticks(S::Trd), l.ticks(S::Ts1)),
             (40, 2_000_000, 5000, 10_000)
         );
-        assert_eq!((l.fl[1], l.pli), (100, 99_990_000));
+        assert_eq!((l.speed(S::Fl2), l.turns_e4(S::Pli)), (100, 99_990_000));
         // Absent = 0.
-        assert_eq!((l.tel, l.ard, l.asr, l.ts[1], l.fl[0]), (0, 0, 0, 0, 0));
+        assert_eq!(
+            (
+                l.ticks(S::Tel),
+                l.get(S::Ard),
+                l.get(S::Asr),
+                l.ticks(S::Ts2)
+            ),
+            (0, 0, 0, 0)
+        );
     }
 }

@@ -31,7 +31,7 @@ use shared_protocol::safety::{SafetyFunction, SafetySettings, FUNCTION_MASK};
 
 use accel::Sla;
 use motion::{Sdi, Sli, Sos};
-use ramp::{Ramp, RampKind};
+use ramp::{Ramp, RAMPS};
 
 /// What the drive hands the monitor each RUN tick.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -82,16 +82,6 @@ pub struct Monitor {
     latched: Option<FaultCode>,
 }
 
-/// The ramp functions' bits in `ramps` order.
-const RAMP_FUNCTIONS: [SafetyFunction; 6] = [
-    SafetyFunction::Ss1,
-    SafetyFunction::Ss2,
-    SafetyFunction::Sl1,
-    SafetyFunction::Sl2,
-    SafetyFunction::Sl3,
-    SafetyFunction::Sl4,
-];
-
 /// Ramp-function bits (a new request restarts the stopwatch).
 const RAMP_MASK: u16 = 0x00F6;
 const STO: u16 = SafetyFunction::Sto.mask();
@@ -126,8 +116,10 @@ impl Monitor {
     }
 
     /// New settings (a download). Takes effect with the next RUN (a download stops RUN).
+    #[inline(never)]
     pub fn load(&mut self, settings: &SafetySettings) {
-        *self = Monitor::new(settings);
+        self.lim.load(settings);
+        self.start_run();
     }
 
     pub fn limits(&self) -> &Limits {
@@ -137,17 +129,30 @@ impl Monitor {
     /// Entering RUN: every function state, x, the stopwatch and a latched code are
     /// cleared (safety.md 3.1).
     pub fn start_run(&mut self) {
-        *self = Monitor::fresh(self.lim);
+        self.stop();
+        self.sft_ticks = 0;
+        self.latched = None;
     }
 
     /// Leaving RUN (STOP, a fault): every function is dropped; the stopwatch holds.
+    /// Field by field, in place (a whole new `Monitor` would be built on the stack and
+    /// copied: flash and stack the drive does not have).
+    #[inline(never)]
     pub fn stop(&mut self) {
-        let (sft, latched) = (self.sft_ticks, self.latched);
-        *self = Monitor {
-            sft_ticks: sft,
-            latched,
-            ..Monitor::fresh(self.lim)
-        };
+        self.k = 0;
+        self.x = 0;
+        self.prev_req = 0;
+        for r in self.ramps.iter_mut() {
+            r.release();
+        }
+        self.sos = Sos::default();
+        self.sli = Sli::default();
+        for d in self.sdi.iter_mut() {
+            *d = Sdi::default();
+        }
+        self.sla.clear();
+        self.status = 0;
+        self.sdc = false;
     }
 
     /// Status bits of the last tick (bit n = function n requested and in its safe state).
@@ -176,6 +181,7 @@ impl Monitor {
     }
 
     /// One RUN tick (safety.md 3.1 steps 1-4).
+    #[inline(never)]
     pub fn tick(&mut self, inp: Input) -> Verdict {
         if let Some(code) = self.latched {
             return Verdict {
@@ -186,21 +192,22 @@ impl Monitor {
         let k = self.k;
         let req = inp.requested & FUNCTION_MASK;
         let rise = req & !self.prev_req;
-        let lim = self.lim;
+        let lim = &self.lim;
         let fmn = i32::from(inp.fmn_dhz);
         let on = |f: i32| if f > 0 && f >= fmn { f } else { 0 };
 
         // Step 1: new ramp requests, then the `asr` cap (SS1, SS2), then v.
-        for (r, func) in self.ramps.iter_mut().zip(RAMP_FUNCTIONS) {
-            if rise & func.mask() != 0 {
+        for (r, def) in self.ramps.iter_mut().zip(RAMPS) {
+            if rise & def.0.mask() != 0 {
                 r.request(k);
             }
         }
         let mut f = i32::from(inp.f_dhz.max(0));
-        if lim.asr > 0 {
-            for (r, func) in self.ramps.iter_mut().zip(RAMP_FUNCTIONS).take(2) {
-                if req & func.mask() != 0 {
-                    f = f.min(r.cap(k, on(f), lim.asr));
+        let asr = lim.get(shared_protocol::safety::SafetySetting::Asr);
+        if asr > 0 {
+            for (r, def) in self.ramps.iter_mut().zip(RAMPS).take(2) {
+                if req & def.0.mask() != 0 {
+                    f = f.min(r.cap(k, on(f), asr));
                 }
             }
         }
@@ -217,22 +224,17 @@ impl Monitor {
             ev.trip(FaultCode::Sto);
             ev.safe(SafetyFunction::Sto);
         }
-        for (i, (r, func)) in self.ramps.iter_mut().zip(RAMP_FUNCTIONS).enumerate() {
-            let kind = match i {
-                0 => RampKind::Ss1,
-                1 => RampKind::Ss2,
-                n => RampKind::Sls(n - 2),
-            };
-            if req & func.mask() == 0 {
+        for (r, def) in self.ramps.iter_mut().zip(RAMPS) {
+            if req & def.0.mask() == 0 {
                 r.release();
                 continue;
             }
-            r.tick(kind, &lim, k, speed, x_prev, x, func, &mut ev);
+            r.tick(def, lim, k, speed, x_prev, x, &mut ev);
         }
         self.sos.tick(
             req & SafetyFunction::Sos.mask() != 0,
             rise & SafetyFunction::Sos.mask() != 0,
-            &lim,
+            lim,
             speed,
             x_prev,
             x,
@@ -241,7 +243,7 @@ impl Monitor {
         self.sli.tick(
             req & SafetyFunction::Sli.mask() != 0,
             rise & SafetyFunction::Sli.mask() != 0,
-            &lim,
+            lim,
             k,
             speed,
             x_prev,
@@ -257,7 +259,7 @@ impl Monitor {
                 func,
                 req & func.mask() != 0,
                 rise & func.mask() != 0,
-                &lim,
+                lim,
                 k,
                 x_prev,
                 x,
@@ -266,7 +268,7 @@ impl Monitor {
         }
         let mask = SafetyFunction::Sla.mask();
         self.sla
-            .tick(req & mask != 0, rise & mask != 0, &lim, k, v, &mut ev);
+            .tick(req & mask != 0, rise & mask != 0, lim, k, v, &mut ev);
 
         // The stopwatch: restarts at a new ramp request, counts while SDC = 1.
         if rise & RAMP_MASK != 0 {

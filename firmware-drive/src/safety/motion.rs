@@ -3,7 +3,7 @@
 //! SDP/SDN (a trailing reference in the allowed direction, 001 §3.7).
 
 use shared_protocol::fault::FaultCode;
-use shared_protocol::safety::SafetyFunction;
+use shared_protocol::safety::{SafetyFunction, SafetySetting as S};
 
 use super::{Eval, Limits};
 
@@ -31,7 +31,7 @@ impl Sos {
         if rise {
             self.x0 = x_prev;
         }
-        if speed > lim.fss || (x - self.x0).abs() > lim.pss {
+        if speed > lim.fss() || (x - self.x0).abs() > lim.pss() {
             ev.trip(FaultCode::Sos);
         } else {
             ev.safe(SafetyFunction::Sos);
@@ -67,7 +67,7 @@ impl Sli {
                 // standstill check: toggling cannot reset the window.
                 self.released_at = None;
             } else if rise {
-                if speed > lim.fss {
+                if speed > lim.fss() {
                     ev.trip(FaultCode::Sli);
                     return;
                 }
@@ -76,14 +76,14 @@ impl Sli {
             }
         } else if self.active {
             let at = *self.released_at.get_or_insert(k);
-            if k.saturating_sub(at) >= lim.tli {
+            if k.saturating_sub(at) >= lim.ticks(S::Tli) {
                 *self = Sli::default();
             }
         }
         if !self.active {
             return;
         }
-        if (x - self.x0).abs() > lim.pli {
+        if (x - self.x0).abs() > lim.turns_e4(S::Pli) {
             ev.trip(FaultCode::Sli);
         } else {
             ev.safe(SafetyFunction::Sli);
@@ -100,7 +100,9 @@ pub(super) struct Sdi {
 }
 
 impl Sdi {
+    /// Not inlined: one copy for SDP and SDN.
     #[allow(clippy::too_many_arguments)]
+    #[inline(never)]
     pub(super) fn tick(
         &mut self,
         func: SafetyFunction,
@@ -117,7 +119,7 @@ impl Sdi {
             return;
         }
         if rise {
-            self.k_a = k.saturating_add(lim.tdi);
+            self.k_a = k.saturating_add(lim.ticks(S::Tdi));
         }
         if k < self.k_a {
             return;
@@ -131,7 +133,7 @@ impl Sdi {
             *r = (*r).min(x);
             x - *r
         };
-        if back > lim.pss {
+        if back > lim.pss() {
             ev.trip(FaultCode::Sdi);
         } else {
             ev.safe(func);

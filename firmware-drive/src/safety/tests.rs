@@ -5,6 +5,7 @@ use super::*;
 use crate::state::DriveState;
 use proptest::prelude::*;
 use shared_protocol::safety::SafetySetting as S;
+use shared_protocol::safety::SafetySetting;
 
 const STO_B: u16 = 1 << 0;
 const SS1_B: u16 = 1 << 1;
@@ -586,14 +587,14 @@ proptest! {
                 prop_assert_eq!(m.turns_e4(), x);
                 let st = m.status();
                 if req & SOS_B != 0 {
-                    prop_assert!(speed <= lim.fss && (x - sos_x0).abs() <= lim.pss);
+                    prop_assert!(speed <= lim.fss() && (x - sos_x0).abs() <= lim.pss());
                 }
                 if st & SS2_B != 0 {
-                    prop_assert!(speed <= lim.fss);
+                    prop_assert!(speed <= lim.fss());
                 }
                 for i in 0..4 {
                     if st & (SL1_B << i) != 0 {
-                        prop_assert!(speed <= lim.fl[i]);
+                        prop_assert!(speed <= lim.speed(SafetySetting::ALL[S::Fl1.index() + i]));
                     }
                 }
                 if st & SLA_B != 0 {

@@ -81,6 +81,11 @@ pub enum Notice {
     },
     /// Any other short text (at most 20 characters).
     Text(&'static str),
+    /// RUN started a program that uses the safety functions: `NOT RATED SIG 3A7F`
+    /// (safety.md 10).
+    NotRated {
+        signature: u16,
+    },
 }
 
 /// A run-time warning for the status row, e.g. `DIV0` at line 163.
@@ -109,6 +114,20 @@ pub struct RunView<'a> {
     pub warning: Option<Warning<'a>>,
     /// The drive's run-time warning as its status reports it (e.g. `PWF 488Hz @ 000`).
     pub drive_warning: Option<Warning<'a>>,
+    /// The safety functions as the drive reports them (`None`: link down).
+    pub safety: Option<SafetyView>,
+}
+
+/// The safety functions on the status row (safety.md 10): one `S:` item per requested
+/// function, in bit order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SafetyView {
+    /// Requested functions (bit n = function n).
+    pub requested: u16,
+    /// Status bits (requested and in the safe state).
+    pub status: u16,
+    /// When each function was last requested (the `now_ms` clock), for `DEC n.ns`.
+    pub since_ms: [u32; 12],
 }
 
 impl Default for RunView<'_> {
@@ -123,6 +142,7 @@ impl Default for RunView<'_> {
             lcd: [None; 4],
             warning: None,
             drive_warning: None,
+            safety: None,
         }
     }
 }
@@ -369,6 +389,13 @@ impl Editor {
                 None => self.set_message(format_args!("NO RUN:{reason}")),
             },
             Notice::Text(t) => self.set_message(format_args!("{t}")),
+            // 16 columns: the signature must stay readable.
+            Notice::NotRated { signature } if self.cols < 18 => {
+                self.set_message(format_args!("NOT RATED {signature:04X}"))
+            }
+            Notice::NotRated { signature } => {
+                self.set_message(format_args!("NOT RATED SIG {signature:04X}"))
+            }
         }
     }
 
