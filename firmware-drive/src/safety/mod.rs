@@ -130,17 +130,18 @@ impl Monitor {
     /// cleared (safety.md 3.1).
     pub fn start_run(&mut self) {
         self.stop();
+        self.x = 0;
         self.sft_ticks = 0;
         self.latched = None;
     }
 
-    /// Leaving RUN (STOP, a fault): every function is dropped; the stopwatch holds.
+    /// Leaving RUN (STOP, a fault): every function is dropped; the stopwatch and x hold
+    /// (x, the turns since RUN start, is what hil-sim records after a trip).
     /// Field by field, in place (a whole new `Monitor` would be built on the stack and
     /// copied: flash and stack the drive does not have).
     #[inline(never)]
     pub fn stop(&mut self) {
         self.k = 0;
-        self.x = 0;
         self.prev_req = 0;
         for r in self.ramps.iter_mut() {
             r.release();

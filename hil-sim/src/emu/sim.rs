@@ -404,6 +404,7 @@ impl EmuSim {
                     }
                 }
                 Action::Set(Input::Aux, v) => self.rig.borrow_mut().aux_counts = (v << 2).min(4095),
+                Action::Set(Input::StoIn, v) => self.rig.borrow_mut().plant.set_sto_input(v == 0),
                 Action::KeyDown(k) => self.set_key(k, true),
                 Action::KeyUp(k) => self.set_key(k, false),
                 Action::Plant(c) => c.apply(self.rig.borrow_mut().plant.params_mut()),
@@ -471,6 +472,13 @@ impl EmuSim {
                 plc: None,
                 drive: st.warning,
             },
+            // From the drive's status on the wire; the turns are the drive core's own
+            // (not on the wire): `emu` records 0.
+            sf_req: st.sf_requested,
+            sf_st: st.sf_status,
+            sdc: st.sf_sdc,
+            sft_ds: st.sf_elapsed_ds,
+            turns_e4: 0,
         }
     }
 
