@@ -316,9 +316,286 @@ fn every_safety_scenario_has_its_test() {
     for e in std::fs::read_dir(dir).unwrap() {
         let name = e.unwrap().file_name().into_string().unwrap();
         let stem = name.trim_end_matches(".toml");
-        assert!(
-            me.contains(&format!("scenario(\"{stem}\")")),
-            "{name} has no test"
-        );
+        assert!(me.contains(&format!("\"{stem}\"")), "{name} has no test");
     }
+}
+
+/// The first sample at or after `t` whose turns are beyond `limit` (signed).
+fn turns_past(r: &RunReport, from_s: f64, limit_e4: i64) -> Option<&Sample> {
+    r.samples.iter().find(|s| {
+        t_s(s) >= from_s
+            && if limit_e4 >= 0 {
+                s.turns_e4 > limit_e4
+            } else {
+                s.turns_e4 < limit_e4
+            }
+    })
+}
+
+/// 13.3(b): the early limit: the end 5.000 s after f fell to the threshold.
+#[test]
+fn ss1_early_limit_ends_5_000_s_after_f_fell_to_4_hz() {
+    let r = run_text(LAB, &scenario("ss1_early"), 32.0);
+    let req = request_at(&r, bit("SS1"));
+    let t = trip(&r);
+    assert_eq!(t.fault, 10);
+    let below_from = r
+        .samples
+        .iter()
+        .filter(|s| t_s(s) >= t_s(req) && t_s(s) < t_s(t))
+        .rfind(|s| s.f_cmd_hz > 4.0)
+        .map(|s| t_s(s) + 0.001)
+        .unwrap();
+    assert!((below_from - 23.14).abs() < 0.2, "{below_from}");
+    let dt = t_s(t) - below_from.max(t_s(req));
+    assert!((dt - 5.0).abs() <= 0.002, "{dt}");
+    assert!(
+        (f64::from(t.sft_ds) / 10.0 - 8.1).abs() <= 0.2,
+        "{}",
+        t.sft_ds
+    );
+}
+
+/// 13.4 and (a) (A.5): SS2 reverse at 14 Hz to standstill, then a setpoint of 6.0 Hz trips
+/// where f passes 4.0 Hz.
+#[test]
+fn ss2_reaches_standstill_and_trips_when_moved() {
+    let r = run_text(&lab("SS2", ""), &scenario("ss2"), 50.0);
+    let req = request_at(&r, bit("SS2"));
+    assert!(in_window(t_s(req), 20.0, 0.02));
+    assert_eq!(crate::common::at(&r.samples, 19.0).dir, -1);
+    let safe = r
+        .samples
+        .iter()
+        .find(|s| s.sf_st & bit("SS2") != 0)
+        .expect("standstill");
+    assert!((t_s(safe) - 29.92).abs() < 0.2, "{}", t_s(safe));
+    assert!(!safe.sdc && safe.fault == 0);
+    assert!((f64::from(safe.sft_ds) / 10.0 - 9.9).abs() <= 0.2);
+    let t = trip(&r);
+    assert_eq!(t.fault, 12);
+    assert!((t_s(t) - 42.56).abs() < 0.2, "{}", t_s(t));
+    let last_on = r
+        .samples
+        .iter()
+        .rfind(|s| s.pwm_on && t_s(s) < t_s(t))
+        .unwrap();
+    assert!(last_on.f_cmd_hz <= 4.1, "{}", last_on.f_cmd_hz);
+}
+
+/// 13.4(c) and 13.5(b): the target missed at the end of the ramp: code 11 at t0 + 15.000 s.
+#[test]
+fn ss2_and_sls_without_deceleration_trip_ramp_at_15_000_s() {
+    for (f, name) in [("SS2", "ss2_no_decel"), ("SL2", "sls_no_decel")] {
+        let r = run_text(&lab(f, ""), &scenario(name), 37.0);
+        let req = request_at(&r, bit(f));
+        let t = trip(&r);
+        assert_eq!(t.fault, 11, "{f}");
+        let dt = t_s(t) - t_s(req);
+        assert!((dt - 15.0).abs() <= 0.002, "{f}: {dt}");
+    }
+}
+
+/// 13.5(c) and (d): SL1 at 16.0 Hz; with SL2 on line 198 the lower limit governs.
+#[test]
+fn sls1_trips_at_16_hz_and_with_sl2_too_at_10_hz() {
+    let r = run_text(&lab("SL1", ""), &scenario("sls1"), 46.0);
+    let req = request_at(&r, bit("SL1"));
+    let limited = r
+        .samples
+        .iter()
+        .find(|s| s.sf_st & bit("SL1") != 0)
+        .unwrap();
+    // Already at 12 Hz <= 16 Hz: the early limit ends it 5.000 s after the request.
+    assert!((t_s(limited) - t_s(req) - 5.0).abs() <= 0.002);
+    let t = trip(&r);
+    assert_eq!(t.fault, 13);
+    assert!((t_s(t) - 42.56).abs() < 0.2, "{}", t_s(t));
+    let last_on = r
+        .samples
+        .iter()
+        .rfind(|s| s.pwm_on && t_s(s) < t_s(t))
+        .unwrap();
+    assert!(last_on.f_cmd_hz <= 16.1 && last_on.f_cmd_hz > 15.0);
+    // (d): SL1 on 197 and SL2 on 198, run as (a) of 13.5: the trip comes at 10.0 Hz.
+    let both = lab("SL1", "").replace("199 LD  B24", "198 SFR SL2\n199 LD  B24");
+    let r = run_text(&both, &scenario("sls"), 56.0);
+    let t = trip(&r);
+    assert_eq!(t.fault, 13);
+    let last_on = r
+        .samples
+        .iter()
+        .rfind(|s| s.pwm_on && t_s(s) < t_s(t))
+        .unwrap();
+    assert!(last_on.f_cmd_hz <= 10.1, "{}", last_on.f_cmd_hz);
+}
+
+/// 13.6(a) (A.7): SLI requested at standstill; 100 turns later code 14.
+#[test]
+fn sli_trips_100_turns_from_where_it_was_requested() {
+    let r = run_text(&lab("SLI", ""), &scenario("sli_stopped"), 24.0);
+    let req = request_at(&r, bit("SLI"));
+    assert!(in_window(t_s(req), 5.0, 0.02));
+    assert_eq!(
+        r.samples.iter().find(|s| t_s(s) > t_s(req)).unwrap().sf_st & bit("SLI"),
+        bit("SLI")
+    );
+    let t = trip(&r);
+    assert_eq!(t.fault, 14);
+    assert!((t_s(t) - 18.3).abs() < 0.2, "{}", t_s(t));
+    let past = turns_past(&r, 0.0, 1_000_000).expect("past 100 turns");
+    assert!(t_s(past) <= t_s(t) + 0.001);
+    // Within one tick's change (10 Hz: 100 units of 10⁻⁴ turn) of the limit.
+    assert!(t.turns_e4 <= 1_000_000 + 100, "{}", t.turns_e4);
+    assert_eq!(t.sf_st & bit("SLI"), 0);
+}
+
+/// 13.6(b): SLI requested while running: code 14 at once.
+#[test]
+fn sli_requested_while_running_trips_at_once() {
+    let r = run_text(&lab("SLI", ""), &scenario("sli_running"), 22.0);
+    let t = trip(&r);
+    assert_eq!(t.fault, 14);
+    assert!(in_window(t_s(t), 20.0, 0.02), "{}", t_s(t));
+}
+
+/// 13.6(c): after the release SLI stays active for its 10 s disable delay and trips
+/// inside it.
+#[test]
+fn sli_keeps_monitoring_through_its_disable_delay() {
+    let r = run_text(&lab("SLI", ""), &scenario("sli_delay"), 30.0);
+    let released = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > 6.0 && s.sf_req & bit("SLI") == 0)
+        .expect("released");
+    assert!(in_window(t_s(released), 15.0, 0.03));
+    assert_eq!(released.sf_st & bit("SLI"), bit("SLI"), "still active");
+    let t = trip(&r);
+    assert_eq!(t.fault, 14);
+    assert!((t_s(t) - 23.3).abs() < 0.3, "{}", t_s(t));
+    assert!(t_s(t) < t_s(released) + 10.0);
+}
+
+/// 13.7(a) (A.8): SDP, driven backwards: code 15 at 200 turns back.
+#[test]
+fn sdp_trips_200_turns_back() {
+    let r = run_text(&lab("SDP", ""), &scenario("sdp"), 32.0);
+    let req = request_at(&r, bit("SDP"));
+    let after = r.samples.iter().find(|s| t_s(s) > t_s(req)).unwrap();
+    assert_eq!(after.sf_st & bit("SDP"), bit("SDP"), "tdi 0: at once");
+    let t = trip(&r);
+    assert_eq!(t.fault, 15);
+    assert!((t_s(t) - 28.3).abs() < 0.3, "{}", t_s(t));
+    assert!(
+        t.turns_e4 >= -2_000_000 - 100 && t.turns_e4 < -1_990_000,
+        "{}",
+        t.turns_e4
+    );
+    // (c) SDN forward trips the same way.
+    let sdn = lab("SDN", "");
+    let fwd = scenario("sdp").replace(", D01 = 1", "");
+    let r = run_text(&sdn, &fwd, 32.0);
+    let t = trip(&r);
+    assert_eq!(t.fault, 15);
+    assert!((t_s(t) - 28.3).abs() < 0.3, "{}", t_s(t));
+}
+
+/// 13.7(b): SDP forward for 60 s: no trip, status 1 throughout.
+#[test]
+fn sdp_allows_forward_travel() {
+    let r = run_text(&lab("SDP", ""), &scenario("sdp_forward"), 68.0);
+    assert!(r.faults.is_empty());
+    assert!(r
+        .samples
+        .iter()
+        .filter(|s| t_s(s) > 5.1)
+        .all(|s| s.sf_st & bit("SDP") != 0));
+    assert!(r.samples.last().unwrap().turns_e4 > 5_000_000);
+}
+
+/// 13.10(a): `asr` 5.0 Hz/s: the drive decelerates by itself.
+#[test]
+fn asr_decelerates_at_5_hz_per_s_and_ss1_ends_by_the_early_limit() {
+    let r = run_text(
+        &lab("SS1", "048 asr K39 0050\n"),
+        &scenario("asr_ss1"),
+        30.0,
+    );
+    let req = request_at(&r, bit("SS1"));
+    let at = |dt: f64| crate::common::at(&r.samples, t_s(req) + dt);
+    assert!(at(1.2).f_cmd_hz <= 4.05, "{}", at(1.2).f_cmd_hz);
+    assert!(
+        (at(0.6).f_cmd_hz - 7.0).abs() <= 0.1,
+        "{}",
+        at(0.6).f_cmd_hz
+    );
+    let off = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > t_s(req) && !s.pwm_on)
+        .unwrap();
+    assert!((t_s(off) - t_s(req) - 1.8).abs() < 0.05, "{}", t_s(off));
+    let t = trip(&r);
+    assert_eq!(t.fault, 10);
+    assert!((t_s(t) - t_s(req) - 6.2).abs() < 0.01, "{}", t_s(t));
+}
+
+/// 13.12(b): SLA with aap 10.0 Hz/s: 10 -> 40 Hz trips within 0.2 s; reverse does not.
+#[test]
+fn sla_trips_on_the_forward_acceleration_limit_only() {
+    let program = lab("SLA", "")
+        .replace("043 aap K34 2000", "043 aap K34 0100")
+        .replace("044 adp K35 2000", "044 adp K35 9999")
+        .replace("045 aan K36 2000", "045 aan K36 9999")
+        .replace("046 adn K37 2000", "046 adn K37 9999");
+    let r = run_text(&program, &scenario("sla_accel"), 30.0);
+    let t = trip(&r);
+    assert_eq!(t.fault, 16);
+    assert!(in_window(t_s(t), 25.0, 0.2), "{}", t_s(t));
+    let reverse = scenario("sla_accel").replace("A01 = 100 }", "A01 = 100, D01 = 1 }");
+    let r = run_text(&program, &reverse, 30.0);
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
+    assert_eq!(crate::common::at(&r.samples, 29.0).dir, -1);
+}
+
+/// 13.13: the link cut in SS2's delay: LINK within 60 ms, outputs off.
+#[test]
+fn a_link_cut_in_ss2s_delay_trips_link() {
+    let r = run_text(&lab("SS2", ""), &scenario("link_cut_ss2"), 24.0);
+    assert!(crate::common::at(&r.samples, 21.9).sdc);
+    let t = trip(&r);
+    assert_eq!(t.fault, 5);
+    assert!(in_window(t_s(t), 22.0, 0.06), "{}", t_s(t));
+    assert!(!next(&r, t).pwm_on);
+}
+
+/// 13.14: the verifier's rules at RUN and in `hil-sim`, and the signature: documented for
+/// safety_lab.plc, changed by any setting changed by 1, not by a setting line moving.
+#[test]
+fn the_verifier_refuses_missing_or_doubled_settings_and_the_signature_is_stable() {
+    let no_ts2 = lab("SS2", "").replace(
+        "035 ts2 K26 0100     ; SS2 ramp monitoring time 10.0 s\n",
+        "",
+    );
+    let e = hil_sim::run::parse_program(&no_ts2, "lab.plc").unwrap_err();
+    assert!(e.to_string().ends_with("SS2 needs ts2"), "{e}");
+    let twice = lab("SS1", "049 fss K40 0040\n");
+    let e = hil_sim::run::parse_program(&twice, "lab.plc").unwrap_err();
+    assert!(e.to_string().ends_with("fss set twice (030)"), "{e}");
+    let sig = |text: &str| {
+        let p = hil_sim::run::parse_program(text, "lab.plc").unwrap();
+        shared_protocol::program::safety_settings(p.lines.iter()).signature()
+    };
+    assert_eq!(sig(LAB), 0x7C32);
+    let moved = LAB.replace("047 tla K38 0000", "099 tla K38 0000");
+    assert_eq!(sig(&moved), 0x7C32);
+    assert_ne!(
+        sig(&LAB.replace("047 tla K38 0000", "047 tla K38 0001")),
+        0x7C32
+    );
+    assert_ne!(
+        sig(&LAB.replace("030 fss K21 0040", "030 fss K21 0039")),
+        0x7C32
+    );
 }
