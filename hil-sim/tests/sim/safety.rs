@@ -599,3 +599,112 @@ fn the_verifier_refuses_missing_or_doubled_settings_and_the_signature_is_stable(
         0x7C32
     );
 }
+
+/// 13.2(b): SOS at 2.0 Hz trips on the position, 100.000 s after the request.
+#[test]
+fn sos_trips_when_the_field_has_turned_200_times() {
+    let r = run_text(&lab("SOS", ""), &scenario("sos_position"), 125.0);
+    let req = request_at(&r, bit("SOS"));
+    let t = trip(&r);
+    assert_eq!(t.fault, 12);
+    let dt = t_s(t) - t_s(req);
+    // 2.0 Hz = 20 units per tick: 200 turns = 2 000 000 units after 100 000 ticks.
+    assert!((dt - 100.0).abs() <= 0.002, "{dt}");
+}
+
+/// 13.4(b): SS2's standstill position window.
+#[test]
+fn ss2_trips_200_turns_from_its_standstill_position() {
+    let r = run_text(&lab("SS2", ""), &scenario("ss2_position"), 146.0);
+    let safe = r
+        .samples
+        .iter()
+        .find(|s| s.sf_st & bit("SS2") != 0)
+        .expect("standstill");
+    let t = trip(&r);
+    assert_eq!(t.fault, 12);
+    assert!((t_s(t) - 142.8).abs() < 0.3, "{}", t_s(t));
+    let moved = (t.turns_e4 - safe.turns_e4).abs();
+    assert!((2_000_000..=2_000_000 + 40).contains(&moved), "{moved}");
+}
+
+/// 13.6(d): a new request inside the disable delay keeps the original position.
+#[test]
+fn sli_rerequested_in_its_delay_keeps_the_original_position() {
+    let r = run_text(&lab("SLI", ""), &scenario("sli_rerequest"), 32.0);
+    // The new curtain at about 9 Hz: no trip then (v > fss would trip a fresh request).
+    let again = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > 21.0 && s.sf_req & bit("SLI") != 0)
+        .expect("re-requested");
+    assert!(again.f_cmd_hz > 8.0, "{}", again.f_cmd_hz);
+    assert_eq!(again.fault, 0);
+    let t = trip(&r);
+    assert_eq!(t.fault, 14);
+    assert!((t_s(t) - 28.3).abs() < 0.3, "{}", t_s(t));
+    assert!(
+        (1_000_000..=1_000_100).contains(&t.turns_e4),
+        "{}",
+        t.turns_e4
+    );
+}
+
+/// 13.7(d): SDP's reference trails the furthest forward point.
+#[test]
+fn sdp_counts_back_from_the_furthest_point_reached() {
+    let r = run_text(&lab("SDP", ""), &scenario("sdp_trailing"), 60.0);
+    let t = trip(&r);
+    assert_eq!(t.fault, 15);
+    let max = r
+        .samples
+        .iter()
+        .filter(|s| t_s(s) < t_s(t))
+        .map(|s| s.turns_e4)
+        .max()
+        .unwrap();
+    assert!(max > 500_000, "moved forward first: {max}");
+    let back = max - t.turns_e4;
+    assert!((2_000_000..=2_000_100).contains(&back), "{back}");
+    assert!(t.turns_e4 > -2_000_000, "not at -200: {}", t.turns_e4);
+}
+
+/// 13.10(b): `asr` with SS2: standstill by the drive's own ramp; the program's setpoint
+/// then leaves f at 0.
+#[test]
+fn asr_brings_ss2_to_standstill_and_holds_it() {
+    let r = run_text(
+        &lab("SS2", "048 asr K39 0050\n"),
+        &scenario("asr_ss2"),
+        36.0,
+    );
+    let req = request_at(&r, bit("SS2"));
+    let safe = r
+        .samples
+        .iter()
+        .find(|s| s.sf_st & bit("SS2") != 0)
+        .expect("standstill");
+    assert!((t_s(safe) - t_s(req) - 6.2).abs() < 0.01, "{}", t_s(safe));
+    assert!(r.faults.is_empty());
+    let late = crate::common::at(&r.samples, 35.0);
+    assert_eq!(late.f_cmd_hz, 0.0);
+    assert!(!late.pwm_on);
+}
+
+/// 13.12(a) and (c): the lab's SLA limits pass the lag's slope; `adp` 10.0 Hz/s trips a
+/// fast deceleration.
+#[test]
+fn sla_passes_the_lag_with_lab_limits_and_trips_a_fast_deceleration() {
+    let r = run_text(&lab("SLA", ""), &scenario("sla_lab"), 34.0);
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
+    assert!(crate::common::at(&r.samples, 33.0).f_cmd_hz > 45.0);
+    let program = lab("SLA", "")
+        .replace("043 aap K34 2000", "043 aap K34 9999")
+        .replace("044 adp K35 2000", "044 adp K35 0100")
+        .replace("045 aan K36 2000", "045 aan K36 9999")
+        .replace("046 adn K37 2000", "046 adn K37 9999");
+    let r = run_text(&program, &scenario("sla_decel"), 30.0);
+    let t = trip(&r);
+    assert_eq!(t.fault, 16);
+    assert!(in_window(t_s(t), 25.0, 0.2), "{}", t_s(t));
+}
