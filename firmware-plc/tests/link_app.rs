@@ -551,3 +551,27 @@ fn run_is_refused_while_sto_in_is_low() {
     r.run_for(100_000);
     assert_eq!(r.drive.core().state(), CoreState::Run);
 }
+
+/// safety.md 8: the drive reports the signature of the section it accepted; when it is
+/// not the one of the program RUN started, RUN stops with `SIG MISMATCH`. (The PLC's copy
+/// is changed after the section went out: the drive holds the old settings.)
+#[test]
+fn a_signature_mismatch_stops_run() {
+    let mut r = Rig::new(SAFETY);
+    r.digital = 1;
+    r.run_for(20_000);
+    r.plc.run(None, r.now);
+    while r.plc.run_state() != RunState::Downloading {
+        r.run_for(100);
+    }
+    // fss 4.0 -> 4.1 Hz in the PLC's copy only.
+    r.plc.program_mut().lines[30] = Some(Instruction {
+        mnemonic: Mnemonic::Fss,
+        operand: Some(Operand::K(4)),
+        constant: 41,
+    });
+    r.run_for(150_000);
+    assert_eq!(r.plc.run_state(), RunState::Stopped);
+    assert!(r.screen().contains("SIG MISMATCH"), "{}", r.screen());
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+}
