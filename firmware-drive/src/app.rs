@@ -221,6 +221,12 @@ impl DriveApp {
         action
     }
 
+    /// The hardware `STO_IN` input as the board reads it every millisecond, before
+    /// `tick_1ms` (`low` = STO requested; safety.md 6).
+    pub fn set_sto_input(&mut self, low: bool) {
+        self.core.set_sto_input(low);
+    }
+
     /// The TIM1 break interrupt with the comparators at `levels` (the hardware has
     /// already opened every switch; the board has cleared the flag and masked the
     /// interrupt): the causes are latched as faults.
@@ -309,6 +315,9 @@ impl DriveApp {
                     self.command(DriveCommand::Direction { reverse })
                 }
                 LinkEvent::AckFault => self.command(DriveCommand::Ack),
+                LinkEvent::SafetyRequest { requested } => {
+                    self.command(DriveCommand::SafetyRequest { requested })
+                }
                 LinkEvent::ProgramAccepted => self.load_pending = true,
                 LinkEvent::ProgramRejected { .. } => self.core.trip(FaultCode::Prog),
             }
@@ -339,5 +348,11 @@ pub fn wire_status(s: &DriveStatus) -> WireStatus {
                 applied_hz: applied,
             },
         }),
+        sf_requested: s.sf_requested,
+        sf_status: s.sf_status,
+        sf_sdc: s.sf_sdc,
+        sf_elapsed_ds: s.sf_elapsed_ds,
+        sf_signature: s.sf_signature,
+        sto_in_low: s.sto_in_low,
     }
 }

@@ -25,10 +25,13 @@ use crate::measure::{FrontEnd, ZeroCalibration};
 use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
+use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
 use crate::sine::{phase_of_decidegrees, SINE_Q15};
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
 use crate::vm::{DriveVm, VmWarning};
+use shared_protocol::program::safety_settings;
+use shared_protocol::safety::FUNCTION_MASK;
 
 /// Events queued between two `tick_1ms` calls (the queue drops the newest beyond it and
 /// reports [`DriveEvent::EventsLost`]).
@@ -48,6 +51,8 @@ pub enum DriveCommand {
     SetQ { addr: u8, value: i16 },
     /// The PLC's `REV` request.
     Direction { reverse: bool },
+    /// The safety functions the PLC program requests (bit n = function n, safety.md 9).
+    SafetyRequest { requested: u16 },
 }
 
 /// Why a command was not carried out.
@@ -66,6 +71,8 @@ pub enum CommandError {
     FrequencyNotBelowFmn,
     /// Q index beyond Q63.
     BadAddress,
+    /// RUN while the hardware `STO_IN` input is low (safety.md 6: `RUN REFUSED:STO_IN`).
+    StoInput,
 }
 
 /// Warnings: reported, nothing latched.
@@ -158,6 +165,18 @@ pub struct DriveStatus {
     pub hw: HwThresholds,
     /// The drive section's run-time warning while its cause lasts and the outputs switch.
     pub warning: Option<VmWarning>,
+    /// Requested safety functions: the PLC's mask, plus bit 0 while `STO_IN` is low.
+    pub sf_requested: u16,
+    /// Safety status bits (safety.md 5's table for the states outside RUN).
+    pub sf_status: u16,
+    /// `SDC`: a ramp function in its delay or ramp phase (RUN only).
+    pub sf_sdc: bool,
+    /// `SFT`: the safety stopwatch, 0.1 s.
+    pub sf_elapsed_ds: u16,
+    /// The parameter signature of the accepted drive section (safety.md 8).
+    pub sf_signature: u16,
+    /// The hardware `STO_IN` input is low.
+    pub sto_in_low: bool,
 }
 
 impl DriveStatus {
@@ -204,6 +223,16 @@ pub struct DriveCore {
     /// The hardware thresholds in effect and their DAC values (updated at download).
     hw: HwThresholds,
     dacs: DacValues,
+    /// The safety functions the PLC requests (bit n = function n, safety.md 2).
+    safety_requested: u16,
+    /// The hardware `STO_IN` input is low (read by the board every tick).
+    sto_in_low: bool,
+    /// The safety monitor (NOT RATED, `safety/`), evaluated in RUN after the section.
+    safety: Monitor,
+    /// The signature of the accepted section's safety settings.
+    signature: u16,
+    /// The frequency the modulator takes: the section's, under the monitor's `asr` cap.
+    f_out: i16,
 }
 
 impl DriveCore {
@@ -241,6 +270,11 @@ impl DriveCore {
                 ov_hw: Volts(0),
             },
             dacs: DacValues::default(),
+            safety_requested: 0,
+            sto_in_low: false,
+            safety: Monitor::default(),
+            signature: shared_protocol::safety::SafetySettings::default().signature(),
+            f_out: 0,
         };
         core.update_hw_thresholds();
         core
@@ -349,6 +383,9 @@ impl DriveCore {
 
     fn load_checked(&mut self, s: &DriveSection) {
         self.vm.load(s);
+        let settings = safety_settings(s.lines.iter());
+        self.safety.load(&settings);
+        self.signature = settings.signature();
         self.program = Some(s.clone());
         self.apply_settings();
         self.update_hw_thresholds();
@@ -369,6 +406,7 @@ impl DriveCore {
         self.outputs_on = false;
         if self.state != DriveState::Fault {
             let from = self.state;
+            self.safety.stop();
             self.state = DriveState::Fault;
             self.fault = Some(f);
             self.push_event(DriveEvent::State {
@@ -405,7 +443,11 @@ impl DriveCore {
                     if self.program.is_none() {
                         return Err(CommandError::NoProgram);
                     }
+                    if self.sto_in_low {
+                        return Err(CommandError::StoInput);
+                    }
                     self.vm.start_run();
+                    self.safety.start_run();
                     self.reversal.restart(0);
                     self.modulator.reset_phase();
                     self.run_requested = true;
@@ -450,7 +492,28 @@ impl DriveCore {
                 self.reversal.request(reverse);
                 Ok(())
             }
+            DriveCommand::SafetyRequest { requested } => {
+                self.safety_requested = requested & FUNCTION_MASK;
+                Ok(())
+            }
         }
+    }
+
+    /// The hardware `STO_IN` input, read by the board every tick (`low` = STO requested;
+    /// the break input has already opened the outputs in hardware). While it is low, bit
+    /// 0 of the requested mask is set (safety.md 6).
+    pub fn set_sto_input(&mut self, low: bool) {
+        self.sto_in_low = low;
+    }
+
+    /// The requested safety functions: the PLC's mask, plus STO while `STO_IN` is low.
+    pub fn safety_requested(&self) -> u16 {
+        self.safety_requested | u16::from(self.sto_in_low)
+    }
+
+    /// The safety monitor (read-only: turns, phases, for hil-sim and tests).
+    pub fn safety(&self) -> &Monitor {
+        &self.safety
     }
 
     /// Every millisecond. Events (including those raised by the interrupt and by commands
@@ -484,6 +547,10 @@ impl DriveCore {
         let f = self.f_command();
         if let Some(dir) = self.reversal.cycle(f, self.vm.settings().frv) {
             self.push_event(DriveEvent::Reversed(dir));
+        }
+        self.f_out = f;
+        if self.state == DriveState::Run {
+            self.monitor();
         }
         self.apply_settings();
         self.update_modulator();
@@ -567,7 +634,7 @@ impl DriveCore {
         DriveStatus {
             state: self.state,
             fault: self.fault,
-            f_applied: Decihertz(if on { self.vm.outputs().f } else { 0 }),
+            f_applied: Decihertz(if on { self.f_out } else { 0 }),
             f_command: Decihertz(self.f_command()),
             reverse: self.reversal.applied(),
             reverse_pending: self.reversal.pending(),
@@ -585,6 +652,16 @@ impl DriveCore {
                 .vm
                 .active_warning()
                 .filter(|_| self.state == DriveState::Run && self.outputs_on),
+            sf_requested: self.safety_requested(),
+            sf_status: if self.state == DriveState::Run {
+                self.safety.status()
+            } else {
+                status_outside_run(self.state, self.safety_requested())
+            },
+            sf_sdc: self.state == DriveState::Run && self.safety.sdc(),
+            sf_elapsed_ds: self.safety.elapsed_ds(),
+            sf_signature: self.signature,
+            sto_in_low: self.sto_in_low,
         }
     }
 
@@ -592,9 +669,36 @@ impl DriveCore {
         self.vm.outputs().f
     }
 
+    /// The safety monitor's tick (safety.md 3.1): after the section and the `frv` rule,
+    /// before the modulator takes f. A violation (or STO) latches its code and the
+    /// outputs go off in this tick; otherwise the modulator takes the capped f. Not
+    /// inlined into the tick (flash: the image has a 64 KiB budget).
+    #[inline(never)]
+    fn monitor(&mut self) {
+        let o = *self.vm.outputs();
+        let sine = o.legs.contains(&LegMode::Sine);
+        let verdict = self.safety.tick(SafetyInput {
+            requested: self.safety_requested(),
+            // v means nothing for direct legs (the verifier allows only STO then).
+            f_dhz: if sine { o.f } else { 0 },
+            fmn_dhz: self.vm.settings().fmn,
+            reverse: self.reversal.applied(),
+        });
+        if sine {
+            self.f_out = verdict.f_dhz;
+        }
+        if let Some(code) = verdict.trip {
+            self.trip(code);
+        }
+    }
+
     fn set_state(&mut self, to: DriveState) {
         let from = self.state;
         if from != to {
+            if from == DriveState::Run {
+                // Leaving RUN drops every safety function (safety.md 3.1).
+                self.safety.stop();
+            }
             self.state = to;
             self.push_event(DriveEvent::State { from, to });
         }
@@ -618,6 +722,17 @@ impl DriveCore {
             FaultCode::Wdg => true,
             // A failed self-test needs a power cycle.
             FaultCode::Boot => false,
+            // Safety codes 9-16 (safety.md 7): 9 and 10 need their request released.
+            FaultCode::Sto
+            | FaultCode::Ss1
+            | FaultCode::Ramp
+            | FaultCode::Sos
+            | FaultCode::Sls
+            | FaultCode::Sli
+            | FaultCode::Sdi
+            | FaultCode::Sla => {
+                crate::safety::cause_gone(f, self.safety_requested()).unwrap_or(false)
+            }
         }
     }
 
@@ -670,7 +785,14 @@ impl DriveCore {
         // fmn stops only the sine legs (program.md 4.2, as the source): a direct `WR PWx`
         // leg keeps switching, and an unused leg (duty 0) is driven while any other is.
         let run = self.state == DriveState::Run;
-        let sine_on = o.f >= s.fmn;
+        // The monitor's `asr` cap lowers f (never raises it); A follows, keeping V/f.
+        let f = self.f_out.min(o.f);
+        let a = if f < o.f && o.f > 0 {
+            (i32::from(o.a) * i32::from(f) / i32::from(o.f)) as i16
+        } else {
+            o.a
+        };
+        let sine_on = f >= s.fmn;
         let direct = o.legs.iter().any(|l| matches!(l, LegMode::Direct { .. }));
         let sine = o.legs.contains(&LegMode::Sine);
         self.sine_on = sine && sine_on;
@@ -683,12 +805,12 @@ impl DriveCore {
         }
         self.legs_on = legs_on;
         let fjm = u64::from(s.fjm.max(1) as u16);
-        let m = (u64::from(o.a.max(0) as u16) << 16) / fjm + (u64::from(s.du) << 16) / 1023;
+        let m = (u64::from(a.max(0) as u16) << 16) / fjm + (u64::from(s.du) << 16) / 1023;
         // Above the linear range the modulator clips (overmodulation, program.md 4.3).
         let m_q16 = m.min(u64::from(M_LIMIT_Q16)) as u32;
         let [p1, p2, p3] = o.phase_decideg;
         self.modulator.set_params(ModulatorParams {
-            step: self.timing.phase_step(o.f),
+            step: self.timing.phase_step(f),
             m_q16,
             phi: [
                 phase_of_decidegrees(p1),

@@ -25,6 +25,7 @@ pub mod modulator;
 pub mod power_port;
 pub mod protection;
 pub mod reversal;
+pub mod safety;
 pub mod sine;
 pub mod state;
 pub mod timing;

@@ -18,6 +18,7 @@
 //! | brake chopper gate | PB5 | GPIO out, active high | free pin |
 //! | link TX / RX | PB6 / PB7 | USART1 (AF7), DMA1 CH1 / CH2 | encoder/Hall H1 / H2 pads |
 //! | heartbeat LED (toggles while the watchdog is fed) | PC6 | GPIO out | LED |
+//! | `STO_IN` (safety.md 6, NOT RATED): active low, pull-down (a broken wire requests STO) | PA11 | TIM1_BKIN2 (AF12), read every 1 ms | free pin (USB DM, unused) |
 //!
 //! The current rows are the bare ESC1's front end (`firmware_drive::front_end::ESC1_PGAS`);
 //! with the feature `source-sensors` the OPAMPs stay off and the ADC reads PA1 (ADC1_IN2)
@@ -40,6 +41,8 @@ pub struct PowerStage {
     pub v_low: Peri<'static, p::PA12>,
     pub w_high: Peri<'static, p::PA10>,
     pub w_low: Peri<'static, p::PB15>,
+    /// `STO_IN`: TIM1's second break input (BKIN2).
+    pub sto_in: Peri<'static, p::PA11>,
 }
 
 /// Analog front end: measurement pins and the converters behind them.
@@ -103,6 +106,7 @@ pub fn split(p: Peripherals) -> Board {
             v_low: p.PA12,
             w_high: p.PA10,
             w_low: p.PB15,
+            sto_in: p.PA11,
         },
         analog: Analog {
             adc1: p.ADC1,

@@ -54,6 +54,7 @@ fn program() -> impl Strategy<Value = DriveSection> {
                 s.lines[usize::from(n)] = Some(i);
             }
             shared_protocol::program::testing::fix_drive_stack(&mut s.lines);
+            shared_protocol::program::testing::fix_safety(&mut s.lines);
             assert!(verify_drive(&s).is_ok());
             s
         })
@@ -319,6 +320,8 @@ fn raw_section() -> impl Strategy<Value = DriveSection> {
         for (n, i) in lines {
             s.lines[usize::from(n)] = Some(i);
         }
+        // A safety setting set twice is the other whole-section rule: not this test's.
+        shared_protocol::program::testing::fix_safety(&mut s.lines);
         s
     })
 }

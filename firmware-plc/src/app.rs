@@ -40,11 +40,15 @@ use shared_protocol::link::{
     fault_text, DownloadResult, DriveState, DriveStatus, DriveWarning, FaultCode, LinkConfig,
     RejectReason,
 };
-use shared_protocol::program::{verify, Mnemonic, Operand, Program, Section};
+use shared_protocol::program::{
+    safety_settings, uses_safety, verify, Mnemonic, Operand, Program, Section, ShortText,
+};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
 
 use crate::debounce::{Debouncer, KeyMatrix};
-use crate::editor::{Editor, Key, Notice, Page, Request, RunView, Screen, View, Warning};
+use crate::editor::{
+    Editor, Key, Notice, Page, Request, RunView, SafetyView, Screen, View, Warning,
+};
 use crate::storage::{
     BootChange, Eeprom, FaultEntry, Job, JobDone, Storage, StorageError, FAULT_LOG_ENTRIES,
 };
@@ -92,10 +96,17 @@ pub struct Alerts {
     pub newest_fault: Option<u8>,
     pub warning: Option<vm::Warning>,
     pub drive_warning: Option<DriveWarning>,
+    /// The drive's safety request and status masks (the status row's `S:` items).
+    pub sf_requested: u16,
+    pub sf_status: u16,
 }
 
 /// The PLC application.
 pub struct PlcApp<E: Eeprom> {
+    /// The safety functions' requests and their times (safety.md 10, `S:<name> DEC`).
+    /// The first field: at the end, the board's builder stopped writing the application
+    /// in place (a 15 KiB stack frame, a stack overflow at boot: CI's stack step).
+    safety: SafetyTimes,
     program: Program,
     vm: PlcVm,
     link: PlcLink,
@@ -127,6 +138,18 @@ pub struct PlcApp<E: Eeprom> {
     /// The run state last reported in a [`Tick`] (changes made by the link calls
     /// between ticks are reported by the next tick).
     reported_run: RunState,
+}
+
+/// When each safety function was last requested (the rise of its bit in the drive's
+/// reported mask), for the status row's `S:<name> DEC n.ns`; and the RUN's signature
+/// check (safety.md 8).
+#[derive(Debug, Clone, Copy, Default)]
+struct SafetyTimes {
+    seen: u16,
+    since_ms: [u32; 12],
+    /// The signature of the program RUN started, checked against the drive's status
+    /// once the drive reports RUN.
+    expected: Option<u16>,
 }
 
 /// Digital inputs: a level must hold for 5 samples (5 ms at one `tick_1ms` per ms) to
@@ -219,6 +242,11 @@ impl<E: Eeprom> PlcApp<E> {
             ticks: 0,
             drawn_alerts: None,
             reported_run: RunState::Stopped,
+            safety: SafetyTimes {
+                seen: 0,
+                since_ms: [0; 12],
+                expected: None,
+            },
         }
     }
 
@@ -348,6 +376,8 @@ impl<E: Eeprom> PlcApp<E> {
             newest_fault: self.newest_fault,
             warning: self.warning,
             drive_warning: drive.and_then(|d| d.warning),
+            sf_requested: drive.map_or(0, |d| d.sf_requested),
+            sf_status: drive.map_or(0, |d| d.sf_status),
         }
     }
 
@@ -369,6 +399,12 @@ impl<E: Eeprom> PlcApp<E> {
             self.run = RunState::Stopped;
             return;
         }
+        // safety.md 6: the drive refuses RUN while its STO input is low; say why here.
+        if self.drive_status().is_some_and(|s| s.sto_in_low) {
+            self.editor.notify(Notice::Text("RUN REFUSED:STO_IN"));
+            self.run = RunState::Stopped;
+            return;
+        }
         if self.run == RunState::Running {
             // A new RUN while running: stop both first, then start over.
             self.send_stop();
@@ -386,6 +422,9 @@ impl<E: Eeprom> PlcApp<E> {
         self.send_stop();
         self.run = RunState::Stopped;
         self.out = ScanOutputs::default();
+        // Every control bit is 1 again after STOP (safety.md 5).
+        let _ = self.link.set_safety_request(0);
+        self.safety.expected = None;
         self.queue_boot(false);
     }
 
@@ -436,6 +475,16 @@ impl<E: Eeprom> PlcApp<E> {
             self.run = RunState::WaitLink;
             return;
         }
+        // Every control bit is 1 at RUN start (safety.md 5): nothing requested until the
+        // program's first `SFR` says so.
+        let _ = self.link.set_safety_request(0);
+        let settings = safety_settings(self.program.lines.iter());
+        self.safety.expected = Some(settings.signature());
+        if uses_safety(&self.program) {
+            self.editor.notify(Notice::NotRated {
+                signature: settings.signature(),
+            });
+        }
         // Compiles the PLC section now (issue 21), not in the first scan.
         self.vm.start_program(&self.program, now.millis());
         self.link.forget_q();
@@ -483,6 +532,11 @@ impl<E: Eeprom> PlcApp<E> {
             // only with 95 commands waiting, and the program asks again every scan.
             let _ = self.link.set_direction(rev);
         }
+        if let Some(mask) = out.sf_request {
+            // Before the ACK of the same scan (safety_lab.plc releases, then ACKs); newest
+            // wins in the link's queue; remembered while the link is down.
+            let _ = self.link.set_safety_request(mask);
+        }
         if out.ack_request {
             // A program's ACK while the link is down has nothing to acknowledge: the
             // drive's fault is read again after the reconnection.
@@ -512,6 +566,9 @@ impl<E: Eeprom> PlcApp<E> {
                 fault_latched: s.fault.is_some(),
                 ihw: CentiAmps(s.oc_hw_ca),
                 uhw: Volts(s.ov_hw_v),
+                sf_status: s.sf_status,
+                sf_sdc: s.sf_sdc,
+                sf_elapsed_ds: s.sf_elapsed_ds,
             },
             None => DriveView::default(),
         }
@@ -548,6 +605,11 @@ impl<E: Eeprom> PlcApp<E> {
     }
 
     fn service(&mut self, now: Micros) {
+        self.service_link(now);
+        self.track_safety(now);
+    }
+
+    fn service_link(&mut self, now: Micros) {
         while let Some(e) = self.link.poll_event() {
             match e {
                 PlcEvent::Connected => {}
@@ -573,7 +635,7 @@ impl<E: Eeprom> PlcApp<E> {
                             RejectReason::Verify(_) | RejectReason::Decode => Some(line),
                             RejectReason::Crc | RejectReason::Incomplete => None,
                         },
-                        reason: reason.short(),
+                        reason: ShortText::Fixed(reason.short()),
                     });
                 }
                 PlcEvent::AckRefused(why) => self.editor.notify(Notice::Text(why.message())),
@@ -745,6 +807,31 @@ impl<E: Eeprom> PlcApp<E> {
         }
     }
 
+    /// The request times of the `S:` items, and the signature check: once the drive
+    /// reports RUN (it loaded the section before), its signature must be the program's,
+    /// or RUN stops with `SIG MISMATCH` (safety.md 8).
+    fn track_safety(&mut self, now: Micros) {
+        let Some(s) = self.drive_status() else {
+            self.safety.seen = 0;
+            return;
+        };
+        let rose = s.sf_requested & !self.safety.seen;
+        self.safety.seen = s.sf_requested;
+        for (n, t) in self.safety.since_ms.iter_mut().enumerate() {
+            if rose & (1 << n) != 0 {
+                *t = now.millis().0;
+            }
+        }
+        if self.run == RunState::Running && s.state == DriveState::Run {
+            if let Some(expected) = self.safety.expected.take() {
+                if s.sf_signature != expected {
+                    self.stop();
+                    self.editor.notify(Notice::Text("SIG MISMATCH"));
+                }
+            }
+        }
+    }
+
     /// Draw the current page (listing, run screen or fault log) for the LCD.
     pub fn render(&self, now: Micros, screen: &mut Screen) {
         let warning = self.warning.map(|w| match w {
@@ -772,6 +859,11 @@ impl<E: Eeprom> PlcApp<E> {
             lcd: self.out.lcd,
             warning,
             drive_warning,
+            safety: drive.map(|s| SafetyView {
+                requested: s.sf_requested,
+                status: s.sf_status,
+                since_ms: self.safety.since_ms,
+            }),
         };
         let view = View {
             program: &self.program,

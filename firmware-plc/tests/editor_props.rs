@@ -1,7 +1,8 @@
 //! Whatever keys are pressed, the editor never panics, never leaves the screen, and every
 //! line of the program it builds verifies ("only valid combinations can be entered").
-//! The one whole-section rule, the drive stack depth, depends on lines entered in any
-//! order; it is checked when RUN starts (`PlcApp::run` names the line).
+//! The whole-program rules (the drive stack depth; safety.md 4's settings set twice and
+//! the settings an `SFR` needs) depend on lines entered in any order; they are checked
+//! when RUN starts (`PlcApp::run` names the line) and by `*` `5`.
 
 use firmware_plc::editor::{Editor, Key, Request, RunView, View};
 use firmware_plc::storage::FaultEntry;
@@ -9,11 +10,15 @@ use proptest::prelude::*;
 use shared_protocol::link::DriveState;
 use shared_protocol::program::{verify, Program, VerifyError, VerifyErrorKind};
 
-/// Every line verifies; only the drive section's stack count may be short.
+/// Every line verifies; only the whole-program rules may fail.
 fn lines_valid(p: &Program) -> Result<(), VerifyError> {
     match verify(p) {
         Err(VerifyError {
-            kind: VerifyErrorKind::StackUnderflow { .. },
+            kind:
+                VerifyErrorKind::StackUnderflow { .. }
+                | VerifyErrorKind::SettingTwice { .. }
+                | VerifyErrorKind::SafetyNeeds { .. }
+                | VerifyErrorKind::SafetyNeedsSine { .. },
             ..
         }) => Ok(()),
         other => other,

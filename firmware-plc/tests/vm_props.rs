@@ -44,6 +44,7 @@ fn program(
             for (n, i) in lines {
                 p.lines[n] = Some(i);
             }
+            shared_protocol::program::testing::fix_safety(&mut p.lines);
             p
         }),
         dense.prop_map(|lines| {
@@ -51,6 +52,7 @@ fn program(
             for (n, i) in lines.into_iter().enumerate() {
                 p.lines[150 + n] = Some(i);
             }
+            shared_protocol::program::testing::fix_safety(&mut p.lines);
             p
         }),
     ]
@@ -79,6 +81,9 @@ fn inputs() -> impl Strategy<Value = ScanInputs> {
                         fault_latched,
                         ihw: CentiAmps(imx.wrapping_add(7)),
                         uhw: shared_protocol::units::Volts(udc / 10),
+                        sf_status: com,
+                        sf_sdc: ready,
+                        sf_elapsed_ds: frq as u16,
                     },
                 }
             },

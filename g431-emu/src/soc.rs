@@ -973,6 +973,18 @@ impl Soc {
         self.after_event(k, now);
     }
 
+    /// The level of TIM1's BKIN2 pin (the drive board's hardware STO input, safety.md 6:
+    /// PA11, AF12). The board's net drives TIM1's break 2 directly: the host calls this
+    /// when the level changes (the AF selection of the pin is not checked), and the pin's
+    /// GPIO level (IDR) is the board's `PinReader::external` for the same pin.
+    pub fn set_tim1_bkin2(&mut self, level: bool, now: Cycles) {
+        let t1 = self.wired.tim1;
+        if let Some(tim) = self.model_mut::<TimAdv>(t1) {
+            tim.set_bkin2(level, now);
+        }
+        self.refresh(t1);
+    }
+
     /// The TIM1 model (for the host's plant wiring and tests).
     pub fn tim1(&self) -> Option<&TimAdv> {
         self.model::<TimAdv>(self.wired.tim1)

@@ -36,6 +36,12 @@ pub fn header() -> String {
             .iter()
             .map(|s| s.to_string()),
     );
+    // safety.md 11, appended.
+    cols.extend(
+        ["sf_req", "sf_st", "sdc", "sft_s", "turns"]
+            .iter()
+            .map(|s| s.to_string()),
+    );
     cols.join(",")
 }
 
@@ -81,7 +87,24 @@ pub fn row(s: &Sample) -> String {
         let _ = write!(r, ",{}", num(d, 4));
     }
     let _ = write!(r, ",{},{}", num(s.u_ab_v, 3), s.warn.short());
+    let _ = write!(
+        r,
+        ",{},{},{},{}.{},{}",
+        s.sf_req,
+        s.sf_st,
+        u8::from(s.sdc),
+        s.sft_ds / 10,
+        s.sft_ds % 10,
+        turns(s.turns_e4)
+    );
     r
+}
+
+/// 10⁻⁴ turn as turns with 4 decimals, exactly (no float).
+fn turns(e4: i64) -> String {
+    let sign = if e4 < 0 { "-" } else { "" };
+    let a = e4.unsigned_abs();
+    format!("{sign}{}.{:04}", a / 10_000, a % 10_000)
 }
 
 /// Fixed decimals; a value that rounds to zero is written without a sign.
@@ -126,7 +149,9 @@ mod tests {
         ));
         assert!(h.contains(",D07,O00,"));
         assert!(h.contains(",O05,Q00,"));
-        assert!(h.ends_with(",Q07,lcd0,lcd1,lcd2,lcd3,duty_a,duty_b,duty_c,u_ab_v,warn"));
+        assert!(h.ends_with(
+            ",Q07,lcd0,lcd1,lcd2,lcd3,duty_a,duty_b,duty_c,u_ab_v,warn,sf_req,sf_st,sdc,sft_s,turns"
+        ));
     }
 
     #[test]
@@ -157,13 +182,19 @@ mod tests {
                     applied_hz: 488,
                 }),
             },
+            sf_req: 2048 + 2,
+            sf_st: 2,
+            sdc: true,
+            sft_ds: 150,
+            turns_e4: -2_000_001,
         };
         let r = row(&s);
         assert_eq!(r.split(',').count(), header().split(',').count());
         assert!(r.starts_with("0.001500,12.3,-1,0.500,1,0,30.000,"));
         assert!(
             r.ends_with(
-                ",1,2,3,4,5,6,7,8,500,,,,0.5000,0.2500,1.0000,7.500,DIV0 @ 151; PWF 488Hz @ 000"
+                ",1,2,3,4,5,6,7,8,500,,,,0.5000,0.2500,1.0000,7.500,DIV0 @ 151; PWF 488Hz @ 000,\
+                 2050,2,1,15.0,-200.0001"
             ),
             "{r}"
         );
@@ -171,7 +202,7 @@ mod tests {
             warn: crate::mcu::Warnings::default(),
             ..s
         };
-        assert!(row(&quiet).ends_with(",7.500,"));
+        assert!(row(&quiet).ends_with(",7.500,,2050,2,1,15.0,-200.0001"));
     }
 
     #[test]

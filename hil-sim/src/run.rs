@@ -74,6 +74,9 @@ pub struct RunReport {
     /// Largest |phase current| (A) and DC-link voltage (V) of the run.
     pub peak_current_a: f64,
     pub peak_dc_v: f64,
+    /// The parameter signature (safety.md 8) of a program that uses the safety
+    /// functions, as the drive reports it at the end of the run.
+    pub signature: Option<u16>,
 }
 
 /// The summary's fault lines (`faults: none`, or one line per trip with its time),
@@ -103,6 +106,7 @@ pub fn action_label(a: &Action) -> String {
         Input::Digital(n) => format!("D{n:02}"),
         Input::Analog(n) => format!("A{n:02}"),
         Input::Aux => "AUX".to_string(),
+        Input::StoIn => "STO_IN".to_string(),
     };
     match a {
         Action::Set(i, v) => format!("{}={v}", input(i)),
@@ -155,6 +159,12 @@ impl RunReport {
             self.final_f_hz,
             self.final_speed_rpm
         ));
+        if let Some(sig) = self.signature {
+            // safety.md 8 and 11: the parameter signature, for the commissioning record.
+            s.push_str(&format!(
+                "safety functions NOT RATED, parameter signature {sig:04X}\n"
+            ));
+        }
         s.push_str(&faults_summary(&self.faults, fault_name));
         if self.warnings.is_empty() {
             s.push_str("warnings: none\n");
@@ -235,7 +245,10 @@ pub fn run(
         events: event_marks(&actions, sim.faults()),
         zoom_at_s: None,
     };
+    let signature =
+        shared_protocol::program::uses_safety(program).then(|| sim.drive().status().sf_signature);
     Ok(RunReport {
+        signature,
         marks,
         drive_states: sim
             .drive_states()

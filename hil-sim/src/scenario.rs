@@ -125,6 +125,8 @@ pub enum Input {
     Analog(u8),
     /// The drive's auxiliary channel (`COM`), 10-bit counts.
     Aux,
+    /// The drive board's `STO_IN` (safety.md 11): 1 = high (default), 0 = STO requested.
+    StoIn,
 }
 
 impl Input {
@@ -132,6 +134,9 @@ impl Input {
         let upper = name.to_ascii_uppercase();
         if upper == "AUX" {
             return Some(Input::Aux);
+        }
+        if upper == "STO_IN" {
+            return Some(Input::StoIn);
         }
         let (area, digits) = upper.split_at_checked(1)?;
         if digits.len() != 2 || !digits.bytes().all(|b| b.is_ascii_digit()) {
@@ -147,7 +152,7 @@ impl Input {
 
     fn max(self) -> i64 {
         match self {
-            Input::Digital(_) => 1,
+            Input::Digital(_) | Input::StoIn => 1,
             Input::Analog(_) | Input::Aux => 1023,
         }
     }

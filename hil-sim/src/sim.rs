@@ -50,6 +50,14 @@ pub struct Sample {
     pub u_ab_v: f64,
     /// The run-time warnings the PLC shows (its own and the drive's).
     pub warn: Warnings,
+    /// Safety (NOT RATED, safety.md 11): the requested mask (`sf_req`), the status bits
+    /// (`sf_st`), SDC, the stopwatch (0.1 s) and the commanded field turns since RUN start
+    /// (10⁻⁴ turn).
+    pub sf_req: u16,
+    pub sf_st: u16,
+    pub sdc: bool,
+    pub sft_ds: u16,
+    pub turns_e4: i64,
 }
 
 /// A drive fault as it was latched.
@@ -444,6 +452,8 @@ impl Simulation {
             if report.rearm {
                 self.tim1.rearm_break(&mut self.plant);
             }
+            // The board reads STO_IN every tick (safety.md 6).
+            self.drive.set_sto_input(self.plant.sto_in_low());
             self.drive.tick_1ms(now);
             self.next_drive_tick_ns += MS_NS;
             app_ran[1] = true;
@@ -546,6 +556,7 @@ impl Simulation {
             }
             // 10-bit value on the drive's 12-bit converter.
             Action::Set(Input::Aux, v) => self.aux_counts = (v << 2).min(4095),
+            Action::Set(Input::StoIn, v) => self.plant.set_sto_input(v == 0),
             Action::KeyDown(k) => self.plc.key(k, true, now),
             Action::KeyUp(k) => self.plc.key(k, false, now),
             Action::Plant(c) => c.apply(self.plant.params_mut()),
@@ -623,6 +634,11 @@ impl Simulation {
             duty_abc: o.duty_abc,
             u_ab_v: o.u_ab_v,
             warn: self.plc.warnings(),
+            sf_req: st.sf_requested,
+            sf_st: st.sf_status,
+            sdc: st.sf_sdc,
+            sft_ds: st.sf_elapsed_ds,
+            turns_e4: self.drive.turns_e4(),
         }
     }
 }

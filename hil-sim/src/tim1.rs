@@ -142,7 +142,7 @@ impl PowerPort for SimPowerPort<'_> {
     }
 
     fn break_pending(&self) -> bool {
-        self.plant.break_flag() || self.plant.break_input_active()
+        self.plant.break_flag() || self.plant.break_input_active() || self.plant.sto_in_low()
     }
 
     fn set_timing(&mut self, t: &PwmTiming) {
@@ -165,8 +165,9 @@ impl PowerPort for SimPowerPort<'_> {
     }
 
     fn outputs_on(&mut self) {
-        // RM0440 29.3.18: MOE cannot be set while the break input is active.
-        if self.plant.break_input_active() {
+        // RM0440 29.3.18: MOE cannot be set while a break input is active (BKIN, or
+        // BKIN2 = `STO_IN` low).
+        if self.plant.break_input_active() || self.plant.sto_in_low() {
             return;
         }
         self.tim.moe = true;

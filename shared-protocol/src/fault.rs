@@ -29,9 +29,25 @@ pub enum FaultCode {
     /// The boot self-test failed (sine table, timer setup or current-sensor offset out of
     /// tolerance).
     Boot = 8,
+    /// Safety (NOT RATED, safety.md 7): STO requested in RUN (`SFR STO` or `STO_IN` low).
+    Sto = 9,
+    /// SS1 reached its end (time or early limit): STO.
+    Ss1 = 10,
+    /// Ramp envelope exceeded, or an SS2/SLS target missed at the end of the ramp.
+    Ramp = 11,
+    /// Standstill lost (SOS, or SS2 in standstill).
+    Sos = 12,
+    /// Over an SLS limit in its safe state.
+    Sls = 13,
+    /// SLI: moved more than `pli`, or requested while moving.
+    Sli = 14,
+    /// SDI: moved more than `pss` against the allowed direction.
+    Sdi = 15,
+    /// SLA: acceleration or deceleration above its limit.
+    Sla = 16,
 }
 
-/// A byte that is no [`FaultCode`] (0 is "no fault", 9.. are not defined by this
+/// A byte that is no [`FaultCode`] (0 is "no fault", 17.. are not defined by this
 /// protocol version).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -44,7 +60,7 @@ impl core::fmt::Display for UnknownFaultCode {
 }
 
 impl FaultCode {
-    pub const ALL: [FaultCode; 8] = [
+    pub const ALL: [FaultCode; 16] = [
         FaultCode::Oc,
         FaultCode::OcHw,
         FaultCode::OvHw,
@@ -53,6 +69,14 @@ impl FaultCode {
         FaultCode::Prog,
         FaultCode::Wdg,
         FaultCode::Boot,
+        FaultCode::Sto,
+        FaultCode::Ss1,
+        FaultCode::Ramp,
+        FaultCode::Sos,
+        FaultCode::Sls,
+        FaultCode::Sli,
+        FaultCode::Sdi,
+        FaultCode::Sla,
     ];
 
     /// The code shown by `FLT`, stored in the fault log and sent over the link.
@@ -71,6 +95,14 @@ impl FaultCode {
             6 => FaultCode::Prog,
             7 => FaultCode::Wdg,
             8 => FaultCode::Boot,
+            9 => FaultCode::Sto,
+            10 => FaultCode::Ss1,
+            11 => FaultCode::Ramp,
+            12 => FaultCode::Sos,
+            13 => FaultCode::Sls,
+            14 => FaultCode::Sli,
+            15 => FaultCode::Sdi,
+            16 => FaultCode::Sla,
             _ => return Err(UnknownFaultCode(c)),
         })
     }
@@ -86,6 +118,14 @@ impl FaultCode {
             FaultCode::Prog => "PROG",
             FaultCode::Wdg => "WDG",
             FaultCode::Boot => "BOOT",
+            FaultCode::Sto => "STO",
+            FaultCode::Ss1 => "SS1",
+            FaultCode::Ramp => "RAMP",
+            FaultCode::Sos => "SOS",
+            FaultCode::Sls => "SLS",
+            FaultCode::Sli => "SLI",
+            FaultCode::Sdi => "SDI",
+            FaultCode::Sla => "SLA",
         }
     }
 
@@ -103,6 +143,14 @@ impl FaultCode {
             FaultCode::Prog => "program rejected",
             FaultCode::Wdg => "watchdog reset",
             FaultCode::Boot => "self-test failed",
+            FaultCode::Sto => "STO requested",
+            FaultCode::Ss1 => "SS1 done: STO",
+            FaultCode::Ramp => "ramp violated",
+            FaultCode::Sos => "standstill lost",
+            FaultCode::Sls => "over SLS limit",
+            FaultCode::Sli => "SLI turns exceed",
+            FaultCode::Sdi => "wrong direction",
+            FaultCode::Sla => "over SLA limit",
         }
     }
 }
@@ -159,7 +207,7 @@ impl<'de> Deserialize<'de> for FaultCode {
         FaultCode::from_code(c).map_err(|_| {
             serde::de::Error::invalid_value(
                 serde::de::Unexpected::Unsigned(u64::from(c)),
-                &"a drive fault code 1..=8",
+                &"a drive fault code 1..=16",
             )
         })
     }
@@ -181,7 +229,7 @@ pub mod wire_option {
             c => FaultCode::from_code(c).map(Some).map_err(|_| {
                 serde::de::Error::invalid_value(
                     serde::de::Unexpected::Unsigned(u64::from(c)),
-                    &"0 (no fault) or a drive fault code 1..=8",
+                    &"0 (no fault) or a drive fault code 1..=16",
                 )
             }),
         }
@@ -242,14 +290,22 @@ mod tests {
                 (5, "LINK"),
                 (6, "PROG"),
                 (7, "WDG"),
-                (8, "BOOT")
+                (8, "BOOT"),
+                (9, "STO"),
+                (10, "SS1"),
+                (11, "RAMP"),
+                (12, "SOS"),
+                (13, "SLS"),
+                (14, "SLI"),
+                (15, "SDI"),
+                (16, "SLA")
             ]
         );
         assert_eq!(FaultCode::from_code(0), Err(UnknownFaultCode(0)));
-        assert_eq!(FaultCode::from_code(9), Err(UnknownFaultCode(9)));
+        assert_eq!(FaultCode::from_code(17), Err(UnknownFaultCode(17)));
         assert_eq!(
-            UnknownFaultCode(9).to_string(),
-            "unknown drive fault code 9"
+            UnknownFaultCode(17).to_string(),
+            "unknown drive fault code 17"
         );
     }
 
@@ -264,7 +320,9 @@ mod tests {
         assert_eq!(fault_text(200), "unknown fault");
         assert_eq!(fault_name(0), "none");
         assert_eq!(fault_name(8), "BOOT");
-        assert_eq!(fault_name(9), "?");
+        assert_eq!(fault_name(9), "STO");
+        assert_eq!(fault_text(13), "over SLS limit");
+        assert_eq!(fault_name(17), "?");
     }
 
     #[test]
@@ -283,7 +341,7 @@ mod tests {
             assert_eq!(postcard::to_slice(&f, &mut buf).unwrap(), [f.code()]);
             assert_eq!(postcard::from_bytes::<FaultCode>(&[f.code()]), Ok(f));
         }
-        for c in [0u8, 9, 127, 255] {
+        for c in [0u8, 17, 127, 255] {
             assert!(postcard::from_bytes::<FaultCode>(&[c]).is_err(), "{c}");
         }
     }

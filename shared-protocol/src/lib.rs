@@ -6,6 +6,8 @@
 //! * [`fault`] and [`drive_state`]: the drive's vocabulary (fault codes with their names
 //!   and texts, hardware-break causes, operating states), one copy for both images and
 //!   hil-sim. The Q count is [`program::Q_COUNT`].
+//! * [`safety`]: the safety functions (NOT RATED), their settings and the parameter
+//!   signature (safety.md).
 //!
 //! `no_std`, no allocation, never panics on any input.
 #![cfg_attr(not(test), no_std)]
@@ -26,5 +28,6 @@ pub mod fault;
 pub mod link;
 pub mod program;
 pub mod rate_limit;
+pub mod safety;
 pub mod supervision;
 pub mod units;

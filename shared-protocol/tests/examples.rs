@@ -2,8 +2,8 @@
 //! verifies, sits in the right section and survives the canonical text and binary forms.
 
 use shared_protocol::program::{
-    assemble, decode_slot, disassemble, encode_slot, verify, Instruction, Mnemonic, Operand,
-    Program, Section,
+    assemble, assemble_runnable, decode_slot, disassemble, encode_slot, verify, Instruction,
+    Mnemonic, Operand, Program, Section,
 };
 
 const PLC_EXAMPLES: &[(&str, &str)] = &[
@@ -51,6 +51,7 @@ const DRIVE_EXAMPLES: &[(&str, &str)] = &[
 ];
 
 const MOTOR: &str = include_str!("../programs/motor.plc");
+const SAFETY_LAB: &str = include_str!("../programs/safety_lab.plc");
 
 fn checked(name: &str, text: &str) -> Program {
     let p = assemble(text).unwrap_or_else(|e| panic!("{name}.plc:{e}"));
@@ -135,7 +136,7 @@ fn every_file_in_programs_is_covered() {
         .chain(DRIVE_EXAMPLES)
         .chain(MIXED_EXAMPLES)
         .map(|(n, _)| format!("{n}.plc"))
-        .chain([String::from("motor.plc")])
+        .chain([String::from("motor.plc"), String::from("safety_lab.plc")])
         .collect();
     known.sort();
     assert_eq!(names, known);
@@ -211,4 +212,67 @@ fn counters_follow_the_two_bit_and_the_single_bit_rule() {
     let n = ctu(&p);
     assert_eq!(p.get(n - 1).map(|i| i.mnemonic), Some(Mnemonic::Let));
     assert_eq!(p.get(n - 2).map(|i| i.mnemonic), Some(Mnemonic::Ld));
+}
+
+/// safety.md 12: the lab program. Its signature is documented (README, shared-protocol
+/// docs) as 7C32; the function under test is on line 197, line 198 is free.
+#[test]
+fn safety_lab_has_the_lab_settings_its_documented_signature_and_the_function_on_197() {
+    use shared_protocol::program::{safety_settings, uses_safety};
+    use shared_protocol::safety::{SafetyFunction, SafetySetting as S};
+    let p = checked("safety_lab", SAFETY_LAB);
+    assert!(SAFETY_LAB.contains("NOT RATED"));
+    assert!(uses_safety(&p));
+    let s = safety_settings(p.lines.iter());
+    assert_eq!(s.signature(), 0x7C32);
+    for (k, v) in [
+        (S::Fss, Some(40)),
+        (S::Pss, Some(200)),
+        (S::Trd, Some(50)),
+        (S::Tel, Some(50)),
+        (S::Ts1, Some(100)),
+        (S::Fl1, Some(160)),
+        (S::Fl2, Some(100)),
+        (S::Pli, Some(100)),
+        (S::Tli, Some(100)),
+        (S::Aap, Some(2000)),
+        (S::Ard, None),
+        (S::Asr, None),
+        (S::Fl3, None),
+        (S::Fl4, None),
+    ] {
+        assert_eq!(s.get(k), v, "{k:?}");
+    }
+    assert_eq!(
+        p.get(197),
+        Some(&ins(
+            Mnemonic::Sfr,
+            Some(Operand::Sf(SafetyFunction::Ss1)),
+            0
+        ))
+    );
+    assert_eq!(
+        p.get(196),
+        Some(&ins(Mnemonic::Ldc, Some(Operand::B(21)), 0))
+    );
+    assert_eq!(p.get(198), None);
+    assert_eq!(
+        p.get(11),
+        Some(&ins(Mnemonic::Fmn, Some(Operand::K(6)), 10))
+    );
+    // Every function the lab configures runs on line 197; SL3/SL4 are not configured.
+    for f in SafetyFunction::ALL {
+        let text = SAFETY_LAB.replace("197 SFR SS1", &format!("197 SFR {}", f.name()));
+        let r = assemble_runnable(&text);
+        match f {
+            SafetyFunction::Sl3 | SafetyFunction::Sl4 => {
+                let e = r.unwrap_err().to_string();
+                assert!(
+                    e.ends_with(&format!("{} needs fl{}", f.name(), &f.name()[2..])),
+                    "{e}"
+                );
+            }
+            _ => assert!(r.is_ok(), "{f:?}"),
+        }
+    }
 }

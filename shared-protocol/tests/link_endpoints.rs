@@ -796,3 +796,77 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
         }
     }
 }
+
+/// safety.md 9: the request mask is reliable, in order with the other commands, the
+/// newest waiting one wins, it is resent after a handshake, and a change of the status's
+/// safety fields is sent at once.
+#[test]
+fn the_safety_request_is_in_order_newest_wins_and_resent_after_a_handshake() {
+    let mut p = connected_pair(115_200);
+    p.plc.set_safety_request(0x0002).unwrap();
+    p.plc.write_q(1, 5).unwrap();
+    p.plc.set_safety_request(0x0000).unwrap();
+    p.plc.ack_fault().unwrap();
+    let end = Micros(p.now.0 + 30_000);
+    p.run_until(end, |_| {});
+    assert_eq!(
+        drive_events(&mut p),
+        vec![
+            // The first mask was still waiting: the newest replaced it, appended after
+            // the Q write, and goes before the ACK issued after it.
+            DriveEvent::QWrite { addr: 1, value: 5 },
+            DriveEvent::SafetyRequest { requested: 0 },
+            DriveEvent::AckFault,
+        ]
+    );
+    // One frame per change once the previous one is on the wire.
+    for m in [0x0001u16, 0x0809, 0x0000] {
+        p.plc.set_safety_request(m).unwrap();
+        let end = Micros(p.now.0 + 10_000);
+        p.run_until(end, |_| {});
+        assert_eq!(
+            drive_events(&mut p),
+            vec![DriveEvent::SafetyRequest { requested: m }]
+        );
+    }
+    assert_eq!(p.plc.safety_request(), Some(0));
+    // Cut, a new mask while down, reconnection: the mask goes again after the handshake.
+    p.to_drive.set_cut(true);
+    p.to_plc.set_cut(true);
+    let end = Micros(p.now.0 + 120_000);
+    p.run_until(end, |_| {});
+    assert!(!p.plc.is_up());
+    p.plc.set_safety_request(0x0010).unwrap();
+    p.to_drive.set_cut(false);
+    p.to_plc.set_cut(false);
+    let end = Micros(p.now.0 + 100_000);
+    p.run_until(end, |_| {});
+    assert!(p.plc.is_up());
+    let ev = drive_events(&mut p);
+    assert_eq!(
+        ev.last(),
+        Some(&DriveEvent::SafetyRequest { requested: 0x0010 })
+    );
+    // A change of the safety status goes out at once, not at the next 10 ms period.
+    let end = Micros(p.now.0 + 15_000);
+    p.run_until(end, |_| {});
+    let mut s = p.plc.last_status().unwrap().0;
+    for change in 0..4 {
+        match change {
+            0 => s.sf_requested = 0x0010,
+            1 => s.sf_status = 0x0010,
+            2 => s.sf_sdc = true,
+            _ => s.sto_in_low = true,
+        }
+        p.drive.set_status(s);
+        let t0 = p.now;
+        let mut seen = None;
+        p.run_until(Micros(t0.0 + 9_000), |p| {
+            if seen.is_none() && p.plc.last_status().map(|x| x.0) == Some(s) {
+                seen = Some(p.now.0 - t0.0);
+            }
+        });
+        let seen = seen.expect("status seen");
+        assert!(seen < 5_000, "change {change} after {seen} us");
+    }
+}

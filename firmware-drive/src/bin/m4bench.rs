@@ -15,6 +15,10 @@
 //! The end of a download, part by part (review D13; `docs/critical-sections.md`): 20 = the
 //! section CRC, 21 = decoding 150 slots, 22 = `verify_drive`, 23 = `DriveCore::load_program`
 //! (verifies again; the link path uses `load_verified`).
+//! 30 = 1000 x `safety::Monitor::tick` with every function but STO requested (mask 0x0FFE,
+//! the lab's settings, 2.0 Hz forward: every function evaluates, none trips; a mark 0x31
+//! after it confirms no trip, 0x32 that one did); 33 = one tick with STO requested too
+//! (0x0FFF: the trip).
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 #[cfg(target_os = "none")]
@@ -31,12 +35,14 @@ mod target {
     }
 
     use firmware_drive::power_port::PeriodAction;
+    use firmware_drive::safety::{Input as SafetyInput, Monitor};
     use firmware_drive::{AdcSample, DriveCommand, DriveConfig, DriveCore, ResetCause};
     use shared_protocol::link::plc::section_crc;
     use shared_protocol::program::Program;
     use shared_protocol::program::{
         assemble_into, decode_slot, encode_slot, verify_drive, DRIVE_LINES, LINE_BYTES,
     };
+    use shared_protocol::safety::{SafetySetting as S, SafetySettings};
     use static_cell::StaticCell;
 
     pub const CALLS: u32 = 1000;
@@ -55,6 +61,7 @@ mod target {
     }
 
     static PROGRAM: StaticCell<Program> = StaticCell::new();
+    static MONITOR: StaticCell<Monitor> = StaticCell::new();
     static CORE: StaticCell<DriveCore> = StaticCell::new();
 
     #[cortex_m_rt::entry]
@@ -151,6 +158,54 @@ mod target {
         let _ = core.command(DriveCommand::Stop);
         black_box(core.load_program(black_box(&section)).is_ok());
         bench_mark(24);
+        // The safety monitor (issue 16): every function requested but STO.
+        let mut settings = SafetySettings::default();
+        for (k, v) in [
+            (S::Fss, 40u16),
+            (S::Pss, 200),
+            (S::Trd, 50),
+            (S::Tel, 50),
+            (S::Ts1, 100),
+            (S::Ts2, 100),
+            (S::Fl1, 160),
+            (S::Fl2, 100),
+            (S::Fl3, 100),
+            (S::Fl4, 100),
+            (S::Tl1, 100),
+            (S::Tl2, 100),
+            (S::Tl3, 100),
+            (S::Tl4, 100),
+            (S::Pli, 100),
+            (S::Tli, 100),
+            (S::Ard, 20),
+            (S::Aap, 2000),
+            (S::Adp, 2000),
+            (S::Aan, 2000),
+            (S::Adn, 2000),
+            (S::Asr, 50),
+        ] {
+            settings.set(k, Some(v));
+        }
+        let monitor = MONITOR.init(Monitor::new(&settings));
+        monitor.start_run();
+        let input = SafetyInput {
+            requested: 0x0FFE,
+            f_dhz: 20,
+            fmn_dhz: 10,
+            reverse: false,
+        };
+        let mut trips = 0u32;
+        bench_mark(30);
+        for _ in 0..CALLS {
+            trips += u32::from(monitor.tick(black_box(input)).trip.is_some());
+        }
+        bench_mark(31 + u32::from(trips > 0));
+        bench_mark(33);
+        black_box(monitor.tick(black_box(SafetyInput {
+            requested: 0x0FFF,
+            ..input
+        })));
+        bench_mark(34);
         bench_mark(0xFFFF_FFFF);
         loop {
             cortex_m::asm::nop();

@@ -93,6 +93,7 @@ pub async fn start(spawner: Spawner) {
         min_dead_counts,
     });
     power_stage::arm_break(&hw_protection::break_comparators(cfg.board));
+    power_stage::arm_sto_input();
     power_stage::route_system_faults_to_break();
     pwm_isr::enable();
     defmt::info!(

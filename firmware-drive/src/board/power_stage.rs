@@ -8,6 +8,7 @@
 //! embassy-stm32 0.6's `ComplementaryPwm` rounds the centre-aligned period itself and takes
 //! the dead time as raw ticks; it is used only to claim the pins and clock the timer.
 
+use core::sync::atomic::{AtomicBool, Ordering};
 use embassy_stm32::gpio::{Level, Output};
 use embassy_stm32::gpio::{OutputType, Pull, Speed};
 use embassy_stm32::pac;
@@ -26,6 +27,9 @@ use crate::pins::PowerStage;
 /// The timer, owned for the life of the firmware (dropping it would release the pins).
 pub struct Tim1Pwm {
     _pwm: ComplementaryPwm<'static, TIM1>,
+    /// `STO_IN` (PA11, TIM1_BKIN2): held so that nothing else takes the pin; configured
+    /// by [`arm_sto_input`].
+    _sto_in: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PA11>,
 }
 
 /// Fewest CK_INT periods of dead time the power stage accepts: `min_dead_time_ns` rounded up.
@@ -130,7 +134,10 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
     t.sr().write_value(SrAdv(0));
     t.dier().modify(|w| w.set_uie(true));
     t.cr1().modify(|w| w.set_cen(true));
-    Tim1Pwm { _pwm: pwm }
+    Tim1Pwm {
+        _pwm: pwm,
+        _sto_in: p.sto_in,
+    }
 }
 
 /// Arms break input 1 (active high, fed by the comparators) with automatic output enable
@@ -153,6 +160,46 @@ pub fn arm_break(comparators: &[usize]) {
     });
     clear_flags(break_flags());
     t.dier().modify(|w| w.set_bie(true));
+}
+
+/// safety.md 6 (NOT RATED): `STO_IN` on PA11 as TIM1_BKIN2 (AF12), with a pull-down so
+/// that a broken wire requests STO; break 2 armed active low with automatic output
+/// enable off: `STO_IN` low clears MOE in hardware, with no software, and only the drive
+/// software sets it again (after ACK and a new RUN). No policy here: the core reads the
+/// level every tick ([`sto_input_low`]) and decides. The pin stays reserved by `pins`
+/// (its `Peri` is kept by the caller); MOE is 0 here (`init`).
+pub fn arm_sto_input() {
+    let a = pac::GPIOA;
+    a.pupdr()
+        .modify(|w| w.set_pupdr(STO_PIN, pac::gpio::vals::Pupdr::PULL_DOWN));
+    a.afr(STO_PIN / 8)
+        .modify(|w| w.set_afr(STO_PIN % 8, STO_AF));
+    a.moder()
+        .modify(|w| w.set_moder(STO_PIN, pac::gpio::vals::Moder::ALTERNATE));
+    let t = pac::TIM1;
+    t.af2().modify(|w| {
+        // The BKIN2 pin, not inverted; no comparator on break 2.
+        w.set_bk2ine(true);
+        w.set_bk2inp(pac::timer::vals::Bkinp::NOT_INVERTED);
+    });
+    t.bdtr().modify(|w| {
+        w.set_moe(false);
+        w.set_bkp(1, Bkp::ACTIVE_LOW);
+        w.set_aoe(false);
+        w.set_bke(1, true);
+    });
+    clear_flags(break_flags());
+}
+
+/// PA11 (`STO_IN`).
+const STO_PIN: usize = 11;
+/// PA11's alternate function TIM1_BKIN2.
+const STO_AF: u8 = 12;
+
+/// `STO_IN` is low (STO requested), as its input data register reads (the pin is in
+/// alternate-function mode; IDR still reads its level).
+pub fn sto_input_low() -> bool {
+    pac::GPIOA.idr().read().idr(STO_PIN) == pac::gpio::vals::Idr::LOW
 }
 
 /// Review D7: routes the Cortex-M4 LOCKUP, the PVD, SRAM parity errors and flash double
@@ -289,16 +336,50 @@ pub fn take_update() -> bool {
     set
 }
 
-/// Whether a break flag is set; clears the break flags and masks the break interrupt
-/// (the flag sets again at once while a comparator stays high) until [`rearm_break_irq`].
-pub fn take_break() -> bool {
+/// What set the break interrupt's flags.
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum BreakKind {
+    /// No break flag (a spurious entry).
+    None,
+    /// Break 1: a comparator (reported to the core with the comparator levels).
+    Comparator,
+    /// Only break 2: `STO_IN` low (safety.md 6). Not a comparator trip: the core reads the
+    /// input's level in its tick and latches code 9 itself.
+    StoOnly,
+}
+
+/// `STO_IN` masked the break interrupt (its flag sets again at once while the input is
+/// low); [`sto_rearm_due`] unmasks it once the input is high again.
+static STO_MASKED: AtomicBool = AtomicBool::new(false);
+
+/// Which break set a flag; clears the break flags and masks the break interrupt (the flag
+/// sets again at once while a comparator or `STO_IN` stays active) until
+/// [`rearm_break_irq`].
+pub fn take_break() -> BreakKind {
     let t = pac::TIM1;
-    let set = t.sr().read().0 & break_flags().0 != 0;
-    if set {
-        t.dier().modify(|w| w.set_bie(false));
-        clear_flags(break_flags());
+    let sr = t.sr().read();
+    if sr.0 & break_flags().0 == 0 {
+        return BreakKind::None;
     }
-    set
+    t.dier().modify(|w| w.set_bie(false));
+    clear_flags(break_flags());
+    if sr.bif(0) {
+        BreakKind::Comparator
+    } else {
+        STO_MASKED.store(true, Ordering::Relaxed);
+        BreakKind::StoOnly
+    }
+}
+
+/// Every millisecond: a break interrupt masked by `STO_IN` is unmasked once the input is
+/// high again (while it is low a comparator break still opens the outputs in hardware;
+/// its software report waits for the unmasking: firmware-drive docs/safety.md).
+pub fn sto_rearm_due() -> bool {
+    if STO_MASKED.load(Ordering::Relaxed) && !sto_input_low() {
+        STO_MASKED.store(false, Ordering::Relaxed);
+        return true;
+    }
+    false
 }
 
 /// Clears the break flags and unmasks the break interrupt (the core's `BreakReport::rearm`).

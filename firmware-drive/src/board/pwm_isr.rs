@@ -46,8 +46,14 @@ fn TIM1_UP_TIM16() {
 /// it from the comparator levels.
 #[interrupt]
 fn TIM1_BRK_TIM15() {
-    if !power_stage::take_break() {
-        return;
+    match power_stage::take_break() {
+        power_stage::BreakKind::None => return,
+        // STO_IN (break 2): the hardware has opened the outputs; the tick reads the input.
+        power_stage::BreakKind::StoOnly => {
+            power_stage::outputs_off();
+            return;
+        }
+        power_stage::BreakKind::Comparator => {}
     }
     power_stage::outputs_off();
     let levels = hw_protection::levels();

@@ -34,7 +34,10 @@ pub use screen::{Screen, MAX_COLS, MAX_ROWS};
 use crate::storage::{FaultEntry, LoadReport, OtherCopy, ProgramUse, StorageError, SLOTS};
 use core::fmt::Write;
 use shared_protocol::link::DriveState;
-use shared_protocol::program::{verify, Instruction, Program, Section, LINES, PLC_FIRST_LINE};
+use shared_protocol::program::{
+    safety_settings, uses_safety, verify, Instruction, Program, Section, ShortText, LINES,
+    PLC_FIRST_LINE,
+};
 
 /// What the application must do after a key.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -79,10 +82,15 @@ pub enum Notice {
     /// short reason (at most 16 characters).
     RunRefused {
         line: Option<u16>,
-        reason: &'static str,
+        reason: ShortText,
     },
     /// Any other short text (at most 20 characters).
     Text(&'static str),
+    /// RUN started a program that uses the safety functions: `NOT RATED SIG 3A7F`
+    /// (safety.md 10).
+    NotRated {
+        signature: u16,
+    },
 }
 
 /// A run-time warning for the status row, e.g. `DIV0` at line 163.
@@ -111,6 +119,20 @@ pub struct RunView<'a> {
     pub warning: Option<Warning<'a>>,
     /// The drive's run-time warning as its status reports it (e.g. `PWF 488Hz @ 000`).
     pub drive_warning: Option<Warning<'a>>,
+    /// The safety functions as the drive reports them (`None`: link down).
+    pub safety: Option<SafetyView>,
+}
+
+/// The safety functions on the status row (safety.md 10): one `S:` item per requested
+/// function, in bit order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SafetyView {
+    /// Requested functions (bit n = function n).
+    pub requested: u16,
+    /// Status bits (requested and in the safe state).
+    pub status: u16,
+    /// When each function was last requested (the `now_ms` clock), for `DEC n.ns`.
+    pub since_ms: [u32; 12],
 }
 
 impl Default for RunView<'_> {
@@ -125,6 +147,7 @@ impl Default for RunView<'_> {
             lcd: [None; 4],
             warning: None,
             drive_warning: None,
+            safety: None,
         }
     }
 }
@@ -398,6 +421,13 @@ impl Editor {
                 None => self.set_message(format_args!("NO RUN:{reason}")),
             },
             Notice::Text(t) => self.set_message(format_args!("{t}")),
+            // 16 columns: the signature must stay readable.
+            Notice::NotRated { signature } if self.cols < 18 => {
+                self.set_message(format_args!("NOT RATED {signature:04X}"))
+            }
+            Notice::NotRated { signature } => {
+                self.set_message(format_args!("NOT RATED SIG {signature:04X}"))
+            }
         }
     }
 
@@ -621,6 +651,17 @@ impl Editor {
         self.page = Page::Listing;
         match d {
             5 => match verify(program) {
+                // safety.md 8: the signature of a program using the safety functions.
+                // On a 16-column LCD the signature comes first.
+                Ok(()) if uses_safety(program) => self.set_message(format_args!(
+                    "{}SIG {:04X}",
+                    if self.cols >= 19 {
+                        "PROGRAM OK "
+                    } else {
+                        "OK "
+                    },
+                    safety_settings(program.lines.iter()).signature()
+                )),
                 Ok(()) => self.set_message(format_args!("PROGRAM OK")),
                 Err(e) => {
                     self.goto_line(e.line);

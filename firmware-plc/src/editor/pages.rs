@@ -3,6 +3,7 @@
 use super::{Editor, Field, Mode, Page, Prefix, Screen, View, MAX_COLS};
 use core::fmt::Write;
 use shared_protocol::link::{fault_name, fault_text};
+use shared_protocol::safety::{SafetyFunction, FUNCTION_MASK};
 
 /// One row of text, long enough for any row before clipping.
 pub(super) type Line = heapless::String<64>;
@@ -98,21 +99,52 @@ fn warning_line(w: Option<super::Warning<'_>>, s: &mut Line) -> bool {
     true
 }
 
-/// Whether a fault or a warning (the PLC's or the drive's) waits to be shown.
+/// Whether a fault, a warning (the PLC's or the drive's) or a requested safety function
+/// waits to be shown.
 fn any_alert(view: &View<'_>) -> bool {
-    view.run.fault.is_some() || view.run.warning.is_some() || view.run.drive_warning.is_some()
+    view.run.fault.is_some()
+        || view.run.warning.is_some()
+        || view.run.drive_warning.is_some()
+        || sf_requested(view) != 0
 }
 
-/// Which alerts stand (the fault's code, a PLC warning, a drive warning): a change while a
-/// message is up is a new alert, shown at once.
-pub(super) type AlertKey = (Option<u8>, bool, bool);
+/// Which alerts stand (the fault's code, a PLC warning, a drive warning, the requested
+/// safety functions): a change while a message is up is a new alert, shown at once.
+pub(super) type AlertKey = (Option<u8>, bool, bool, u16);
 
 fn alert_key(view: &View<'_>) -> AlertKey {
     (
         view.run.fault,
         view.run.warning.is_some(),
         view.run.drive_warning.is_some(),
+        sf_requested(view),
     )
+}
+
+fn sf_requested(view: &View<'_>) -> u16 {
+    view.run.safety.map_or(0, |s| s.requested & FUNCTION_MASK)
+}
+
+/// One safety function's status-row item (safety.md 10): `S:STO ON`, `S:SS1 OK`,
+/// `S:SOS NOK` (status 0 with a fault latched), `S:SS1 DEC 3.2s` (requested, not yet safe:
+/// the time since the request).
+fn safety_line(view: &View<'_>, bit: u8, s: &mut Line) {
+    let Some(sv) = view.run.safety else { return };
+    let Some(f) = SafetyFunction::from_bit(bit) else {
+        return;
+    };
+    let name = f.name();
+    if f == SafetyFunction::Sto {
+        push(s, format_args!("S:STO ON"));
+    } else if sv.status & f.mask() != 0 {
+        push(s, format_args!("S:{name} OK"));
+    } else if view.run.fault.is_some() {
+        push(s, format_args!("S:{name} NOK"));
+    } else {
+        let since = sv.since_ms.get(usize::from(bit)).copied().unwrap_or(0);
+        let ds = (view.now_ms.wrapping_sub(since) / 100).min(99_999);
+        push(s, format_args!("S:{name} DEC {}.{}s", ds / 10, ds % 10));
+    }
 }
 
 /// The prompt of a pending command or edit, or the transient message.
@@ -226,8 +258,9 @@ pub(super) fn status_text(ed: &Editor, view: &View<'_>, s: &mut Line) {
         return;
     }
     let tick = (view.now_ms / ROTATE_MS) as usize;
-    // The alerts present, in this order: fault, PLC warning, drive warning.
-    let mut alerts: heapless::Vec<u8, 3> = heapless::Vec::new();
+    // The alerts present, in this order: fault, PLC warning, drive warning, then one per
+    // requested safety function in bit order (3 + bit).
+    let mut alerts: heapless::Vec<u8, 15> = heapless::Vec::new();
     for (k, present) in [
         view.run.fault.is_some(),
         view.run.warning.is_some(),
@@ -238,6 +271,12 @@ pub(super) fn status_text(ed: &Editor, view: &View<'_>, s: &mut Line) {
     {
         if present {
             let _ = alerts.push(k as u8);
+        }
+    }
+    let requested = sf_requested(view);
+    for bit in 0..12u8 {
+        if requested & (1 << bit) != 0 {
+            let _ = alerts.push(3 + bit);
         }
     }
     if alerts.is_empty() {
@@ -252,9 +291,10 @@ pub(super) fn status_text(ed: &Editor, view: &View<'_>, s: &mut Line) {
         Some(1) => {
             warning_line(view.run.warning, s);
         }
-        Some(_) => {
+        Some(2) => {
             warning_line(view.run.drive_warning, s);
         }
+        Some(k) => safety_line(view, k - 3, s),
         None => main_hint(ed, view, s),
     }
 }

@@ -244,6 +244,7 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
         lcd: [Some(812), Some(-32768), None, None],
         warning: None,
         drive_warning: None,
+        safety: None,
     };
     let s = draw(&ed, &p, run, &[], 0);
     assert_eq!(s.row(0), "RUN  RUN    42.3Hz R");
@@ -388,6 +389,7 @@ fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
         lcd: [Some(12), Some(-5), Some(7), None],
         warning: None,
         drive_warning: None,
+        safety: None,
     };
     let rows: Vec<String> = (0..5)
         .map(|k| draw(&ed, &p, run, &[], k * 2000).to_string())
@@ -663,4 +665,89 @@ fn star_cancels_whatever_awaits_keys() {
     }
     assert_eq!(p.lines[0], Some(ins(Mnemonic::Sn2, None, 0)));
     assert!(!ed.modified());
+}
+
+/// `*` `5` (safety.md 4, 8): the needed-settings rule at the `SFR` line, and the signature
+/// of a program that uses the safety functions.
+#[test]
+fn star_5_checks_the_safety_rules_and_shows_the_signature() {
+    use shared_protocol::safety::{SafetyFunction, SafetySetting};
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[10] = Some(ins(Mnemonic::Fss, Some(Operand::K(0)), 40));
+    p.lines[11] = Some(ins(Mnemonic::Pss, Some(Operand::K(1)), 200));
+    p.lines[197] = Some(ins(
+        Mnemonic::Sfr,
+        Some(Operand::Sf(SafetyFunction::Ss2)),
+        0,
+    ));
+    press(&mut ed, &mut p, false, "*5");
+    assert_eq!(ed.message(), Some("197:SS2 needs ts2"));
+    assert_eq!(ed.line(), 197);
+    p.lines[12] = Some(ins(Mnemonic::Ts2, Some(Operand::K(2)), 100));
+    press(&mut ed, &mut p, false, "*5");
+    let mut s = shared_protocol::safety::SafetySettings::default();
+    s.set(SafetySetting::Fss, Some(40));
+    s.set(SafetySetting::Pss, Some(200));
+    s.set(SafetySetting::Ts2, Some(100));
+    let want = std::format!("PROGRAM OK SIG {:04X}", s.signature());
+    assert_eq!(ed.message(), Some(want.as_str()));
+    // A setting twice: at the second line.
+    p.lines[13] = Some(ins(Mnemonic::Fss, Some(Operand::K(3)), 41));
+    press(&mut ed, &mut p, false, "*5");
+    assert_eq!(ed.message(), Some("013:fss twice"));
+    // 16 columns: the signature first.
+    p.lines[13] = None;
+    let mut ed = Editor::new(16, 2);
+    press(&mut ed, &mut p, false, "*5");
+    let want = std::format!("OK SIG {:04X}", s.signature());
+    assert_eq!(ed.message(), Some(want.as_str()));
+}
+
+/// safety.md 10: one `S:` item per requested function in bit order after a latched code;
+/// `ON` for STO, `OK` in the safe state, `NOK` with a fault, `DEC n.ns` while stopping.
+#[test]
+fn the_status_row_rotates_one_item_per_requested_safety_function() {
+    let ed = Editor::new(20, 4);
+    let p = Program::default();
+    let mut since = [0u32; 12];
+    since[1] = 1_000; // SS1 requested at 1.0 s
+    let rows = |fault: Option<u8>, status: u16| -> Vec<String> {
+        (0..8)
+            .map(|k| {
+                let run = RunView {
+                    running: true,
+                    link_up: true,
+                    drive_state: DriveState::Run,
+                    fault,
+                    safety: Some(SafetyView {
+                        requested: 0b1011, // STO, SS1, SOS
+                        status,
+                        since_ms: since,
+                    }),
+                    ..RunView::default()
+                };
+                // 2 s per item; 4.2 s after the SS1 request at the first one.
+                let now = 4_200 + k * 2_000;
+                draw(&ed, &p, run, &[], now).row(3).trim_end().to_string()
+            })
+            .collect()
+    };
+    let r = rows(None, 0b1000);
+    assert!(r.contains(&"S:STO ON".to_string()), "{r:?}");
+    assert!(r.contains(&"S:SOS OK".to_string()), "{r:?}");
+    assert!(
+        r.iter()
+            .any(|l| l.starts_with("S:SS1 DEC ") && l.ends_with('s')),
+        "{r:?}"
+    );
+    let dec: Vec<_> = r.iter().filter(|l| l.starts_with("S:SS1 DEC")).collect();
+    // 3 items and the main hint rotate every 2 s: SS1 is item 1, shown at 10.2 s, 9.2 s
+    // after its request.
+    assert!(dec.contains(&&"S:SS1 DEC 9.2s".to_string()), "{dec:?}");
+    // With code 13 latched: the fault first, then the items; status 0 shows NOK.
+    let r = rows(Some(13), 0b0001);
+    assert!(r.contains(&"F13 over SLS limit".to_string()), "{r:?}");
+    assert!(r.contains(&"S:SS1 NOK".to_string()), "{r:?}");
+    assert!(r.contains(&"S:SOS NOK".to_string()), "{r:?}");
 }

@@ -7,6 +7,7 @@
 //! cells, so any `u8` index is in range and the hot loop needs no bounds check.
 
 use shared_protocol::program::Operand;
+use shared_protocol::safety::SafetyFunction;
 
 use super::io::{ScanInputs, OUTPUTS};
 use super::{B_COUNT, Q_COUNT};
@@ -17,12 +18,18 @@ const ADC_MAX: u16 = 1023;
 /// Cells per array: every `u8` index.
 pub const CELLS: usize = 256;
 
-/// Bit cells: B00-B99, then O00-O05, D00-D07, RDY, FLB.
+/// Bit cells: B00-B99, then O00-O05, D00-D07, RDY, FLB, the 12 safety status bits, SDC,
+/// and the 12 safety requests (written by `SFR`: 1 = requested, so that the cleared
+/// cells of RUN start request nothing; never read by the program).
 const B0: u8 = 0;
 const O0: u8 = B0 + B_COUNT as u8;
 const D0: u8 = O0 + OUTPUTS;
 const RDY: u8 = D0 + 8;
 const FLB: u8 = RDY + 1;
+const SF0: u8 = FLB + 1;
+const SF_COUNT: u8 = SafetyFunction::ALL.len() as u8;
+const SDC: u8 = SF0 + SF_COUNT;
+const SFR0: u8 = SDC + 1;
 
 /// Int cells: Q00-Q63, then A00-A03, COM, FRQ, UDC, IMX, FLT, DIR, IHW, UHW.
 const Q0: u8 = 0;
@@ -35,6 +42,10 @@ const FLT: u8 = IMX + 1;
 const DIR: u8 = FLT + 1;
 const IHW: u8 = DIR + 1;
 const UHW: u8 = IHW + 1;
+const SFT: u8 = UHW + 1;
+/// The safety request mask last reported (a cell, not a field of the VM: the VM's
+/// all-zero start state then stays one block the board's builder writes in place).
+const SF_REPORTED: u8 = SFT + 1;
 
 /// B, O, Q (what RUN clears and the program keeps between scans) and the scan's inputs.
 #[derive(Clone)]
@@ -65,6 +76,10 @@ impl Cells {
         }
         self.set_bit(RDY, d.ready);
         self.set_bit(FLB, d.fault_latched);
+        for n in 0..SF_COUNT {
+            self.set_bit(SF0 + n, d.sf_status & (1 << n) != 0);
+        }
+        self.set_bit(SDC, d.sf_sdc);
         for (cell, &a) in self
             .ints
             .iter_mut()
@@ -81,6 +96,21 @@ impl Cells {
         self.set_int(DIR, i16::from(d.dir_reverse));
         self.set_int(IHW, d.ihw.0);
         self.set_int(UHW, d.uhw.0);
+        self.set_int(SFT, d.sf_elapsed_ds.min(i16::MAX as u16) as i16);
+    }
+
+    /// The safety request mask the `SFR` lines have set (bit n = function n requested).
+    pub fn sf_requested(&self) -> u16 {
+        (0..SF_COUNT).fold(0, |m, n| m | u16::from(self.bit(SFR0 + n)) << n)
+    }
+
+    /// The request mask when it differs from the one last reported (0 at RUN start),
+    /// which it then becomes.
+    pub fn sf_changed(&mut self) -> Option<u16> {
+        let now = self.sf_requested();
+        let before = self.int(SF_REPORTED) as u16;
+        self.set_int(SF_REPORTED, now as i16);
+        (now != before).then_some(now)
     }
 
     fn set_bit(&mut self, cell: u8, v: bool) {
@@ -131,8 +161,15 @@ pub fn bit_cell(op: Operand) -> Option<u8> {
         Operand::B(n) if usize::from(n) < B_COUNT => Some(B0 + n),
         Operand::Rdy => Some(RDY),
         Operand::Flb => Some(FLB),
+        Operand::Sf(f) => Some(SF0 + f.bit()),
+        Operand::Sdc => Some(SDC),
         _ => None,
     }
+}
+
+/// The cell `SFR x` writes (1 = requested).
+pub fn sfr_cell(f: SafetyFunction) -> u8 {
+    SFR0 + f.bit()
 }
 
 /// The cell of a writable bit operand (O, B inside their ranges).
@@ -157,6 +194,7 @@ pub fn int_cell(op: Operand) -> Option<u8> {
         Operand::Dir => Some(DIR),
         Operand::Ihw => Some(IHW),
         Operand::Uhw => Some(UHW),
+        Operand::Sft => Some(SFT),
         _ => None,
     }
 }
@@ -180,11 +218,16 @@ mod tests {
         }
         bits.extend(bit_cell(Operand::Rdy));
         bits.extend(bit_cell(Operand::Flb));
+        bits.extend(bit_cell(Operand::Sdc));
+        for f in SafetyFunction::ALL {
+            bits.extend(bit_cell(Operand::Sf(f)));
+            bits.push(sfr_cell(f));
+        }
         let n = bits.len();
         bits.sort();
         bits.dedup();
         assert_eq!(bits.len(), n);
-        assert_eq!(n, 8 + 6 + 100 + 2);
+        assert_eq!(n, 8 + 6 + 100 + 2 + 1 + 24);
         let mut ints = vec![];
         for op in (0..=255).flat_map(|n| [Operand::A(n), Operand::Q(n), Operand::K(n)]) {
             ints.extend(int_cell(op));
@@ -198,6 +241,7 @@ mod tests {
             Operand::Dir,
             Operand::Ihw,
             Operand::Uhw,
+            Operand::Sft,
         ] {
             ints.extend(int_cell(op));
         }
@@ -205,7 +249,7 @@ mod tests {
         ints.sort();
         ints.dedup();
         assert_eq!(ints.len(), n);
-        assert_eq!(n, 4 + 64 + 8);
+        assert_eq!(n, 4 + 64 + 9);
         assert_eq!(q_cell(63), Some(63));
         assert_eq!(q_cell(64), None);
     }

@@ -27,7 +27,7 @@
 use shared_protocol::program::{Instruction, Mnemonic, Operand, Program, PLC_FIRST_LINE};
 use shared_protocol::units::Millis;
 
-use super::cells::{bit_cell, int_cell, q_cell, writable_bit_cell};
+use super::cells::{bit_cell, int_cell, q_cell, sfr_cell, writable_bit_cell};
 use super::io::LCD_FIELDS;
 use super::PLC_LINES;
 
@@ -142,6 +142,8 @@ pub enum Op {
     Ack {
         flags: u8,
     },
+    /// `SFR x`: the request cell of function x = !S0 (control bit 0 = requested).
+    Sfr(u8),
 }
 
 // The RAM figure in docs/vm.md depends on it.
@@ -337,7 +339,8 @@ impl Lowering {
             | Op::DivZero { .. }
             | Op::Lcd(_)
             | Op::Rev
-            | Op::Ack { .. } => {}
+            | Op::Ack { .. }
+            | Op::Sfr(_) => {}
         }
     }
 
@@ -450,6 +453,12 @@ impl Lowering {
             M::Rev if last_rev => Op::Rev,
             M::Rev => return None,
             M::Ack => Op::Ack { flags: 0 },
+            M::Sfr => match x? {
+                Operand::Sf(f) => Op::Sfr(sfr_cell(f)),
+                _ => return None,
+            },
+            // Safety settings: drive section only.
+            m if m.safety_setting().is_some() => return None,
             // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
             M::Pwf
             | M::Pr0
@@ -473,6 +482,8 @@ impl Lowering {
             | M::Fjm
             | M::Fmx
             | M::Frv => return None,
+            // The safety settings (matched above).
+            _ => return None,
         };
         Some(op)
     }

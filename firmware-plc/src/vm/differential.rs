@@ -26,9 +26,15 @@ fn drive_view() -> impl Strategy<Value = DriveView> {
         (any::<u16>(), any::<i16>(), any::<i16>(), any::<i16>()),
         (any::<u8>(), any::<bool>(), any::<bool>(), any::<bool>()),
         (any::<i16>(), any::<i16>()),
+        (any::<u16>(), any::<bool>(), any::<u16>()),
     )
         .prop_map(
-            |((com, frq, udc, imx), (flt, dir_reverse, ready, fault_latched), (ihw, uhw))| {
+            |(
+                (com, frq, udc, imx),
+                (flt, dir_reverse, ready, fault_latched),
+                (ihw, uhw),
+                (sf_status, sf_sdc, sf_elapsed_ds),
+            )| {
                 DriveView {
                     com,
                     frq: Decihertz(frq),
@@ -40,6 +46,9 @@ fn drive_view() -> impl Strategy<Value = DriveView> {
                     fault_latched,
                     ihw: CentiAmps(ihw),
                     uhw: shared_protocol::units::Volts(uhw),
+                    sf_status,
+                    sf_sdc,
+                    sf_elapsed_ds,
                 }
             },
         )
@@ -107,6 +116,7 @@ fn program_from(
             for (n, i) in lines {
                 p.lines[n] = Some(i);
             }
+            shared_protocol::program::testing::fix_safety(&mut p.lines);
             p
         }),
         dense.prop_map(|(first, lines)| {
@@ -114,6 +124,7 @@ fn program_from(
             for (slot, i) in p.lines[first..].iter_mut().zip(lines) {
                 *slot = Some(i);
             }
+            shared_protocol::program::testing::fix_safety(&mut p.lines);
             p
         }),
     ]
@@ -150,6 +161,7 @@ fn logic_instruction() -> BoxedStrategy<Instruction> {
             M::Imp,
             M::Ack,
             M::Rev,
+            M::Sfr,
             M::Eq,
             M::Lcd,
         ],
@@ -169,6 +181,10 @@ fn stack_block() -> impl Strategy<Value = Vec<Instruction>> {
         (0u8..100).prop_map(Operand::B),
         Just(Operand::Rdy),
         Just(Operand::Flb),
+        Just(Operand::Sdc),
+        (0u8..12).prop_map(|n| Operand::Sf(
+            shared_protocol::safety::SafetyFunction::from_bit_saturating(n)
+        )),
     ];
     let load = (prop::sample::select(vec![M::Ld, M::Ldc]), bit).prop_map(|(m, x)| ins(m, Some(x)));
     let pop = prop_oneof![

@@ -188,6 +188,7 @@ pub fn run(
                 }
             }
             Op::Rev => rev = Some(top(s)),
+            Op::Sfr(c) => set_bit!(c, !top(s)),
             Op::Ack { .. } => {
                 if timer(slot, |st| {
                     timer::rising_edge(st.flags, top(s), env.first_scan)

@@ -35,6 +35,13 @@ pub struct DriveView {
     pub ihw: CentiAmps,
     /// `UHW`: hardware overvoltage threshold in effect (`U>>`), V.
     pub uhw: Volts,
+    /// `LD STO` .. `LD SLA`: the safety functions' status bits (bit n = function n
+    /// requested and in its safe state, safety.md 5).
+    pub sf_status: u16,
+    /// `LD SDC`: a ramp function is in its delay or ramp phase.
+    pub sf_sdc: bool,
+    /// `LD SFT`: the safety stopwatch, 0.1 s.
+    pub sf_elapsed_ds: u16,
 }
 
 /// Everything one scan reads from the outside world.
@@ -81,6 +88,9 @@ pub struct ScanOutputs {
     pub rev_request: Option<bool>,
     /// An `ACK` saw a rising edge: acknowledge the drive's latched faults.
     pub ack_request: bool,
+    /// The safety request mask (bit n set = function n requested, i.e. its `SFR` control
+    /// bit is 0) when this scan changed it; 0 at RUN start, so only a change is reported.
+    pub sf_request: Option<u16>,
     /// The first run-time warning of this scan.
     pub warning: Option<Warning>,
 }

@@ -180,6 +180,9 @@ impl PlcVm {
             self.rev_reported = self.rev_state;
             out.rev_request = Some(self.rev_state == Direction::Reverse);
         }
+        if let Some(sf) = self.cells.sf_changed() {
+            out.sf_request = Some(sf);
+        }
         out.outputs = self.cells.outputs() & OUTPUT_MASK;
         self.scanned = true;
     }

@@ -82,6 +82,10 @@ pub struct ReferenceVm {
     /// Direction last reported in [`ScanOutputs::rev_request`]; `None` at RUN start, so
     /// the first `REV` always reports (the drive may hold an earlier RUN's direction).
     rev_reported: Option<bool>,
+    /// The safety request mask (`SFR`: bit n set = function n requested) and the one last
+    /// reported.
+    sf_requested: u16,
+    sf_reported: u16,
 }
 
 impl Default for ReferenceVm {
@@ -104,6 +108,8 @@ impl ReferenceVm {
             first_scan: true,
             rev_state: None,
             rev_reported: None,
+            sf_requested: 0,
+            sf_reported: 0,
         }
     }
 
@@ -170,6 +176,10 @@ impl ReferenceVm {
         if self.rev_state.is_some() && self.rev_state != self.rev_reported {
             self.rev_reported = self.rev_state;
             out.rev_request = self.rev_state;
+        }
+        if self.sf_requested != self.sf_reported {
+            self.sf_reported = self.sf_requested;
+            out.sf_request = Some(self.sf_requested);
         }
         out.outputs = self.mem.o & OUTPUT_MASK;
         self.first_scan = false;
@@ -327,6 +337,15 @@ impl ReferenceVm {
                     }
                 }
             }
+            M::Sfr => {
+                if let Some(Operand::Sf(f)) = x {
+                    if regs.top() {
+                        self.sf_requested &= !f.mask();
+                    } else {
+                        self.sf_requested |= f.mask();
+                    }
+                }
+            }
             // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
             M::Pwf
             | M::Pr0
@@ -350,6 +369,7 @@ impl ReferenceVm {
             | M::Fjm
             | M::Fmx
             | M::Frv => {}
+            _ => {}
         }
     }
 }
@@ -363,6 +383,8 @@ fn read_bit(mem: &Memory, env: &Env<'_>, op: Operand) -> Option<bool> {
         Operand::B(n) => mem.b.get(usize::from(n)).copied(),
         Operand::Rdy => Some(inputs.drive.ready),
         Operand::Flb => Some(inputs.drive.fault_latched),
+        Operand::Sf(f) => Some(inputs.drive.sf_status & f.mask() != 0),
+        Operand::Sdc => Some(inputs.drive.sf_sdc),
         _ => None,
     }
 }
@@ -383,6 +405,7 @@ fn read_int(mem: &Memory, env: &Env<'_>, op: Operand, constant: u16) -> Option<i
         Operand::Uhw => Some(d.uhw.0),
         Operand::Flt => Some(i16::from(d.flt)),
         Operand::Dir => Some(i16::from(d.dir_reverse)),
+        Operand::Sft => Some(d.sf_elapsed_ds.min(i16::MAX as u16) as i16),
         _ => None,
     }
 }

@@ -839,3 +839,81 @@ fn out_of_range_operands_are_ignored() {
     assert_eq!(out.q_dirty, 0);
     assert_eq!(out.lcd[0], Some(0));
 }
+
+// ---- safety functions (safety.md 5) ------------------------------------------------
+
+use shared_protocol::safety::SafetyFunction as F;
+
+#[test]
+fn sfr_requests_while_its_control_bit_is_0_and_reports_changes_only() {
+    // D00 = curtain clear (1 = not requested): LD D00 / SFR SS1, S unchanged after it.
+    let lines = vec![
+        l(M::Ld, X::D(0)),
+        l(M::Sfr, X::Sf(F::Ss1)),
+        l(M::Wr, X::O(0)),
+    ];
+    let mut r = Rig::new(&lines);
+    r.d(0, true);
+    let out = r.scan();
+    assert_eq!(
+        out.sf_request, None,
+        "all 1 = nothing requested, as at RUN start"
+    );
+    assert!(out.output(0), "S unchanged");
+    r.d(0, false);
+    assert_eq!(r.scan().sf_request, Some(F::Ss1.mask()));
+    assert_eq!(r.scan().sf_request, None);
+    r.d(0, true);
+    assert_eq!(r.scan().sf_request, Some(0));
+    // A broken wire reads 0: requested (closed-circuit principle).
+    r.d(0, false);
+    assert_eq!(r.scan().sf_request, Some(F::Ss1.mask()));
+    // A new RUN: every control bit back to 1; the first scan reports the request again.
+    r.vm.start(Millis(10));
+    assert_eq!(r.scan().sf_request, Some(F::Ss1.mask()));
+}
+
+#[test]
+fn the_last_sfr_of_a_function_wins_and_functions_are_independent() {
+    let lines = vec![
+        l(M::Ld, X::D(0)),
+        l(M::Sfr, X::Sf(F::Sto)),
+        l(M::Sfr, X::Sf(F::Sla)),
+        l(M::Ldc, X::D(0)),
+        l(M::Sfr, X::Sf(F::Sto)),
+    ];
+    let mut r = Rig::new(&lines);
+    r.d(0, true);
+    // STO: the second SFR (S0 = !D00 = 0) requests it; SLA follows D00 (not requested).
+    assert_eq!(r.scan().sf_request, Some(F::Sto.mask()));
+    r.d(0, false);
+    assert_eq!(r.scan().sf_request, Some(F::Sla.mask()));
+}
+
+#[test]
+fn status_bits_sdc_and_the_stopwatch_are_read_only_operands() {
+    let lines = vec![
+        l(M::Ld, X::Sf(F::Sos)),
+        l(M::Wr, X::O(0)),
+        l(M::Ldc, X::Sf(F::Sl2)),
+        l(M::Wr, X::O(1)),
+        l(M::Ld, X::Sdc),
+        l(M::Wr, X::O(2)),
+        l(M::Ld, X::Sft),
+        n(M::Lcd),
+    ];
+    let mut r = Rig::new(&lines);
+    r.inputs.drive.sf_status = F::Sos.mask() | F::Sl2.mask();
+    r.inputs.drive.sf_sdc = true;
+    r.inputs.drive.sf_elapsed_ds = 150;
+    let out = r.scan();
+    assert_eq!(out.outputs & 0b111, 0b101);
+    assert_eq!(out.lcd[0], Some(150));
+    r.inputs.drive = DriveView {
+        sf_elapsed_ds: u16::MAX,
+        ..DriveView::default()
+    };
+    let out = r.scan();
+    assert_eq!(out.outputs & 0b111, 0b010);
+    assert_eq!(out.lcd[0], Some(i16::MAX), "saturates");
+}

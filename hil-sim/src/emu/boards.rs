@@ -209,6 +209,8 @@ pub mod drive_pins {
     pub const AUX: &str = "PB12";
     /// Brake chopper gate (GPIO out, active high).
     pub const BRAKE: (u8, u8) = (1, 5);
+    /// The hardware STO input (safety.md 6): PA11 = TIM1_BKIN2.
+    pub const STO_IN: (u8, u8) = (0, 11);
     /// The link's wires: TX and RX of the drive.
     pub const LINK_TX: &str = "PB6";
     pub const LINK_RX: &str = "PB7";
@@ -221,7 +223,16 @@ impl DriveBoard {
 }
 
 impl PinReader for DriveBoard {
-    fn external(&mut self, _: u8, _: u8, _: Cycles, _: &dyn Fn(u8, u8) -> Drive) -> External {
+    fn external(&mut self, port: u8, pin: u8, _: Cycles, _: &dyn Fn(u8, u8) -> Drive) -> External {
+        // STO_IN (PA11): driven high while not requested; low (or a broken wire, read
+        // low through the image's pull-down) requests STO.
+        if (port, pin) == drive_pins::STO_IN {
+            return if self.rig.borrow().plant.sto_in_low() {
+                External::Low
+            } else {
+                External::High
+            };
+        }
         External::Floating
     }
 }

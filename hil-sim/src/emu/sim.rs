@@ -184,8 +184,10 @@ impl EmuSim {
             )
         })?;
         let rig = Rc::new(RefCell::new(Rig::new(Plant::new(scenario.rig))));
-        let drive = Mcu::new("drive", drive_image, Box::new(DriveBoard::new(rig.clone())))
+        let mut drive = Mcu::new("drive", drive_image, Box::new(DriveBoard::new(rig.clone())))
             .with_context(|| format!("drive image {}", drive_elf.display()))?;
+        // STO_IN is high (not requested) until a scenario sets it (safety.md 11).
+        drive.soc_mut().set_tim1_bkin2(true, 0);
         let io = Rc::new(RefCell::new(PlcIo::default()));
         let mut plc = Mcu::load("plc", plc_elf, Box::new(PlcBoard::new(io.clone())))
             .with_context(|| format!("PLC image {}", plc_elf.display()))?;
@@ -404,6 +406,12 @@ impl EmuSim {
                     }
                 }
                 Action::Set(Input::Aux, v) => self.rig.borrow_mut().aux_counts = (v << 2).min(4095),
+                Action::Set(Input::StoIn, v) => {
+                    self.rig.borrow_mut().plant.set_sto_input(v == 0);
+                    // The net also drives TIM1_BKIN2 of the real image (PA11).
+                    let now = ns_to_cycles(self.now_ns);
+                    self.drive.soc_mut().set_tim1_bkin2(v != 0, now);
+                }
                 Action::KeyDown(k) => self.set_key(k, true),
                 Action::KeyUp(k) => self.set_key(k, false),
                 Action::Plant(c) => c.apply(self.rig.borrow_mut().plant.params_mut()),
@@ -471,6 +479,13 @@ impl EmuSim {
                 plc: None,
                 drive: st.warning,
             },
+            // From the drive's status on the wire; the turns are the drive core's own
+            // (not on the wire): `emu` records 0.
+            sf_req: st.sf_requested,
+            sf_st: st.sf_status,
+            sdc: st.sf_sdc,
+            sft_ds: st.sf_elapsed_ds,
+            turns_e4: 0,
         }
     }
 

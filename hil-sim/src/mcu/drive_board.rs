@@ -64,6 +64,16 @@ impl DriveBoard {
         self.drain();
     }
 
+    /// The board reads `STO_IN` every millisecond, before the tick (safety.md 6).
+    pub fn set_sto_input(&mut self, low: bool) {
+        self.app.set_sto_input(low);
+    }
+
+    /// The safety monitor's commanded field turns since RUN start, 10⁻⁴ turn.
+    pub fn turns_e4(&self) -> i64 {
+        self.app.core().safety().turns_e4()
+    }
+
     /// TIM1 break interrupt with the comparators at `levels`.
     pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
         self.app.break_fired(levels)

@@ -174,6 +174,9 @@ pub struct Plant {
     /// TIM1's break input cleared MOE: all legs float until software sets MOE again
     /// ([`Plant::release_break`]), which it cannot while a comparator is high.
     hw_break: bool,
+    /// The drive board's `STO_IN` is low (safety.md 6): TIM1's second break input
+    /// (BKIN2) holds MOE cleared, without software and without an interrupt.
+    sto_in_low: bool,
     /// TIM1_SR.BIF: set while the break input is active, cleared by software only once
     /// it is not.
     break_flag: bool,
@@ -212,6 +215,7 @@ impl Plant {
             period_ns: 100_000,
             tau_ns: 0,
             hw_break: false,
+            sto_in_low: false,
             break_flag: false,
             comparators: Comparators::new(params.board, params.hw_defaults.thresholds()),
             comparator_levels: ComparatorLevels::default(),
@@ -304,9 +308,23 @@ impl Plant {
         self.comparator_levels.0.iter().any(|l| *l)
     }
 
-    /// Software set MOE with the break input inactive: the legs follow the gates again.
+    /// `STO_IN` (safety.md 6, 11): low opens the inverter at once (BKIN2, like the
+    /// comparators' break, in the same PWM period), and MOE cannot be set while it is.
+    pub fn set_sto_input(&mut self, low: bool) {
+        self.sto_in_low = low;
+        if low {
+            self.hw_break = true;
+        }
+    }
+
+    /// `STO_IN` is low (BKIN2 active).
+    pub fn sto_in_low(&self) -> bool {
+        self.sto_in_low
+    }
+
+    /// Software set MOE with both break inputs inactive: the legs follow the gates again.
     pub fn release_break(&mut self) {
-        if !self.break_input_active() {
+        if !self.break_input_active() && !self.sto_in_low {
             self.hw_break = false;
         }
     }
@@ -573,6 +591,9 @@ impl Plant {
         if self.break_input_active() {
             self.hw_break = true;
             self.break_flag = true;
+        }
+        if self.sto_in_low {
+            self.hw_break = true;
         }
     }
 

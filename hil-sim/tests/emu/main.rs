@@ -10,5 +10,6 @@ mod boot;
 mod link;
 mod motor;
 mod power_stage;
+mod safety;
 mod storage;
 mod trips;

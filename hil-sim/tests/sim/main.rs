@@ -16,6 +16,7 @@ mod link_latency;
 mod motor_program;
 mod overmodulation;
 mod reversal;
+mod safety;
 mod shipped_scenarios;
 mod trips;
 mod warnings;

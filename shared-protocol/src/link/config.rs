@@ -52,8 +52,9 @@ impl LinkConfig {
 
     /// Retransmission timeout: the longest round trip on a clean link (a largest PLC
     /// frame, a drive status that was already on the wire, then the drive's ack frame:
-    /// 140 byte times) plus 2 ms for the caller's polling and processing.
+    /// 160 byte times since the status carries the safety fields, protocol 4) plus 2 ms
+    /// for the caller's polling and processing.
     pub const fn rto_us(&self) -> u64 {
-        140 * self.byte_time_ns() / 1000 + 2_000
+        160 * self.byte_time_ns() / 1000 + 2_000
     }
 }

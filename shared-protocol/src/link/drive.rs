@@ -61,6 +61,10 @@ pub enum DriveEvent {
         reverse: bool,
     },
     AckFault,
+    /// The PLC's safety request mask (bit n = function n requested).
+    SafetyRequest {
+        requested: u16,
+    },
     /// A downloaded section passed the CRC and the verifier: take it with
     /// [`DriveLink::take_program`].
     ProgramAccepted,
@@ -253,6 +257,9 @@ impl DriveLink {
             PlcMsg::Stop => self.push_event(DriveEvent::Stop),
             PlcMsg::Direction { reverse } => self.push_event(DriveEvent::Direction { reverse }),
             PlcMsg::AckFault => self.push_event(DriveEvent::AckFault),
+            PlcMsg::SafetyRequest { requested } => {
+                self.push_event(DriveEvent::SafetyRequest { requested })
+            }
             PlcMsg::DownloadBegin { crc } => {
                 self.download.crc = crc;
                 self.download.next_line = 0;
@@ -456,7 +463,7 @@ impl DriveLink {
         let status = match self.last_status {
             _ if now_due => AT_ONCE,
             None => AT_ONCE,
-            Some((s, _)) if s.state != self.status.state || s.fault != self.status.fault => AT_ONCE,
+            Some((s, _)) if s.urgent_key() != self.status.urgent_key() => AT_ONCE,
             Some((_, t)) => Micros(t.0.saturating_add(self.s.config().status_us)),
         };
         let loss = self.s.loss_deadline(self.s.config().drive_timeout_us);
@@ -515,8 +522,7 @@ impl DriveLink {
         let status_due = match self.last_status {
             None => true,
             Some((s, t)) => {
-                s.state != self.status.state
-                    || s.fault != self.status.fault
+                s.urgent_key() != self.status.urgent_key()
                     || now.0.saturating_sub(t.0) >= self.s.config().status_us
             }
         };

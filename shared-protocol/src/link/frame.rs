@@ -193,18 +193,27 @@ mod tests {
             ov_hw_v: 45,
             ..Default::default()
         };
-        assert!(roundtrip(DriveMsg::Status(s)) <= 24);
-        // With a warning: the largest status. The retransmission timeout's 140 byte times
-        // hold a largest PLC frame (99), this status (32) and an ack (9).
+        // The safety fields add 6 bytes at their idle values (protocol 4).
+        assert!(roundtrip(DriveMsg::Status(s)) <= 30);
+        // With a warning and every safety field at its widest: the largest status. The
+        // retransmission timeout's 160 byte times hold a largest PLC frame (99), this
+        // status (46) and an ack (9).
         let w = DriveStatus {
             warning: Some(crate::link::DriveWarning::PwfClamped {
                 line: 149,
                 requested: -32768,
                 applied_hz: 20000,
             }),
+            sf_requested: 0x0FFF,
+            sf_status: 0x0FFF,
+            sf_sdc: true,
+            sf_elapsed_ds: 32767,
+            sf_signature: 0xFFFF,
+            sto_in_low: true,
             ..s
         };
-        assert!(roundtrip(DriveMsg::Status(w)) <= 32);
+        let largest = roundtrip(DriveMsg::Status(w));
+        assert!(largest <= 46, "{largest}");
         let data = heapless::Vec::from_slice(&[0xFF; 64]).unwrap();
         assert!(
             roundtrip(PlcMsg::DownloadChunk {

@@ -12,7 +12,9 @@ pub use crate::fault::{fault_name, fault_text, FaultCode};
 /// Protocol version stated in the handshake; bump on any incompatible wire change.
 /// 2: the status carries the hardware thresholds and the drive's run-time warning.
 /// 3: `DriveMsg::AckRefused` (why the drive refused an acknowledgement).
-pub const PROTOCOL_VERSION: u16 = 3;
+/// 4: the safety functions (safety.md 9): `PlcMsg::SafetyRequest`, the status's `sf_*`
+/// and `sto_in_low` fields, fault codes 9-16.
+pub const PROTOCOL_VERSION: u16 = 4;
 
 /// Most Q writes carried by one frame (a scan that writes more sends several frames).
 pub const MAX_Q_PER_FRAME: usize = 8;
@@ -56,6 +58,9 @@ pub enum PlcMsg {
     },
     /// Reliable: all chunks sent; the drive checks, verifies and answers `DownloadResult`.
     DownloadEnd,
+    /// Reliable, newest wins: the safety functions the PLC program requests (bit n set =
+    /// function n requested, safety.md 2 and 9).
+    SafetyRequest { requested: u16 },
 }
 
 impl PlcMsg {
@@ -92,6 +97,33 @@ pub struct DriveStatus {
     pub ov_hw_v: i16,
     /// The drive's run-time warning while it lasts (none: `None`).
     pub warning: Option<DriveWarning>,
+    /// Requested safety functions: the PLC's mask, plus bit 0 while `STO_IN` is low.
+    pub sf_requested: u16,
+    /// Safety status bits (bit n = function n requested and in its safe state).
+    pub sf_status: u16,
+    /// A ramp function is in its delay or ramp phase (`SDC`).
+    pub sf_sdc: bool,
+    /// The safety stopwatch (`SFT`), 0.1 s.
+    pub sf_elapsed_ds: u16,
+    /// The parameter signature of the drive section the drive accepted (safety.md 8).
+    pub sf_signature: u16,
+    /// The hardware `STO_IN` input is low (STO requested).
+    pub sto_in_low: bool,
+}
+
+impl DriveStatus {
+    /// The fields whose change sends a status at once: state, fault and the safety
+    /// request, status and input (safety.md 9).
+    pub fn urgent_key(&self) -> (DriveState, Option<FaultCode>, u16, u16, bool, bool) {
+        (
+            self.state,
+            self.fault,
+            self.sf_requested,
+            self.sf_status,
+            self.sf_sdc,
+            self.sto_in_low,
+        )
+    }
 }
 
 /// A run-time warning of the drive: nothing latched, the drive goes on. Sent in every
@@ -182,6 +214,9 @@ pub fn verify_kind_code(kind: &crate::program::VerifyErrorKind) -> u8 {
         K::ConstantOutOfRange { .. } => 8,
         K::ConstantWithoutK { .. } => 9,
         K::StackUnderflow { .. } => 10,
+        K::SettingTwice { .. } => 11,
+        K::SafetyNeeds { .. } => 12,
+        K::SafetyNeedsSine { .. } => 13,
     }
 }
 
@@ -260,6 +295,12 @@ mod tests {
         oc_hw_ca: i16,
         ov_hw_v: i16,
         warning: Option<DriveWarning>,
+        sf_requested: u16,
+        sf_status: u16,
+        sf_sdc: bool,
+        sf_elapsed_ds: u16,
+        sf_signature: u16,
+        sto_in_low: bool,
     }
 
     #[derive(Serialize)]
@@ -305,6 +346,12 @@ mod tests {
                 oc_hw_ca: s.oc_hw_ca,
                 ov_hw_v: s.ov_hw_v,
                 warning: s.warning,
+                sf_requested: s.sf_requested,
+                sf_status: s.sf_status,
+                sf_sdc: s.sf_sdc,
+                sf_elapsed_ds: s.sf_elapsed_ds,
+                sf_signature: s.sf_signature,
+                sto_in_low: s.sto_in_low,
             };
             assert_eq!(
                 postcard::to_slice(&s, &mut typed).unwrap(),
@@ -331,7 +378,7 @@ mod tests {
     #[test]
     fn an_undefined_fault_code_makes_the_frame_unparsable() {
         let mut wire = [0u8; 128];
-        for code in [0u8, 9, 200] {
+        for code in [0u8, 17, 200] {
             let frame = Frame {
                 seq: 0,
                 ack: 0,
@@ -359,7 +406,7 @@ mod tests {
         .len();
         let fault_at = 2 + 1 + 1; // seq, ack, message type, state
         assert_eq!(raw[fault_at], 0);
-        raw[fault_at] = 9;
+        raw[fault_at] = 17;
         let crc = crate::link::frame::CRC.checksum(&raw[..ok]);
         raw[ok..ok + 4].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(

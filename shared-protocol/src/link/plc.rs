@@ -83,6 +83,7 @@ enum Pending {
     Stop,
     Direction(bool),
     AckFault,
+    Safety(u16),
     DownloadBegin,
     /// First line of the chunk.
     DownloadChunk(u8),
@@ -104,6 +105,8 @@ pub struct PlcLink {
     pending: heapless::Vec<Pending, PENDING>,
     q_shadow: [Option<i16>; Q_COUNT],
     direction: Option<bool>,
+    /// The safety request mask last set (resent after each handshake).
+    safety: Option<u16>,
     section: [u8; SECTION_BYTES],
     section_crc: u32,
     download_active: bool,
@@ -123,6 +126,7 @@ impl PlcLink {
             pending: heapless::Vec::new(),
             q_shadow: [None; Q_COUNT],
             direction: None,
+            safety: None,
             section: [0; SECTION_BYTES],
             section_crc: 0,
             download_active: false,
@@ -284,6 +288,24 @@ impl PlcLink {
         self.command(Pending::Direction(reverse))
     }
 
+    /// The safety functions requested (bit n = function n, safety.md 9): reliable, in
+    /// order with the other commands, and the newest wins: a request still waiting is
+    /// removed and this one appended. Remembered while the link is down and resent after
+    /// each handshake.
+    pub fn set_safety_request(&mut self, requested: u16) -> Result<(), CommandError> {
+        self.safety = Some(requested);
+        if !self.is_up() {
+            return Ok(());
+        }
+        self.pending.retain(|p| !matches!(p, Pending::Safety(_)));
+        self.command(Pending::Safety(requested))
+    }
+
+    /// The safety request mask last set ([`Self::set_safety_request`]).
+    pub fn safety_request(&self) -> Option<u16> {
+        self.safety
+    }
+
     /// Send a drive section: `DownloadBegin`, chunks of 16 lines, `DownloadEnd`; the
     /// drive answers with [`PlcEvent::Download`].
     pub fn start_download(&mut self, section: &DriveSection) -> Result<(), CommandError> {
@@ -386,7 +408,8 @@ impl PlcLink {
         // go again below, the rest was reported dropped at the loss.
         for _ in self.s.start(now) {}
         self.pending.clear();
-        // At most 64 Q and a direction in an empty queue of 96: the pushes cannot fail.
+        // At most 64 Q, a direction and a safety mask in an empty queue of 96: the pushes
+        // cannot fail.
         for (addr, v) in self.q_shadow.iter().enumerate() {
             if let Some(value) = *v {
                 let _ = self.pending.push(Pending::Q(QValue {
@@ -397,6 +420,9 @@ impl PlcLink {
         }
         if let Some(d) = self.direction {
             let _ = self.pending.push(Pending::Direction(d));
+        }
+        if let Some(m) = self.safety {
+            let _ = self.pending.push(Pending::Safety(m));
         }
         self.push_event(PlcEvent::Connected);
     }
@@ -558,6 +584,7 @@ impl PlcLink {
                 Pending::Stop => PlcMsg::Stop,
                 Pending::Direction(reverse) => PlcMsg::Direction { reverse },
                 Pending::AckFault => PlcMsg::AckFault,
+                Pending::Safety(requested) => PlcMsg::SafetyRequest { requested },
                 Pending::DownloadBegin => PlcMsg::DownloadBegin {
                     crc: self.section_crc,
                 },

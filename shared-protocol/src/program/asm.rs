@@ -211,6 +211,12 @@ pub fn parse_mnemonic(s: &str) -> Option<Mnemonic> {
 /// The operand a text spells (case-insensitive): an area letter with exactly two digits
 /// (the index may be outside the area: range checks are the verifier's), or a name.
 pub fn parse_operand(s: &str) -> Option<Operand> {
+    if let Some(f) = crate::safety::SafetyFunction::ALL
+        .into_iter()
+        .find(|f| f.name().eq_ignore_ascii_case(s))
+    {
+        return Some(Operand::Sf(f));
+    }
     if let Some(c) = OperandClass::ALL
         .into_iter()
         .find(|c| !c.is_area() && c.name().eq_ignore_ascii_case(s))
@@ -531,7 +537,7 @@ mod tests {
         );
         assert_eq!(
             e("150 LDC K00 0001"),
-            "1:9: LDC needs a bit operand (D, O, B, RDY, FLB), K00 is an int"
+            "1:9: LDC needs a bit operand (D, O, B, RDY, FLB, STO..SLA, SDC), K00 is an int"
         );
         assert_eq!(
             e("003 PWF K00 0487"),

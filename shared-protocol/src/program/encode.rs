@@ -13,7 +13,9 @@
 //! | 13-0  | constant | 0..=9999; must be 0 unless the operand is `K` |
 //!
 //! Named operand codes (kind 7): 0 `COM`, 1 `VLT`, 2 `AMP`, 3 `PW1`, 4 `PW3`, 5 `PW5`,
-//! 6 `FRQ`, 7 `UDC`, 8 `IMX`, 9 `FLT`, 10 `DIR`, 11 `RDY`, 12 `FLB`, 13 `IHW`, 14 `UHW`.
+//! 6 `FRQ`, 7 `UDC`, 8 `IMX`, 9 `FLT`, 10 `DIR`, 11 `RDY`, 12 `FLB`, 13 `IHW`, 14 `UHW`,
+//! then the safety operands (safety.md, appended): 15 + n the safety function of bit n
+//! (15 `STO` .. 26 `SLA`), 27 `SDC`, 28 `SFT`.
 //!
 //! Example: `LD K00 0100` = `01 A0 00 64`; `150 LET B03` = `0B 60 C0 00`.
 //!
@@ -26,6 +28,7 @@
 
 use super::model::{Instruction, Mnemonic, Operand, CONSTANT_MAX};
 use super::operand::OperandClass;
+use crate::safety::SafetyFunction;
 
 /// Bytes per encoded line.
 pub const LINE_BYTES: usize = 4;
@@ -40,7 +43,7 @@ const CONSTANT_MASK: u32 = 0x3FFF;
 const INDEX_MAX: u32 = 99;
 
 /// Named operands by their code (kind 7).
-const NAMED: [Operand; 15] = [
+const NAMED: [Operand; 29] = [
     Operand::Com,
     Operand::Vlt,
     Operand::Amp,
@@ -56,6 +59,20 @@ const NAMED: [Operand; 15] = [
     Operand::Flb,
     Operand::Ihw,
     Operand::Uhw,
+    Operand::Sf(SafetyFunction::Sto),
+    Operand::Sf(SafetyFunction::Ss1),
+    Operand::Sf(SafetyFunction::Ss2),
+    Operand::Sf(SafetyFunction::Sos),
+    Operand::Sf(SafetyFunction::Sl1),
+    Operand::Sf(SafetyFunction::Sl2),
+    Operand::Sf(SafetyFunction::Sl3),
+    Operand::Sf(SafetyFunction::Sl4),
+    Operand::Sf(SafetyFunction::Sli),
+    Operand::Sf(SafetyFunction::Sdp),
+    Operand::Sf(SafetyFunction::Sdn),
+    Operand::Sf(SafetyFunction::Sla),
+    Operand::Sdc,
+    Operand::Sft,
 ];
 
 /// Why bytes are not a line.
@@ -242,7 +259,7 @@ mod tests {
             decode_line(&[0x01, 0x39, 0x00, 0x00]),
             Err(DecodeError::Index(100))
         );
-        // Named code 13 is IHW; 15 is the first unused one.
+        // Named code 13 is IHW; 29 is the first unused one (15-28: safety.md's operands).
         assert_eq!(
             decode_line(&[0x01, 0xE3, 0x40, 0x00]),
             Ok(Instruction {
@@ -253,7 +270,15 @@ mod tests {
         );
         assert_eq!(
             decode_line(&[0x01, 0xE3, 0xC0, 0x00]),
-            Err(DecodeError::UnknownNamedOperand(15))
+            Ok(Instruction {
+                mnemonic: Mnemonic::Ld,
+                operand: Some(Operand::Sf(SafetyFunction::Sto)),
+                constant: 0
+            })
+        );
+        assert_eq!(
+            decode_line(&[0x01, 0xE7, 0x40, 0x00]),
+            Err(DecodeError::UnknownNamedOperand(29))
         );
         // K00 with constant 10000.
         assert_eq!(

@@ -4,6 +4,8 @@
 //! storage, the link download, and both VMs. A [`Program`] can hold anything the types
 //! allow; only [`super::verify`] decides whether it may run.
 
+use crate::safety::{SafetyFunction, SafetySetting};
+
 /// Number of program lines (000-999).
 pub const LINES: usize = 1000;
 /// First line of the PLC section; lines below it are the drive section.
@@ -76,6 +78,8 @@ pub enum Mnemonic {
     Lcd = 27,
     Rev = 28,
     Ack = 29,
+    /// `SFR x`: safety function x's control bit = S0 (0 = requested, safety.md 5).
+    Sfr = 30,
     // Drive section.
     Pwf = 40,
     Pr0 = 41,
@@ -109,11 +113,37 @@ pub enum Mnemonic {
     IMaxHw = 60,
     /// `U>>`: hardware overvoltage threshold (the source's DC-link trimmer), V.
     UMaxHw = 61,
+    /// The safety settings (safety.md 4), in signature order: see
+    /// [`crate::safety::SafetySetting`] for each one's meaning and unit.
+    Fss = 62,
+    Pss = 63,
+    Trd = 64,
+    Ard = 65,
+    Tel = 66,
+    Ts1 = 67,
+    Ts2 = 68,
+    Fl1 = 69,
+    Fl2 = 70,
+    Fl3 = 71,
+    Fl4 = 72,
+    Tl1 = 73,
+    Tl2 = 74,
+    Tl3 = 75,
+    Tl4 = 76,
+    Pli = 77,
+    Tli = 78,
+    Tdi = 79,
+    Aap = 80,
+    Adp = 81,
+    Aan = 82,
+    Adn = 83,
+    Tla = 84,
+    Asr = 85,
 }
 
 impl Mnemonic {
     /// All mnemonics, in the order the editor offers them.
-    pub const ALL: [Mnemonic; 51] = [
+    pub const ALL: [Mnemonic; 76] = [
         Mnemonic::Ld,
         Mnemonic::Ldc,
         Mnemonic::Wr,
@@ -143,6 +173,7 @@ impl Mnemonic {
         Mnemonic::Lcd,
         Mnemonic::Rev,
         Mnemonic::Ack,
+        Mnemonic::Sfr,
         Mnemonic::Pwf,
         Mnemonic::Pr0,
         Mnemonic::Pr1,
@@ -165,6 +196,30 @@ impl Mnemonic {
         Mnemonic::Fjm,
         Mnemonic::Fmx,
         Mnemonic::Frv,
+        Mnemonic::Fss,
+        Mnemonic::Pss,
+        Mnemonic::Trd,
+        Mnemonic::Ard,
+        Mnemonic::Tel,
+        Mnemonic::Ts1,
+        Mnemonic::Ts2,
+        Mnemonic::Fl1,
+        Mnemonic::Fl2,
+        Mnemonic::Fl3,
+        Mnemonic::Fl4,
+        Mnemonic::Tl1,
+        Mnemonic::Tl2,
+        Mnemonic::Tl3,
+        Mnemonic::Tl4,
+        Mnemonic::Pli,
+        Mnemonic::Tli,
+        Mnemonic::Tdi,
+        Mnemonic::Aap,
+        Mnemonic::Adp,
+        Mnemonic::Aan,
+        Mnemonic::Adn,
+        Mnemonic::Tla,
+        Mnemonic::Asr,
     ];
 
     /// The binary encoding's code of this mnemonic (its `repr(u8)` discriminant).
@@ -210,6 +265,7 @@ impl Mnemonic {
             Mnemonic::Lcd => "LCD",
             Mnemonic::Rev => "REV",
             Mnemonic::Ack => "ACK",
+            Mnemonic::Sfr => "SFR",
             Mnemonic::Pwf => "PWF",
             Mnemonic::Pr0 => "PR0",
             Mnemonic::Pr1 => "PR1",
@@ -232,6 +288,68 @@ impl Mnemonic {
             Mnemonic::Frv => "frv",
             Mnemonic::IMaxHw => "I>>",
             Mnemonic::UMaxHw => "U>>",
+            Mnemonic::Fss => "fss",
+            Mnemonic::Pss => "pss",
+            Mnemonic::Trd => "trd",
+            Mnemonic::Ard => "ard",
+            Mnemonic::Tel => "tel",
+            Mnemonic::Ts1 => "ts1",
+            Mnemonic::Ts2 => "ts2",
+            Mnemonic::Fl1 => "fl1",
+            Mnemonic::Fl2 => "fl2",
+            Mnemonic::Fl3 => "fl3",
+            Mnemonic::Fl4 => "fl4",
+            Mnemonic::Tl1 => "tl1",
+            Mnemonic::Tl2 => "tl2",
+            Mnemonic::Tl3 => "tl3",
+            Mnemonic::Tl4 => "tl4",
+            Mnemonic::Pli => "pli",
+            Mnemonic::Tli => "tli",
+            Mnemonic::Tdi => "tdi",
+            Mnemonic::Aap => "aap",
+            Mnemonic::Adp => "adp",
+            Mnemonic::Aan => "aan",
+            Mnemonic::Adn => "adn",
+            Mnemonic::Tla => "tla",
+            Mnemonic::Asr => "asr",
+        }
+    }
+
+    /// The safety setting this mnemonic sets (drive section, safety.md 4). The settings'
+    /// codes are consecutive in signature order (62 `fss` .. 85 `asr`): one table lookup,
+    /// which keeps the drive's verifier small.
+    pub fn safety_setting(self) -> Option<SafetySetting> {
+        let i = self.code().checked_sub(Mnemonic::Fss.code())?;
+        SafetySetting::ALL.get(usize::from(i)).copied()
+    }
+
+    /// The mnemonic of a safety setting.
+    pub const fn of_setting(s: SafetySetting) -> Mnemonic {
+        match s {
+            SafetySetting::Fss => Mnemonic::Fss,
+            SafetySetting::Pss => Mnemonic::Pss,
+            SafetySetting::Trd => Mnemonic::Trd,
+            SafetySetting::Ard => Mnemonic::Ard,
+            SafetySetting::Tel => Mnemonic::Tel,
+            SafetySetting::Ts1 => Mnemonic::Ts1,
+            SafetySetting::Ts2 => Mnemonic::Ts2,
+            SafetySetting::Fl1 => Mnemonic::Fl1,
+            SafetySetting::Fl2 => Mnemonic::Fl2,
+            SafetySetting::Fl3 => Mnemonic::Fl3,
+            SafetySetting::Fl4 => Mnemonic::Fl4,
+            SafetySetting::Tl1 => Mnemonic::Tl1,
+            SafetySetting::Tl2 => Mnemonic::Tl2,
+            SafetySetting::Tl3 => Mnemonic::Tl3,
+            SafetySetting::Tl4 => Mnemonic::Tl4,
+            SafetySetting::Pli => Mnemonic::Pli,
+            SafetySetting::Tli => Mnemonic::Tli,
+            SafetySetting::Tdi => Mnemonic::Tdi,
+            SafetySetting::Aap => Mnemonic::Aap,
+            SafetySetting::Adp => Mnemonic::Adp,
+            SafetySetting::Aan => Mnemonic::Aan,
+            SafetySetting::Adn => Mnemonic::Adn,
+            SafetySetting::Tla => Mnemonic::Tla,
+            SafetySetting::Asr => Mnemonic::Asr,
         }
     }
 }
@@ -284,6 +402,12 @@ pub enum Operand {
     Ihw,
     /// Extension: hardware overvoltage threshold in effect (`U>>`), V (int, read-only).
     Uhw,
+    /// Safety function x (`SFR x`, `LD x`, `LDC x`; bit, read-only status, safety.md 5).
+    Sf(SafetyFunction),
+    /// `SDC`: a ramp function is in its delay or ramp phase (bit, read-only).
+    Sdc,
+    /// `SFT`: the safety stopwatch, 0.1 s (int, read-only).
+    Sft,
 }
 
 /// One program line's instruction.

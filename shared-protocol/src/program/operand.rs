@@ -2,6 +2,7 @@
 //! operands, as one flat list so that validity tables can be bit sets over it.
 
 use super::model::Operand;
+use crate::safety::SafetyFunction;
 
 /// Number of Q variables (Q00-Q63): the drive's copies, the PLC's shadows and the link's
 /// addresses all have this size.
@@ -35,11 +36,15 @@ pub enum OperandClass {
     Flb,
     Ihw,
     Uhw,
+    /// The twelve safety functions (`STO` .. `SLA`), index = the function's bit.
+    Sf,
+    Sdc,
+    Sft,
 }
 
 impl OperandClass {
     /// Every class, in editor order.
-    pub const ALL: [OperandClass; 21] = [
+    pub const ALL: [OperandClass; 24] = [
         OperandClass::D,
         OperandClass::O,
         OperandClass::B,
@@ -61,6 +66,9 @@ impl OperandClass {
         OperandClass::Flb,
         OperandClass::Ihw,
         OperandClass::Uhw,
+        OperandClass::Sf,
+        OperandClass::Sdc,
+        OperandClass::Sft,
     ];
 
     /// How many operands the class holds (`D` 8: D00-D07; named operands 1).
@@ -72,6 +80,7 @@ impl OperandClass {
             OperandClass::A => 4,
             OperandClass::K => 100,
             OperandClass::Q => Q_COUNT as u8,
+            OperandClass::Sf => SafetyFunction::ALL.len() as u8,
             _ => 1,
         }
     }
@@ -98,10 +107,13 @@ impl OperandClass {
                 | OperandClass::B
                 | OperandClass::Rdy
                 | OperandClass::Flb
+                | OperandClass::Sf
+                | OperandClass::Sdc
         )
     }
 
-    /// The text of the area letter or the named operand, upper case (`"D"`, `"COM"`).
+    /// The text of the area letter or the named operand, upper case (`"D"`, `"COM"`);
+    /// `"STO..SLA"` for the safety functions (each has its own name, [`SafetyFunction::name`]).
     pub const fn name(self) -> &'static str {
         match self {
             OperandClass::D => "D",
@@ -125,6 +137,9 @@ impl OperandClass {
             OperandClass::Flb => "FLB",
             OperandClass::Ihw => "IHW",
             OperandClass::Uhw => "UHW",
+            OperandClass::Sf => "STO..SLA",
+            OperandClass::Sdc => "SDC",
+            OperandClass::Sft => "SFT",
         }
     }
 
@@ -163,6 +178,9 @@ impl OperandClass {
             OperandClass::Flb => Operand::Flb,
             OperandClass::Ihw => Operand::Ihw,
             OperandClass::Uhw => Operand::Uhw,
+            OperandClass::Sf => Operand::Sf(SafetyFunction::from_bit_saturating(index)),
+            OperandClass::Sdc => Operand::Sdc,
+            OperandClass::Sft => Operand::Sft,
         }
     }
 
@@ -197,6 +215,9 @@ impl Operand {
             Operand::Flb => OperandClass::Flb,
             Operand::Ihw => OperandClass::Ihw,
             Operand::Uhw => OperandClass::Uhw,
+            Operand::Sf(_) => OperandClass::Sf,
+            Operand::Sdc => OperandClass::Sdc,
+            Operand::Sft => OperandClass::Sft,
         }
     }
 
@@ -209,6 +230,7 @@ impl Operand {
             | Operand::A(n)
             | Operand::K(n)
             | Operand::Q(n) => *n,
+            Operand::Sf(f) => f.bit(),
             _ => 0,
         }
     }
@@ -269,6 +291,8 @@ impl core::fmt::Display for Operand {
         let class = self.class();
         if class.is_area() {
             write!(f, "{}{:02}", class.name(), self.index())
+        } else if let Operand::Sf(func) = self {
+            f.write_str(func.name())
         } else {
             f.write_str(class.name())
         }

@@ -55,7 +55,7 @@ proptest! {
                 prop_assert_eq!(p.get(line), Some(&i));
             }
             Err(kind) => {
-                prop_assert!(kind.short().len() <= 16);
+                prop_assert!(kind.short().to_string().len() <= 16);
                 let _ = std::format!("{kind}");
             }
         }

@@ -43,6 +43,34 @@ pub fn fix_drive_stack(lines: &mut [Option<Instruction>]) {
     }
 }
 
+/// Makes the safety rules hold (safety.md 4): a safety setting set again is removed, and
+/// an `SFR x` whose function lacks a needed setting (or any but `STO` with a direct-mode
+/// `WR PWx` in the drive section) becomes `SFR STO`. Settings take no stack values, so
+/// the stack check stays valid.
+pub fn fix_safety(lines: &mut [Option<Instruction>]) {
+    use crate::safety::{SafetyFunction, SafetySettings};
+    let mut settings = SafetySettings::default();
+    let mut direct = false;
+    for (n, slot) in lines.iter_mut().enumerate() {
+        let Some(i) = slot else { continue };
+        if n < DRIVE_LINES {
+            if let Some(s) = i.mnemonic.safety_setting() {
+                if settings.get(s).is_some() {
+                    *slot = None;
+                    continue;
+                }
+                settings.set(s, Some(i.constant));
+            }
+            direct |= i.mnemonic == Mnemonic::Wr
+                && matches!(i.operand, Some(Operand::Pw1 | Operand::Pw3 | Operand::Pw5));
+        } else if let (Mnemonic::Sfr, Some(Operand::Sf(f))) = (i.mnemonic, i.operand) {
+            if (direct && f != SafetyFunction::Sto) || settings.missing_for(f).is_some() {
+                i.operand = Some(Operand::Sf(SafetyFunction::Sto));
+            }
+        }
+    }
+}
+
 /// A valid instruction for `section`, with a constant when the operand is `K`.
 pub fn instruction(section: Section) -> impl Strategy<Value = Instruction> {
     let mnemonics: Vec<Mnemonic> = mnemonics_for(section).collect();
@@ -105,6 +133,7 @@ pub fn program(max_lines: usize) -> impl Strategy<Value = Program> {
             }
         }
         fix_drive_stack(&mut p.lines);
+        fix_safety(&mut p.lines);
         p
     })
 }
@@ -119,6 +148,7 @@ pub fn program_in(section: Section, max_lines: usize) -> impl Strategy<Value = P
             }
         }
         fix_drive_stack(&mut p.lines);
+        fix_safety(&mut p.lines);
         p
     })
 }
@@ -134,6 +164,7 @@ pub fn drive_section(max_lines: usize) -> impl Strategy<Value = DriveSection> {
                 }
             }
             fix_drive_stack(&mut d.lines);
+            fix_safety(&mut d.lines);
             d
         },
     )

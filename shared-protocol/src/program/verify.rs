@@ -34,10 +34,11 @@ use super::model::{
     DriveSection, Instruction, Mnemonic, Operand, Program, Section, CONSTANT_MAX, PLC_FIRST_LINE,
 };
 use super::operand::{OperandClass, OperandSet};
+use crate::safety::{SafetyFunction, SafetySetting, SafetySettings};
 
 use OperandClass as C;
 
-const PLC_BITS: OperandSet = OperandSet::of(&[C::D, C::O, C::B, C::Rdy, C::Flb]);
+const PLC_BITS: OperandSet = OperandSet::of(&[C::D, C::O, C::B, C::Rdy, C::Flb, C::Sf, C::Sdc]);
 const PLC_LD: OperandSet = OperandSet::of(&[
     C::D,
     C::O,
@@ -57,7 +58,11 @@ const PLC_LD: OperandSet = OperandSet::of(&[
     C::Flb,
     C::Ihw,
     C::Uhw,
+    C::Sf,
+    C::Sdc,
+    C::Sft,
 ]);
+const SF_ONLY: OperandSet = OperandSet::of(&[C::Sf]);
 const PLC_WR: OperandSet = OperandSet::of(&[C::O, C::B, C::Q]);
 const B_ONLY: OperandSet = OperandSet::of(&[C::B]);
 const B_O: OperandSet = OperandSet::of(&[C::O, C::B]);
@@ -91,6 +96,7 @@ pub fn operand_set(m: Mnemonic, section: Section) -> Option<OperandSet> {
             | M::Mul
             | M::Div => Some(K_Q),
             M::Ctu | M::Ctd => Some(Q_ONLY),
+            M::Sfr => Some(SF_ONLY),
             _ => None,
         },
         Section::Drive => match m {
@@ -113,6 +119,7 @@ pub fn operand_set(m: Mnemonic, section: Section) -> Option<OperandSet> {
             | M::Fjm
             | M::Fmx
             | M::Frv => Some(K_ONLY),
+            m if m.safety_setting().is_some() => Some(K_ONLY),
             _ => None,
         },
     }
@@ -302,6 +309,43 @@ pub enum VerifyErrorKind {
         needs: u8,
         loaded: u8,
     },
+    /// A safety setting set a second time in the drive section (safety.md 4); `first` is
+    /// the line that set it first.
+    SettingTwice { mnemonic: Mnemonic, first: u16 },
+    /// `SFR x` for a function whose needed setting the drive section lacks (the first
+    /// missing one in safety.md 4's order).
+    SafetyNeeds {
+        function: SafetyFunction,
+        setting: SafetySetting,
+    },
+    /// `SFR x` other than `STO` with a drive section in direct mode (`WR PW1/PW3/PW5`):
+    /// v means nothing there.
+    SafetyNeedsSine { function: SafetyFunction },
+}
+
+/// The LCD text of a verifier error (at most 16 characters, for `NNN:text` on a
+/// 20-column row): fixed for most, naming the setting or function for the safety rules.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum ShortText {
+    Fixed(&'static str),
+    /// `fss twice`
+    Twice(Mnemonic),
+    /// `SS2 needs ts2`
+    Needs(SafetyFunction, SafetySetting),
+    /// `SOS needs sine`
+    NeedsSine(SafetyFunction),
+}
+
+impl core::fmt::Display for ShortText {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            ShortText::Fixed(t) => f.write_str(t),
+            ShortText::Twice(m) => write!(f, "{} twice", m.text()),
+            ShortText::Needs(func, s) => write!(f, "{} needs {}", func.name(), s.text()),
+            ShortText::NeedsSine(func) => write!(f, "{} needs sine", func.name()),
+        }
+    }
 }
 
 struct ClassList(OperandSet);
@@ -334,8 +378,13 @@ fn other(section: Section) -> Section {
 
 impl VerifyErrorKind {
     /// At most 16 characters, for a 20x4 LCD status line.
-    pub fn short(&self) -> &'static str {
-        match self {
+    pub fn short(&self) -> ShortText {
+        let fixed = match *self {
+            VerifyErrorKind::SettingTwice { mnemonic, .. } => return ShortText::Twice(mnemonic),
+            VerifyErrorKind::SafetyNeeds { function, setting } => {
+                return ShortText::Needs(function, setting)
+            }
+            VerifyErrorKind::SafetyNeedsSine { function } => return ShortText::NeedsSine(function),
             VerifyErrorKind::LineOutOfRange => "bad line number",
             VerifyErrorKind::WrongSection { .. } => "wrong section",
             VerifyErrorKind::OperandMissing { .. } => "operand missing",
@@ -346,7 +395,8 @@ impl VerifyErrorKind {
             VerifyErrorKind::ConstantOutOfRange { .. } => "constant range",
             VerifyErrorKind::ConstantWithoutK { .. } => "constant w/o K",
             VerifyErrorKind::StackUnderflow { .. } => "stack underflow",
-        }
+        };
+        ShortText::Fixed(fixed)
     }
 }
 
@@ -427,6 +477,15 @@ impl core::fmt::Display for VerifyErrorKind {
                 f,
                 "constant {value:04} not allowed: only a K operand takes a constant"
             ),
+            VerifyErrorKind::SettingTwice { mnemonic, first } => {
+                write!(f, "{} set twice ({first:03})", mnemonic.text())
+            }
+            VerifyErrorKind::SafetyNeeds { function, setting } => {
+                write!(f, "{} needs {}", function.name(), setting.text())
+            }
+            VerifyErrorKind::SafetyNeedsSine { function } => {
+                write!(f, "{} needs sine mode", function.name())
+            }
         }
     }
 }
@@ -496,37 +555,104 @@ pub fn verify_line(line: u16, i: &Instruction) -> Result<(), VerifyErrorKind> {
     }
 }
 
-fn first_error<'a>(
-    lines: impl Iterator<Item = (u16, &'a Option<Instruction>)>,
-) -> Result<(), VerifyError> {
+/// The first bad line. `PLC` = the lines may include the PLC section, whose `SFR` lines
+/// are checked against the drive section's settings (the drive's own check,
+/// [`verify_drive`], has no PLC lines and leaves that code out of its image).
+fn first_error<const PLC: bool>(lines: &[Option<Instruction>]) -> Result<(), VerifyError> {
     let mut depth = 0u8;
-    for (line, slot) in lines {
-        if let Some(i) = slot {
-            verify_line(line, i).map_err(|kind| VerifyError { line, kind })?;
-            if line < PLC_FIRST_LINE {
-                depth = drive_stack_step(depth, i.mnemonic).map_err(|loaded| VerifyError {
-                    line,
-                    kind: VerifyErrorKind::StackUnderflow {
+    // The safety settings the drive section has set (bit = signature position), whether
+    // SS1 then needs `fss` (early limit or ramp monitoring on), and whether a leg is in
+    // direct mode: the PLC section's `SFR` lines are checked against them (the drive
+    // section comes first in line order).
+    let mut present = 0u32;
+    let mut ss1_needs_fss = false;
+    let mut direct = false;
+    for (line, slot) in (0u16..).zip(lines) {
+        let Some(i) = slot else { continue };
+        let fail = |kind| VerifyError { line, kind };
+        verify_line(line, i).map_err(fail)?;
+        if line < PLC_FIRST_LINE {
+            depth = drive_stack_step(depth, i.mnemonic).map_err(|loaded| {
+                fail(VerifyErrorKind::StackUnderflow {
+                    mnemonic: i.mnemonic,
+                    needs: drive_stack_use(i.mnemonic).needs,
+                    loaded,
+                })
+            })?;
+            if let Some(s) = i.mnemonic.safety_setting() {
+                let bit = 1u32 << s.index();
+                if present & bit != 0 {
+                    return Err(fail(VerifyErrorKind::SettingTwice {
                         mnemonic: i.mnemonic,
-                        needs: drive_stack_use(i.mnemonic).needs,
-                        loaded,
-                    },
-                })?;
+                        first: first_line_of(lines, i.mnemonic, line),
+                    }));
+                }
+                present |= bit;
+                ss1_needs_fss |=
+                    matches!(s, SafetySetting::Tel | SafetySetting::Ard) && i.constant > 0;
+            }
+            direct |= i.mnemonic == Mnemonic::Wr
+                && matches!(i.operand, Some(Operand::Pw1 | Operand::Pw3 | Operand::Pw5));
+        } else if PLC {
+            if let (Mnemonic::Sfr, Some(Operand::Sf(function))) = (i.mnemonic, i.operand) {
+                if direct && function != SafetyFunction::Sto {
+                    return Err(fail(VerifyErrorKind::SafetyNeedsSine { function }));
+                }
+                let missing = function
+                    .needed(ss1_needs_fss)
+                    .iter()
+                    .find(|s| present & (1 << s.index()) == 0);
+                if let Some(&setting) = missing {
+                    return Err(fail(VerifyErrorKind::SafetyNeeds { function, setting }));
+                }
             }
         }
     }
     Ok(())
 }
 
+/// The line that first set `m`, for the error at the second one (`line`): the verifier
+/// keeps only a bit per setting and finds the line again on this error path.
+fn first_line_of(lines: &[Option<Instruction>], m: Mnemonic, line: u16) -> u16 {
+    lines
+        .iter()
+        .take(usize::from(line))
+        .position(|l| l.is_some_and(|i| i.mnemonic == m))
+        .map_or(line, |n| n as u16)
+}
+
+/// The safety settings of a drive section (safety.md 4), as a verified section sets them
+/// (each at most once); the signature is [`SafetySettings::signature`] of this.
+pub fn safety_settings<'a>(
+    lines: impl IntoIterator<Item = &'a Option<Instruction>>,
+) -> SafetySettings {
+    let mut s = SafetySettings::default();
+    for i in lines.into_iter().flatten() {
+        if let Some(k) = i.mnemonic.safety_setting() {
+            s.set(k, Some(i.constant));
+        }
+    }
+    s
+}
+
+/// Whether a program uses the safety functions (any `SFR` or safety setting): it then
+/// shows its signature (safety.md 8).
+pub fn uses_safety(p: &Program) -> bool {
+    p.lines
+        .iter()
+        .flatten()
+        .any(|i| i.mnemonic == Mnemonic::Sfr || i.mnemonic.safety_setting().is_some())
+}
+
 /// Check a whole program; the error names the first bad line (ascending). Besides each
 /// line's own rules this tracks the drive section's stack ([`drive_stack_step`]).
 pub fn verify(p: &Program) -> Result<(), VerifyError> {
-    first_error((0u16..).zip(p.lines.iter()))
+    first_error::<true>(&p.lines)
 }
 
 /// Check a drive section as the drive receives it (every line must be a drive line).
 pub fn verify_drive(d: &DriveSection) -> Result<(), VerifyError> {
-    first_error((0u16..PLC_FIRST_LINE).zip(d.lines.iter()))
+    first_error::<false>(&d.lines)
 }
 
 /// A drive section that passed [`verify_drive`]. The drive's link verifies a download in
@@ -596,14 +722,44 @@ mod tests {
     fn editor_order_and_counts() {
         let ld: std::vec::Vec<_> = operands_for(Mnemonic::Ld, Section::Plc).collect();
         assert_eq!(ld.first(), Some(&Some(Operand::D(0))));
-        assert_eq!(ld.last(), Some(&Some(Operand::Uhw)));
-        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 12 named.
-        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 12);
+        assert_eq!(ld.last(), Some(&Some(Operand::Sft)));
+        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 12 named + 12 functions, SDC, SFT.
+        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 12 + 14);
+        // SFR takes the twelve functions, in bit order; LDC the bits among them.
+        let sfr: std::vec::Vec<_> = operands_for(Mnemonic::Sfr, Section::Plc).collect();
+        let all: std::vec::Vec<_> = SafetyFunction::ALL
+            .iter()
+            .map(|&f| Some(Operand::Sf(f)))
+            .collect();
+        assert_eq!(sfr, all);
+        assert!(operands_for(Mnemonic::Ldc, Section::Plc).any(|o| o == Some(Operand::Sdc)));
+        assert!(!operands_for(Mnemonic::Ldc, Section::Plc).any(|o| o == Some(Operand::Sft)));
+        for m in [
+            Mnemonic::Wr,
+            Mnemonic::Wrc,
+            Mnemonic::Set,
+            Mnemonic::Res,
+            Mnemonic::Io,
+        ] {
+            assert!(!operands_for(m, Section::Plc)
+                .any(|o| matches!(o, Some(Operand::Sf(_) | Operand::Sdc | Operand::Sft))));
+        }
         let not: std::vec::Vec<_> = operands_for(Mnemonic::Not, Section::Plc).collect();
         assert_eq!(not, std::vec![None]);
         assert_eq!(operands_for(Mnemonic::Pwf, Section::Plc).count(), 0);
-        assert_eq!(mnemonics_for(Section::Plc).count(), 29);
-        assert_eq!(mnemonics_for(Section::Drive).count(), 24);
+        assert_eq!(mnemonics_for(Section::Plc).count(), 30);
+        assert_eq!(mnemonics_for(Section::Drive).count(), 48);
+        // The safety settings: drive section, K only, 0000-9999.
+        for setting in crate::safety::SafetySetting::ALL {
+            let m = Mnemonic::of_setting(setting);
+            assert_eq!(m.safety_setting(), Some(setting));
+            assert_eq!(operand_set(m, Section::Drive), Some(K_ONLY));
+            assert_eq!(operand_set(m, Section::Plc), None);
+            assert_eq!(
+                constant_range(m, Section::Drive, Some(Operand::K(0))),
+                Some(0..=9999)
+            );
+        }
         assert_eq!(
             constant_range(Mnemonic::IMaxHw, Section::Drive, Some(Operand::K(0))),
             Some(1..=999)
@@ -770,7 +926,7 @@ mod tests {
             },
         ];
         for k in kinds {
-            assert!(k.short().len() <= 16, "{}", k.short());
+            assert!(k.short().to_string().len() <= 16, "{}", k.short());
         }
     }
 
@@ -849,5 +1005,153 @@ mod tests {
         assert_eq!(verify_drive(&d), Ok(()));
         d.lines[149] = Some(ins(Mnemonic::Lcd, None, 0));
         assert_eq!(verify_drive(&d).unwrap_err().line, 149);
+    }
+}
+
+/// The safety rules of safety.md 4: duplicates, the needed settings (exhaustively), direct
+/// mode, and the texts.
+#[cfg(test)]
+mod safety_tests {
+    use super::*;
+    use crate::program::{assemble, assemble_runnable};
+    use crate::safety::{SafetySetting as S, SETTINGS};
+
+    const SINE: &str = "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n";
+
+    fn with_settings(settings: &[(S, u16)], sfr: &[SafetyFunction]) -> Program {
+        let mut text = std::string::String::from(SINE);
+        for (n, (s, v)) in settings.iter().enumerate() {
+            text += &std::format!("{:03} {} K00 {:04}\n", 10 + n, s.text(), v);
+        }
+        for (n, f) in sfr.iter().enumerate() {
+            text += &std::format!("{:03} SFR {}\n", 197 + n, f.name());
+        }
+        assemble(&text).unwrap()
+    }
+
+    #[test]
+    fn a_setting_twice_is_an_error_at_the_second_line_also_on_the_drive() {
+        let p = assemble("030 fss K00 0040\n031 fss K01 0041\n").unwrap();
+        let e = verify(&p).unwrap_err();
+        assert_eq!(
+            e,
+            VerifyError {
+                line: 31,
+                kind: VerifyErrorKind::SettingTwice {
+                    mnemonic: Mnemonic::Fss,
+                    first: 30
+                }
+            }
+        );
+        assert_eq!(e.kind.to_string(), "fss set twice (030)");
+        assert_eq!(
+            std::format!("{:03}:{}", e.line, e.kind.short()),
+            "031:fss twice"
+        );
+        assert_eq!(verify_drive(&p.drive_section()), Err(e));
+        // Different settings, and the same K label, are fine.
+        let p = assemble("030 fss K00 0040\n031 pss K00 0200\n").unwrap();
+        assert_eq!(verify(&p), Ok(()));
+    }
+
+    /// Every function against every subset of its needed settings: the error names the
+    /// first missing one in safety.md 4's order, at the `SFR` line.
+    #[test]
+    fn needed_settings_exhaustively() {
+        for f in SafetyFunction::ALL {
+            for optional in [false, true] {
+                // With the early limit on, SS1 needs fss too.
+                let base: std::vec::Vec<(S, u16)> = if optional {
+                    std::vec![(S::Tel, 50)]
+                } else {
+                    std::vec![]
+                };
+                let needed = f.needed(optional);
+                for subset in 0u32..(1 << needed.len()) {
+                    let mut set = base.clone();
+                    for (b, &s) in needed.iter().enumerate() {
+                        if subset & (1 << b) != 0 {
+                            set.push((s, 100));
+                        }
+                    }
+                    let p = with_settings(&set, &[f]);
+                    let missing = needed
+                        .iter()
+                        .enumerate()
+                        .find(|(b, _)| subset & (1 << b) == 0)
+                        .map(|(_, &s)| s);
+                    let got = verify(&p);
+                    match missing {
+                        None => assert_eq!(got, Ok(()), "{f:?} {set:?}"),
+                        Some(setting) => {
+                            let e = got.unwrap_err();
+                            assert_eq!(e.line, 197);
+                            assert_eq!(
+                                e.kind,
+                                VerifyErrorKind::SafetyNeeds {
+                                    function: f,
+                                    setting
+                                }
+                            );
+                            assert_eq!(
+                                e.kind.to_string(),
+                                std::format!("{} needs {}", f.name(), setting.text())
+                            );
+                        }
+                    }
+                }
+            }
+        }
+        // A setting of 0000 is present (only absent counts as missing).
+        let p = with_settings(&[(S::Ts1, 0)], &[SafetyFunction::Ss1]);
+        assert_eq!(verify(&p), Ok(()));
+        // The rule checks each SFR line: the second one fails here.
+        let p = with_settings(
+            &[(S::Ts1, 100)],
+            &[SafetyFunction::Ss1, SafetyFunction::Ss2],
+        );
+        assert_eq!(verify(&p).unwrap_err().line, 198);
+        assert_eq!(
+            std::format!("{}", verify(&p).unwrap_err().kind.short()),
+            "SS2 needs ts2"
+        );
+    }
+
+    #[test]
+    fn direct_mode_allows_only_sto() {
+        let text = "000 LD K00 0500\n001 WR PW3\n010 fss K01 0040\n011 pss K02 0200\n";
+        let p = assemble(&(text.to_string() + "197 SFR STO\n")).unwrap();
+        assert_eq!(verify(&p), Ok(()));
+        let p = assemble(&(text.to_string() + "197 SFR SOS\n")).unwrap();
+        let e = verify(&p).unwrap_err();
+        assert_eq!(e.line, 197);
+        assert_eq!(e.kind.to_string(), "SOS needs sine mode");
+        assert_eq!(e.kind.short().to_string(), "SOS needs sine");
+    }
+
+    #[test]
+    fn asm_reports_the_rule_at_the_sfr_line() {
+        let text = "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n\
+                    010 fss K01 0040\n011 pss K02 0200\n197 SFR SS2\n";
+        let e = assemble_runnable(text).unwrap_err();
+        assert_eq!(e.to_string(), "7:5: SS2 needs ts2");
+        assert_eq!(
+            assemble_runnable(&(text.to_string() + "012 ts2 K03 0100\n")).map(|_| ()),
+            Ok(())
+        );
+    }
+
+    #[test]
+    fn the_signature_ignores_line_numbers_and_k_labels() {
+        let a = assemble("010 fss K00 0040\n011 pss K01 0200\n").unwrap();
+        let b = assemble("099 pss K07 0200\n120 fss K09 0040\n").unwrap();
+        let sa = safety_settings(a.lines.iter());
+        assert_eq!(sa, safety_settings(b.lines.iter()));
+        let c = assemble("010 fss K00 0041\n011 pss K01 0200\n").unwrap();
+        assert_ne!(sa.signature(), safety_settings(c.lines.iter()).signature());
+        assert!(uses_safety(&a));
+        assert!(!uses_safety(&assemble(SINE).unwrap()));
+        assert!(uses_safety(&assemble("197 SFR STO\n").unwrap()));
+        assert_eq!(SETTINGS, 24);
     }
 }
