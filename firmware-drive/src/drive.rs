@@ -362,6 +362,8 @@ impl DriveCore {
     /// Verify and take a new drive section. Rejected: no program, PWM off, fault `PROG`
     /// latched, and the error (line + reason) for the download reply. A download while in
     /// RUN stops first (the PLC downloads only when it starts RUN).
+    // One copy, not inlined at each caller: the drive image's 64 KiB budget.
+    #[inline(never)]
     pub fn load_program(&mut self, s: &DriveSection) -> Result<(), VerifyError> {
         self.stop_for_load();
         if let Err(e) = verify_drive(s) {
@@ -376,6 +378,8 @@ impl DriveCore {
 
     /// [`Self::load_program`] for a section the link has verified (it does so in a step
     /// of its own: the verifier is too long to run again here, review D13).
+    // One copy, not inlined at each caller: the drive image's 64 KiB budget.
+    #[inline(never)]
     pub fn load_verified(&mut self, v: &VerifiedDriveSection) {
         self.stop_for_load();
         self.load_checked(v.section());
@@ -402,6 +406,8 @@ impl DriveCore {
 
     /// Latch a fault detected outside the core (e.g. `FaultCode::Link` from the link
     /// layer). PWM goes off at the next `pwm_period` at the latest.
+    // One copy, not inlined at each caller: the drive image's 64 KiB budget.
+    #[inline(never)]
     pub fn trip(&mut self, f: FaultCode) {
         self.outputs_on = false;
         if self.state != DriveState::Fault {
@@ -433,6 +439,8 @@ impl DriveCore {
         }
     }
 
+    // One copy, not inlined at each caller: the drive image's 64 KiB budget.
+    #[inline(never)]
     pub fn command(&mut self, c: DriveCommand) -> Result<(), CommandError> {
         match c {
             DriveCommand::Run => match self.state {
@@ -518,6 +526,8 @@ impl DriveCore {
 
     /// Every millisecond. Events (including those raised by the interrupt and by commands
     /// since the last tick) come out through `events`.
+    /// Not inlined into the board's 1 ms task (flash: 64 KiB budget; one call per ms).
+    #[inline(never)]
     pub fn tick_1ms(&mut self, events: &mut impl FnMut(DriveEvent)) {
         self.peak.next_ms();
         if self.state == DriveState::Boot {
@@ -692,6 +702,8 @@ impl DriveCore {
         }
     }
 
+    // One copy, not inlined at each caller: the drive image's 64 KiB budget.
+    #[inline(never)]
     fn set_state(&mut self, to: DriveState) {
         let from = self.state;
         if from != to {
