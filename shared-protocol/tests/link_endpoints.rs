@@ -722,13 +722,18 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
     use shared_protocol::link::plc::section_crc;
     use shared_protocol::program::{encode_slot, LINE_BYTES};
 
-    for corrupt in [false, true] {
+    // (CRC corrupted, a line that does not decode): a good download, a bad CRC, and
+    // line 120 erased (FF FF FF FF), found by the third decode step.
+    for (corrupt, erased) in [(false, None), (true, None), (false, Some(120usize))] {
         let section = ramp_section();
-        let bytes: Vec<u8> = section
+        let mut bytes: Vec<u8> = section
             .lines
             .iter()
             .flat_map(|l| encode_slot(l.as_ref()))
             .collect();
+        if let Some(line) = erased {
+            bytes[line * LINE_BYTES..(line + 1) * LINE_BYTES].fill(0xFF);
+        }
         let crc = section_crc(&bytes) ^ u32::from(corrupt);
         let mut msgs = vec![
             PlcMsg::Hello {
@@ -770,7 +775,18 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
             }
             assert!(calls < 10, "no result");
         };
-        if corrupt {
+        if let Some(line) = erased {
+            // CRC, decode up to the third step, then the result.
+            assert_eq!(
+                result,
+                DriveEvent::ProgramRejected {
+                    line: line as u16,
+                    reason: RejectReason::Decode
+                }
+            );
+            assert_eq!(calls, 5);
+            assert!(drive.take_program().is_none());
+        } else if corrupt {
             // CRC, then the result.
             assert_eq!(
                 result,
@@ -782,9 +798,9 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
             assert_eq!(calls, 2);
             assert!(drive.take_program().is_none());
         } else {
-            // CRC, decode, verifier, then the result.
+            // CRC, decode (three steps of 50 lines), verifier, then the result.
             assert_eq!(result, DriveEvent::ProgramAccepted);
-            assert_eq!(calls, 4);
+            assert_eq!(calls, 6);
             assert_eq!(
                 drive.take_program().map(|v| v.section().clone()),
                 Some(section)
