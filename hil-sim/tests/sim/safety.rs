@@ -109,6 +109,19 @@ fn common_ending(r: &RunReport, trip_s: f64, reset_s: f64, start_s: f64) {
     assert!(r.samples.iter().all(|s| t_s(s) < start_s || s.fault == 0));
 }
 
+/// safety.md 13's negative checks: the Reset button (D05) and the keypad's `*` `9`
+/// pressed while the field is interrupted leave `code` latched (checked at `at_s`, after
+/// both) and the outputs off.
+fn interrupted_field_keeps(r: &RunReport, code: u8, at_s: f64) {
+    let s = crate::common::at(&r.samples, at_s);
+    assert_eq!(
+        s.fault, code,
+        "released at {at_s} s with the field interrupted"
+    );
+    assert!(!s.pwm_on);
+    assert!(s.digital_out & (1 << 5) != 0, "Reset lamp O05 still lit");
+}
+
 /// 13.1 (A.2): STO at 10 Hz.
 #[test]
 fn sto_opens_the_outputs_within_20_ms_and_the_rotor_coasts() {
@@ -125,6 +138,8 @@ fn sto_opens_the_outputs_within_20_ms_and_the_rotor_coasts() {
     let later = crate::common::at(&r.samples, 22.0);
     assert!(later.speed_rpm > 100.0 && later.speed_rpm < t.speed_rpm);
     assert_eq!(r.faults.len(), 1);
+    // D05 at 20.3 s and `*` `9` at 20.6 s, the field still interrupted: code 9 stays.
+    interrupted_field_keeps(&r, 9, 20.95);
     common_ending(&r, t_s(t), 30.0, 33.0);
     assert_eq!(r.signature, Some(0x7C32));
     assert!(r.summary().contains("NOT RATED, parameter signature 7C32"));
@@ -154,6 +169,8 @@ fn ss1_lab_case_ends_15_000_s_after_the_request_with_code_10() {
     {
         assert!(s.sdc && s.pwm_on && (s.f_cmd_hz - 10.0).abs() < 0.05);
     }
+    // The field interrupted again at 38 s, D05 at 38.3 s, `*` `9` at 38.6 s: code 10 stays.
+    interrupted_field_keeps(&r, 10, 39.45);
     common_ending(&r, t_s(t), 45.0, 48.0);
 }
 
