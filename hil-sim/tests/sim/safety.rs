@@ -725,3 +725,44 @@ fn sla_passes_the_lag_with_lab_limits_and_trips_a_fast_deceleration() {
     assert_eq!(t.fault, 16);
     assert!(in_window(t_s(t), 25.0, 0.2), "{}", t_s(t));
 }
+
+/// 13.3(a) on the LCD: while SS1 decelerates the status row shows `S:SS1 DEC n.ns`
+/// counting from the request, then `F10 SS1 done: STO` once it ends.
+#[test]
+fn the_lcd_counts_ss1_down_then_shows_code_10() {
+    use hil_sim::scenario::Scenario;
+    use hil_sim::sim::{RunOptions, Simulation};
+    let p = hil_sim::run::parse_program(LAB, "safety_lab.plc").unwrap();
+    let scen = Scenario::parse(&scenario("ss1_lab")).unwrap();
+    let mut sim = Simulation::new(&p, scen, RunOptions::default()).unwrap();
+    // The request at 20 s; the status row rotates every 2 s: look every 100 ms.
+    let mut counts = Vec::new();
+    for k in 201..=340 {
+        sim.run_until(k * 100_000_000, |_| {});
+        let row = sim.plc().lcd().row(3);
+        if let Some(rest) = row.trim_end().strip_prefix("S:SS1 DEC ") {
+            let s: f64 = rest.trim_end_matches('s').trim().parse().unwrap();
+            counts.push((k as f64 / 10.0, s));
+        }
+    }
+    assert!(counts.len() >= 2, "S:SS1 DEC not on the status row");
+    for &(t, shown) in &counts {
+        // Time since the request (at 20.0 s + up to 20 ms of input path); the LCD shows
+        // the drive's stopwatch from its status frames, refreshed every 100 ms: it trails
+        // by up to ~0.2 s (seen: 0.0 s at 20.2 s, 0.1 s at 20.3 s).
+        let since = t - 20.0;
+        assert!(
+            shown <= since && since - shown <= 0.3,
+            "at {t} s the LCD said {shown} s"
+        );
+    }
+    assert!(counts.windows(2).all(|w| w[1].1 >= w[0].1), "{counts:?}");
+    assert!(counts.last().unwrap().1 - counts[0].1 >= 10.0, "{counts:?}");
+    // After the end (35.0 s) the fault alternates with its `*9` hint on the status row.
+    let mut rows = Vec::new();
+    for k in 351..=390 {
+        sim.run_until(k * 100_000_000, |_| {});
+        rows.push(sim.plc().lcd().row(3).trim_end().to_string());
+    }
+    assert!(rows.iter().any(|r| r == "F10 SS1 done: STO"), "{rows:?}");
+}
