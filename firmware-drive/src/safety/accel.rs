@@ -91,10 +91,10 @@ impl Sla {
             return;
         }
         let a = 10 * (v - i32::from(old));
-        if a.abs() > limit(lim, v, a) {
-            ev.trip(FaultCode::Sla);
-        } else {
-            ev.safe(SafetyFunction::Sla);
-        }
+        ev.check(
+            a.abs() > limit(lim, v, a),
+            FaultCode::Sla,
+            SafetyFunction::Sla,
+        );
     }
 }

@@ -310,6 +310,16 @@ impl Eval {
     fn safe(&mut self, f: SafetyFunction) {
         self.status |= f.mask();
     }
+
+    /// A monitoring function's verdict this tick: `violated` latches `code`, otherwise
+    /// `f` is in its safe state.
+    fn check(&mut self, violated: bool, code: FaultCode, f: SafetyFunction) {
+        if violated {
+            self.trip(code);
+        } else {
+            self.safe(f);
+        }
+    }
 }
 
 /// The ACK rule's "cause gone" for codes 9-16 (safety.md 7), with `requested` the mask

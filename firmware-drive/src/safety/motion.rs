@@ -31,11 +31,11 @@ impl Sos {
         if rise {
             self.x0 = x_prev;
         }
-        if speed > lim.fss() || (x - self.x0).abs() > lim.pss() {
-            ev.trip(FaultCode::Sos);
-        } else {
-            ev.safe(SafetyFunction::Sos);
-        }
+        ev.check(
+            speed > lim.fss() || (x - self.x0).abs() > lim.pss(),
+            FaultCode::Sos,
+            SafetyFunction::Sos,
+        );
     }
 }
 
@@ -83,11 +83,11 @@ impl Sli {
         if !self.active {
             return;
         }
-        if (x - self.x0).abs() > lim.turns_e4(S::Pli) {
-            ev.trip(FaultCode::Sli);
-        } else {
-            ev.safe(SafetyFunction::Sli);
-        }
+        ev.check(
+            (x - self.x0).abs() > lim.turns_e4(S::Pli),
+            FaultCode::Sli,
+            SafetyFunction::Sli,
+        );
     }
 }
 
@@ -133,10 +133,6 @@ impl Sdi {
             *r = (*r).min(x);
             x - *r
         };
-        if back > lim.pss() {
-            ev.trip(FaultCode::Sdi);
-        } else {
-            ev.safe(func);
-        }
+        ev.check(back > lim.pss(), FaultCode::Sdi, func);
     }
 }
