@@ -32,6 +32,7 @@
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
 use shared_protocol::link::drive::{DriveEvent as LinkEvent, DriveLink, DriveLinkState};
+use shared_protocol::link::session::AT_ONCE;
 use shared_protocol::link::{
     AckRefusal, DriveStatus as WireStatus, DriveWarning as WireWarning, LinkConfig,
 };
@@ -277,7 +278,7 @@ impl DriveApp {
     /// deadline.
     pub fn poll_timeout(&self) -> Option<Micros> {
         if self.load_pending {
-            Some(Micros(0))
+            Some(AT_ONCE)
         } else {
             self.link.poll_timeout()
         }
