@@ -297,14 +297,32 @@ proptest! {
             let low_on = lo_run > dead;
             prop_assert!(!(high_on && low_on));
         }
-        // Pulse widths (runs not touching the ends of the record).
-        let mut runs = Vec::new();
-        let mut len = 1u32;
-        for w in reference.windows(2) {
-            if w[0] == w[1] { len += 1; } else { runs.push(len); len = 1; }
-        }
-        for r in runs.iter().skip(1) {
-            prop_assert!(*r > u32::from(min), "pulse of {} ticks with min {}", r, min);
+        // Pulse widths (runs not touching the ends of the record). A pulse inside one period
+        // that does not touch an update event is a whole duty: at least 2 * min + 1 ticks (the clamp's rule). A pulse at an
+        // update event joins the old duty's trailing half (CCR - 1 ticks) to the new duty's
+        // leading half (CCR ticks), so a step from min + 1 to 0 leaves min ticks, half a
+        // minimum pulse: the bound drive-core.md states for duty changes.
+        let period = 2 * u32::from(n);
+        let mut start = 0u32;
+        for (i, w) in reference.windows(2).enumerate() {
+            let end = i as u32 + 1; // first tick of the next run
+            if w[0] == w[1] {
+                continue;
+            }
+            if start > 0 {
+                let len = end - start;
+                // Touching an update event (the counter's valley, where a new CCR loads).
+                let at_update = start.is_multiple_of(period)
+                    || end.is_multiple_of(period)
+                    || start / period != (end - 1) / period;
+                let bound = if at_update { u32::from(min) } else { 2 * u32::from(min) + 1 };
+                prop_assert!(
+                    len >= bound,
+                    "pulse of {} ticks at {} (at an update: {}) with min {}",
+                    len, start, at_update, min
+                );
+            }
+            start = end;
         }
     }
 }
