@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use firmware_plc::storage::image::program_from_image;
-use hil_sim::panel::app::Modal;
+use hil_sim::panel::app::{Modal, QuitLoss};
 use hil_sim::panel::keys::{map_char, Input, TextKey};
 use hil_sim::panel::{open, read_program, PanelApp};
 use shared_protocol::program::assemble;
@@ -38,7 +38,7 @@ fn lcd(app: &PanelApp) -> String {
 
 fn quit(app: &mut PanelApp) {
     app.input(Input::Quit);
-    if app.modal == Some(Modal::ConfirmQuit) {
+    if matches!(app.modal, Some(Modal::ConfirmQuit(_))) {
         app.modal_key(TextKey::Char('y'));
     }
     assert!(app.quit, "{:?}", app.notice);
@@ -218,29 +218,49 @@ fn quitting_with_unsaved_changes_asks() {
     assert!(app.backend().unsaved());
     app.input(Input::Esc);
     app.advance(10);
-    assert_eq!(app.modal, Some(Modal::ConfirmQuit));
+    let unsaved = Some(Modal::ConfirmQuit(QuitLoss::UnsavedProgram));
+    assert_eq!(app.modal, unsaved);
     assert!(!app.quit);
     // Keys answer the question, they do not reach the keypad.
     app.input(map_char('5').unwrap());
     app.modal_key(TextKey::Char('x'));
-    assert_eq!(app.modal, Some(Modal::ConfirmQuit));
+    assert_eq!(app.modal, unsaved);
     app.modal_key(TextKey::Char('n'));
     assert_eq!(app.modal, None);
     assert!(!app.quit);
-    // Saved: Ctrl-C quits without a question.
+    // Saved to slot 4, but without `--eeprom FILE` the slot dies with the panel: Ctrl-C
+    // still asks (with a file it does not: the first test).
     type_keys(&mut app, "c4");
     app.advance(1000);
     assert!(!app.backend().unsaved(), "{}", lcd(&app));
     app.input(Input::Quit);
+    assert_eq!(app.modal, Some(Modal::ConfirmQuit(QuitLoss::SavedSlots)));
+    // Edited again: both losses in one question.
+    app.modal_key(TextKey::Char('n'));
+    type_keys(&mut app, "#151*0");
+    assert!(app.backend().unsaved(), "{}", lcd(&app));
+    app.input(Input::Quit);
+    assert_eq!(app.modal, Some(Modal::ConfirmQuit(QuitLoss::Both)));
+    app.modal_key(TextKey::Char('y'));
     assert!(app.quit);
-    // Unsaved again: Ctrl-C asks, y quits.
+    // Unsaved, nothing saved: Ctrl-C asks about the program only, y quits.
     let mut app = open(Some(&motor()), None).unwrap();
     app.advance(100);
     type_keys(&mut app, "#150*0");
     app.input(Input::Quit);
-    assert_eq!(app.modal, Some(Modal::ConfirmQuit));
+    assert_eq!(app.modal, unsaved);
     app.modal_key(TextKey::Char('y'));
     assert!(app.quit);
+    // Nothing edited, nothing saved: no question (RUN and STOP write the boot record,
+    // not a slot).
+    let mut app = open(Some(&motor()), None).unwrap();
+    app.advance(100);
+    type_keys(&mut app, "a");
+    app.advance(500);
+    type_keys(&mut app, "a");
+    app.advance(500);
+    app.input(Input::Quit);
+    assert!(app.quit, "{:?}", app.modal);
 }
 
 #[test]

@@ -11,11 +11,23 @@ use firmware_plc::editor::{Key, Screen};
 /// keypad.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Modal {
-    /// Quit with the program unsaved? `y` quits, `n` or Esc goes back.
-    ConfirmQuit,
+    /// Quit although work would be lost? `y` quits, `n` or Esc goes back.
+    ConfirmQuit(QuitLoss),
     /// The file to export the program to, being typed; `overwrite` once Enter was
     /// pressed on an existing file (Enter again overwrites it).
     Export { name: String, overwrite: bool },
+}
+
+/// What quitting now would lose.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum QuitLoss {
+    /// The program in RAM differs from the one last saved or loaded.
+    UnsavedProgram,
+    /// Programs saved to slots in this session: without `--eeprom FILE` the EEPROM lives
+    /// only as long as the panel.
+    SavedSlots,
+    /// Both.
+    Both,
 }
 
 /// The virtual front panel, independent of the terminal (drawn by [`super::ui`]).
@@ -130,13 +142,16 @@ impl PanelApp {
         }
     }
 
-    /// Quit, asking first when the program is unsaved.
+    /// Quit, asking first when the program is unsaved or saved slots would be lost.
     fn request_quit(&mut self) {
-        if self.backend.unsaved() {
-            self.modal = Some(Modal::ConfirmQuit);
-        } else {
-            self.finish_quit();
-        }
+        let unsaved = self.backend.unsaved();
+        let slots = self.backend.saved_slots_would_be_lost();
+        self.modal = match (unsaved, slots) {
+            (false, false) => return self.finish_quit(),
+            (true, false) => Some(Modal::ConfirmQuit(QuitLoss::UnsavedProgram)),
+            (false, true) => Some(Modal::ConfirmQuit(QuitLoss::SavedSlots)),
+            (true, true) => Some(Modal::ConfirmQuit(QuitLoss::Both)),
+        };
     }
 
     fn finish_quit(&mut self) {
@@ -154,10 +169,10 @@ impl PanelApp {
             return;
         };
         match modal {
-            Modal::ConfirmQuit => match key {
+            Modal::ConfirmQuit(loss) => match key {
                 TextKey::Char('y' | 'Y') => self.finish_quit(),
                 TextKey::Char('n' | 'N') | TextKey::Esc => {}
-                _ => self.modal = Some(Modal::ConfirmQuit),
+                _ => self.modal = Some(Modal::ConfirmQuit(loss)),
             },
             Modal::Export {
                 mut name,

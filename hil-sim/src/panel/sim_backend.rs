@@ -100,6 +100,9 @@ pub struct SimBackend {
     /// The file behind the EEPROM (`--eeprom`), and its write count when last written.
     eeprom_file: Option<PathBuf>,
     persisted_writes: u32,
+    /// A hash of the program slots at power-up: without a file, quitting loses any
+    /// save made since ([`SimBackend::saved_slots_would_be_lost`]).
+    slots_at_start: u64,
     /// The last failure to write the EEPROM file (shown on the panel; retried).
     pub persist_error: Option<String>,
 }
@@ -192,7 +195,7 @@ impl SimBackend {
             sample_ns: 500_000,
             ..RunOptions::default()
         };
-        SimBackend {
+        let mut b = SimBackend {
             sim: Simulation::with_boards(drive, plc, scenario, opts),
             last: None,
             keys: VecDeque::new(),
@@ -202,8 +205,29 @@ impl SimBackend {
             link_cut: false,
             eeprom_file: None,
             persisted_writes: 0,
+            slots_at_start: 0,
             persist_error: None,
-        }
+        };
+        b.slots_at_start = b.slots_hash();
+        b
+    }
+
+    /// A hash of the EEPROM's program slots (both copies of every slot).
+    fn slots_hash(&mut self) -> u64 {
+        use firmware_plc::storage::layout::{copy_addr, COPIES, COPY_BYTES, SLOTS};
+        use std::hash::{Hash, Hasher};
+        let first = copy_addr(1, 0).map_or(0, usize::from);
+        let end = copy_addr(SLOTS, COPIES - 1).map_or(0, |a| usize::from(a) + COPY_BYTES);
+        let image = self.sim.plc_mut().app_mut().storage().eeprom().image();
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        image.get(first..end).hash(&mut h);
+        h.finish()
+    }
+
+    /// A program was saved to a slot in this session and no `--eeprom` file keeps it:
+    /// quitting loses it (the panel asks first).
+    pub fn saved_slots_would_be_lost(&mut self) -> bool {
+        self.eeprom_file.is_none() && self.slots_hash() != self.slots_at_start
     }
 
     /// The file behind the EEPROM, if any.

@@ -1,6 +1,6 @@
 //! Drawing the panel: LCD, keypad with its key map, and the rig beside them.
 
-use super::app::{Modal, PanelApp};
+use super::app::{Modal, PanelApp, QuitLoss};
 use super::keys::{ANALOG_KEYS, DIGITAL_KEYS};
 use firmware_plc::editor::{Key, Screen};
 use ratatui::layout::{Constraint, Layout, Rect};
@@ -294,8 +294,18 @@ fn footer_line(app: &PanelApp) -> Line<'static> {
         .bg(Color::Yellow)
         .add_modifier(Modifier::BOLD);
     match &app.modal {
-        Some(Modal::ConfirmQuit) => Line::from(Span::styled(
-            " The program has unsaved changes (C n saves it). Quit anyway? y/n ",
+        Some(Modal::ConfirmQuit(loss)) => Line::from(Span::styled(
+            match loss {
+                QuitLoss::UnsavedProgram => {
+                    " The program has unsaved changes (C n saves it). Quit anyway? y/n "
+                }
+                QuitLoss::SavedSlots => {
+                    " Saved slots are lost: no --eeprom FILE (Ctrl-E exports). Quit anyway? y/n "
+                }
+                QuitLoss::Both => {
+                    " Unsaved changes, and saved slots without --eeprom FILE. Quit anyway? y/n "
+                }
+            },
             ask,
         )),
         Some(Modal::Export { name, overwrite }) => {
