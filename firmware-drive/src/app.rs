@@ -355,5 +355,6 @@ pub fn wire_status(s: &DriveStatus) -> WireStatus {
         sf_elapsed_ds: s.sf_elapsed_ds,
         sf_signature: s.sf_signature,
         sto_in_low: s.sto_in_low,
+        program_loaded: s.program_loaded,
     }
 }

@@ -107,6 +107,9 @@ pub struct PlcApp<E: Eeprom> {
     /// The first field: at the end, the board's builder stopped writing the application
     /// in place (a 15 KiB stack frame, a stack overflow at boot: CI's stack step).
     safety: SafetyTimes,
+    /// In RUN, the drive has reported an accepted drive section since RUN started: its
+    /// report of none afterwards means it restarted ([`PlcApp::watch_drive_restart`]).
+    drive_had_program: bool,
     program: Program,
     vm: PlcVm,
     link: PlcLink,
@@ -247,6 +250,7 @@ impl<E: Eeprom> PlcApp<E> {
                 since_ms: [0; 12],
                 expected: None,
             },
+            drive_had_program: false,
         }
     }
 
@@ -607,6 +611,33 @@ impl<E: Eeprom> PlcApp<E> {
     fn service(&mut self, now: Micros) {
         self.service_link(now);
         self.track_safety(now);
+        self.watch_drive_restart();
+    }
+
+    /// A drive that restarts (supply cut, watchdog) comes back without its drive section
+    /// and in IDLE: the program would run on with a drive that ignores it and nothing on
+    /// the LCD would say why. RUN stops (outputs off), the LCD says `DRIVE RESTARTED` (or
+    /// shows the drive's WDG/BOOT fault), and `A` starts RUN again with a new download.
+    /// Never an automatic restart (drive.md).
+    fn watch_drive_restart(&mut self) {
+        if self.run != RunState::Running {
+            self.drive_had_program = false;
+            return;
+        }
+        let Some(s) = self.drive_status() else {
+            return;
+        };
+        if s.program_loaded {
+            self.drive_had_program = true;
+        } else if self.drive_had_program {
+            self.drive_had_program = false;
+            self.stop();
+            // After a watchdog reset or a failed self-test the drive's fault (WDG, BOOT)
+            // says why, at once on the status row.
+            if s.fault.is_none() {
+                self.editor.notify(Notice::Text("DRIVE RESTARTED"));
+            }
+        }
     }
 
     fn service_link(&mut self, now: Micros) {

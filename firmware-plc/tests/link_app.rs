@@ -575,3 +575,39 @@ fn a_signature_mismatch_stops_run() {
     assert!(r.screen().contains("SIG MISMATCH"), "{}", r.screen());
     assert_eq!(r.drive.core().state(), CoreState::Idle);
 }
+
+/// A drive that restarts while the PLC runs comes back without its drive section: RUN
+/// stops (outputs off) with `DRIVE RESTARTED` on the LCD, nothing restarts by itself, and
+/// one RUN downloads again and runs both. A link cut and restore (the drive keeps its
+/// section, trips LINK) does not stop RUN.
+#[test]
+fn a_drive_restart_in_run_stops_run_and_says_so() {
+    let mut r = running_rig();
+    // Link cut and restored: LINK on the drive, RUN stays.
+    r.cut(true);
+    r.run_for(100_000);
+    r.cut(false);
+    r.run_for(100_000);
+    assert_eq!(r.plc.run_state(), RunState::Running, "{}", r.screen());
+    assert!(!r.screen().contains("DRIVE RESTARTED"), "{}", r.screen());
+    // The drive's supply cycles: a new DriveApp, as after its reset.
+    r.drive = DriveApp::new(
+        DriveConfig::default(),
+        ResetCause::PowerOn,
+        LinkConfig::default(),
+    );
+    r.run_for(200_000);
+    assert_eq!(r.plc.run_state(), RunState::Stopped, "{}", r.screen());
+    assert!(r.screen().contains("DRIVE RESTARTED"), "{}", r.screen());
+    assert_eq!(r.drive.core().state(), CoreState::Idle);
+    r.run_for(500_000);
+    assert_eq!(
+        r.drive.core().state(),
+        CoreState::Idle,
+        "no automatic restart"
+    );
+    r.plc.run(None, r.now);
+    r.run_for(150_000);
+    assert_eq!(r.plc.run_state(), RunState::Running, "{}", r.screen());
+    assert_eq!(r.drive.core().state(), CoreState::Run);
+}

@@ -196,8 +196,40 @@ fn wdg_from_a_drive_watchdog_reset() {
     app.advance(1000);
     keys(&mut app, "G");
     wait_for_fault_on_lcd(&mut app, FaultCode::Wdg, 3000);
+    // The drive lost its section with the reset: RUN stopped (`A` runs again).
+    assert!(!app.status().plc_running, "{}", lcd(&app));
     setpoint_to_zero(&mut app, 8000);
     ack(&mut app, FaultCode::Wdg);
+}
+
+/// The drive's supply cycled while the motor runs: no fault code (a power-up is not a
+/// trip), but RUN stops with `DRIVE RESTARTED` on the LCD instead of running on with a
+/// drive that lost its section; one `A` downloads again and the motor starts again only
+/// with START.
+#[test]
+fn a_drive_power_cycle_in_run_stops_run_and_one_a_restarts() {
+    let mut app = motor_panel();
+    run_motor(&mut app, 300);
+    app.advance(1500);
+    assert!(app.status().f_hz > 5.0, "{:?}", app.status());
+    keys(&mut app, "V");
+    let mut seen = false;
+    for _ in 0..20 {
+        app.advance(50);
+        seen |= lcd(&app).contains("DRIVE RESTARTED");
+    }
+    assert!(seen, "{}", lcd(&app));
+    let s = app.status();
+    assert!(!s.plc_running && !s.pwm_on && s.fault == 0, "{s:?}");
+    app.advance(2000);
+    assert!(!app.status().pwm_on, "no automatic restart");
+    keys(&mut app, "a");
+    app.advance(500);
+    assert!(app.status().plc_running, "{}", lcd(&app));
+    assert_eq!(app.status().drive_state, "RUN", "{}", lcd(&app));
+    app.input(Input::Pulse(0));
+    app.advance(1500);
+    assert!(app.status().f_hz > 5.0, "{:?}", app.status());
 }
 
 #[test]

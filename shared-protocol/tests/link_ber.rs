@@ -158,6 +158,7 @@ fn status_for(k: u16) -> DriveStatus {
         sf_elapsed_ds: k.wrapping_mul(3) & 0x7FFF,
         sf_signature: k ^ 0xA5C3,
         sto_in_low: k.is_multiple_of(5),
+        program_loaded: k.is_multiple_of(2),
     }
 }
 

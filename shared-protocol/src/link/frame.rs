@@ -193,11 +193,12 @@ mod tests {
             ov_hw_v: 45,
             ..Default::default()
         };
-        // The safety fields add 6 bytes at their idle values (protocol 4).
-        assert!(roundtrip(DriveMsg::Status(s)) <= 30);
+        // The safety fields add 6 bytes at their idle values (protocol 4), `program_loaded`
+        // one (protocol 5).
+        assert!(roundtrip(DriveMsg::Status(s)) <= 31);
         // With a warning and every safety field at its widest: the largest status. The
         // retransmission timeout's 160 byte times hold a largest PLC frame (99), this
-        // status (46) and an ack (9).
+        // status (47) and an ack (9).
         let w = DriveStatus {
             warning: Some(crate::link::DriveWarning::PwfClamped {
                 line: 149,
@@ -210,10 +211,11 @@ mod tests {
             sf_elapsed_ds: 32767,
             sf_signature: 0xFFFF,
             sto_in_low: true,
+            program_loaded: true,
             ..s
         };
         let largest = roundtrip(DriveMsg::Status(w));
-        assert!(largest <= 46, "{largest}");
+        assert!(largest <= 47, "{largest}");
         let data = heapless::Vec::from_slice(&[0xFF; 64]).unwrap();
         assert!(
             roundtrip(PlcMsg::DownloadChunk {

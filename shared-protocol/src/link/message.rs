@@ -14,7 +14,7 @@ pub use crate::fault::{fault_name, fault_text, FaultCode};
 /// 3: `DriveMsg::AckRefused` (why the drive refused an acknowledgement).
 /// 4: the safety functions (safety.md 9): `PlcMsg::SafetyRequest`, the status's `sf_*`
 /// and `sto_in_low` fields, fault codes 9-16.
-pub const PROTOCOL_VERSION: u16 = 4;
+pub const PROTOCOL_VERSION: u16 = 5;
 
 /// Most Q writes carried by one frame (a scan that writes more sends several frames).
 pub const MAX_Q_PER_FRAME: usize = 8;
@@ -109,6 +109,9 @@ pub struct DriveStatus {
     pub sf_signature: u16,
     /// The hardware `STO_IN` input is low (STO requested).
     pub sto_in_low: bool,
+    /// The drive holds an accepted drive section. False after the drive's reset: a PLC in
+    /// RUN that saw it true learns that the drive restarted and lost it.
+    pub program_loaded: bool,
 }
 
 impl DriveStatus {
@@ -301,6 +304,7 @@ mod tests {
         sf_elapsed_ds: u16,
         sf_signature: u16,
         sto_in_low: bool,
+        program_loaded: bool,
     }
 
     #[derive(Serialize)]
@@ -352,6 +356,7 @@ mod tests {
                 sf_elapsed_ds: s.sf_elapsed_ds,
                 sf_signature: s.sf_signature,
                 sto_in_low: s.sto_in_low,
+                program_loaded: s.program_loaded,
             };
             assert_eq!(
                 postcard::to_slice(&s, &mut typed).unwrap(),
