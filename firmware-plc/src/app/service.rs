@@ -425,7 +425,10 @@ impl<E: Eeprom> PlcApp<E> {
             }
             Request::Run { slot } => self.service_run(reads, slot, now),
             Request::Stop => {
-                self.stop();
+                // Already stopped: nothing to do (and no boot-record write per request).
+                if !stopped {
+                    self.stop();
+                }
                 Outcome::Answer(Answer::Done)
             }
             Request::Ack => match self.ack_fault() {
