@@ -54,6 +54,10 @@ use crate::storage::{
 };
 use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 
+mod service;
+
+pub use service::{BuildInfo, Outcome};
+
 /// Where RUN stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -141,6 +145,9 @@ pub struct PlcApp<E: Eeprom> {
     /// The run state last reported in a [`Tick`] (changes made by the link calls
     /// between ticks are reported by the next tick).
     reported_run: RunState,
+    /// What the service port reports besides the above, and remote service
+    /// (`app/service.rs`).
+    observed: service::Observed,
 }
 
 /// When each safety function was last requested (the rise of its bit in the drive's
@@ -245,6 +252,7 @@ impl<E: Eeprom> PlcApp<E> {
             ticks: 0,
             drawn_alerts: None,
             reported_run: RunState::Stopped,
+            observed: service::Observed::default(),
             safety: SafetyTimes {
                 seen: 0,
                 since_ms: [0; 12],
@@ -495,6 +503,7 @@ impl<E: Eeprom> PlcApp<E> {
         self.q_sent = [None; Q_COUNT];
         self.drive_writes_q = drive_written_q(&self.program);
         self.run = RunState::Running;
+        self.observed.run_started();
         self.queue_boot(true);
     }
 
@@ -502,7 +511,10 @@ impl<E: Eeprom> PlcApp<E> {
     /// Does nothing (outputs off) unless RUN is on.
     #[must_use = "the outputs must be written to the pins"]
     pub fn scan(&mut self, digital: u8, analog: [u16; 4], now: Micros) -> ScanOutputs {
-        if self.run != RunState::Running {
+        let running = self.run == RunState::Running;
+        self.observed
+            .scanned(u16::from(digital), analog, now, running);
+        if !running {
             self.out = ScanOutputs::default();
             return self.out;
         }
@@ -690,8 +702,9 @@ impl<E: Eeprom> PlcApp<E> {
 
     fn reload_fault_log(&mut self) {
         let mut log = heapless::Vec::new();
-        if self.storage.fault_log(&mut log).is_ok() {
+        if let Ok(head) = self.storage.fault_log_with_head(&mut log) {
             self.fault_log = log;
+            self.observed.log_head = head;
         }
     }
 
@@ -728,12 +741,29 @@ impl<E: Eeprom> PlcApp<E> {
                 self.editor.notify(Notice::Text(text));
             }
             Request::ClearFaultLog => {
-                if self.storage.queue(Job::ClearFaultLog).is_err() {
+                if self.queue_clear_fault_log(now).is_err() {
                     self.editor.notify(Notice::Text("EEPROM BUSY"));
                 }
-                self.newest_fault = None;
             }
+            Request::ToggleRemote => self.toggle_remote(now),
         }
+    }
+
+    /// Erase the fault log and log the event `LOGCLR` (240) as the emptied log's first
+    /// entry (service.md 6), so the log itself says when and in which power-up it was
+    /// cleared. Keypad `*` `0` and the service's `ClearFaultLog`.
+    fn queue_clear_fault_log(&mut self, now: Micros) -> Result<(), ()> {
+        let event = self
+            .storage
+            .fault_entry(shared_protocol::service::EVENT_LOG_CLEARED, now.0 / 1000);
+        self.storage.queue(Job::ClearFaultLog).map_err(|_| ())?;
+        self.newest_fault = None;
+        // The queue had room for the clear; the event follows it (a full queue loses
+        // only the event).
+        if self.storage.queue(Job::LogFault(event)).is_err() {
+            self.editor.notify(Notice::Text("FAULT LOG ERROR"));
+        }
+        Ok(())
     }
 
     /// Moves the storage queue on by one EEPROM page (see [`Storage::step`]) and takes
@@ -742,21 +772,27 @@ impl<E: Eeprom> PlcApp<E> {
     pub fn step_storage(&mut self, now: Micros) -> crate::storage::Step {
         let step = self.storage.step(now, &mut self.program);
         if let Some(done) = step.done {
-            self.storage_done(done);
+            self.storage_done(done, now);
         }
         step
     }
 
-    fn storage_done(&mut self, done: JobDone) {
+    fn storage_done(&mut self, done: JobDone, now: Micros) {
         match done {
             JobDone::Saved { slot, result } => self.editor.notify(match result {
                 Ok(_) => Notice::Saved { slot },
                 Err(error) => Notice::SaveFailed { slot, error },
             }),
-            JobDone::Loaded { slot, result } => self.editor.notify(match result {
-                Ok(r) => Notice::Loaded(r),
-                Err(error) => Notice::LoadFailed { slot, error },
-            }),
+            JobDone::Loaded { slot, result } => {
+                let run_now = self.observed.run_after_load.take() == Some(slot) && result.is_ok();
+                self.editor.notify(match result {
+                    Ok(r) => Notice::Loaded(r),
+                    Err(error) => Notice::LoadFailed { slot, error },
+                });
+                if run_now {
+                    self.run(Some(slot), now);
+                }
+            }
             JobDone::FaultLogged { entry, result } => match result {
                 Ok(()) => {
                     // The RAM copy follows the EEPROM's: newest first, the oldest drops.
@@ -765,12 +801,14 @@ impl<E: Eeprom> PlcApp<E> {
                     }
                     // Cannot fail: there is room now.
                     let _ = self.fault_log.insert(0, entry);
+                    self.observed.logged();
                 }
                 Err(_) => self.editor.notify(Notice::Text("FAULT LOG ERROR")),
             },
             JobDone::FaultLogCleared { result } => match result {
                 Ok(()) => {
                     self.fault_log.clear();
+                    self.observed.log_head = None;
                     self.editor.notify(Notice::Text("FAULT LOG CLEARED"));
                 }
                 Err(_) => self.editor.notify(Notice::Text("EEPROM ERROR")),
@@ -808,6 +846,7 @@ impl<E: Eeprom> PlcApp<E> {
         for k in &pressed {
             self.key(*k, now);
         }
+        self.expire_remote(now);
         let scan_ticks = u32::try_from(self.scan_period_us.div_ceil(1000).max(1)).unwrap_or(1);
         let scanned = self.ticks.is_multiple_of(scan_ticks);
         let mut warning = None;
@@ -895,6 +934,7 @@ impl<E: Eeprom> PlcApp<E> {
                 status: s.sf_status,
                 since_ms: self.safety.since_ms,
             }),
+            remote: self.remote_service(now),
         };
         let view = View {
             program: &self.program,

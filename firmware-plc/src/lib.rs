@@ -18,5 +18,6 @@ pub mod debounce;
 pub mod editor;
 pub mod link;
 pub mod pace;
+pub mod service;
 pub mod storage;
 pub mod vm;

@@ -6,6 +6,7 @@
 //! * [`fault`] and [`drive_state`]: the drive's vocabulary (fault codes with their names
 //!   and texts, hardware-break causes, operating states), one copy for both images and
 //!   hil-sim. The Q count is [`program::Q_COUNT`].
+//! * [`service`]: the PLC's service port to a PC (messages on the link's frame codec).
 //! * [`safety`]: the safety functions (NOT RATED), their settings and the parameter
 //!   signature (safety.md).
 //!
@@ -29,5 +30,6 @@ pub mod link;
 pub mod program;
 pub mod rate_limit;
 pub mod safety;
+pub mod service;
 pub mod supervision;
 pub mod units;

@@ -11,16 +11,23 @@
 //! every line (see `KINDS`). Section 0 is set-up between them. Divide by [`SCANS`] for
 //! one scan, and by 850 for one executed instruction. The last section (12) is one
 //! compile of the mixed program, what RUN costs once (`PlcVm::start_program`).
+//! The service port (section 13 on): 13 = [`SERVICE_BYTES`] bytes of a random flood into
+//! `Service::on_rx` (per received byte), 14 = one `GetStatus` request frame into `on_rx`
+//! (the byte path plus the decode at its delimiter), 15 = encoding the largest `Status`
+//! answer (the transmit side of a frame).
 //! On the host this binary is a stub.
 #![cfg_attr(target_os = "none", no_std, no_main)]
 
 /// Scans per measured section.
 #[cfg_attr(not(target_os = "none"), allow(dead_code))]
 const SCANS: u32 = 4;
+/// Flood bytes in section 13.
+#[cfg_attr(not(target_os = "none"), allow(dead_code))]
+const SERVICE_BYTES: usize = 1000;
 
 #[cfg(target_os = "none")]
 mod target {
-    use super::SCANS;
+    use super::{SCANS, SERVICE_BYTES};
     use core::hint::black_box;
     use defmt_rtt as _;
     use embassy_stm32 as _; // vector table
@@ -81,6 +88,74 @@ mod target {
         }
     }
 
+    /// Sections 13-15: the service port's receive path per byte and per frame, and the
+    /// encoding of its largest answer.
+    #[inline(never)]
+    fn service() {
+        use firmware_plc::app::BuildInfo;
+        use firmware_plc::service::Service;
+        use shared_protocol::link::MAX_WIRE_FRAME;
+        use shared_protocol::service::{
+            encode, Answer, DriveInfo, LinkView, PlcState, Request, RunWarning, Status,
+        };
+        use shared_protocol::units::Micros;
+
+        let mut svc = Service::new(BuildInfo {
+            firmware: "0.1.0",
+            git: "bench",
+            uid: [0; 12],
+        });
+        let mut flood = [0u8; SERVICE_BYTES];
+        let mut x = 0x2545_F491u32;
+        for b in flood.iter_mut() {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            *b = x as u8;
+        }
+        bench_mark(13);
+        svc.on_rx(black_box(&flood), Micros(1000));
+        bench_mark(0);
+        let mut frame = [0u8; MAX_WIRE_FRAME];
+        let n = encode(7, Request::GetStatus, &mut frame).unwrap_or(0);
+        bench_mark(14);
+        svc.on_rx(black_box(frame.get(..n).unwrap_or(&[])), Micros(2000));
+        bench_mark(0);
+        black_box(&svc);
+        let status = Status {
+            plc: PlcState::Starting,
+            remote: true,
+            link: LinkView::VersionMismatch {
+                drive_version: u16::MAX,
+            },
+            drive: Some(DriveInfo {
+                state: shared_protocol::link::DriveState::Fault,
+                fault: 255,
+                freq_dhz: i16::MIN,
+                reverse: true,
+                udc_dv: i16::MIN,
+                imax_ca: i16::MIN,
+                com: u16::MAX,
+            }),
+            d: u16::MAX,
+            o: u8::MAX,
+            a: [u16::MAX; 4],
+            lcd: [Some(i16::MIN); 4],
+            warning: Some(RunWarning::Div0 { line: 999 }),
+            newest_log: Some((31, 255)),
+            scan_last_us: u32::MAX,
+            scan_max_us: u32::MAX,
+            uptime_ms: u64::MAX,
+            slot: Some(4),
+            unsaved: true,
+        };
+        let mut out = [0u8; MAX_WIRE_FRAME];
+        bench_mark(15);
+        let n = encode(7, Answer::Status(black_box(status)), &mut out).unwrap_or(0);
+        bench_mark(0);
+        black_box((n, &out));
+    }
+
     #[cortex_m_rt::entry]
     fn main() -> ! {
         let mut vm = PlcVm::new();
@@ -99,6 +174,7 @@ mod target {
         vm.start_program(black_box(&program), Millis(0));
         bench_mark(0);
         black_box(&vm);
+        service();
         bench_mark(0xFFFF_FFFF);
         loop {
             cortex_m::asm::nop();

@@ -60,6 +60,9 @@ pub enum Request {
     AckFaults,
     /// Erase the stored fault log.
     ClearFaultLog,
+    /// Keys `*` `7` (any page, also in RUN): switch remote service on or off
+    /// (service.md 4: the keypad's consent to guarded service requests).
+    ToggleRemote,
 }
 
 /// Outcomes the application reports back; shown on the status row until the next key.
@@ -121,6 +124,9 @@ pub struct RunView<'a> {
     pub drive_warning: Option<Warning<'a>>,
     /// The safety functions as the drive reports them (`None`: link down).
     pub safety: Option<SafetyView>,
+    /// Remote service is on (keys `*` `7`): the status row shows a `*` after the PLC
+    /// state, so whoever stands at the machine sees that a PC may run and acknowledge.
+    pub remote: bool,
 }
 
 /// The safety functions on the status row (safety.md 10): one `S:` item per requested
@@ -148,6 +154,7 @@ impl Default for RunView<'_> {
             warning: None,
             drive_warning: None,
             safety: None,
+            remote: false,
         }
     }
 }
@@ -328,6 +335,12 @@ impl Editor {
         } else {
             self.slot
         }
+    }
+
+    /// The slot the program was last loaded from or saved to, edited since or not (the
+    /// service's `Status`: "the slot in RAM"; [`Editor::modified`] says whether edited).
+    pub fn loaded_slot(&self) -> Option<u8> {
+        self.slot
     }
 
     /// Whether the program changed since it was last loaded or saved (the dirty flag):
@@ -628,6 +641,7 @@ impl Editor {
             }
             Prefix::Load if d == 0 => self.ask_discard(Discard::New, program, running),
             Prefix::Line if d == 9 => Some(Request::AckFaults),
+            Prefix::Line if d == 7 => Some(Request::ToggleRemote),
             Prefix::Line if self.page == Page::FaultLog && d == 0 => {
                 self.log_index.set(0);
                 Some(Request::ClearFaultLog)

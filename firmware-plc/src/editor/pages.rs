@@ -309,8 +309,11 @@ fn pad_row(out: &mut Screen, row: u8, s: &str) {
 fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
     let r = &view.run;
     let plc = if r.running { "RUN" } else { "STOP" };
+    // Remote service on (service.md 4): a `*` in the blank column after the PLC state
+    // (16 columns: before the direction).
+    let mark = if r.remote { '*' } else { ' ' };
     if !r.link_up {
-        push(s, format_args!("{plc:<4} LINK LOST"));
+        push(s, format_args!("{plc:<4}{mark}LINK LOST"));
         return;
     }
     let dir = if r.reverse { 'R' } else { 'F' };
@@ -318,7 +321,7 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
         push(
             s,
             format_args!(
-                "{plc:<4}{:<5}{:>5} {dir}",
+                "{plc:<4}{:<5}{:>5}{mark}{dir}",
                 r.drive_state.name(),
                 Tenths(r.freq_dhz)
             ),
@@ -327,7 +330,7 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
         push(
             s,
             format_args!(
-                "{plc:<4} {:<5} {:>5}Hz {dir}",
+                "{plc:<4}{mark}{:<5} {:>5}Hz {dir}",
                 r.drive_state.name(),
                 Tenths(r.freq_dhz)
             ),

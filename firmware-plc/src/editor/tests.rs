@@ -245,6 +245,7 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
         warning: None,
         drive_warning: None,
         safety: None,
+        remote: false,
     };
     let s = draw(&ed, &p, run, &[], 0);
     assert_eq!(s.row(0), "RUN  RUN    42.3Hz R");
@@ -390,6 +391,7 @@ fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
         warning: None,
         drive_warning: None,
         safety: None,
+        remote: false,
     };
     let rows: Vec<String> = (0..5)
         .map(|k| draw(&ed, &p, run, &[], k * 2000).to_string())
@@ -536,6 +538,47 @@ fn star_9_acknowledges_faults_on_every_page() {
         }
     }
     assert_eq!(p, Program::default());
+}
+
+/// service.md 4: `*` `7` toggles remote service on every page, stopped or running,
+/// and never touches the program; the run page marks it after the PLC state.
+#[test]
+fn star_7_toggles_remote_service_on_every_page_and_the_run_page_marks_it() {
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    for page in [Page::Listing, Page::Run, Page::FaultLog] {
+        ed.show_page(page);
+        for running in [false, true] {
+            assert_eq!(
+                press(&mut ed, &mut p, running, "*7"),
+                vec![Request::ToggleRemote],
+                "{page:?} running={running}"
+            );
+        }
+    }
+    assert_eq!(p, Program::default());
+    ed.show_page(Page::Run);
+    let mut run = RunView {
+        running: true,
+        link_up: true,
+        drive_state: DriveState::Run,
+        freq_dhz: 423,
+        remote: true,
+        ..RunView::default()
+    };
+    assert_eq!(draw(&ed, &p, run, &[], 0).row(0), "RUN *RUN    42.3Hz F");
+    run.remote = false;
+    assert_eq!(draw(&ed, &p, run, &[], 0).row(0), "RUN  RUN    42.3Hz F");
+    run.remote = true;
+    run.link_up = false;
+    assert_eq!(
+        draw(&ed, &p, run, &[], 0).row(0).trim_end(),
+        "RUN *LINK LOST"
+    );
+    let mut narrow = Editor::new(16, 2);
+    narrow.show_page(Page::Run);
+    run.link_up = true;
+    assert_eq!(draw(&narrow, &p, run, &[], 0).row(0), "RUN RUN   42.3*F");
 }
 
 /// Issue 20 item 3: with a fault standing, `*` `9` is offered in the `*` prompt (listing

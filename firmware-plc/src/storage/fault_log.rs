@@ -151,10 +151,20 @@ pub fn read_all<E: Eeprom>(
     e: &mut E,
     out: &mut heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
 ) -> Result<(), EepromError> {
+    read_all_with_head(e, out).map(|_| ())
+}
+
+/// [`read_all`], also returning the ring position (0-31) of the newest entry: the
+/// service port reports it (`FaultLog::newest`), so that a PC sees a new entry even when
+/// the log is full and the count no longer changes.
+pub fn read_all_with_head<E: Eeprom>(
+    e: &mut E,
+    out: &mut heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
+) -> Result<Option<u8>, EepromError> {
     out.clear();
     let ring = read_ring(e)?;
     let Some(head) = newest(&ring) else {
-        return Ok(());
+        return Ok(None);
     };
     for back in 0..FAULT_LOG_ENTRIES {
         let i = (head + FAULT_LOG_ENTRIES - back) % FAULT_LOG_ENTRIES;
@@ -163,7 +173,7 @@ pub fn read_all<E: Eeprom>(
             let _ = out.push(*entry);
         }
     }
-    Ok(())
+    Ok(Some(head as u8))
 }
 
 /// Pages the log occupies.

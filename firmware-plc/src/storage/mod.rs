@@ -513,6 +513,17 @@ impl<E: Eeprom> Storage<E> {
         Ok(())
     }
 
+    /// [`Storage::fault_log`], also giving the ring position of the newest entry.
+    pub fn fault_log_with_head(
+        &mut self,
+        out: &mut heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
+    ) -> Result<Option<u8>, StorageError> {
+        if self.busy() {
+            return Err(StorageError::Busy);
+        }
+        Ok(fault_log::read_all_with_head(&mut self.eeprom, out)?)
+    }
+
     /// Erase the fault log (synchronous).
     pub fn clear_fault_log(&mut self) -> Result<(), StorageError> {
         let empty = Program::default();

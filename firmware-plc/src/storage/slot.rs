@@ -51,7 +51,7 @@ impl CopyHeader {
         h
     }
 
-    fn parse(h: &[u8; COPY_HEADER_BYTES]) -> Option<CopyHeader> {
+    pub(crate) fn parse(h: &[u8; COPY_HEADER_BYTES]) -> Option<CopyHeader> {
         let [m0, m1, ver, slot, g0, g1, g2, g3, l0, l1, n0, n1, c0, c1, c2, c3] = *h;
         if [m0, m1] != MAGIC || ver != VERSION {
             return None;
@@ -167,8 +167,9 @@ impl PayloadCursor {
     }
 }
 
-/// Calls `emit` with every payload byte of `program`, in order.
-fn for_each_payload_byte(program: &Program, mut emit: impl FnMut(u8)) {
+/// Calls `emit` with every payload byte of `program`, in order: the bytes a copy stores
+/// after its header, which the service port transfers (`ReadProgram` of slot 0).
+pub fn for_each_payload_byte(program: &Program, mut emit: impl FnMut(u8)) {
     let mut c = PayloadCursor::new();
     while let Some(b) = c.next(program) {
         emit(b);
@@ -185,7 +186,7 @@ pub fn payload_size(program: &Program) -> (usize, u16) {
 
 /// Incremental payload decoder: fed byte by byte, reports each decoded line.
 #[derive(Debug, Clone, Copy)]
-struct PayloadParser {
+pub(crate) struct PayloadParser {
     state: ParseState,
     next_line: u16,
     run_left: u8,
@@ -205,7 +206,7 @@ enum ParseState {
 }
 
 impl PayloadParser {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         PayloadParser {
             state: ParseState::FirstHi,
             next_line: 0,
@@ -218,7 +219,7 @@ impl PayloadParser {
         }
     }
 
-    fn feed(&mut self, byte: u8, mut apply: impl FnMut(u16, Instruction)) {
+    pub(crate) fn feed(&mut self, byte: u8, mut apply: impl FnMut(u16, Instruction)) {
         if self.failed {
             return;
         }
@@ -266,7 +267,8 @@ impl PayloadParser {
         }
     }
 
-    fn finished_ok(&self, lines: u16) -> bool {
+    /// After the last byte: whether the bytes were whole runs of `lines` decodable lines.
+    pub(crate) fn finished_ok(&self, lines: u16) -> bool {
         !self.failed && self.state == ParseState::FirstHi && self.lines == lines
     }
 }

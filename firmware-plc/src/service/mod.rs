@@ -1,0 +1,165 @@
+//! The PLC's service endpoint (service.md part A), sans-IO like the link's [`PlcLink`]:
+//! bytes in ([`Service::on_rx`], bounded work per byte), at most one frame out per
+//! [`Service::poll_tx`], the next deadline from [`Service::poll_timeout`], EEPROM reads a
+//! page or less per [`Service::eeprom_step`] between scans. The wire and the messages are
+//! `shared_protocol::service` (the link's frame codec).
+//!
+//! * [`port`]: the protocol: frames, ids, repeats, `Hello`, remote-service refusals,
+//!   subscriptions and samples.
+//! * [`reads`]: the paced EEPROM reads behind `ListSlots`, `ReadProgram` and `Run` of
+//!   slots 1-4.
+//! * The requests themselves are answered by the application (`app/service.rs`), which
+//!   holds everything they read and change.
+//!
+//! [`Service`] is kept apart from [`PlcApp`]: the board keeps it in its own static (the
+//! application builder's stack frame grows with `PlcApp`), and it borrows the
+//! application only for the duration of a call.
+//!
+//! Full description: `shared-protocol/docs/service.md`; the costs per byte and per frame
+//! are in `docs/vm.md`.
+//!
+//! [`PlcLink`]: shared_protocol::link::PlcLink
+
+pub mod port;
+pub mod reads;
+
+pub use port::{PortStats, ServicePort, Step, Stored};
+pub use reads::{SlotReads, SlotRecord};
+
+use shared_protocol::service::{encode, Answer, Request};
+use shared_protocol::units::Micros;
+
+use crate::app::{BuildInfo, Outcome, PlcApp, Tick};
+use crate::storage::{Eeprom, JobDone};
+
+/// EEPROM bytes read per [`Service::eeprom_step`]: one page, the storage jobs' unit.
+pub const STEP_BYTES: usize = 64;
+
+/// The service endpoint: protocol state, the EEPROM reads under way, and the build's
+/// identity.
+#[derive(Clone)]
+pub struct Service {
+    port: ServicePort,
+    reads: SlotReads,
+    build: BuildInfo,
+}
+
+impl Service {
+    pub fn new(build: BuildInfo) -> Self {
+        Service {
+            port: ServicePort::new(),
+            reads: SlotReads::new(),
+            build,
+        }
+    }
+
+    /// The port (tests make it announce another version, and read its figures).
+    pub fn port(&mut self) -> &mut ServicePort {
+        &mut self.port
+    }
+
+    /// Bytes from the UART: the frame reader's bounded work per byte; a frame is decoded
+    /// at its delimiter and only the newest request is kept (one outstanding).
+    pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
+        self.port.receive(bytes, now);
+    }
+
+    /// The UART reported a line error: the frame being received is dropped.
+    pub fn on_line_error(&mut self) {
+        self.port.line_error();
+    }
+
+    /// The next frame for the UART into `out` (at least
+    /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes; 0 = nothing now): the answer to
+    /// the waiting request, else a waiting sample. At most one request is executed per
+    /// call.
+    #[must_use = "the frame in `out` must be sent"]
+    pub fn poll_tx<E: Eeprom>(
+        &mut self,
+        app: &mut PlcApp<E>,
+        now: Micros,
+        out: &mut [u8],
+    ) -> usize {
+        self.port.tick(now);
+        if let Some(step) = self.port.take(app.remote_service(now), now) {
+            let (id, answer) = match step {
+                Step::Reply(id, a) => (id, a),
+                Step::Execute { id, request, .. } => {
+                    if request.is_guarded() {
+                        app.renew_remote(now);
+                    }
+                    match app.service_request(&mut self.reads, &self.build, &request, now) {
+                        Outcome::Answer(a) => {
+                            self.port.answered(id, &request, &a);
+                            (id, a)
+                        }
+                        Outcome::Later => {
+                            self.port.later(id, request);
+                            return 0;
+                        }
+                    }
+                }
+            };
+            return encode(id, answer, out).unwrap_or(0);
+        }
+        match self.port.take_sample() {
+            Some(s) => encode(0, Answer::Sample(s), out).unwrap_or(0),
+            None => 0,
+        }
+    }
+
+    /// When [`Service::poll_tx`] must be called next even without received bytes: at
+    /// once while a request or a sample waits, else when the client is to be forgotten.
+    pub fn poll_timeout(&self, now: Micros) -> Option<Micros> {
+        if self.port.busy() || self.port.sample_waiting() {
+            return Some(now);
+        }
+        self.port.timeout()
+    }
+
+    /// After [`PlcApp::tick_1ms`]: takes a trend sample when the tick ran a scan at or
+    /// after the subscription's period boundary (service.md 3 `Sample`).
+    /// A keypad save also lands here: what the reads found in that slot is forgotten.
+    pub fn after_tick<E: Eeprom>(&mut self, app: &PlcApp<E>, tick: &Tick, now: Micros) {
+        if let Some(JobDone::Saved { slot, .. }) = tick.storage {
+            self.reads.invalidate(slot);
+        }
+        if !tick.scanned {
+            return;
+        }
+        if let Some(q) = self.port.sample_due(now) {
+            let sample = app.service_sample(q, now);
+            self.port.offer_sample(sample);
+        }
+    }
+
+    /// Moves the EEPROM reads a `ListSlots`, `ReadProgram` or `Run` of a slot wait for on
+    /// by at most [`STEP_BYTES`] (one transfer), and only while the storage queue is idle:
+    /// the board calls it between scans when the I2C bus is free. Returns whether the bus
+    /// was used.
+    pub fn eeprom_step<E: Eeprom>(&mut self, app: &mut PlcApp<E>) -> bool {
+        if self.reads.idle() || app.storage().busy() {
+            return false;
+        }
+        // A read error is kept in `reads` and answered `Refused(Storage)`.
+        self.reads
+            .step(app.storage().eeprom(), STEP_BYTES)
+            .unwrap_or(true)
+    }
+
+    /// A slot was written other than by a keypad save (which [`Service::after_tick`]
+    /// sees): forget what the reads found in it.
+    pub fn slot_written(&mut self, slot: u8) {
+        self.reads.invalidate(slot);
+    }
+
+    /// Whether a request is waiting for EEPROM reads.
+    pub fn reading(&self) -> bool {
+        !self.reads.idle()
+    }
+
+    /// The request being worked on, if any (diagnostics).
+    pub fn working(&self) -> Option<&Request> {
+        self.port.working()
+    }
+}

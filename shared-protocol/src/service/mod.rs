@@ -1,0 +1,146 @@
+//! The PLC's service port (service.md part A): a PC (`plcctl`) reads status, trends, the
+//! fault log and counters, pulls and pushes programs and, with the keypad's consent, runs,
+//! stops and acknowledges. Full description: `docs/service.md` in this crate.
+//!
+//! ```text
+//! wire:  0x00  COBS( id | 0 | postcard(message) | CRC-32C ) 0x00
+//! ```
+//!
+//! The frame codec is the PLC-drive link's ([`crate::link::frame`]): the link's `seq`
+//! byte carries the request id, its `ack` byte is always 0. This module holds the
+//! messages ([`message`]), the protocol's constants and the two helpers both ends use to
+//! put messages on the wire and take them off ([`encode`], [`ServiceReader`]).
+
+pub mod message;
+
+pub use message::*;
+
+use serde::de::DeserializeOwned;
+use serde::Serialize;
+
+use crate::link::frame::{encode_frame, Frame, FrameError, FrameReader};
+
+/// The service protocol's version (`Hello`), independent of the link's.
+pub const SERVICE_VERSION: u16 = 1;
+/// Default line rate (a firmware constant; `plcctl --baud` must match).
+pub const SERVICE_BAUD: u32 = 115_200;
+/// The PLC answers a request within this time...
+pub const ANSWER_MS: u64 = 100;
+/// ...or this one for `WriteCommit` and `ClearFaultLog` (EEPROM writes).
+pub const EEPROM_ANSWER_MS: u64 = 3_000;
+/// The host sends the same frame again after this time without an answer...
+pub const RETRY_MS: u64 = 300;
+/// ...or this one for requests that write the EEPROM.
+pub const EEPROM_RETRY_MS: u64 = 5_000;
+/// Attempts before the host reports a timeout.
+pub const ATTEMPTS: u32 = 3;
+/// Without a valid frame for this long the PLC forgets its client (a new `Hello` is due).
+pub const FORGET_CLIENT_MS: u64 = 30_000;
+/// Remote service switches itself off this long after enabling or after the last guarded
+/// request, whichever is later (service.md 4).
+pub const REMOTE_TIMEOUT_MS: u64 = 30 * 60 * 1000;
+/// Program bytes per `ReadProgram` answer and `WriteChunk`.
+pub const CHUNK_BYTES: usize = 64;
+/// Most Q variables in one subscription.
+pub const MAX_SUBSCRIBED_Q: usize = 8;
+/// Shortest and longest sample period.
+pub const SAMPLE_PERIOD_MIN_MS: u16 = 10;
+pub const SAMPLE_PERIOD_MAX_MS: u16 = 100;
+/// Most fault-log entries per answer.
+pub const LOG_ENTRIES_PER_ANSWER: usize = 8;
+/// `ReadFaultLog { from }` value meaning "the newest entry".
+pub const LOG_FROM_NEWEST: u8 = 0xFF;
+/// Largest program payload (eeprom-image.md: one copy's 63 pages minus its header).
+pub const PROGRAM_MAX_BYTES: u16 = 4016;
+/// A log entry's uptime at this value means "this long or longer" (24 bits of seconds).
+pub const UPTIME_LIMIT_S: u32 = 0x00FF_FFFF;
+
+/// Fault-log event: the log was cleared (keypad `*` `0` or service); the first entry of
+/// the emptied log.
+pub const EVENT_LOG_CLEARED: u8 = 240;
+/// Fault-log event: a program was written over the service port.
+pub const EVENT_PROGRAM_WRITTEN: u8 = 241;
+
+/// Whether a fault-log code is an event (240-254): listed, never counted as a trip nor
+/// shown as the newest fault.
+pub const fn is_event(code: u8) -> bool {
+    code >= 240 && code <= 254
+}
+
+/// Short name of a fault-log code: drive.md's for faults, service.md 6's for events,
+/// `?` otherwise.
+pub const fn log_name(code: u8) -> &'static str {
+    match code {
+        EVENT_LOG_CLEARED => "LOGCLR",
+        EVENT_PROGRAM_WRITTEN => "PGMSVC",
+        c => crate::link::fault_name(c),
+    }
+}
+
+/// The text of a fault-log code (service.md 6): drive faults from the shared
+/// [`crate::link::fault_text`], events from service.md's table, anything else `code N`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LogText(pub u8);
+
+impl core::fmt::Display for LogText {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self.0 {
+            EVENT_LOG_CLEARED => f.write_str("fault log cleared"),
+            EVENT_PROGRAM_WRITTEN => f.write_str("program written over the service port"),
+            c if crate::link::fault_name(c).as_bytes() != b"?" && c != 0 => {
+                f.write_str(crate::link::fault_text(c))
+            }
+            c => write!(f, "code {c}"),
+        }
+    }
+}
+
+/// Encode `msg` with request id `id` (0 for samples) into `out`, with the leading
+/// delimiter; returns the wire length. `out` of [`crate::link::MAX_WIRE_FRAME`] always
+/// suffices.
+pub fn encode<M: Serialize>(id: u8, msg: M, out: &mut [u8]) -> Result<usize, FrameError> {
+    encode_frame(
+        &Frame {
+            seq: id,
+            ack: 0,
+            msg,
+        },
+        true,
+        out,
+    )
+}
+
+/// Cuts a received byte stream into `(id, message)` pairs: the link's [`FrameReader`]
+/// (fixed memory, bounded work per byte) plus the service's header rule (second byte 0).
+#[derive(Debug, Clone, Default)]
+pub struct ServiceReader {
+    frames: FrameReader,
+}
+
+impl ServiceReader {
+    pub const fn new() -> Self {
+        ServiceReader {
+            frames: FrameReader::new(),
+        }
+    }
+
+    /// Forget a partial frame.
+    pub fn reset(&mut self) {
+        self.frames.reset();
+    }
+
+    /// Feed one byte; at a delimiter ending a non-empty frame, its result.
+    pub fn push<M: DeserializeOwned>(&mut self, byte: u8) -> Option<Result<(u8, M), FrameError>> {
+        let r = self.frames.push::<M>(byte)?;
+        Some(r.and_then(|f| {
+            if f.ack == 0 {
+                Ok((f.seq, f.msg))
+            } else {
+                Err(FrameError::Message)
+            }
+        }))
+    }
+}
+
+#[cfg(test)]
+mod tests;
