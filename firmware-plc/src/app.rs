@@ -128,7 +128,7 @@ pub struct PlcApp<E: Eeprom> {
     /// Time from one scan to the next, for the link's quiet window.
     scan_period_us: u64,
     /// Digital inputs, debounced in [`PlcApp::tick_1ms`].
-    inputs: Debouncer<8>,
+    inputs: Debouncer<{ vm::INPUTS as usize }>,
     /// The keypad, debounced in [`PlcApp::tick_1ms`].
     keys: KeyMatrix,
     /// `tick_1ms` calls since power-up (scan and redraw cadence).
@@ -164,8 +164,8 @@ pub const RENDER_TICKS: u32 = 100;
 /// The raw levels a board samples once per millisecond.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RawIo {
-    /// D00..D07 as read at the pins (bit n = Dn, 1 = on), not debounced.
-    pub digital: u8,
+    /// D00..D15 as read at the pins (bit n = Dn, 1 = on), not debounced.
+    pub digital: u16,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
     /// The key matrix as scanned (bit `4 * row + column` = pressed), not debounced.
@@ -176,7 +176,7 @@ pub struct RawIo {
 #[must_use]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Tick {
-    /// The output image to write to O00..O05.
+    /// The output image to write to O00..O07.
     pub outputs: u8,
     /// A scan ran in this tick (its warning, if any).
     pub scanned: bool,
@@ -343,7 +343,7 @@ impl<E: Eeprom> PlcApp<E> {
         self.vm.q(n)
     }
 
-    /// The output image O00-O05 (0 when not running).
+    /// The output image O00-O07 (0 when not running).
     pub fn outputs(&self) -> u8 {
         self.out.outputs
     }
@@ -497,7 +497,7 @@ impl<E: Eeprom> PlcApp<E> {
     /// One scan with the inputs sampled at its start; returns the outputs to write.
     /// Does nothing (outputs off) unless RUN is on.
     #[must_use = "the outputs must be written to the pins"]
-    pub fn scan(&mut self, digital: u8, analog: [u16; 4], now: Micros) -> ScanOutputs {
+    pub fn scan(&mut self, digital: u16, analog: [u16; 4], now: Micros) -> ScanOutputs {
         if self.run != RunState::Running {
             self.out = ScanOutputs::default();
             return self.out;
@@ -762,7 +762,7 @@ impl<E: Eeprom> PlcApp<E> {
     /// A board that falls behind calls this once per pass, not once per missed
     /// millisecond: debouncing then takes longer, never shorter.
     pub fn tick_1ms(&mut self, now: Micros, raw: RawIo, screen: &mut Screen) -> Tick {
-        let digital = self.inputs.update(u32::from(raw.digital)) as u8;
+        let digital = self.inputs.update(u32::from(raw.digital)) as u16;
         let mut pressed: heapless::Vec<Key, 16> = heapless::Vec::new();
         let mut keys_down = 0u16;
         self.keys.update(raw.keys, &mut |e| {

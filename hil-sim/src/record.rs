@@ -5,6 +5,8 @@
 
 use std::io::{self, Write};
 
+use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
+
 use crate::sim::Sample;
 
 /// The header row.
@@ -27,8 +29,8 @@ pub fn header() -> String {
     .iter()
     .map(|s| s.to_string())
     .collect();
-    cols.extend((0..8).map(|n| format!("D{n:02}")));
-    cols.extend((0..6).map(|n| format!("O{n:02}")));
+    cols.extend((0..DIGITAL_INPUTS).map(|n| format!("D{n:02}")));
+    cols.extend((0..DIGITAL_OUTPUTS).map(|n| format!("O{n:02}")));
     cols.extend((0..8).map(|n| format!("Q{n:02}")));
     cols.extend((0..4).map(|n| format!("lcd{n}")));
     cols.extend(
@@ -66,10 +68,10 @@ pub fn row(s: &Sample) -> String {
         num(s.torque_nm, 5),
         u8::from(s.brake),
     );
-    for n in 0..8 {
+    for n in 0..DIGITAL_INPUTS {
         let _ = write!(r, ",{}", (s.digital_in >> n) & 1);
     }
-    for n in 0..6 {
+    for n in 0..DIGITAL_OUTPUTS {
         let _ = write!(r, ",{}", (s.digital_out >> n) & 1);
     }
     for q in s.q {
@@ -147,8 +149,8 @@ mod tests {
         assert!(h.starts_with(
             "t_s,f_cmd_hz,dir,m,pwm_on,fault,u_dc_v,i_a_a,i_b_a,i_c_a,speed_rpm,torque_nm,brake,D00,"
         ));
-        assert!(h.contains(",D07,O00,"));
-        assert!(h.contains(",O05,Q00,"));
+        assert!(h.contains(",D15,O00,"));
+        assert!(h.contains(",O07,Q00,"));
         assert!(h.ends_with(
             ",Q07,lcd0,lcd1,lcd2,lcd3,duty_a,duty_b,duty_c,u_ab_v,warn,sf_req,sf_st,sdc,sft_s,turns"
         ));
@@ -168,7 +170,7 @@ mod tests {
             speed_rpm: 100.0,
             torque_nm: 0.01,
             brake: false,
-            digital_in: 0b1000_0001,
+            digital_in: 0b1000_0000_1000_0001,
             digital_out: 0b10,
             q: [1, 2, 3, 4, 5, 6, 7, 8],
             lcd: [Some(500), None, None, None],

@@ -8,6 +8,8 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
+use shared_protocol::program::DIGITAL_INPUTS;
+
 use crate::plant::{Load, PwmMode, RigParams};
 
 /// Duration when neither `--duration` nor the scenario gives one.
@@ -119,7 +121,7 @@ pub struct EventKeys {
 /// An input the scenario can set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Input {
-    /// D00..D07.
+    /// D00..D15.
     Digital(u8),
     /// A00..A03, 10-bit counts.
     Analog(u8),
@@ -144,7 +146,7 @@ impl Input {
         }
         let n: u8 = digits.parse().ok()?;
         match area {
-            "D" if n < 8 => Some(Input::Digital(n)),
+            "D" if n < DIGITAL_INPUTS => Some(Input::Digital(n)),
             "A" if n < 4 => Some(Input::Analog(n)),
             _ => None,
         }
@@ -387,7 +389,10 @@ impl Scenario {
         if let Some(set) = &e.set {
             for (name, &v) in set {
                 let input = Input::parse(name).with_context(|| {
-                    format!("set: unknown input {name:?} (D00-D07, A00-A03, AUX)")
+                    format!(
+                        "set: unknown input {name:?} (D00-D{:02}, A00-A03, AUX)",
+                        DIGITAL_INPUTS - 1
+                    )
                 })?;
                 if !(0..=input.max()).contains(&v) {
                     bail!("set: {name} = {v} out of range 0..{}", input.max());
@@ -398,7 +403,10 @@ impl Scenario {
         }
         if let Some(name) = &e.press {
             let Some(input @ Input::Digital(_)) = Input::parse(name) else {
-                bail!("press: {name:?} is not a digital input (D00-D07)");
+                bail!(
+                    "press: {name:?} is not a digital input (D00-D{:02})",
+                    DIGITAL_INPUTS - 1
+                );
             };
             let hold = e.hold_s.unwrap_or(DEFAULT_HOLD_S);
             if !(hold.is_finite() && hold > 0.0) {
@@ -533,7 +541,8 @@ load_torque_nm = 0.05
     fn mistakes_are_named() {
         let err = |t: &str| format!("{:#}", Scenario::parse(t).unwrap_err());
         assert!(err("[plant]\ndc_link = 3").contains("dc_link"));
-        assert!(err("[[event]]\nat_s = 1\nset = { D09 = 1 }").contains("D09"));
+        assert!(err("[[event]]\nat_s = 1\nset = { D16 = 1 }").contains("D16"));
+        assert!(Scenario::parse("[[event]]\nat_s = 1\nset = { D15 = 1 }").is_ok());
         assert!(err("[[event]]\nat_s = 1\nset = { A00 = 2000 }").contains("out of range"));
         assert!(err("[[event]]\nat_s = 1\npress = \"A00\"").contains("digital"));
         assert!(err("[[event]]\nat_s = 1\nkeys = \"X\"").contains("keypad"));

@@ -40,7 +40,9 @@ pub struct Sample {
     pub speed_rpm: f64,
     pub torque_nm: f64,
     pub brake: bool,
-    pub digital_in: u8,
+    /// D00..D15 at the pins, bit n = Dn.
+    pub digital_in: u16,
+    /// O00..O07, bit n = On.
     pub digital_out: u8,
     pub q: [i16; 8],
     pub lcd: [Option<i16>; 4],

@@ -467,7 +467,7 @@ impl EmuSim {
             speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
             torque_nm: o.torque_nm,
             brake: o.brake_on,
-            digital_in: io.digital_in as u8,
+            digital_in: io.digital_in,
             digital_out: io.outputs,
             q: self.q,
             lcd: lcd_fields(&self.lcd.borrow().text()),

@@ -13,7 +13,7 @@ use firmware_plc::editor::{Key, Screen};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::LinkConfig;
-use shared_protocol::program::Program;
+use shared_protocol::program::{Program, DIGITAL_INPUTS};
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, PlcBoard, PlcPins};
@@ -64,9 +64,9 @@ pub struct RigStatus {
     pub limits: Limits,
     pub fault: u8,
     pub brake: bool,
-    /// D00..D07, bit n = Dn.
-    pub digital_in: u8,
-    /// O00..O05, bit n = On.
+    /// D00..D15, bit n = Dn.
+    pub digital_in: u16,
+    /// O00..O07, bit n = On.
     pub digital_out: u8,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
@@ -457,9 +457,9 @@ impl SimBackend {
         self.sim.garble_next_download(on);
     }
 
-    /// Set digital input `n` (0..8).
+    /// Set digital input `n` (0..16).
     pub fn set_digital(&mut self, n: u8, on: bool) {
-        if n < 8 {
+        if n < DIGITAL_INPUTS {
             let d = self.pins.digital;
             self.pins.digital = if on { d | (1 << n) } else { d & !(1 << n) };
             self.sim.set_pins(self.pins);

@@ -1,7 +1,7 @@
 //! Drawing the panel: LCD, keypad with its key map, and the rig beside them.
 
 use super::app::{Modal, PanelApp};
-use super::keys::{ANALOG_KEYS, DIGITAL_KEYS};
+use super::keys::{ANALOG_KEYS, BANK_KEY, BANK_SIZE, DIGITAL_KEYS};
 use firmware_plc::editor::{Key, Screen};
 use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::{Color, Modifier, Style};
@@ -9,6 +9,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Paragraph};
 use ratatui::Frame;
 use shared_protocol::fault::fault_text;
+use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
 
 const LCD_BG: Color = Color::Rgb(150, 190, 70);
 const LCD_FG: Color = Color::Rgb(20, 30, 10);
@@ -188,19 +189,26 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
         },
         Style::default().fg(Color::DarkGray),
     )));
-    let mut d = vec![Span::raw("D00-07 ")];
-    for n in 0..8 {
-        d.push(on_off(s.digital_in & (1 << n) != 0));
-        d.push(Span::raw(" "));
+    for first in (0..DIGITAL_INPUTS).step_by(usize::from(BANK_SIZE)) {
+        let last = (first + BANK_SIZE).min(DIGITAL_INPUTS) - 1;
+        let active = first / BANK_SIZE == app.bank();
+        let mut d = vec![Span::raw(format!(
+            "{}D{first:02}-{last:02} ",
+            if active { ">" } else { " " }
+        ))];
+        for n in first..=last {
+            d.push(on_off(s.digital_in & (1 << n) != 0));
+            d.push(Span::raw(" "));
+        }
+        v.push(Line::from(d));
     }
-    v.push(Line::from(d));
     let keys: String = DIGITAL_KEYS.iter().map(|c| format!("{c} ")).collect();
     v.push(Line::from(Span::styled(
-        format!("  keys {keys}(Q..I: push 0.2 s)"),
+        format!("  keys {keys}(Q..I: push 0.2 s, {BANK_KEY}: bank)"),
         Style::default().fg(Color::DarkGray),
     )));
-    let mut o = vec![Span::raw("O00-05 ")];
-    for n in 0..6 {
+    let mut o = vec![Span::raw(format!(" O00-{:02} ", DIGITAL_OUTPUTS - 1))];
+    for n in 0..DIGITAL_OUTPUTS {
         o.push(on_off(s.digital_out & (1 << n) != 0));
         o.push(Span::raw(" "));
     }
