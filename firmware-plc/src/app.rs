@@ -509,6 +509,14 @@ impl<E: Eeprom> PlcApp<E> {
         };
         let mut out = ScanOutputs::default();
         self.vm.scan(&self.program, &inputs, now.millis(), &mut out);
+        if let Some(rev) = out.rev_request {
+            // The direction goes first (lift.md 2.2): a program reversing from standstill
+            // executes `REV` before, or in the same scan as, the `WR` that starts the
+            // motor, and the drive must have the new direction before the new setpoint.
+            // Remembered while the link is down and resent after each handshake; refused
+            // only with 95 commands waiting, and the program asks again every scan.
+            let _ = self.link.set_direction(rev);
+        }
         for n in out.dirty_q() {
             let value = self.vm.q(n);
             let Some(sent) = self.q_sent.get_mut(usize::from(n)) else {
@@ -526,11 +534,6 @@ impl<E: Eeprom> PlcApp<E> {
             // (`dirty_q` gives Q00-Q63 only).
             let _ = self.link.write_q(n, value);
             *sent = Some(value);
-        }
-        if let Some(rev) = out.rev_request {
-            // Remembered while the link is down and resent after each handshake; refused
-            // only with 95 commands waiting, and the program asks again every scan.
-            let _ = self.link.set_direction(rev);
         }
         if let Some(mask) = out.sf_request {
             // Before the ACK of the same scan (safety_lab.plc releases, then ACKs); newest
