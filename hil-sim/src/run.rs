@@ -65,6 +65,8 @@ pub struct RunReport {
     pub plc_running: bool,
     pub final_speed_rpm: f64,
     pub final_f_hz: f64,
+    /// The lift at the end of the run (`[lift]`).
+    pub final_lift: Option<crate::plant::lift::LiftSample>,
     /// Each run-time warning seen (one per status-line text: the long text of its first
     /// appearance), with the time it first appeared.
     pub warnings: Vec<(f64, String)>,
@@ -171,7 +173,7 @@ impl RunReport {
                 "safety functions NOT RATED, parameter signature {sig:04X}\n"
             ));
         }
-        if let Some(l) = self.samples.last().and_then(|s| s.lift) {
+        if let Some(l) = self.final_lift {
             s.push_str(&format!(
                 "lift: car at {:.1} mm, at_floor {}\n",
                 l.car_mm, l.at_floor
@@ -287,6 +289,7 @@ pub fn run(
         plc_running: sim.plc().running(),
         final_speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
         final_f_hz: st.1,
+        final_lift: sim.lift().map(|l| l.sample()),
         warnings,
     })
 }
