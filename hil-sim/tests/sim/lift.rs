@@ -30,7 +30,7 @@ fn input(s: &Sample, n: u8) -> bool {
 }
 
 /// The first sample at or after `from_s` that satisfies `f`.
-fn first<'a>(s: &'a [Sample], from_s: f64, f: impl Fn(&Sample) -> bool) -> &'a Sample {
+fn first(s: &[Sample], from_s: f64, f: impl Fn(&Sample) -> bool) -> &Sample {
     s.iter()
         .find(|x| t_s(x) >= from_s && f(x))
         .unwrap_or_else(|| panic!("nothing after {from_s} s"))
