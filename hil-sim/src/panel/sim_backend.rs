@@ -70,6 +70,8 @@ pub struct RigStatus {
     pub digital_out: u8,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
+    /// The lift (`--lift`): car position, door, brake, vanes.
+    pub lift: Option<crate::plant::lift::LiftSample>,
 }
 
 /// The drive's protection limits in effect (for the rig box: what a trip needs).
@@ -182,7 +184,28 @@ impl SimBackend {
 
     /// Power up the rig with `eeprom` in the PLC's socket.
     pub fn with_eeprom(eeprom: MemEeprom) -> Self {
-        let scenario = Scenario::default();
+        Self::with_scenario(eeprom, Scenario::default())
+    }
+
+    /// [`Self::new`] with the lift on the shaft ([`Self::with_lift`]).
+    pub fn new_lift(program: Option<&Program>) -> anyhow::Result<Self> {
+        Ok(Self::with_lift(fresh_image(program)?))
+    }
+
+    /// Power up the rig with `eeprom` and the lift of lift.md 4 on the shaft (default
+    /// `[lift]` keys): `lift.plc` runs it; the car and hall buttons are D00-D09 (the
+    /// digital keys, `` ` `` for D08/D09).
+    pub fn with_lift(eeprom: MemEeprom) -> Self {
+        Self::with_scenario(
+            eeprom,
+            Scenario {
+                lift: Some(crate::plant::lift::LiftParams::default()),
+                ..Scenario::default()
+            },
+        )
+    }
+
+    fn with_scenario(eeprom: MemEeprom, scenario: Scenario) -> Self {
         let link = LinkConfig::at_baud(scenario.baud);
         let plc = PlcBoard::new(eeprom, link, Micros(0));
         let drive = DriveBoard::new(link);
@@ -351,6 +374,7 @@ impl SimBackend {
             digital_in: self.pins.digital,
             digital_out: self.sim.plc().outputs(),
             analog: self.pins.analog,
+            lift: self.sim.lift().map(|l| l.sample()),
             ..RigStatus::default()
         };
         if let Some(s) = &self.last {

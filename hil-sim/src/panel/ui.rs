@@ -213,6 +213,32 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
         o.push(Span::raw(" "));
     }
     v.push(Line::from(o));
+    if let Some(l) = s.lift {
+        // The lift (lift.md 4): car, floor, door, brake, vanes; calls are the D keys.
+        v.push(Line::from(format!(
+            "LIFT car {:7.1} mm {:6.1} mm/s floor {}",
+            l.car_mm,
+            l.car_mms,
+            if l.at_floor == 0 {
+                "-".to_string()
+            } else {
+                l.at_floor.to_string()
+            }
+        )));
+        v.push(Line::from(format!(
+            "     door {:3.0} % {} brake {} vanes {}{} chain {}",
+            100.0 * l.door,
+            if l.door_closed { "closed" } else { "open  " },
+            if l.brake_engaged { "on " } else { "off" },
+            if l.vane_l { 'L' } else { '.' },
+            if l.vane_r { 'R' } else { '.' },
+            if l.chain_closed { "ok" } else { "OPEN" }
+        )));
+        v.push(Line::from(Span::styled(
+            "     calls: Q W E R car 1-4, T Y U I hall 1u 2u 2d 3u (` bank: 3d 4d)",
+            Style::default().fg(Color::DarkGray),
+        )));
+    }
     v.push(Line::from(""));
     for (n, (down, up)) in ANALOG_KEYS.iter().enumerate() {
         v.push(Line::from(vec![
