@@ -11,8 +11,11 @@
 //! * Instructions the verifier would reject (wrong section or operand) do nothing.
 //! * `SN1` clamps f to 0..=fmx and A to >= 0.
 //! * `=dU` with `Uc=` unset (0) leaves dU unchanged; `fjm` 0 keeps 50.0 Hz.
-//! * `PI` with T <= 0 has no integral part (I = 0); the integral is kept in Q16 so that a
-//!   2333 ms time constant integrates steps far below 1 count per millisecond.
+//! * `PI` with T <= 0 (lift.md 2.1, the rule): the line's integral is reset to 0, not
+//!   frozen, and stays 0 while T <= 0; y = clamp(trunc(Kp (w - x) / 100), 0, limit), so
+//!   Kp = 0 gives y = 0 in the same millisecond (a ramp stops at once). When T > 0 again
+//!   the integral restarts from 0. The integral is kept in Q16 so that a 2333 ms time
+//!   constant integrates steps far below 1 count per millisecond.
 
 use shared_protocol::program::{
     drive_stack_step, DriveSection, Instruction, Mnemonic, Operand, DRIVE_LINES,
@@ -484,6 +487,65 @@ mod tests {
         vm.set_q(1, 0);
         vm.run(&s, &mut |_| {});
         assert_eq!(vm.q(2), 0);
+    }
+
+    /// lift.md 2.1: T <= 0 resets the integral (not frozen) and stops a lag at once; a
+    /// positive T restarts it from 0; the limit is min(K, 32767).
+    #[test]
+    fn pi_with_t_at_or_below_zero_resets_the_integral_and_stops_at_once() {
+        // The lift's lag: Kp = 0, T = Q03, x = Q01 (fed back), w = Q02, limit 250.
+        let mut vm = DriveVm::new(16000);
+        let s = section(&[
+            (0, ins(Mnemonic::Ld, k(0), 0)),
+            (1, ins(Mnemonic::Ld, Some(Operand::Q(3)), 0)),
+            (2, ins(Mnemonic::Ld, Some(Operand::Q(1)), 0)),
+            (3, ins(Mnemonic::Ld, Some(Operand::Q(2)), 0)),
+            (4, ins(Mnemonic::Pi, k(250), 250)),
+            (5, ins(Mnemonic::Wr, Some(Operand::Q(1)), 0)),
+        ]);
+        vm.set_q(2, 133);
+        vm.set_q(3, 300);
+        for _ in 0..2000 {
+            vm.run(&s, &mut |_| {});
+        }
+        assert_eq!(vm.q(1), 133, "settled on w");
+        // T = 0: y = 0 in the same millisecond, and stays 0 (w still 133).
+        for t in [0, -5] {
+            vm.set_q(3, t);
+            for _ in 0..3 {
+                vm.run(&s, &mut |_| {});
+                assert_eq!(vm.q(1), 0, "T = {t}");
+            }
+        }
+        // T > 0 again: the integral restarts from 0 (not from the old 133): after 1 ms
+        // y = 133 / 300 of a count, truncated to 0, and it rises from there.
+        vm.set_q(3, 300);
+        vm.run(&s, &mut |_| {});
+        assert_eq!(vm.q(1), 0);
+        for _ in 0..299 {
+            vm.run(&s, &mut |_| {});
+        }
+        let after_t = vm.q(1);
+        assert!(
+            (80..=90).contains(&after_t),
+            "1 - 1/e of 133 after T: {after_t}"
+        );
+        // With Kp > 0 and T <= 0, y is the P part alone, truncated and clamped to the
+        // limit: Kp = 1.50, e = 33 -> 49.5 -> 49.
+        let p = section(&[
+            (0, ins(Mnemonic::Ld, k(150), 150)),
+            (1, ins(Mnemonic::Ld, k(0), 0)),
+            (2, ins(Mnemonic::Ld, k(100), 100)),
+            (3, ins(Mnemonic::Ld, Some(Operand::Q(2)), 0)),
+            (4, ins(Mnemonic::Pi, k(9999), 9999)),
+            (5, ins(Mnemonic::Wr, Some(Operand::Q(4)), 0)),
+        ]);
+        vm.set_q(2, 133);
+        vm.run(&p, &mut |_| {});
+        assert_eq!(vm.q(4), 49);
+        vm.set_q(2, i16::MAX);
+        vm.run(&p, &mut |_| {});
+        assert_eq!(vm.q(4), 9999, "limit K");
     }
 
     #[test]

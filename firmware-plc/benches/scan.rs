@@ -24,7 +24,7 @@ fn bench(name: &str, program: &Program, scans: u32) {
     // Warm-up, then the timed run; inputs and time change every scan.
     let mut run = |vm: &mut PlcVm, n: u32, t0: u32| {
         for i in 0..n {
-            inputs.digital = (i as u8).rotate_left(i % 8);
+            inputs.digital = (i as u16).rotate_left(i % 16);
             inputs.analog = [(i % 1024) as u16, (i * 7 % 1024) as u16, 512, 3];
             let now = Millis(t0.wrapping_add(i));
             vm.scan(black_box(program), black_box(&inputs), now, &mut out);

@@ -135,7 +135,7 @@ pub struct PlcApp<E: Eeprom> {
     /// Time from one scan to the next, for the link's quiet window.
     scan_period_us: u64,
     /// Digital inputs, debounced in [`PlcApp::tick_1ms`].
-    inputs: Debouncer<8>,
+    inputs: Debouncer<{ vm::INPUTS as usize }>,
     /// The keypad, debounced in [`PlcApp::tick_1ms`].
     keys: KeyMatrix,
     /// `tick_1ms` calls since power-up (scan and redraw cadence).
@@ -174,8 +174,8 @@ pub const RENDER_TICKS: u32 = 100;
 /// The raw levels a board samples once per millisecond.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct RawIo {
-    /// D00..D07 as read at the pins (bit n = Dn, 1 = on), not debounced.
-    pub digital: u8,
+    /// D00..D15 as read at the pins (bit n = Dn, 1 = on), not debounced.
+    pub digital: u16,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
     /// The key matrix as scanned (bit `4 * row + column` = pressed), not debounced.
@@ -186,7 +186,7 @@ pub struct RawIo {
 #[must_use]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Tick {
-    /// The output image to write to O00..O05.
+    /// The output image to write to O00..O07.
     pub outputs: u8,
     /// A scan ran in this tick (its warning, if any).
     pub scanned: bool,
@@ -355,7 +355,7 @@ impl<E: Eeprom> PlcApp<E> {
         self.vm.q(n)
     }
 
-    /// The output image O00-O05 (0 when not running).
+    /// The output image O00-O07 (0 when not running).
     pub fn outputs(&self) -> u8 {
         self.out.outputs
     }
@@ -510,10 +510,9 @@ impl<E: Eeprom> PlcApp<E> {
     /// One scan with the inputs sampled at its start; returns the outputs to write.
     /// Does nothing (outputs off) unless RUN is on.
     #[must_use = "the outputs must be written to the pins"]
-    pub fn scan(&mut self, digital: u8, analog: [u16; 4], now: Micros) -> ScanOutputs {
+    pub fn scan(&mut self, digital: u16, analog: [u16; 4], now: Micros) -> ScanOutputs {
         let running = self.run == RunState::Running;
-        self.observed
-            .scanned(u16::from(digital), analog, now, running);
+        self.observed.scanned(digital, analog, now, running);
         if !running {
             self.out = ScanOutputs::default();
             return self.out;
@@ -525,6 +524,14 @@ impl<E: Eeprom> PlcApp<E> {
         };
         let mut out = ScanOutputs::default();
         self.vm.scan(&self.program, &inputs, now.millis(), &mut out);
+        if let Some(rev) = out.rev_request {
+            // The direction goes first (lift.md 2.2): a program reversing from standstill
+            // executes `REV` before, or in the same scan as, the `WR` that starts the
+            // motor, and the drive must have the new direction before the new setpoint.
+            // Remembered while the link is down and resent after each handshake; refused
+            // only with 95 commands waiting, and the program asks again every scan.
+            let _ = self.link.set_direction(rev);
+        }
         for n in out.dirty_q() {
             let value = self.vm.q(n);
             let Some(sent) = self.q_sent.get_mut(usize::from(n)) else {
@@ -542,11 +549,6 @@ impl<E: Eeprom> PlcApp<E> {
             // (`dirty_q` gives Q00-Q63 only).
             let _ = self.link.write_q(n, value);
             *sent = Some(value);
-        }
-        if let Some(rev) = out.rev_request {
-            // Remembered while the link is down and resent after each handshake; refused
-            // only with 95 commands waiting, and the program asks again every scan.
-            let _ = self.link.set_direction(rev);
         }
         if let Some(mask) = out.sf_request {
             // Before the ACK of the same scan (safety_lab.plc releases, then ACKs); newest
@@ -831,7 +833,7 @@ impl<E: Eeprom> PlcApp<E> {
     /// A board that falls behind calls this once per pass, not once per missed
     /// millisecond: debouncing then takes longer, never shorter.
     pub fn tick_1ms(&mut self, now: Micros, raw: RawIo, screen: &mut Screen) -> Tick {
-        let digital = self.inputs.update(u32::from(raw.digital)) as u8;
+        let digital = self.inputs.update(u32::from(raw.digital)) as u16;
         let mut pressed: heapless::Vec<Key, 16> = heapless::Vec::new();
         let mut keys_down = 0u16;
         self.keys.update(raw.keys, &mut |e| {

@@ -6,42 +6,58 @@
 //!
 //! | signal | pin | peripheral | Nucleo connector |
 //! | --- | --- | --- | --- |
-//! | inputs I0..I7 (active high) | PC6, PC7, PC8, PC9, PC10, PC11, PC12, PD2 | GPIO in, pull-down | morpho |
-//! | outputs Q0..Q5 (active high) | PB10, PB11, PB12, PB13, PB14, PB15 | GPIO out | morpho |
+//! | inputs D00..D07 (active high) | PC6, PC7, PC8, PC9, PC10, PC11, PC12, PD2 | GPIO in, pull-down | morpho |
+//! | inputs D08..D15 (active high) | PA4, PA11, PA12, PA15, PB1, PB2, PB4, PC0 | GPIO in, pull-down | Arduino A2 (PA4), D5 (PB4), A5 (PC0); the rest morpho |
+//! | outputs O00..O05 (active high) | PB10, PB11, PB12, PB13, PB14, PB15 | GPIO out | morpho |
+//! | outputs O06, O07 (active high) | PB9, PB8 | GPIO out | Arduino D14, D15 |
 //! | analog A00, A01, A02, A03 | PA0, PA1, PB0, PC1 | ADC1_IN1, IN2, IN15, IN7 | Arduino A0, A1, A3, A4 |
 //! | keypad rows R0..R3 (driven low one at a time) | PA6, PA7, PB6, PB7 | GPIO out, open drain | morpho |
 //! | keypad columns C0..C3 | PC2, PC3, PC4, PC5 | GPIO in, pull-up | morpho |
 //! | I2C SCL / SDA (24C256 at 0x50, PCF8574 LCD at 0x27) | PA8 / PB5 | I2C3 (AF2 / AF8) | Arduino D7 / D4 |
 //! | link TX / RX | PA9 / PA10 | USART1 (AF7), DMA1 CH1 / CH2 | Arduino D8 / D2 |
 //! | heartbeat LED (toggles while the watchdog is fed) | PA5 | GPIO out | LD2 |
-
 //!
 //! The I2C bus is not on PB8/PB9 (I2C1): PB8 is BOOT0 with the factory option bytes
 //! (nSWBOOT0 = 1), and the bus's pull-ups would make every reset boot the ROM bootloader
 //! (board review D2). PB8 must never be an input that can be high at reset.
+//!
+//! # D08-D15 and O06-O07 (lift.md 1)
+//!
+//! Besides the table above and what the NUCLEO-G431RB's own hardware takes with its default
+//! solder bridges (UM2505: PA13/PA14 SWD, PB3 SWO, PA2/PA3 the ST-LINK virtual COM port =
+//! LPUART1, the service port; PC13 button B1; PC14/PC15 and PF0/PF1 the crystals; PG10
+//! NRST), lift.md 1 lists ten free pins: PA4, PA8, PA11, PA12, PA15, PB1, PB2, PB4, PB5,
+//! PC0. PA8/PB5 became the I2C3 bus (board review D2), which freed PB8/PB9. That leaves
+//! PA4, PA11, PA12, PA15, PB1, PB2, PB4, PC0, PB8, PB9: ten again, 8 inputs + 2 outputs, so
+//! no SPI shift registers are needed.
+//!
+//! * Outputs O06/O07 are PB9/PB8: both leave reset in analog mode (high impedance), so
+//!   nothing drives a load before the firmware writes the image. PB8 is also BOOT0, sampled
+//!   at reset; as an output it is safe as long as its load (an opto-coupler LED, a driver
+//!   such as a ULN2803 with its own input pull-down) never pulls the pin high. An input
+//!   there could be high at reset and boot the ROM bootloader, so PB8 is the output nobody
+//!   needs: O07, the lift's spare (always 0).
+//! * PA15 (JTDI) and PB4 (NJTRST) leave reset as JTAG pins with internal pull resistors:
+//!   an output's load would switch on during reset, so they are inputs (D11, D14). The
+//!   firmware configures every input with its pull-down before the first sample.
+//! * PA11/PA12 (the G431's USB D-/D+) are plain GPIO: the NUCLEO's USB connector belongs to
+//!   the ST-LINK, not to the target.
+//!
+//! The pin arrays are `[_; DIGITAL_INPUTS]` / `[_; DIGITAL_OUTPUTS]`
+//! (`shared_protocol::program`): a table with one pin more or less does not compile.
 
+use embassy_stm32::gpio::AnyPin;
 use embassy_stm32::{peripherals as p, Peri, Peripherals};
+use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
 
-/// The eight digital inputs I0..I7.
+/// The digital inputs D00..D15, in order.
 pub struct Inputs {
-    pub i0: Peri<'static, p::PC6>,
-    pub i1: Peri<'static, p::PC7>,
-    pub i2: Peri<'static, p::PC8>,
-    pub i3: Peri<'static, p::PC9>,
-    pub i4: Peri<'static, p::PC10>,
-    pub i5: Peri<'static, p::PC11>,
-    pub i6: Peri<'static, p::PC12>,
-    pub i7: Peri<'static, p::PD2>,
+    pub pins: [Peri<'static, AnyPin>; DIGITAL_INPUTS as usize],
 }
 
-/// The six digital outputs Q0..Q5.
+/// The digital outputs O00..O07, in order.
 pub struct Outputs {
-    pub q0: Peri<'static, p::PB10>,
-    pub q1: Peri<'static, p::PB11>,
-    pub q2: Peri<'static, p::PB12>,
-    pub q3: Peri<'static, p::PB13>,
-    pub q4: Peri<'static, p::PB14>,
-    pub q5: Peri<'static, p::PB15>,
+    pub pins: [Peri<'static, AnyPin>; DIGITAL_OUTPUTS as usize],
 }
 
 /// The four analog inputs A00..A03 on ADC1.
@@ -96,22 +112,36 @@ pub struct Board {
 pub fn split(p: Peripherals) -> Board {
     Board {
         inputs: Inputs {
-            i0: p.PC6,
-            i1: p.PC7,
-            i2: p.PC8,
-            i3: p.PC9,
-            i4: p.PC10,
-            i5: p.PC11,
-            i6: p.PC12,
-            i7: p.PD2,
+            pins: [
+                p.PC6.into(),  // D00
+                p.PC7.into(),  // D01
+                p.PC8.into(),  // D02
+                p.PC9.into(),  // D03
+                p.PC10.into(), // D04
+                p.PC11.into(), // D05
+                p.PC12.into(), // D06
+                p.PD2.into(),  // D07
+                p.PA4.into(),  // D08
+                p.PA11.into(), // D09
+                p.PA12.into(), // D10
+                p.PA15.into(), // D11 (JTDI at reset: input only)
+                p.PB1.into(),  // D12
+                p.PB2.into(),  // D13
+                p.PB4.into(),  // D14 (NJTRST at reset: input only)
+                p.PC0.into(),  // D15
+            ],
         },
         outputs: Outputs {
-            q0: p.PB10,
-            q1: p.PB11,
-            q2: p.PB12,
-            q3: p.PB13,
-            q4: p.PB14,
-            q5: p.PB15,
+            pins: [
+                p.PB10.into(), // O00
+                p.PB11.into(), // O01
+                p.PB12.into(), // O02
+                p.PB13.into(), // O03
+                p.PB14.into(), // O04
+                p.PB15.into(), // O05
+                p.PB9.into(),  // O06
+                p.PB8.into(),  // O07 (BOOT0: an output only)
+            ],
         },
         analog: Analog {
             adc: p.ADC1,
@@ -149,13 +179,14 @@ pub fn split(p: Peripherals) -> Board {
     }
 }
 
-/// Drives Q0..Q5 (PB10..PB15) low as push-pull outputs, straight through the PAC, whatever
-/// the application is doing. Only for the panic and HardFault paths (`board::fault`): it
-/// takes no ownership and never fails. BSRR first, then MODER: no high glitch.
+/// Drives O00..O07 (PB10..PB15, PB9, PB8) low as push-pull outputs, straight through the
+/// PAC, whatever the application is doing. Only for the panic and HardFault paths
+/// (`board::fault`): it takes no ownership and never fails. BSRR first, then MODER: no high
+/// glitch.
 pub fn force_outputs_low() {
     use embassy_stm32::pac;
     use embassy_stm32::pac::gpio::vals::Moder;
-    for pin in 10..=15 {
+    for pin in 8..=15 {
         pac::GPIOB.bsrr().write(|w| w.set_br(pin, true));
         pac::GPIOB
             .moder()

@@ -31,7 +31,7 @@ struct Rig {
     to_drive: Channel,
     to_plc: Channel,
     now: Micros,
-    digital: u8,
+    digital: u16,
     analog: [u16; 4],
     next_ms: u64,
 }

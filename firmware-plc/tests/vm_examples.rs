@@ -63,9 +63,9 @@ const AND_OR: &str = include_str!("../../shared-protocol/programs/and_or.plc");
 #[test]
 fn and_or_expression_all_inputs() {
     let mut r = Rig::new(AND_OR);
-    for d in 0u8..16 {
+    for d in 0u16..16 {
         r.inputs.digital = d;
-        let bit = |i: u8| d & (1 << i) != 0;
+        let bit = |i: u16| d & (1 << i) != 0;
         let expect = (bit(0) && bit(1)) || (bit(2) && bit(3));
         assert_eq!(r.step(10).output(1), expect, "D = {d:04b}");
         assert_eq!(r.out.outputs & !0b10, 0, "no other output");

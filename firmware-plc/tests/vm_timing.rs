@@ -48,7 +48,7 @@ fn run(t0: u32, presets: [u16; 3], history: &[Scan]) -> Vec<(u64, bool, bool, bo
             t += u64::from(s.dt_ms);
         }
         let inputs = ScanInputs {
-            digital: u8::from(s.input),
+            digital: u16::from(s.input),
             ..ScanInputs::default()
         };
         vm.scan(&prog, &inputs, Millis(t0.wrapping_add(t as u32)), &mut out);

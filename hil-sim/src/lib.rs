@@ -41,7 +41,12 @@ pub fn image_bytes(program: &shared_protocol::program::Program) -> anyhow::Resul
 }
 
 /// `hil-sim panel`: the interactive front panel.
-pub fn panel_command(program: Option<&Path>, eeprom: Option<&Path>) -> anyhow::Result<()> {
+/// `lift`: the lift plant on the shaft (`--lift`, lift.md 4).
+pub fn panel_command(
+    program: Option<&Path>,
+    eeprom: Option<&Path>,
+    lift: bool,
+) -> anyhow::Result<()> {
     use std::io::IsTerminal;
     // Bad files first, with or without a terminal (nothing is created or changed yet).
     if let Some(p) = program {
@@ -57,5 +62,5 @@ pub fn panel_command(program: Option<&Path>, eeprom: Option<&Path>) -> anyhow::R
              for scripted runs use `hil-sim run`"
         );
     }
-    panel::run(program, eeprom)
+    panel::run(program, eeprom, lift)
 }

@@ -45,6 +45,10 @@ enum Cmd {
         /// absent; 32 KiB, as `asm -o` writes). Without it the EEPROM lives in memory.
         #[arg(long)]
         eeprom: Option<PathBuf>,
+        /// Attach the lift of lift.md 4 (default `[lift]` keys) to the shaft: run
+        /// `shared-protocol/programs/lift.plc`, call with the digital keys.
+        #[arg(long)]
+        lift: bool,
     },
     /// The same run on the real firmware images, in an emulator of both boards.
     Emu {
@@ -195,9 +199,11 @@ fn real_main() -> Result<()> {
         Cmd::Run { record } => cmd_run(&record),
         Cmd::Asm { program, output } => cmd_asm(&program, output.as_deref()),
         Cmd::Disasm { program } => cmd_disasm(&program),
-        Cmd::Panel { program, eeprom } => {
-            hil_sim::panel_command(program.as_deref(), eeprom.as_deref())
-        }
+        Cmd::Panel {
+            program,
+            eeprom,
+            lift,
+        } => hil_sim::panel_command(program.as_deref(), eeprom.as_deref(), lift),
         Cmd::Emu {
             record,
             drive_elf,

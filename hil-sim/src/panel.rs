@@ -42,9 +42,21 @@ pub fn read_program(path: &Path) -> Result<Program> {
 /// The panel with `program_path` (if any) and the EEPROM in `eeprom` (if any, else in
 /// memory), before the terminal is touched: every file error is reported here.
 pub fn open(program_path: Option<&Path>, eeprom: Option<&Path>) -> Result<PanelApp> {
+    open_with(program_path, eeprom, false)
+}
+
+/// [`open`], with the lift of lift.md 4 on the shaft when `lift` (`--lift`; not with
+/// `--eeprom` yet).
+pub fn open_with(
+    program_path: Option<&Path>,
+    eeprom: Option<&Path>,
+    lift: bool,
+) -> Result<PanelApp> {
     let program = program_path.map(read_program).transpose()?;
     let (backend, note) = match eeprom {
+        Some(_) if lift => anyhow::bail!("--lift does not work with --eeprom yet"),
         Some(path) => SimBackend::with_eeprom_file(program.as_ref(), path)?,
+        None if lift => (SimBackend::new_lift(program.as_ref())?, None),
         None => (SimBackend::new(program.as_ref())?, None),
     };
     let mut app = PanelApp::new(backend);
@@ -65,8 +77,8 @@ pub fn open(program_path: Option<&Path>, eeprom: Option<&Path>) -> Result<PanelA
 }
 
 /// Run the panel until it is quit (Esc / Ctrl-C, confirmed when the program is unsaved).
-pub fn run(program: Option<&Path>, eeprom: Option<&Path>) -> Result<()> {
-    let mut app = open(program, eeprom)?;
+pub fn run(program: Option<&Path>, eeprom: Option<&Path>, lift: bool) -> Result<()> {
+    let mut app = open_with(program, eeprom, lift)?;
     run_app(&mut app)
 }
 

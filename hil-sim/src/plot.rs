@@ -40,6 +40,9 @@ pub struct Marks {
     pub events: Vec<(f64, String)>,
     /// The end of the phase-current zoom (s); `None`: the end of the run.
     pub zoom_at_s: Option<f64>,
+    /// With `[lift]`: the floor levels in mm, dashed in the car-position panel (drawn only
+    /// when the samples have the lift).
+    pub floor_levels_mm: Vec<(String, f64)>,
 }
 
 /// The image formats `--plot` writes.
@@ -173,7 +176,7 @@ fn draw<DB: DrawingBackend>(
         .last()
         .map_or(1.0, |s| s.t_ns as f64 * 1e-9)
         .max(t_start + 1e-6);
-    let panels: Vec<(&str, f64, Vec<Series<'_>>)> = vec![
+    let mut panels: Vec<(&str, f64, Vec<Series<'_>>)> = vec![
         (
             "output frequency [Hz] (signed by direction)",
             1.0,
@@ -263,6 +266,20 @@ fn draw<DB: DrawingBackend>(
             ],
         ),
     ];
+    // The lift (lift.md 4.4): car position with the floor levels, as the last panel.
+    let lift_panel = samples.iter().any(|s| s.lift.is_some()).then(|| {
+        panels.push((
+            "car position [mm] (dashed: floor levels)",
+            100.0,
+            vec![Series {
+                name: "car_mm",
+                color_name: "navy",
+                color: RGBColor(0, 0, 128),
+                y: Box::new(|s| s.lift.map_or(f64::NAN, |l| l.car_mm)),
+            }],
+        ));
+        panels.len() - 1
+    });
     let areas = root.split_evenly((panels.len(), 1));
     let last = areas.len().saturating_sub(1);
     // Events at the same instant share one marker and one label.
@@ -285,6 +302,7 @@ fn draw<DB: DrawingBackend>(
         let (limits, mirrored): (&[(String, f64)], bool) = match k {
             2 => (&marks.current_limits_a, true),
             4 => (&marks.dc_limits_v, false),
+            k if Some(k) == lift_panel => (&marks.floor_levels_mm, false),
             _ => (&[], false),
         };
         let mut caption = format!("{caption}: {}", names.join(", "));

@@ -5,6 +5,8 @@
 
 use std::io::{self, Write};
 
+use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
+
 use crate::sim::Sample;
 
 /// The header row.
@@ -27,8 +29,8 @@ pub fn header() -> String {
     .iter()
     .map(|s| s.to_string())
     .collect();
-    cols.extend((0..8).map(|n| format!("D{n:02}")));
-    cols.extend((0..6).map(|n| format!("O{n:02}")));
+    cols.extend((0..DIGITAL_INPUTS).map(|n| format!("D{n:02}")));
+    cols.extend((0..DIGITAL_OUTPUTS).map(|n| format!("O{n:02}")));
     cols.extend((0..8).map(|n| format!("Q{n:02}")));
     cols.extend((0..4).map(|n| format!("lcd{n}")));
     cols.extend(
@@ -66,10 +68,10 @@ pub fn row(s: &Sample) -> String {
         num(s.torque_nm, 5),
         u8::from(s.brake),
     );
-    for n in 0..8 {
+    for n in 0..DIGITAL_INPUTS {
         let _ = write!(r, ",{}", (s.digital_in >> n) & 1);
     }
-    for n in 0..6 {
+    for n in 0..DIGITAL_OUTPUTS {
         let _ = write!(r, ",{}", (s.digital_out >> n) & 1);
     }
     for q in s.q {
@@ -97,6 +99,19 @@ pub fn row(s: &Sample) -> String {
         s.sft_ds % 10,
         turns(s.turns_e4)
     );
+    if let Some(l) = &s.lift {
+        let _ = write!(
+            r,
+            ",{},{},{},{},{},{},{}",
+            num(l.car_mm, 2),
+            num(l.car_mms, 2),
+            l.at_floor,
+            num(l.door, 3),
+            u8::from(l.brake_engaged),
+            u8::from(l.vane_l),
+            u8::from(l.vane_r)
+        );
+    }
     r
 }
 
@@ -116,22 +131,48 @@ fn num(x: f64, decimals: usize) -> String {
     }
 }
 
-/// Streams rows to a writer.
+/// The lift's columns (lift.md 4.4), after all others, only with `[lift]`.
+pub const LIFT_COLUMNS: [&str; 7] = [
+    "car_mm", "car_mms", "at_floor", "door", "mbrake", "vane_l", "vane_r",
+];
+
+/// The header row of a run with the lift.
+pub fn header_with_lift() -> String {
+    format!("{},{}", header(), LIFT_COLUMNS.join(","))
+}
+
+/// Streams rows to a writer. The header goes out with the first row (the lift's columns
+/// when that row has the lift), or at `finish` when there was none.
 pub struct CsvWriter<W: Write> {
     w: W,
+    header_done: bool,
 }
 
 impl<W: Write> CsvWriter<W> {
-    pub fn new(mut w: W) -> io::Result<Self> {
-        writeln!(w, "{}", header())?;
-        Ok(CsvWriter { w })
+    pub fn new(w: W) -> io::Result<Self> {
+        Ok(CsvWriter {
+            w,
+            header_done: false,
+        })
     }
 
     pub fn write(&mut self, s: &Sample) -> io::Result<()> {
+        if !self.header_done {
+            let h = if s.lift.is_some() {
+                header_with_lift()
+            } else {
+                header()
+            };
+            writeln!(self.w, "{h}")?;
+            self.header_done = true;
+        }
         writeln!(self.w, "{}", row(s))
     }
 
     pub fn finish(mut self) -> io::Result<W> {
+        if !self.header_done {
+            writeln!(self.w, "{}", header())?;
+        }
         self.w.flush()?;
         Ok(self.w)
     }
@@ -147,8 +188,8 @@ mod tests {
         assert!(h.starts_with(
             "t_s,f_cmd_hz,dir,m,pwm_on,fault,u_dc_v,i_a_a,i_b_a,i_c_a,speed_rpm,torque_nm,brake,D00,"
         ));
-        assert!(h.contains(",D07,O00,"));
-        assert!(h.contains(",O05,Q00,"));
+        assert!(h.contains(",D15,O00,"));
+        assert!(h.contains(",O07,Q00,"));
         assert!(h.ends_with(
             ",Q07,lcd0,lcd1,lcd2,lcd3,duty_a,duty_b,duty_c,u_ab_v,warn,sf_req,sf_st,sdc,sft_s,turns"
         ));
@@ -168,7 +209,7 @@ mod tests {
             speed_rpm: 100.0,
             torque_nm: 0.01,
             brake: false,
-            digital_in: 0b1000_0001,
+            digital_in: 0b1000_0000_1000_0001,
             digital_out: 0b10,
             q: [1, 2, 3, 4, 5, 6, 7, 8],
             lcd: [Some(500), None, None, None],
@@ -187,6 +228,7 @@ mod tests {
             sdc: true,
             sft_ds: 150,
             turns_e4: -2_000_001,
+            lift: None,
         };
         let r = row(&s);
         assert_eq!(r.split(',').count(), header().split(',').count());
@@ -203,6 +245,24 @@ mod tests {
             ..s
         };
         assert!(row(&quiet).ends_with(",7.500,,2050,2,1,15.0,-200.0001"));
+        let lifted = Sample {
+            lift: Some(crate::plant::lift::LiftSample {
+                car_mm: 599.996,
+                car_mms: -0.004,
+                at_floor: 3,
+                door: 0.5,
+                brake_engaged: true,
+                vane_l: true,
+                vane_r: false,
+                ..Default::default()
+            }),
+            ..quiet
+        };
+        let r = row(&lifted);
+        assert!(r.ends_with(",-200.0001,600.00,0.00,3,0.500,1,1,0"), "{r}");
+        assert_eq!(r.split(',').count(), header_with_lift().split(',').count());
+        assert!(header_with_lift()
+            .ends_with(",turns,car_mm,car_mms,at_floor,door,mbrake,vane_l,vane_r"));
     }
 
     #[test]

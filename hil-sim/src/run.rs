@@ -9,6 +9,7 @@ use shared_protocol::fault::fault_name;
 use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
 use crate::mcu::Lcd;
+use crate::plant::lift::LiftEvent;
 use crate::plot::Marks;
 use crate::scenario::{Action, Input, PlantChange, Scenario, TimedAction};
 use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
@@ -64,6 +65,8 @@ pub struct RunReport {
     pub plc_running: bool,
     pub final_speed_rpm: f64,
     pub final_f_hz: f64,
+    /// The lift at the end of the run (`[lift]`).
+    pub final_lift: Option<crate::plant::lift::LiftSample>,
     /// Each run-time warning seen (one per status-line text: the long text of its first
     /// appearance), with the time it first appeared.
     pub warnings: Vec<(f64, String)>,
@@ -119,6 +122,11 @@ pub fn action_label(a: &Action) -> String {
             PlantChange::BrakeResistorOhm(v) => format!("Rb {v}"),
             PlantChange::LockedRotor(v) => format!("locked {v}"),
         },
+        Action::Lift(e) => match e {
+            LiftEvent::LoadKg(kg) => format!("load {kg} kg"),
+            LiftEvent::DoorBlock(b) => format!("door block {b}"),
+            LiftEvent::VaneFail(v) => format!("vane fail {v:?}"),
+        },
     }
 }
 
@@ -163,6 +171,12 @@ impl RunReport {
             // safety.md 8 and 11: the parameter signature, for the commissioning record.
             s.push_str(&format!(
                 "safety functions NOT RATED, parameter signature {sig:04X}\n"
+            ));
+        }
+        if let Some(l) = self.final_lift {
+            s.push_str(&format!(
+                "lift: car at {:.1} mm, at_floor {}\n",
+                l.car_mm, l.at_floor
             ));
         }
         s.push_str(&faults_summary(&self.faults, fault_name));
@@ -244,6 +258,15 @@ pub fn run(
         dc_limits_v: dc_limits(&sim),
         events: event_marks(&actions, sim.faults()),
         zoom_at_s: None,
+        floor_levels_mm: sim
+            .lift()
+            .map(|l| {
+                let p = l.params();
+                (1..=p.floors)
+                    .map(|k| (format!("floor {k}"), p.level_mm(k)))
+                    .collect()
+            })
+            .unwrap_or_default(),
     };
     let signature =
         shared_protocol::program::uses_safety(program).then(|| sim.drive().status().sf_signature);
@@ -266,6 +289,7 @@ pub fn run(
         plc_running: sim.plc().running(),
         final_speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
         final_f_hz: st.1,
+        final_lift: sim.lift().map(|l| l.sample()),
         warnings,
     })
 }

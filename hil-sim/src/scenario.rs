@@ -8,6 +8,12 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
+use shared_protocol::program::DIGITAL_INPUTS;
+
+use crate::plant::lift::{
+    LiftEvent, LiftParams, Vane, CAR_CALL_INPUTS, CHAIN_INPUT, DOOR_CLOSED_INPUT, HALL_INPUTS,
+    LOAD_ANALOG, VANE_L_INPUT, VANE_R_INPUT,
+};
 use crate::plant::{Load, PwmMode, RigParams};
 
 /// Duration when neither `--duration` nor the scenario gives one.
@@ -28,8 +34,125 @@ pub struct ScenarioFile {
     pub plant: PlantKeys,
     #[serde(default)]
     pub link: LinkKeys,
+    /// `[lift]` (lift.md 4): attaches the lift to the motor shaft.
+    pub lift: Option<LiftKeys>,
     #[serde(default, rename = "event")]
     pub events: Vec<EventKeys>,
+}
+
+/// `[lift]`: every key optional (lift.md 4.1).
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct LiftKeys {
+    pub floors: Option<u8>,
+    pub floor_pitch_mm: Option<f64>,
+    pub gear_ratio: Option<f64>,
+    pub sprocket_d_mm: Option<f64>,
+    pub unbalance_kg: Option<f64>,
+    pub moving_mass_kg: Option<f64>,
+    pub start_mm: Option<f64>,
+    pub vane_long_mm: Option<f64>,
+    pub vane_short_mm: Option<f64>,
+    pub floor1_swapped: Option<bool>,
+    pub door_stroke_s: Option<f64>,
+    pub brake_delay_ms: Option<f64>,
+    pub brake_torque_nm: Option<f64>,
+    pub limit_low_mm: Option<f64>,
+    pub limit_high_mm: Option<f64>,
+    pub load_kg: Option<f64>,
+    pub load_scale_kg: Option<f64>,
+}
+
+impl LiftKeys {
+    fn params(&self) -> Result<LiftParams> {
+        let mut p = LiftParams::default();
+        if let Some(n) = self.floors {
+            if !(2..=8).contains(&n) {
+                bail!("lift.floors must be 2..=8, got {n}");
+            }
+            p.floors = n;
+        }
+        for (name, val, slot) in [
+            (
+                "lift.floor_pitch_mm",
+                self.floor_pitch_mm,
+                &mut p.floor_pitch_mm,
+            ),
+            ("lift.gear_ratio", self.gear_ratio, &mut p.gear_ratio),
+            (
+                "lift.sprocket_d_mm",
+                self.sprocket_d_mm,
+                &mut p.sprocket_d_mm,
+            ),
+            (
+                "lift.moving_mass_kg",
+                self.moving_mass_kg,
+                &mut p.moving_mass_kg,
+            ),
+            ("lift.vane_long_mm", self.vane_long_mm, &mut p.vane_long_mm),
+            (
+                "lift.vane_short_mm",
+                self.vane_short_mm,
+                &mut p.vane_short_mm,
+            ),
+            (
+                "lift.door_stroke_s",
+                self.door_stroke_s,
+                &mut p.door_stroke_s,
+            ),
+            (
+                "lift.load_scale_kg",
+                self.load_scale_kg,
+                &mut p.load_scale_kg,
+            ),
+        ] {
+            if let Some(v) = positive(name, val)? {
+                *slot = v;
+            }
+        }
+        for (name, val, slot) in [
+            (
+                "lift.brake_delay_ms",
+                self.brake_delay_ms,
+                &mut p.brake_delay_ms,
+            ),
+            (
+                "lift.brake_torque_nm",
+                self.brake_torque_nm,
+                &mut p.brake_torque_nm,
+            ),
+            ("lift.load_kg", self.load_kg, &mut p.load_kg),
+        ] {
+            if let Some(v) = non_negative(name, val)? {
+                *slot = v;
+            }
+        }
+        for (name, val, slot) in [
+            ("lift.unbalance_kg", self.unbalance_kg, &mut p.unbalance_kg),
+            ("lift.start_mm", self.start_mm, &mut p.start_mm),
+            ("lift.limit_low_mm", self.limit_low_mm, &mut p.limit_low_mm),
+        ] {
+            if let Some(v) = val {
+                if !v.is_finite() {
+                    bail!("{name} must be a number, got {v}");
+                }
+                *slot = v;
+            }
+        }
+        if let Some(v) = self.limit_high_mm {
+            p.limit_high_mm = Some(v);
+        }
+        if let Some(v) = self.floor1_swapped {
+            p.floor1_swapped = v;
+        }
+        if p.vane_short_mm > p.vane_long_mm {
+            bail!("lift.vane_short_mm must not exceed lift.vane_long_mm");
+        }
+        if p.limit_low_mm >= p.limit_high_mm() {
+            bail!("lift.limit_low_mm must be below lift.limit_high_mm");
+        }
+        Ok(p)
+    }
 }
 
 /// `[plant]`: every key optional; absent keys keep the default rig.
@@ -114,12 +237,21 @@ pub struct EventKeys {
     pub ov_hw_v: Option<f64>,
     pub brake_resistor_ohm: Option<f64>,
     pub locked_rotor: Option<bool>,
+    // The lift (lift.md 4.3; need `[lift]`).
+    /// Press the car button of this floor (1-4) for `hold_s`.
+    pub call: Option<u8>,
+    /// Press a hall button: `1u`, `2u`, `2d`, `3u`, `3d`, `4d`.
+    pub hall: Option<String>,
+    pub load_kg: Option<f64>,
+    pub door_block: Option<bool>,
+    /// `"L"`, `"R"` or `"none"`.
+    pub vane_fail: Option<String>,
 }
 
 /// An input the scenario can set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Input {
-    /// D00..D07.
+    /// D00..D15.
     Digital(u8),
     /// A00..A03, 10-bit counts.
     Analog(u8),
@@ -144,7 +276,7 @@ impl Input {
         }
         let n: u8 = digits.parse().ok()?;
         match area {
-            "D" if n < 8 => Some(Input::Digital(n)),
+            "D" if n < DIGITAL_INPUTS => Some(Input::Digital(n)),
             "A" if n < 4 => Some(Input::Analog(n)),
             _ => None,
         }
@@ -188,6 +320,7 @@ pub enum Action {
     KeyDown(char),
     KeyUp(char),
     Plant(PlantChange),
+    Lift(LiftEvent),
 }
 
 /// A scheduled action in virtual time.
@@ -212,6 +345,8 @@ pub struct Scenario {
     /// The scenario types the RUN key (`A`, firmware-plc/docs/keymap.md): then RUN is
     /// left to the keys instead of starting at power-up.
     pub keys_start_run: bool,
+    /// `[lift]`: the lift on the shaft.
+    pub lift: Option<LiftParams>,
 }
 
 impl Default for Scenario {
@@ -225,6 +360,7 @@ impl Default for Scenario {
             cut_at_ns: u64::MAX,
             actions: Vec::new(),
             keys_start_run: false,
+            lift: None,
         }
     }
 }
@@ -357,6 +493,9 @@ impl Scenario {
         if let Some(c) = non_negative("link.cut_at_s", l.cut_at_s)? {
             s.cut_at_ns = if c >= 1e9 { u64::MAX } else { secs_to_ns(c) };
         }
+        if let Some(l) = &f.lift {
+            s.lift = Some(l.params()?);
+        }
         for (n, e) in f.events.iter().enumerate() {
             s.add_event(e)
                 .with_context(|| format!("event {} (at_s = {})", n + 1, e.at_s))?;
@@ -383,23 +522,31 @@ impl Scenario {
                  download; [plant] oc_hw_a / ov_hw_v are the board's defaults)"
             );
         }
-        let mut any = false;
+        let mut any = self.add_lift_event(e)?;
         if let Some(set) = &e.set {
             for (name, &v) in set {
                 let input = Input::parse(name).with_context(|| {
-                    format!("set: unknown input {name:?} (D00-D07, A00-A03, AUX)")
+                    format!(
+                        "set: unknown input {name:?} (D00-D{:02}, A00-A03, AUX)",
+                        DIGITAL_INPUTS - 1
+                    )
                 })?;
                 if !(0..=input.max()).contains(&v) {
                     bail!("set: {name} = {v} out of range 0..{}", input.max());
                 }
+                self.check_not_lift_driven(name, input)?;
                 self.push(e.at_s, Action::Set(input, v as u16));
                 any = true;
             }
         }
         if let Some(name) = &e.press {
             let Some(input @ Input::Digital(_)) = Input::parse(name) else {
-                bail!("press: {name:?} is not a digital input (D00-D07)");
+                bail!(
+                    "press: {name:?} is not a digital input (D00-D{:02})",
+                    DIGITAL_INPUTS - 1
+                );
             };
+            self.check_not_lift_driven(name, input)?;
             let hold = e.hold_s.unwrap_or(DEFAULT_HOLD_S);
             if !(hold.is_finite() && hold > 0.0) {
                 bail!("hold_s must be > 0");
@@ -407,7 +554,7 @@ impl Scenario {
             self.push(e.at_s, Action::Set(input, 1));
             self.push(e.at_s + hold, Action::Set(input, 0));
             any = true;
-        } else if e.hold_s.is_some() {
+        } else if e.hold_s.is_some() && e.call.is_none() && e.hall.is_none() {
             bail!("hold_s without press");
         }
         if let Some(keys) = &e.keys {
@@ -441,6 +588,80 @@ impl Scenario {
             bail!("the event does nothing (give set, press, keys or a plant parameter)");
         }
         Ok(())
+    }
+
+    /// With `[lift]` the plant drives D10, D11, D12, D15 and A00 (lift.md 4.3).
+    fn check_not_lift_driven(&self, name: &str, input: Input) -> Result<()> {
+        if self.lift.is_none() {
+            return Ok(());
+        }
+        let driven = match input {
+            Input::Digital(n) => {
+                [VANE_L_INPUT, VANE_R_INPUT, DOOR_CLOSED_INPUT, CHAIN_INPUT].contains(&n)
+            }
+            Input::Analog(n) => n == LOAD_ANALOG,
+            _ => false,
+        };
+        if driven {
+            bail!("{name} is driven by the [lift] plant (vanes, door, safety chain, load sensor)");
+        }
+        Ok(())
+    }
+
+    /// The lift's events (`call`, `hall`, `load_kg`, `door_block`, `vane_fail`); whether
+    /// the event had one.
+    fn add_lift_event(&mut self, e: &EventKeys) -> Result<bool> {
+        let any = e.call.is_some()
+            || e.hall.is_some()
+            || e.load_kg.is_some()
+            || e.door_block.is_some()
+            || e.vane_fail.is_some();
+        if !any {
+            return Ok(false);
+        }
+        if self.lift.is_none() {
+            bail!("call / hall / load_kg / door_block / vane_fail need a [lift] table");
+        }
+        if e.press.is_some() && (e.call.is_some() || e.hall.is_some()) {
+            bail!("one button per event: press, call or hall");
+        }
+        let hold = e.hold_s.unwrap_or(DEFAULT_HOLD_S);
+        if !(hold.is_finite() && hold > 0.0) {
+            bail!("hold_s must be > 0");
+        }
+        let mut buttons = Vec::new();
+        if let Some(f) = e.call {
+            let Some(&n) = CAR_CALL_INPUTS.get(usize::from(f.wrapping_sub(1))) else {
+                bail!("call = {f}: the car has buttons for floors 1-4 (D00-D03)");
+            };
+            buttons.push(n);
+        }
+        if let Some(h) = &e.hall {
+            let Some(&(_, n)) = HALL_INPUTS.iter().find(|(name, _)| name == h) else {
+                bail!("hall = {h:?}: the hall buttons are 1u, 2u, 2d, 3u, 3d, 4d");
+            };
+            buttons.push(n);
+        }
+        for n in buttons {
+            self.push(e.at_s, Action::Set(Input::Digital(n), 1));
+            self.push(e.at_s + hold, Action::Set(Input::Digital(n), 0));
+        }
+        if let Some(kg) = non_negative("load_kg", e.load_kg)? {
+            self.push(e.at_s, Action::Lift(LiftEvent::LoadKg(kg)));
+        }
+        if let Some(b) = e.door_block {
+            self.push(e.at_s, Action::Lift(LiftEvent::DoorBlock(b)));
+        }
+        if let Some(v) = &e.vane_fail {
+            let vane = match v.as_str() {
+                "L" => Some(Vane::Left),
+                "R" => Some(Vane::Right),
+                "none" => None,
+                _ => bail!("vane_fail = {v:?}: \"L\", \"R\" or \"none\""),
+            };
+            self.push(e.at_s, Action::Lift(LiftEvent::VaneFail(vane)));
+        }
+        Ok(true)
     }
 
     /// The run length: `--duration`, else the scenario's, else [`DEFAULT_DURATION_S`].
@@ -533,7 +754,8 @@ load_torque_nm = 0.05
     fn mistakes_are_named() {
         let err = |t: &str| format!("{:#}", Scenario::parse(t).unwrap_err());
         assert!(err("[plant]\ndc_link = 3").contains("dc_link"));
-        assert!(err("[[event]]\nat_s = 1\nset = { D09 = 1 }").contains("D09"));
+        assert!(err("[[event]]\nat_s = 1\nset = { D16 = 1 }").contains("D16"));
+        assert!(Scenario::parse("[[event]]\nat_s = 1\nset = { D15 = 1 }").is_ok());
         assert!(err("[[event]]\nat_s = 1\nset = { A00 = 2000 }").contains("out of range"));
         assert!(err("[[event]]\nat_s = 1\npress = \"A00\"").contains("digital"));
         assert!(err("[[event]]\nat_s = 1\nkeys = \"X\"").contains("keypad"));
@@ -559,5 +781,56 @@ load_torque_nm = 0.05
         assert_eq!(s.duration_s(Some(1.0)), 1.0);
         assert_eq!(s.duration_s(None), 3.0);
         assert_eq!(Scenario::default().duration_s(None), DEFAULT_DURATION_S);
+    }
+
+    fn lift_err(text: &str) -> String {
+        format!("{:#}", Scenario::parse(text).unwrap_err())
+    }
+
+    #[test]
+    fn lift_table_and_events() {
+        let s = Scenario::parse(
+            "[lift]\nstart_mm = 0.0\nunbalance_kg = 4.0\n\
+             [[event]]\nat_s = 1\ncall = 3\n\
+             [[event]]\nat_s = 2\nhall = \"3d\"\nhold_s = 0.3\n\
+             [[event]]\nat_s = 3\nload_kg = 95.0\ndoor_block = true\nvane_fail = \"R\"\n",
+        )
+        .unwrap();
+        let l = s.lift.unwrap();
+        assert_eq!((l.start_mm, l.unbalance_kg, l.floors), (0.0, 4.0, 4));
+        let at = |t: f64| -> Vec<&Action> {
+            s.actions
+                .iter()
+                .filter(|a| a.at_ns == secs_to_ns(t))
+                .map(|a| &a.action)
+                .collect()
+        };
+        assert_eq!(at(1.0), vec![&Action::Set(Input::Digital(2), 1)]);
+        assert_eq!(at(1.1), vec![&Action::Set(Input::Digital(2), 0)]);
+        assert_eq!(at(2.0), vec![&Action::Set(Input::Digital(8), 1)]);
+        assert_eq!(at(2.3), vec![&Action::Set(Input::Digital(8), 0)]);
+        assert_eq!(
+            at(3.0),
+            vec![
+                &Action::Lift(LiftEvent::LoadKg(95.0)),
+                &Action::Lift(LiftEvent::DoorBlock(true)),
+                &Action::Lift(LiftEvent::VaneFail(Some(Vane::Right)))
+            ]
+        );
+    }
+
+    #[test]
+    fn lift_errors_name_the_key() {
+        assert!(lift_err("[[event]]\nat_s = 1\ncall = 3").contains("[lift]"));
+        assert!(lift_err("[lift]\n[[event]]\nat_s = 1\ncall = 5").contains("call = 5"));
+        assert!(lift_err("[lift]\n[[event]]\nat_s = 1\nhall = \"1d\"").contains("1d"));
+        assert!(lift_err("[lift]\n[[event]]\nat_s = 1\nvane_fail = \"X\"").contains("X"));
+        assert!(lift_err("[lift]\n[[event]]\nat_s = 1\nset = { D10 = 1 }").contains("D10"));
+        assert!(lift_err("[lift]\n[[event]]\nat_s = 1\npress = \"D12\"").contains("D12"));
+        assert!(lift_err("[lift]\n[[event]]\nat_s = 1\nset = { A00 = 5 }").contains("A00"));
+        assert!(lift_err("[lift]\nfloors = 9").contains("floors"));
+        assert!(lift_err("[lift]\nbogus = 1").contains("bogus"));
+        // Without [lift] those inputs stay free.
+        assert!(Scenario::parse("[[event]]\nat_s = 1\nset = { D10 = 1 }").is_ok());
     }
 }

@@ -20,6 +20,10 @@ use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, PlcBoard, PlcPins, Warnings};
+use crate::plant::lift::{
+    Lift, LiftSample, BRAKE_RELEASE_OUTPUT, CHAIN_INPUT, DOOR_CLOSED_INPUT, DOOR_OPEN_OUTPUT,
+    LOAD_ANALOG, VANE_L_INPUT, VANE_R_INPUT,
+};
 use crate::plant::{Comparators, GateCommand, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
 use crate::tim1::SimTim1;
@@ -40,7 +44,9 @@ pub struct Sample {
     pub speed_rpm: f64,
     pub torque_nm: f64,
     pub brake: bool,
-    pub digital_in: u8,
+    /// D00..D15 at the pins, bit n = Dn.
+    pub digital_in: u16,
+    /// O00..O07, bit n = On.
     pub digital_out: u8,
     pub q: [i16; 8],
     pub lcd: [Option<i16>; 4],
@@ -58,6 +64,8 @@ pub struct Sample {
     pub sdc: bool,
     pub sft_ds: u16,
     pub turns_e4: i64,
+    /// The lift (`[lift]`), after its last 1 ms step.
+    pub lift: Option<LiftSample>,
 }
 
 /// A drive fault as it was latched.
@@ -124,6 +132,8 @@ pub struct Simulation {
     /// The next download's `DownloadBegin` goes out with a wrong section CRC (the
     /// panel's "garbled download": the drive rejects the section, fault PROG).
     garble_download: bool,
+    /// The lift on the shaft (`[lift]`), stepped every millisecond.
+    lift: Option<Lift>,
 }
 
 impl Simulation {
@@ -228,7 +238,7 @@ impl Simulation {
     pub fn with_parts(
         drive: DriveBoard,
         plc: PlcBoard,
-        plant: Plant,
+        mut plant: Plant,
         to_drive: Channel,
         to_plc: Channel,
         scenario: Scenario,
@@ -236,6 +246,12 @@ impl Simulation {
     ) -> Self {
         let timing = drive.pwm_timing();
         let tim1 = SimTim1::new(timing, drive.timer_clock_hz());
+        let lift = scenario.lift.map(Lift::new);
+        let mut pins = PlcPins::default();
+        if let Some(l) = &lift {
+            plant.set_lift_shaft(Some(l.shaft()));
+            lift_pins(&mut pins, &l.sample());
+        }
         Simulation {
             now_ns: 0,
             plant,
@@ -243,7 +259,7 @@ impl Simulation {
             drive,
             plc,
             next_action: 0,
-            pins: PlcPins::default(),
+            pins,
             aux_counts: 0,
             to_drive,
             to_plc,
@@ -265,6 +281,7 @@ impl Simulation {
             i_a_offset_counts: 0,
             garble_download: false,
             scenario,
+            lift,
         }
     }
 
@@ -348,8 +365,12 @@ impl Simulation {
 
     /// Sets the PLC's input pins (the front panel's switches and pots; a scenario sets
     /// them with its actions). The PLC samples them at its next tick.
+    /// The inputs the lift drives (with `[lift]`) stay the lift's.
     pub fn set_pins(&mut self, pins: PlcPins) {
         self.pins = pins;
+        if let Some(l) = &self.lift {
+            lift_pins(&mut self.pins, &l.sample());
+        }
     }
 
     /// A keypad key goes down or up now (the front panel; a scenario presses keys with
@@ -447,6 +468,8 @@ impl Simulation {
         }
         let mut app_ran = [false; 2];
         if t >= self.next_drive_tick_ns {
+            // The lift moves on with the outputs of the PLC's last scan.
+            self.lift_step();
             // The board's 1 ms task: comparator levels to the break monitor, then the tick.
             let report = self.drive.break_poll(self.plant.comparator_levels());
             if report.rearm {
@@ -540,6 +563,39 @@ impl Simulation {
         self.tx_wake_ns[side] = Some(wake.max(t + 1));
     }
 
+    /// One millisecond of the lift: door, brake, limits and sensors from the car's
+    /// position, then its inputs to the PLC's pins and its brake/contactor to the shaft.
+    fn lift_step(&mut self) {
+        let Some(lift) = self.lift.as_mut() else {
+            return;
+        };
+        let out = self.plc.outputs();
+        let o = self.plant.outputs();
+        let m_per_rad = lift.params().m_per_rad();
+        let car_mm = lift.car_mm(self.plant.angle_rad());
+        let s = lift.step(
+            1e-3,
+            out & (1 << DOOR_OPEN_OUTPUT) != 0,
+            out & (1 << BRAKE_RELEASE_OUTPUT) != 0,
+            car_mm,
+            o.speed_rad_s * m_per_rad * 1000.0,
+        );
+        self.plant.set_lift_shaft(Some(lift.shaft()));
+        lift_pins(&mut self.pins, &s);
+    }
+
+    /// The lift, if the scenario has one.
+    pub fn lift(&self) -> Option<&Lift> {
+        self.lift.as_ref()
+    }
+
+    /// A lift event now (the panel's keys).
+    pub fn lift_event(&mut self, e: crate::plant::lift::LiftEvent) {
+        if let Some(l) = self.lift.as_mut() {
+            l.apply(e);
+        }
+    }
+
     fn apply(&mut self, action: &Action, now: Micros) {
         match *action {
             Action::Set(Input::Digital(n), v) => {
@@ -560,6 +616,7 @@ impl Simulation {
             Action::KeyDown(k) => self.plc.key(k, true, now),
             Action::KeyUp(k) => self.plc.key(k, false, now),
             Action::Plant(c) => c.apply(self.plant.params_mut()),
+            Action::Lift(e) => self.lift_event(e),
         }
     }
 
@@ -639,6 +696,27 @@ impl Simulation {
             sdc: st.sf_sdc,
             sft_ds: st.sf_elapsed_ds,
             turns_e4: self.drive.turns_e4(),
+            lift: self.lift.as_ref().map(|l| l.sample()),
         }
+    }
+}
+
+/// The pins the lift drives (lift.md 3.2): vanes D10/D11, door closed D12, safety chain
+/// D15, load sensor A00.
+fn lift_pins(pins: &mut PlcPins, s: &LiftSample) {
+    for (n, on) in [
+        (VANE_L_INPUT, s.vane_l),
+        (VANE_R_INPUT, s.vane_r),
+        (DOOR_CLOSED_INPUT, s.door_closed),
+        (CHAIN_INPUT, s.chain_closed),
+    ] {
+        if on {
+            pins.digital |= 1 << n;
+        } else {
+            pins.digital &= !(1 << n);
+        }
+    }
+    if let Some(a) = pins.analog.get_mut(usize::from(LOAD_ANALOG)) {
+        *a = s.load_counts;
     }
 }

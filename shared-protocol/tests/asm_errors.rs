@@ -13,10 +13,10 @@ fn at(text: &str) -> (u32, u32, AsmErrorKind, String) {
 
 #[test]
 fn spec_message_example() {
-    let text = "; header\n\n\n\n\n\n\n\n\n\n\n150 LD  D09\n";
+    let text = "; header\n\n\n\n\n\n\n\n\n\n\n150 LD  D16\n";
     assert_eq!(
         at(text).3,
-        "seed.plc:12:9: operand D09 out of range (D00-D07)"
+        "seed.plc:12:9: operand D16 out of range (D00-D15)"
     );
 }
 
@@ -96,7 +96,7 @@ fn verifier_errors_point_at_the_field() {
         ("150 EQ FRQ", 8, |k| matches!(k, V::OperandWrongKind { .. })),
         ("150 WR FRQ", 8, |k| matches!(k, V::OperandWrongKind { .. })),
         ("150 LDC Q00", 9, |k| matches!(k, V::LdcOnInt { .. })),
-        ("150 WR O06", 8, |k| {
+        ("150 WR O08", 8, |k| {
             matches!(k, V::OperandOutOfRange { .. })
         }),
         ("150 LD A04", 8, |k| {

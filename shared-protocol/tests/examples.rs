@@ -1,5 +1,6 @@
 //! The source's example programs (program.md section 5) in `programs/`: each assembles,
 //! verifies, sits in the right section and survives the canonical text and binary forms.
+//! (`lift.plc` is tested in `tests/lift_program.rs` and by hil-sim's L1-L10.)
 
 use shared_protocol::program::{
     assemble, assemble_runnable, decode_slot, disassemble, encode_slot, verify, Instruction,
@@ -136,7 +137,7 @@ fn every_file_in_programs_is_covered() {
         .chain(DRIVE_EXAMPLES)
         .chain(MIXED_EXAMPLES)
         .map(|(n, _)| format!("{n}.plc"))
-        .chain([String::from("motor.plc"), String::from("safety_lab.plc")])
+        .chain(["motor.plc", "safety_lab.plc", "lift.plc"].map(String::from))
         .collect();
     known.sort();
     assert_eq!(names, known);

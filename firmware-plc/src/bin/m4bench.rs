@@ -60,7 +60,7 @@ mod target {
     fn scans(vm: &mut PlcVm, program: &Program, out: &mut ScanOutputs, t0: u32) {
         let mut inputs = ScanInputs::default();
         for i in 0..SCANS {
-            inputs.digital = black_box(i as u8 ^ 0x5A);
+            inputs.digital = black_box(i as u16 ^ 0xA55A);
             inputs.analog = [black_box(600), 200, 512, 3];
             vm.scan(black_box(program), &inputs, Millis(t0 + i * 10), out);
             black_box(&*out);

@@ -1,14 +1,13 @@
-//! The six digital outputs Q0..Q5, all off until the scan loop writes them.
+//! The digital outputs O00..O07, all off until the scan loop writes them.
 
-use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
-use embassy_stm32::Peri;
+use embassy_stm32::gpio::{Level, Output, Speed};
 
 use crate::pins::Outputs;
 
 /// Number of digital outputs.
-pub const COUNT: usize = 6;
+pub const COUNT: usize = firmware_plc::vm::OUTPUTS as usize;
 
-/// Q0..Q5 in order.
+/// O00..O07 in order.
 pub struct DigitalOutputs {
     pins: [Output<'static>; COUNT],
 }
@@ -16,20 +15,12 @@ pub struct DigitalOutputs {
 impl DigitalOutputs {
     /// Takes the pins, all low (off).
     pub fn new(p: Outputs) -> Self {
-        let off = |pin: Peri<'static, AnyPin>| Output::new(pin, Level::Low, Speed::Low);
         Self {
-            pins: [
-                off(p.q0.into()),
-                off(p.q1.into()),
-                off(p.q2.into()),
-                off(p.q3.into()),
-                off(p.q4.into()),
-                off(p.q5.into()),
-            ],
+            pins: p.pins.map(|pin| Output::new(pin, Level::Low, Speed::Low)),
         }
     }
 
-    /// Writes the output image: bit n drives Qn.
+    /// Writes the output image: bit n drives On.
     pub fn write(&mut self, image: u8) {
         for (n, pin) in self.pins.iter_mut().enumerate() {
             pin.set_level(Level::from(image & (1 << n) != 0));

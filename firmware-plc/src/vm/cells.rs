@@ -9,7 +9,7 @@
 use shared_protocol::program::Operand;
 use shared_protocol::safety::SafetyFunction;
 
-use super::io::{ScanInputs, OUTPUTS};
+use super::io::{ScanInputs, INPUTS, OUTPUTS};
 use super::{B_COUNT, Q_COUNT};
 
 /// Largest value of the 10-bit analog operands (A, COM).
@@ -18,13 +18,13 @@ const ADC_MAX: u16 = 1023;
 /// Cells per array: every `u8` index.
 pub const CELLS: usize = 256;
 
-/// Bit cells: B00-B99, then O00-O05, D00-D07, RDY, FLB, the 12 safety status bits, SDC,
+/// Bit cells: B00-B99, then O00-O07, D00-D15, RDY, FLB, the 12 safety status bits, SDC,
 /// and the 12 safety requests (written by `SFR`: 1 = requested, so that the cleared
 /// cells of RUN start request nothing; never read by the program).
 const B0: u8 = 0;
 const O0: u8 = B0 + B_COUNT as u8;
 const D0: u8 = O0 + OUTPUTS;
-const RDY: u8 = D0 + 8;
+const RDY: u8 = D0 + INPUTS;
 const FLB: u8 = RDY + 1;
 const SF0: u8 = FLB + 1;
 const SF_COUNT: u8 = SafetyFunction::ALL.len() as u8;
@@ -69,7 +69,7 @@ impl Cells {
             .bits
             .iter_mut()
             .skip(usize::from(D0))
-            .take(8)
+            .take(usize::from(INPUTS))
             .enumerate()
         {
             *cell = inputs.digital & (1 << n) != 0;
@@ -147,7 +147,7 @@ impl Cells {
         }
     }
 
-    /// The output image O00-O05 as a bit mask (bit n = On).
+    /// The output image O00-O07 as a bit mask (bit n = On).
     pub fn outputs(&self) -> u8 {
         (0..OUTPUTS).fold(0, |m, n| m | u8::from(self.bit(O0 + n)) << n)
     }
@@ -156,7 +156,7 @@ impl Cells {
 /// The cell of a readable bit operand (D, O, B inside their ranges, RDY, FLB).
 pub fn bit_cell(op: Operand) -> Option<u8> {
     match op {
-        Operand::D(n) if n < 8 => Some(D0 + n),
+        Operand::D(n) if n < INPUTS => Some(D0 + n),
         Operand::O(n) if n < OUTPUTS => Some(O0 + n),
         Operand::B(n) if usize::from(n) < B_COUNT => Some(B0 + n),
         Operand::Rdy => Some(RDY),
@@ -227,7 +227,7 @@ mod tests {
         bits.sort();
         bits.dedup();
         assert_eq!(bits.len(), n);
-        assert_eq!(n, 8 + 6 + 100 + 2 + 1 + 24);
+        assert_eq!(n, 16 + 8 + 100 + 2 + 1 + 24);
         let mut ints = vec![];
         for op in (0..=255).flat_map(|n| [Operand::A(n), Operand::Q(n), Operand::K(n)]) {
             ints.extend(int_cell(op));
@@ -258,7 +258,7 @@ mod tests {
     fn inputs_land_in_their_cells_clamped() {
         let mut c = Cells::new();
         let mut inputs = ScanInputs {
-            digital: 0b1000_0001,
+            digital: 0b1000_0000_1000_0001,
             analog: [0, 1023, 1024, u16::MAX],
             ..ScanInputs::default()
         };
@@ -273,6 +273,7 @@ mod tests {
         let bit = |op| c.bit(bit_cell(op).unwrap());
         let int = |op| c.int(int_cell(op).unwrap());
         assert!(bit(Operand::D(0)) && bit(Operand::D(7)) && !bit(Operand::D(1)));
+        assert!(bit(Operand::D(15)) && !bit(Operand::D(14)));
         assert!(bit(Operand::Rdy) && !bit(Operand::Flb));
         assert_eq!(
             [0, 1, 2, 3].map(|n| int(Operand::A(n))),

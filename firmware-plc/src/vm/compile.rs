@@ -520,7 +520,7 @@ mod tests {
         let p = program(&[
             (10, M::Ld, Some(X::D(0)), 0), // drive section: not the PLC's
             (150, M::Pwf, Some(X::K(0)), 1000),
-            (300, M::Ld, Some(X::D(9)), 0),
+            (300, M::Ld, Some(X::D(16)), 0),
             (400, M::Wr, Some(X::D(1)), 0),
             (999, M::Ld, Some(X::D(7)), 0),
         ]);

@@ -58,7 +58,7 @@ fn inputs() -> impl Strategy<Value = ScanInputs> {
     // Analog values around the interesting ranges: 0, the 10-bit limit and beyond.
     let analog = prop_oneof![0u16..=1023, 1000u16..=1100, any::<u16>()];
     (
-        any::<u8>(),
+        any::<u16>(),
         [analog.clone(), analog.clone(), analog.clone(), analog],
         drive_view(),
     )

@@ -1,14 +1,22 @@
 //! What a scan reads and what it reports: plain data, so the board layer, the link endpoint,
 //! the LCD and hil-sim can fill and read it without knowing the VM.
 
+use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Volts};
 
 /// Number of `LCD` value fields on the run screen (program.md 3.2).
 pub const LCD_FIELDS: usize = 4;
-/// Number of digital outputs O00-O05.
-pub const OUTPUTS: u8 = 6;
+/// Number of digital inputs D00-D15 (`shared_protocol::program::DIGITAL_INPUTS`).
+pub const INPUTS: u8 = DIGITAL_INPUTS;
+/// Number of digital outputs O00-O07 (`shared_protocol::program::DIGITAL_OUTPUTS`).
+pub const OUTPUTS: u8 = DIGITAL_OUTPUTS;
+/// Mask of the valid bits of [`ScanInputs::digital`].
+pub const INPUT_MASK: u16 = (u32::MAX >> (32 - INPUTS as u32)) as u16;
 /// Mask of the valid bits of [`ScanOutputs::outputs`].
-pub const OUTPUT_MASK: u8 = (1 << OUTPUTS) - 1;
+pub const OUTPUT_MASK: u8 = (u32::MAX >> (32 - OUTPUTS as u32)) as u8;
+
+// The images are `u16` (inputs) and `u8` (outputs): more I/O would need wider types.
+const _: () = assert!(INPUTS >= 1 && INPUTS <= 16 && OUTPUTS >= 1 && OUTPUTS <= 8);
 
 /// The drive's status as last reported over the link: the source of `COM` and the
 /// extension operands (program.md 3.4).
@@ -48,8 +56,8 @@ pub struct DriveView {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct ScanInputs {
-    /// D00..D07, bit n = Dn; sampled by the caller once at the start of the scan.
-    pub digital: u8,
+    /// D00..D15, bit n = Dn; sampled by the caller once at the start of the scan.
+    pub digital: u16,
     /// A00..A03 in ADC counts 0..1023 (larger values are clamped to 1023).
     pub analog: [u16; 4],
     pub drive: DriveView,
@@ -76,7 +84,7 @@ impl core::fmt::Display for Warning {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct ScanOutputs {
-    /// Output image O00..O05 (bit n = On) to write to the pins now.
+    /// Output image O00..O07 (bit n = On) to write to the pins now.
     pub outputs: u8,
     /// The `LCD` fields filled by this scan, in execution order; `None` = no `LCD` reached it.
     pub lcd: [Option<i16>; LCD_FIELDS],

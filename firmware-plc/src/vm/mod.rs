@@ -26,7 +26,10 @@ mod differential;
 #[cfg(test)]
 mod reference;
 
-pub use io::{DriveView, ScanInputs, ScanOutputs, Warning, LCD_FIELDS, OUTPUTS, OUTPUT_MASK};
+pub use io::{
+    DriveView, ScanInputs, ScanOutputs, Warning, INPUTS, INPUT_MASK, LCD_FIELDS, OUTPUTS,
+    OUTPUT_MASK,
+};
 
 use cells::Cells;
 use compile::Code;

@@ -5,7 +5,7 @@
 //! random programs on both and compares everything a scan produces. It shares only the
 //! saturating arithmetic (`arith.rs`) and the input/output types with the VM.
 
-use super::io::{ScanInputs, ScanOutputs, Warning, OUTPUTS, OUTPUT_MASK};
+use super::io::{ScanInputs, ScanOutputs, Warning, INPUTS, OUTPUTS, OUTPUT_MASK};
 use super::{arith, B_COUNT, PLC_LINES, Q_COUNT};
 use shared_protocol::program::{Instruction, Mnemonic, Operand, Program, PLC_FIRST_LINE};
 use shared_protocol::units::Millis;
@@ -19,7 +19,7 @@ const ADC_MAX: u16 = 1023;
 struct Memory {
     b: [bool; B_COUNT],
     q: [i16; Q_COUNT],
-    /// Output image O00-O05 (bit n = On); kept between scans.
+    /// Output image O00-O07 (bit n = On); kept between scans.
     o: u8,
 }
 
@@ -378,7 +378,7 @@ impl ReferenceVm {
 fn read_bit(mem: &Memory, env: &Env<'_>, op: Operand) -> Option<bool> {
     let inputs = env.inputs;
     match op {
-        Operand::D(n) if n < 8 => Some(inputs.digital & (1 << n) != 0),
+        Operand::D(n) if n < INPUTS => Some(inputs.digital & (1 << n) != 0),
         Operand::O(n) if n < OUTPUTS => Some(mem.o & (1 << n) != 0),
         Operand::B(n) => mem.b.get(usize::from(n)).copied(),
         Operand::Rdy => Some(inputs.drive.ready),

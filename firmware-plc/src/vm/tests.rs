@@ -824,9 +824,9 @@ fn drive_lines_and_drive_mnemonics_do_nothing_in_the_plc() {
 #[test]
 fn out_of_range_operands_are_ignored() {
     let lines = vec![
-        l(M::Ldc, X::D(9)),
+        l(M::Ldc, X::D(16)),
         l(M::Ldc, X::B(200)),
-        l(M::Wr, X::O(7)),
+        l(M::Wr, X::O(8)),
         l(M::Wr, X::Q(64)),
         l(M::Ld, X::A(4)),
         l(M::Ctu, X::Q(99)),

@@ -306,31 +306,51 @@ impl Board for DriveBoard {
 /// The PLC board's I/O as the scenario and the panel set it.
 #[derive(Debug, Clone, Default)]
 pub struct PlcIo {
-    /// D00..D07, bit n = Dn.
+    /// D00..D15, bit n = Dn.
     pub digital_in: u16,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
     /// Keys held down.
     pub keys_down: BTreeSet<char>,
-    /// O00..O05 as the pins drive them, bit n = On.
+    /// O00..O07 as the pins drive them, bit n = On.
     pub outputs: u8,
 }
 
-/// PLC pins (README "PLC board").
+/// PLC pins (README "PLC board", `firmware-plc/src/pins.rs`), as (port, pin) with port
+/// 0 = A, 1 = B, 2 = C, 3 = D.
 pub mod plc_pins {
-    /// Inputs I0..I7 (active high, the board's opto outputs drive them high when on).
-    pub const INPUTS: [(u8, u8); 8] = [
-        (2, 6),
-        (2, 7),
-        (2, 8),
-        (2, 9),
-        (2, 10),
-        (2, 11),
-        (2, 12),
-        (3, 2),
+    use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
+
+    /// Inputs D00..D15 (active high, the board's opto outputs drive them high when on).
+    pub const INPUTS: [(u8, u8); DIGITAL_INPUTS as usize] = [
+        (2, 6),  // D00 PC6
+        (2, 7),  // D01 PC7
+        (2, 8),  // D02 PC8
+        (2, 9),  // D03 PC9
+        (2, 10), // D04 PC10
+        (2, 11), // D05 PC11
+        (2, 12), // D06 PC12
+        (3, 2),  // D07 PD2
+        (0, 4),  // D08 PA4
+        (0, 11), // D09 PA11
+        (0, 12), // D10 PA12
+        (0, 15), // D11 PA15
+        (1, 1),  // D12 PB1
+        (1, 2),  // D13 PB2
+        (1, 4),  // D14 PB4
+        (2, 0),  // D15 PC0
     ];
-    /// Outputs Q0..Q5.
-    pub const OUTPUTS: [(u8, u8); 6] = [(1, 10), (1, 11), (1, 12), (1, 13), (1, 14), (1, 15)];
+    /// Outputs O00..O07.
+    pub const OUTPUTS: [(u8, u8); DIGITAL_OUTPUTS as usize] = [
+        (1, 10), // O00 PB10
+        (1, 11), // O01 PB11
+        (1, 12), // O02 PB12
+        (1, 13), // O03 PB13
+        (1, 14), // O04 PB14
+        (1, 15), // O05 PB15
+        (1, 9),  // O06 PB9
+        (1, 8),  // O07 PB8
+    ];
     /// Analog A00..A03.
     pub const ANALOG: [&str; 4] = ["PA0", "PA1", "PB0", "PC1"];
     /// Keypad rows R0..R3 (driven low one at a time) and columns C0..C3.

@@ -162,6 +162,9 @@ impl EmuSim {
         scenario: Scenario,
         opts: RunOptions,
     ) -> Result<Self> {
+        if scenario.lift.is_some() {
+            anyhow::bail!("the [lift] plant runs in `hil-sim run` and the panel, not the emulator");
+        }
         let image = firmware_plc::storage::image::program_image(
             program,
             &firmware_plc::storage::image::ImageOptions {
@@ -415,6 +418,8 @@ impl EmuSim {
                 Action::KeyDown(k) => self.set_key(k, true),
                 Action::KeyUp(k) => self.set_key(k, false),
                 Action::Plant(c) => c.apply(self.rig.borrow_mut().plant.params_mut()),
+                // Refused in `new`: the lift is the host simulation's.
+                Action::Lift(_) => {}
             }
         }
     }
@@ -467,7 +472,7 @@ impl EmuSim {
             speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
             torque_nm: o.torque_nm,
             brake: o.brake_on,
-            digital_in: io.digital_in as u8,
+            digital_in: io.digital_in,
             digital_out: io.outputs,
             q: self.q,
             lcd: lcd_fields(&self.lcd.borrow().text()),
@@ -486,6 +491,7 @@ impl EmuSim {
             sdc: st.sf_sdc,
             sft_ds: st.sf_elapsed_ds,
             turns_e4: 0,
+            lift: None,
         }
     }
 

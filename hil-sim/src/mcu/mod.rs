@@ -18,8 +18,8 @@ pub use plc_board::PlcBoard;
 /// The PLC's inputs as its pins present them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct PlcPins {
-    /// D00..D07, bit n = Dn.
-    pub digital: u8,
+    /// D00..D15, bit n = Dn.
+    pub digital: u16,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
 }

@@ -133,7 +133,7 @@ impl PlcBoard {
         self.app.poll_timeout()
     }
 
-    /// Output pins O00..O05, bit n = On.
+    /// Output pins O00..O07, bit n = On.
     pub fn outputs(&self) -> u8 {
         self.outputs
     }

@@ -3,9 +3,10 @@
 use std::path::PathBuf;
 
 use super::files::{program_text, write_atomically};
-use super::keys::{Input, RigAction, TextKey, PULSE_MS};
+use super::keys::{Input, RigAction, TextKey, BANK_SIZE, PULSE_MS};
 use super::sim_backend::{RigStatus, SimBackend};
 use firmware_plc::editor::{Key, Screen};
+use shared_protocol::program::DIGITAL_INPUTS;
 
 /// A question the panel asks on its bottom line; keys answer it instead of reaching the
 /// keypad.
@@ -33,10 +34,12 @@ pub enum QuitLoss {
 /// The virtual front panel, independent of the terminal (drawn by [`super::ui`]).
 pub struct PanelApp {
     backend: SimBackend,
-    digital: u8,
+    digital: u16,
+    /// The bank the digital keys act on: 0 = D00-D07, 1 = D08-D15.
+    bank: u8,
     analog: [u16; 4],
     /// Remaining push-button time per input, ms.
-    pulses: [u32; 8],
+    pulses: [u32; DIGITAL_INPUTS as usize],
     /// Wall-clock time for the cursor blink, ms.
     pub blink_ms: u64,
     /// The last keypad key, highlighted on the drawn keypad.
@@ -59,8 +62,9 @@ impl PanelApp {
         PanelApp {
             backend,
             digital: s.digital_in,
+            bank: 0,
             analog: s.analog,
-            pulses: [0; 8],
+            pulses: [0; DIGITAL_INPUTS as usize],
             blink_ms: 0,
             last_key: None,
             quit: false,
@@ -82,11 +86,16 @@ impl PanelApp {
                 self.last_key = Some(k);
                 self.backend.key(k);
             }
+            Input::Bank => {
+                self.bank = (self.bank + 1) % DIGITAL_INPUTS.div_ceil(BANK_SIZE);
+            }
             Input::Toggle(n) => {
+                let n = n + self.bank * BANK_SIZE;
                 self.digital ^= 1 << n;
                 self.backend.set_digital(n, self.digital & (1 << n) != 0);
             }
             Input::Pulse(n) => {
+                let n = n + self.bank * BANK_SIZE;
                 self.digital |= 1 << n;
                 self.backend.set_digital(n, true);
                 if let Some(p) = self.pulses.get_mut(usize::from(n)) {
@@ -271,6 +280,11 @@ impl PanelApp {
 
     pub fn backend_mut(&mut self) -> &mut SimBackend {
         &mut self.backend
+    }
+
+    /// The bank the digital keys act on: 0 = D00-D07, 1 = D08-D15.
+    pub fn bank(&self) -> u8 {
+        self.bank
     }
 
     pub fn status(&self) -> RigStatus {

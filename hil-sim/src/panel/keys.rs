@@ -7,10 +7,13 @@ use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Input {
     Keypad(Key),
-    /// Toggle digital input Dn.
+    /// Toggle the n-th digital input of the selected bank (D00-D07 or D08-D15).
     Toggle(u8),
-    /// Press Dn like a push button (on for [`PULSE_MS`], then off).
+    /// Press the n-th input of the selected bank like a push button (on for
+    /// [`PULSE_MS`], then off).
     Pulse(u8),
+    /// Switch the digital keys between D00-D07 and D08-D15 ([`BANK_KEY`]).
+    Bank,
     /// Move analog input An by the given counts.
     Analog(u8, i16),
     /// Esc: cancels what the editor waits for (an edit, a two-key command, a question:
@@ -97,8 +100,13 @@ pub fn map_text_key(ev: KeyEvent) -> Option<TextKey> {
 /// How long a push-button press lasts.
 pub const PULSE_MS: u32 = 200;
 
-/// Keys toggling (lower case) or pulsing (upper case) D00..D07.
+/// Keys toggling (lower case) or pulsing (upper case) the eight inputs of the selected
+/// bank: D00..D07, or D08..D15 after [`BANK_KEY`].
 pub const DIGITAL_KEYS: [char; 8] = ['q', 'w', 'e', 'r', 't', 'y', 'u', 'i'];
+/// Inputs per bank of [`DIGITAL_KEYS`].
+pub const BANK_SIZE: u8 = DIGITAL_KEYS.len() as u8;
+/// Switches [`DIGITAL_KEYS`] (and F1-F8) between the banks D00-D07 and D08-D15.
+pub const BANK_KEY: char = '`';
 /// (down, up) keys of A00..A03.
 pub const ANALOG_KEYS: [(char, char); 4] = [('z', 'x'), ('n', 'm'), ('j', 'k'), ('o', 'p')];
 /// Counts per analog key press (upper case: 4 times as much).
@@ -136,6 +144,9 @@ pub fn map_char(c: char) -> Option<Input> {
         .find(|(k, _)| *k == c)
     {
         return Some(Input::Rig(*a));
+    }
+    if c == BANK_KEY {
+        return Some(Input::Bank);
     }
     if let Some(n) = DIGITAL_KEYS.iter().position(|&d| d == c) {
         return Some(Input::Toggle(n as u8));
@@ -177,6 +188,7 @@ mod tests {
         assert_eq!(map_char('x'), Some(Input::Analog(0, 32)));
         assert_eq!(map_char('M'), Some(Input::Analog(1, 128)));
         assert_eq!(map_char('v'), None);
+        assert_eq!(map_char('`'), Some(Input::Bank));
         assert_eq!(map_char('V'), Some(Input::Rig(RigAction::PowerCycleDrive)));
         assert_eq!(map_char(']'), Some(Input::Rig(RigAction::SupplyV(1.0))));
     }
@@ -187,6 +199,7 @@ mod tests {
         for c in "0123456789abcdABCD*#".chars() {
             all.push(c);
         }
+        all.push(BANK_KEY);
         for d in DIGITAL_KEYS {
             all.push(d);
             all.push(d.to_ascii_uppercase());

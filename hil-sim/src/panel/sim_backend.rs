@@ -13,7 +13,7 @@ use firmware_plc::editor::{Key, Screen};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::LinkConfig;
-use shared_protocol::program::Program;
+use shared_protocol::program::{Program, DIGITAL_INPUTS};
 use shared_protocol::units::Micros;
 
 use crate::mcu::{DriveBoard, PlcBoard, PlcPins};
@@ -64,12 +64,14 @@ pub struct RigStatus {
     pub limits: Limits,
     pub fault: u8,
     pub brake: bool,
-    /// D00..D07, bit n = Dn.
-    pub digital_in: u8,
-    /// O00..O05, bit n = On.
+    /// D00..D15, bit n = Dn.
+    pub digital_in: u16,
+    /// O00..O07, bit n = On.
     pub digital_out: u8,
     /// A00..A03, 10-bit counts.
     pub analog: [u16; 4],
+    /// The lift (`--lift`): car position, door, brake, vanes.
+    pub lift: Option<crate::plant::lift::LiftSample>,
 }
 
 /// The drive's protection limits in effect (for the rig box: what a trip needs).
@@ -185,7 +187,28 @@ impl SimBackend {
 
     /// Power up the rig with `eeprom` in the PLC's socket.
     pub fn with_eeprom(eeprom: MemEeprom) -> Self {
-        let scenario = Scenario::default();
+        Self::with_scenario(eeprom, Scenario::default())
+    }
+
+    /// [`Self::new`] with the lift on the shaft ([`Self::with_lift`]).
+    pub fn new_lift(program: Option<&Program>) -> anyhow::Result<Self> {
+        Ok(Self::with_lift(fresh_image(program)?))
+    }
+
+    /// Power up the rig with `eeprom` and the lift of lift.md 4 on the shaft (default
+    /// `[lift]` keys): `lift.plc` runs it; the car and hall buttons are D00-D09 (the
+    /// digital keys, `` ` `` for D08/D09).
+    pub fn with_lift(eeprom: MemEeprom) -> Self {
+        Self::with_scenario(
+            eeprom,
+            Scenario {
+                lift: Some(crate::plant::lift::LiftParams::default()),
+                ..Scenario::default()
+            },
+        )
+    }
+
+    fn with_scenario(eeprom: MemEeprom, scenario: Scenario) -> Self {
         let link = LinkConfig::at_baud(scenario.baud);
         let plc = PlcBoard::new(eeprom, link, Micros(0));
         let drive = DriveBoard::new(link);
@@ -375,6 +398,7 @@ impl SimBackend {
             digital_in: self.pins.digital,
             digital_out: self.sim.plc().outputs(),
             analog: self.pins.analog,
+            lift: self.sim.lift().map(|l| l.sample()),
             ..RigStatus::default()
         };
         if let Some(s) = &self.last {
@@ -481,9 +505,9 @@ impl SimBackend {
         self.sim.garble_next_download(on);
     }
 
-    /// Set digital input `n` (0..8).
+    /// Set digital input `n` (0..16).
     pub fn set_digital(&mut self, n: u8, on: bool) {
-        if n < 8 {
+        if n < DIGITAL_INPUTS {
             let d = self.pins.digital;
             self.pins.digital = if on { d | (1 << n) } else { d & !(1 << n) };
             self.sim.set_pins(self.pins);

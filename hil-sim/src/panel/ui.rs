@@ -1,7 +1,7 @@
 //! Drawing the panel: LCD, keypad with its key map, and the rig beside them.
 
 use super::app::{Modal, PanelApp, QuitLoss};
-use super::keys::{ANALOG_KEYS, DIGITAL_KEYS};
+use super::keys::{ANALOG_KEYS, BANK_KEY, BANK_SIZE, DIGITAL_KEYS};
 use firmware_plc::editor::{Key, Screen};
 use ratatui::layout::{Constraint, Layout, Rect};
 use ratatui::style::{Color, Modifier, Style};
@@ -9,6 +9,7 @@ use ratatui::text::{Line, Span};
 use ratatui::widgets::{Block, Paragraph};
 use ratatui::Frame;
 use shared_protocol::fault::fault_text;
+use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
 
 const LCD_BG: Color = Color::Rgb(150, 190, 70);
 const LCD_FG: Color = Color::Rgb(20, 30, 10);
@@ -188,23 +189,56 @@ fn rig_lines(app: &PanelApp) -> Vec<Line<'static>> {
         },
         Style::default().fg(Color::DarkGray),
     )));
-    let mut d = vec![Span::raw("D00-07 ")];
-    for n in 0..8 {
-        d.push(on_off(s.digital_in & (1 << n) != 0));
-        d.push(Span::raw(" "));
+    for first in (0..DIGITAL_INPUTS).step_by(usize::from(BANK_SIZE)) {
+        let last = (first + BANK_SIZE).min(DIGITAL_INPUTS) - 1;
+        let active = first / BANK_SIZE == app.bank();
+        let mut d = vec![Span::raw(format!(
+            "{}D{first:02}-{last:02} ",
+            if active { ">" } else { " " }
+        ))];
+        for n in first..=last {
+            d.push(on_off(s.digital_in & (1 << n) != 0));
+            d.push(Span::raw(" "));
+        }
+        v.push(Line::from(d));
     }
-    v.push(Line::from(d));
     let keys: String = DIGITAL_KEYS.iter().map(|c| format!("{c} ")).collect();
     v.push(Line::from(Span::styled(
-        format!("  keys {keys}(Q..I: push 0.2 s)"),
+        format!("  keys {keys}(Q..I: push 0.2 s, {BANK_KEY}: bank)"),
         Style::default().fg(Color::DarkGray),
     )));
-    let mut o = vec![Span::raw("O00-05 ")];
-    for n in 0..6 {
+    let mut o = vec![Span::raw(format!(" O00-{:02} ", DIGITAL_OUTPUTS - 1))];
+    for n in 0..DIGITAL_OUTPUTS {
         o.push(on_off(s.digital_out & (1 << n) != 0));
         o.push(Span::raw(" "));
     }
     v.push(Line::from(o));
+    if let Some(l) = s.lift {
+        // The lift (lift.md 4): car, floor, door, brake, vanes; calls are the D keys.
+        v.push(Line::from(format!(
+            "LIFT car {:7.1} mm {:6.1} mm/s floor {}",
+            l.car_mm,
+            l.car_mms,
+            if l.at_floor == 0 {
+                "-".to_string()
+            } else {
+                l.at_floor.to_string()
+            }
+        )));
+        v.push(Line::from(format!(
+            "     door {:3.0} % {} brake {} vanes {}{} chain {}",
+            100.0 * l.door,
+            if l.door_closed { "closed" } else { "open  " },
+            if l.brake_engaged { "on " } else { "off" },
+            if l.vane_l { 'L' } else { '.' },
+            if l.vane_r { 'R' } else { '.' },
+            if l.chain_closed { "ok" } else { "OPEN" }
+        )));
+        v.push(Line::from(Span::styled(
+            "     calls: Q W E R car 1-4, T Y U I hall 1u 2u 2d 3u (` bank: 3d 4d)",
+            Style::default().fg(Color::DarkGray),
+        )));
+    }
     v.push(Line::from(""));
     for (n, (down, up)) in ANALOG_KEYS.iter().enumerate() {
         v.push(Line::from(vec![

@@ -7,6 +7,7 @@
 //! of the step.
 
 pub mod inverter;
+pub mod lift;
 pub mod motor;
 pub mod sensors;
 
@@ -200,6 +201,9 @@ pub struct Plant {
     /// Averages of the last complete PWM period: leg fractions, line voltage a-b.
     period_avg: ([f64; 3], f64),
     brake_energy_j: f64,
+    /// The lift on the shaft (`[lift]`), if any: gravity, reflected mass, holding brake,
+    /// motor contactor.
+    lift: Option<lift::LiftShaft>,
 }
 
 impl Plant {
@@ -228,7 +232,17 @@ impl Plant {
             period_acc: ([0.0; 3], 0.0, 0.0),
             period_avg: ([0.0; 3], 0.0),
             brake_energy_j: 0.0,
+            lift: None,
         }
+    }
+
+    /// Attaches the lift's shaft side (or updates its brake and contactor).
+    pub fn set_lift_shaft(&mut self, shaft: Option<lift::LiftShaft>) {
+        self.lift = shaft;
+    }
+
+    pub fn lift_shaft(&self) -> Option<lift::LiftShaft> {
+        self.lift
     }
 
     pub fn params(&self) -> &RigParams {
@@ -487,7 +501,7 @@ impl Plant {
     }
 
     fn conns(&self) -> [Conn; 3] {
-        if self.hw_break {
+        if self.hw_break || self.lift.is_some_and(|l| l.contactor_open) {
             return [Conn::Float; 3];
         }
         match self.params.pwm_mode {
@@ -504,8 +518,16 @@ impl Plant {
         let all_float = conns.iter().all(|c| matches!(c, Conn::Float));
         let (i_s, _) = self.stator(&self.x);
         let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
+        let contactor_open = self.lift.is_some_and(|l| l.contactor_open);
+        // The holding brake at rest: it holds while the torques it must resist stay below
+        // its own (lift.md 4.2), decided on the torques at the start of the step.
+        let brake_holds = self.lift.is_some_and(|l| {
+            l.brake_engaged
+                && self.x[WM] == 0.0
+                && (self.outputs().torque_nm + l.gravity_nm).abs() <= l.brake_torque_nm
+        });
         if all_float {
-            if !self.open && i_abc.iter().all(|i| i.abs() < OPEN_CIRCUIT_A) {
+            if !self.open && (contactor_open || i_abc.iter().all(|i| i.abs() < OPEN_CIRCUIT_A)) {
                 self.open = true;
             }
         } else if self.open {
@@ -527,6 +549,12 @@ impl Plant {
         let k4 = self.deriv(&axpy(&x0, h, &k3), fracs);
         for i in 0..6 {
             self.x[i] = x0[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        if self.lift.is_some_and(|l| l.brake_engaged)
+            && (brake_holds || (x0[WM] != 0.0 && x0[WM].signum() != self.x[WM].signum()))
+        {
+            // The brake's friction stops the shaft instead of reversing it, and holds it.
+            self.x[WM] = 0.0;
         }
         if all_float && !self.open {
             // Freewheeling through the diodes against the DC link can only shrink the
@@ -646,6 +674,18 @@ impl Plant {
         };
         dx[WM] = if m.locked_rotor || matches!(p.load, Load::Rl { .. }) {
             0.0
+        } else if let Some(l) = self.lift {
+            // J dω/dt = T_e + T_g − T_load(ω) − B ω − T_b (lift.md 4.2).
+            let drive = te + l.gravity_nm;
+            let t_b = if !l.brake_engaged {
+                0.0
+            } else if x[WM] != 0.0 {
+                l.brake_torque_nm * x[WM].signum()
+            } else {
+                drive.clamp(-l.brake_torque_nm, l.brake_torque_nm)
+            };
+            (drive - motor::load_torque_nm(m, x[WM]) - t_b)
+                / (m.inertia_kgm2 + l.extra_inertia_kgm2)
         } else {
             (te - motor::load_torque_nm(m, x[WM])) / m.inertia_kgm2
         };

@@ -274,3 +274,90 @@ fn freewheeling_current_dies_out_within_a_few_milliseconds() {
     let o = plant.outputs();
     assert_eq!(o.i_abc_a, [0.0; 3], "{o:?}");
 }
+
+mod lift_shaft {
+    use super::*;
+    use crate::plant::lift::LiftParams;
+
+    fn lift_plant(brake_engaged: bool) -> (Plant, LiftParams) {
+        let lp = LiftParams::default();
+        let mut rig = RigParams::default();
+        rig.motor.friction_nms = 0.0;
+        let mut plant = Plant::new(rig);
+        plant.set_lift_shaft(Some(crate::plant::lift::LiftShaft {
+            brake_engaged,
+            ..lp.shaft()
+        }));
+        plant.start_period(100_000, GateCommand::OFF);
+        (plant, lp)
+    }
+
+    #[test]
+    fn the_brake_holds_the_car_against_gravity() {
+        let (mut plant, lp) = lift_plant(true);
+        assert!(lp.gravity_torque_nm().abs() < lp.brake_torque_nm);
+        plant.advance(1_000_000_000);
+        assert_eq!(plant.outputs().speed_rad_s, 0.0);
+        assert_eq!(plant.angle_rad(), 0.0);
+    }
+
+    #[test]
+    fn a_brake_weaker_than_gravity_slips_and_a_moving_shaft_is_braked_to_rest() {
+        let (mut plant, lp) = lift_plant(true);
+        let weak = crate::plant::lift::LiftShaft {
+            brake_engaged: true,
+            brake_torque_nm: 0.01,
+            ..lp.shaft()
+        };
+        plant.set_lift_shaft(Some(weak));
+        plant.advance(100_000_000);
+        let w = plant.outputs().speed_rad_s;
+        // (T_g + T_b) / J for 0.1 s, downwards.
+        let j = MotorParams::DEFAULT_RIG.inertia_kgm2 + lp.reflected_inertia_kgm2();
+        let expect = (lp.gravity_torque_nm() + 0.01) / j * 0.1;
+        assert!((w - expect).abs() < 1e-3 * expect.abs(), "{w} vs {expect}");
+        // The full brake stops it and holds it.
+        plant.set_lift_shaft(Some(crate::plant::lift::LiftShaft {
+            brake_engaged: true,
+            ..lp.shaft()
+        }));
+        plant.advance(200_000_000);
+        assert_eq!(plant.outputs().speed_rad_s, 0.0);
+        let a = plant.angle_rad();
+        plant.advance(500_000_000);
+        assert_eq!(plant.angle_rad(), a);
+    }
+
+    #[test]
+    fn a_car_lowered_with_the_outputs_off_gains_the_energy_gravity_provides() {
+        let (mut plant, lp) = lift_plant(false);
+        plant.advance(300_000_000);
+        let w = plant.outputs().speed_rad_s;
+        let theta = plant.angle_rad();
+        assert!(w < 0.0 && theta < 0.0, "the car goes down: {w} rad/s");
+        let j = MotorParams::DEFAULT_RIG.inertia_kgm2 + lp.reflected_inertia_kgm2();
+        let kinetic = 0.5 * j * w * w;
+        // Work of gravity: m g h = |T_g| |θ| (the car fell h = |θ| r / i).
+        let h_m = theta.abs() * lp.m_per_rad();
+        let work = lp.unbalance_kg * crate::plant::lift::G_M_S2 * h_m;
+        assert!((work - lp.gravity_torque_nm().abs() * theta.abs()).abs() < 1e-12);
+        assert!(
+            (kinetic - work).abs() < 1e-4 * work,
+            "kinetic {kinetic} J vs gravity's work {work} J"
+        );
+    }
+
+    #[test]
+    fn an_open_contactor_gives_no_torque() {
+        let (mut plant, lp) = lift_plant(false);
+        plant.set_lift_shaft(Some(crate::plant::lift::LiftShaft {
+            contactor_open: true,
+            brake_engaged: true,
+            ..lp.shaft()
+        }));
+        drive_sine(&mut plant, 10.0, 0.5, 100_000, 200_000_000, |p, _| {
+            assert_eq!(p.outputs().i_abc_a, [0.0; 3]);
+            assert_eq!(p.outputs().torque_nm, 0.0);
+        });
+    }
+}

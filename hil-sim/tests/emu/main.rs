@@ -7,6 +7,7 @@
 mod common;
 
 mod boot;
+mod io;
 mod link;
 mod motor;
 mod power_stage;

@@ -86,7 +86,7 @@ fn a_trip_still_exits_zero() {
 #[test]
 fn invalid_program_or_scenario_fails_before_simulating() {
     let bad_prog = tmp("bad.plc");
-    std::fs::write(&bad_prog, "150 LD D09\n").unwrap();
+    std::fs::write(&bad_prog, "150 LD D16\n").unwrap();
     let csv = tmp("never.csv");
     let out = bin()
         .arg("run")
@@ -98,7 +98,7 @@ fn invalid_program_or_scenario_fails_before_simulating() {
     assert!(!out.status.success());
     let err = String::from_utf8(out.stderr).unwrap();
     assert!(err.contains("bad.plc:1:"), "{err}");
-    assert!(err.contains("D09"), "{err}");
+    assert!(err.contains("D16"), "{err}");
     assert!(!csv.exists());
 
     let bad_scen = tmp("bad.toml");

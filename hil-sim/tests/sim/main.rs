@@ -12,6 +12,8 @@ mod examples_on_rig;
 mod hw_comparators;
 mod keypad;
 mod lab;
+mod lift;
+mod lift_plant;
 mod link_latency;
 mod motor_program;
 mod overmodulation;

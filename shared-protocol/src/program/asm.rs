@@ -111,7 +111,7 @@ impl core::fmt::Display for AsmErrorKind {
 }
 
 /// An assembly error at a 1-based text line and column. `Display` gives
-/// `12:9: operand D09 out of range (D00-D07)`; the caller prefixes the file name.
+/// `12:9: operand D16 out of range (D00-D15)`; the caller prefixes the file name.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct AsmError {
     pub line: u32,
@@ -492,7 +492,9 @@ mod tests {
 
     #[test]
     fn error_positions() {
-        assert_eq!(e("150 LD  D09"), "1:9: operand D09 out of range (D00-D07)");
+        assert_eq!(e("150 LD  D16"), "1:9: operand D16 out of range (D00-D15)");
+        assert_eq!(e("150 WR  O08"), "1:9: operand O08 out of range (O00-O07)");
+        assert!(assemble("150 LD  D15\n151 WR  O07").is_ok());
         assert_eq!(
             e("\n\n150 LD D00\n150 LD D01"),
             "4:1: line 150 used twice (first on text line 3)"
@@ -553,7 +555,7 @@ mod tests {
     fn first_error_in_text_order_and_out_unchanged() {
         let mut p = assemble("150 LD D00").unwrap();
         let before = p.clone();
-        let r = assemble_into("151 LD D01\n152 WR D00\n153 LD D09", &mut p);
+        let r = assemble_into("151 LD D01\n152 WR D00\n153 LD D16", &mut p);
         assert_eq!(r.unwrap_err().line, 2);
         assert_eq!(p, before);
         assemble_into("151 LD D01", &mut p).unwrap();

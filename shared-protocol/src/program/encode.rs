@@ -23,7 +23,7 @@
 //! the whole program. A line decodes only in its canonical form (no stray bits, no
 //! constant without `K`), so equal instructions always have equal bytes and image CRCs.
 //! Erased EEPROM (`FF FF FF FF`) is a decode error, not an empty line. Area ranges
-//! (`D08`) and section rules are the verifier's job, not the decoder's: a decoded line can
+//! (`D16`) and section rules are the verifier's job, not the decoder's: a decoded line can
 //! still fail [`super::verify_line`].
 
 use super::model::{Instruction, Mnemonic, Operand, CONSTANT_MAX};

@@ -14,6 +14,14 @@ pub const PLC_FIRST_LINE: u16 = 150;
 pub const DRIVE_LINES: usize = PLC_FIRST_LINE as usize;
 /// Largest value of a line's 4-digit constant.
 pub const CONSTANT_MAX: u16 = 9999;
+/// Digital inputs D00-D15 (lift.md 1; the source design had 8). The one count every part
+/// uses: the assembler's range check and error text, the verifier, the keypad editor's
+/// operand lists, the PLC VM's input image, the board's pin table and hil-sim (scenario
+/// names, CSV columns, panel toggles).
+pub const DIGITAL_INPUTS: u8 = 16;
+/// Digital outputs O00-O07 (lift.md 1; the source design had 6), used like
+/// [`DIGITAL_INPUTS`].
+pub const DIGITAL_OUTPUTS: u8 = 8;
 
 /// Which MCU a line belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -360,9 +368,9 @@ impl Mnemonic {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum Operand {
-    /// Digital input D00-D07 (bit).
+    /// Digital input D00-D15 (bit; [`DIGITAL_INPUTS`]).
     D(u8),
-    /// Digital output O00-O05 (bit).
+    /// Digital output O00-O07 (bit; [`DIGITAL_OUTPUTS`]).
     O(u8),
     /// Bit memory B00-B99 (bit).
     B(u8),

@@ -1,7 +1,7 @@
 //! Operand classes: the areas (`D`, `O`, ... with their index ranges) and the named
 //! operands, as one flat list so that validity tables can be bit sets over it.
 
-use super::model::Operand;
+use super::model::{Operand, DIGITAL_INPUTS, DIGITAL_OUTPUTS};
 use crate::safety::SafetyFunction;
 
 /// Number of Q variables (Q00-Q63): the drive's copies, the PLC's shadows and the link's
@@ -71,11 +71,11 @@ impl OperandClass {
         OperandClass::Sft,
     ];
 
-    /// How many operands the class holds (`D` 8: D00-D07; named operands 1).
+    /// How many operands the class holds (`D` 16: D00-D15; named operands 1).
     pub const fn count(self) -> u8 {
         match self {
-            OperandClass::D => 8,
-            OperandClass::O => 6,
+            OperandClass::D => DIGITAL_INPUTS,
+            OperandClass::O => DIGITAL_OUTPUTS,
             OperandClass::B => 100,
             OperandClass::A => 4,
             OperandClass::K => 100,
@@ -235,7 +235,7 @@ impl Operand {
         }
     }
 
-    /// Whether the index lies inside the area (`D00`-`D07`, ...); named operands always do.
+    /// Whether the index lies inside the area (`D00`-`D15`, ...); named operands always do.
     pub const fn in_range(&self) -> bool {
         self.index() < self.class().count()
     }

@@ -291,7 +291,7 @@ pub enum VerifyErrorKind {
     },
     /// `LDC` on an int operand (only bits can be loaded complemented).
     LdcOnInt { operand: Operand },
-    /// The operand's index is outside its area (`D09`).
+    /// The operand's index is outside its area (`D16`).
     OperandOutOfRange { operand: Operand },
     /// The constant is outside the instruction's range.
     ConstantOutOfRange {
@@ -723,8 +723,8 @@ mod tests {
         let ld: std::vec::Vec<_> = operands_for(Mnemonic::Ld, Section::Plc).collect();
         assert_eq!(ld.first(), Some(&Some(Operand::D(0))));
         assert_eq!(ld.last(), Some(&Some(Operand::Sft)));
-        // 8 D + 6 O + 100 B + 4 A + 100 K + 64 Q + 12 named + 12 functions, SDC, SFT.
-        assert_eq!(ld.len(), 8 + 6 + 100 + 4 + 100 + 64 + 12 + 14);
+        // 16 D + 8 O + 100 B + 4 A + 100 K + 64 Q + 12 named + 12 functions, SDC, SFT.
+        assert_eq!(ld.len(), 16 + 8 + 100 + 4 + 100 + 64 + 12 + 14);
         // SFR takes the twelve functions, in bit order; LDC the bits among them.
         let sfr: std::vec::Vec<_> = operands_for(Mnemonic::Sfr, Section::Plc).collect();
         let all: std::vec::Vec<_> = SafetyFunction::ALL
@@ -831,7 +831,7 @@ mod tests {
             E::LdcOnInt { .. }
         ));
         assert!(matches!(
-            e(150, Mnemonic::Ld, Some(Operand::D(8)), 0),
+            e(150, Mnemonic::Ld, Some(Operand::D(16)), 0),
             E::OperandOutOfRange { .. }
         ));
         assert!(matches!(
@@ -857,9 +857,9 @@ mod tests {
         let msg = |k: VerifyErrorKind| std::format!("{k}");
         assert_eq!(
             msg(VerifyErrorKind::OperandOutOfRange {
-                operand: Operand::D(9)
+                operand: Operand::D(16)
             }),
-            "operand D09 out of range (D00-D07)"
+            "operand D16 out of range (D00-D15)"
         );
         assert_eq!(
             msg(VerifyErrorKind::OperandWrongKind {
@@ -910,7 +910,7 @@ mod tests {
                 operand: Operand::Com,
             },
             VerifyErrorKind::OperandOutOfRange {
-                operand: Operand::D(9),
+                operand: Operand::D(16),
             },
             VerifyErrorKind::ConstantOutOfRange {
                 mnemonic: Mnemonic::Ld,
@@ -993,7 +993,7 @@ mod tests {
     fn program_reports_first_bad_line() {
         let mut p = Program::default();
         p.lines[300] = Some(ins(Mnemonic::Wr, None, 0));
-        p.lines[200] = Some(ins(Mnemonic::Ld, Some(Operand::D(9)), 0));
+        p.lines[200] = Some(ins(Mnemonic::Ld, Some(Operand::D(16)), 0));
         p.lines[150] = Some(ins(Mnemonic::Ld, Some(Operand::D(0)), 0));
         p.lines[0] = Some(ins(Mnemonic::Pwf, Some(Operand::Q(0)), 0));
         assert_eq!(verify(&p).unwrap_err().line, 200);

@@ -1,0 +1,54 @@
+//! The lift in the virtual front panel: `lift.plc` on the rig with the lift plant; the
+//! panel shows the car, the door and the brake, and a car call is a digital key.
+
+use firmware_plc::storage::image::{program_image, ImageOptions};
+use firmware_plc::storage::MemEeprom;
+use hil_sim::panel::keys::map_char;
+use hil_sim::panel::{ui, PanelApp, SimBackend};
+use hil_sim::run::parse_program;
+use ratatui::backend::TestBackend;
+use ratatui::Terminal;
+
+const LIFT: &str = include_str!("../../shared-protocol/programs/lift.plc");
+
+fn text(app: &PanelApp) -> String {
+    let mut term = Terminal::new(TestBackend::new(120, 40)).unwrap();
+    term.draw(|f| ui::draw(f, app)).unwrap();
+    let buf = term.backend().buffer();
+    let w = buf.area.width as usize;
+    buf.content
+        .chunks(w)
+        .map(|row| row.iter().map(|c| c.symbol()).collect::<String>())
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn the_panel_runs_the_lift_and_a_key_calls_it() {
+    let p = parse_program(LIFT, "lift.plc").unwrap();
+    let image = program_image(
+        &p,
+        &ImageOptions {
+            slot: 1,
+            run_at_power_up: true,
+        },
+    )
+    .unwrap();
+    let mut app = PanelApp::new(SimBackend::with_lift(MemEeprom::from_image(&image)));
+    let t = text(&app);
+    assert!(t.contains("LIFT car   450.0 mm"), "{t}");
+    // The initialisation run ends level at floor 1 (about 6.1 s).
+    app.advance(7000);
+    let l = app.status().lift.unwrap();
+    assert!(l.at_floor == 1 && l.brake_engaged, "{l:?}");
+    let t = text(&app);
+    assert!(t.contains("floor 1") && t.contains("brake on"), "{t}");
+    // `E` pushes D02: the car call for floor 3; it arrives and the door opens.
+    app.input(map_char('E').unwrap());
+    app.advance(11_500);
+    let l = app.status().lift.unwrap();
+    assert_eq!(l.at_floor, 3, "{l:?}");
+    assert!(l.door > 0.0);
+    let t = text(&app);
+    assert!(t.contains("floor 3") && t.contains("open"), "{t}");
+}
