@@ -453,6 +453,14 @@ impl SimBackend {
         self.sim.set_link_cut(self.link_cut);
     }
 
+    /// A spike's end "at the end of its period". Not the running period's length: the
+    /// period the spike lands in is the next one, and periods differ by 1 ns (the timer's
+    /// period is not a whole number of ns), so a spike ending at this period's length
+    /// ended 1 ns before the break interrupt ran in every other period, and the drive
+    /// blamed a voltage spike on overcurrent (`BreakMonitor::fired`'s rule for a pulse
+    /// already gone).
+    const UNTIL_PERIOD_END_NS: u64 = u64::MAX;
+
     /// A current spike on phase 1 that the overcurrent comparator sees for the last
     /// 30 % of the next PWM period (outside the blanking window around its middle, and
     /// still there when the break interrupt runs): 1 A above `I>>`.
@@ -464,7 +472,7 @@ impl SimBackend {
             phase: 0,
             amps: oc_hw + i_now + 1.0,
             from_ns: 7 * period / 10,
-            to_ns: period,
+            to_ns: Self::UNTIL_PERIOD_END_NS,
         });
     }
 
@@ -478,7 +486,7 @@ impl SimBackend {
         self.sim.plant_mut().inject_udc_sense_spike(UdcSenseSpike {
             volts: (ov_hw - u_now).max(0.0) + 5.0,
             from_ns: 7 * period / 10,
-            to_ns: period,
+            to_ns: Self::UNTIL_PERIOD_END_NS,
         });
     }
 

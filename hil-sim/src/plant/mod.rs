@@ -144,7 +144,7 @@ pub struct SenseSpike {
     /// Added to the sensed current, A.
     pub amps: f64,
     /// From/to this time into the period, ns (the valley of the counter is at half the
-    /// period).
+    /// period); `to_ns` = `u64::MAX`: to the period's end, whatever its length.
     pub from_ns: u64,
     pub to_ns: u64,
 }
@@ -155,7 +155,7 @@ pub struct SenseSpike {
 pub struct UdcSenseSpike {
     /// Added to the sensed DC-link voltage, V.
     pub volts: f64,
-    /// From/to this time into the period, ns.
+    /// From/to this time into the period, ns; `to_ns` = `u64::MAX`: to the period's end.
     pub from_ns: u64,
     pub to_ns: u64,
 }
