@@ -30,6 +30,18 @@ pub struct ScenarioFile {
     pub link: LinkKeys,
     #[serde(default, rename = "event")]
     pub events: Vec<EventKeys>,
+    #[serde(default)]
+    pub service: ServiceKeys,
+}
+
+/// `[service]`: the service port's test options (service.md 9).
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServiceKeys {
+    /// Seeded random bytes into the PLC's service receiver at line rate for the whole
+    /// run (with `--service-pty` or the library's `service::Attached`).
+    #[serde(default)]
+    pub flood: bool,
 }
 
 /// `[plant]`: every key optional; absent keys keep the default rig.
@@ -212,6 +224,8 @@ pub struct Scenario {
     /// The scenario types the RUN key (`A`, firmware-plc/docs/keymap.md): then RUN is
     /// left to the keys instead of starting at power-up.
     pub keys_start_run: bool,
+    /// `[service] flood = true`.
+    pub service_flood: bool,
 }
 
 impl Default for Scenario {
@@ -225,6 +239,7 @@ impl Default for Scenario {
             cut_at_ns: u64::MAX,
             actions: Vec::new(),
             keys_start_run: false,
+            service_flood: false,
         }
     }
 }
@@ -270,6 +285,7 @@ impl Scenario {
     pub fn from_file(f: ScenarioFile) -> Result<Scenario> {
         let mut s = Scenario {
             duration_s: positive("duration_s", f.duration_s)?,
+            service_flood: f.service.flood,
             ..Scenario::default()
         };
         let p = &f.plant;
