@@ -340,3 +340,60 @@ fn exit_codes_no_device_timeout_and_version_mismatch() {
     assert!(err.contains("99") && err.contains('1'), "{err}");
     sim.finish();
 }
+
+#[test]
+fn run_ack_and_clear_faults_work_with_remote_service_on() {
+    // The scenario types `*` `7` (remote service on) at 0.05 s.
+    let scen = temp("remote.toml");
+    std::fs::write(
+        &scen,
+        "duration_s = 3.0\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n",
+    )
+    .unwrap();
+    let sim = Sim::start(&[
+        motor().to_str().unwrap(),
+        "--scenario",
+        scen.to_str().unwrap(),
+        "--service-linger",
+        "0",
+    ]);
+    let hold = sim.hold();
+    let status = |sim: &Sim| -> serde_json::Value {
+        let o = sim.plcctl(&["status", "--json"]);
+        assert_eq!(code(&o), 0);
+        serde_json::from_str(&text(&o)).unwrap()
+    };
+    let mut on = false;
+    for _ in 0..50 {
+        if status(&sim)["status"]["remote"] == true {
+            on = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(on, "remote service never came on");
+    assert_eq!(code(&sim.plcctl(&["stop"])), 0);
+    assert_eq!(status(&sim)["status"]["plc"], "Stop");
+    // In STOP the log may be cleared; in RUN it may not (exit 5, in RUN).
+    assert_eq!(code(&sim.plcctl(&["clear-faults"])), 0);
+    let o = sim.plcctl(&["faults", "--json"]);
+    let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
+    assert_eq!(rows.len(), 1, "{rows:?}");
+    assert_eq!(rows[0]["name"], "LOGCLR");
+    assert_eq!(code(&sim.plcctl(&["run", "--slot", "1"])), 0);
+    let mut running = false;
+    for _ in 0..50 {
+        if status(&sim)["status"]["plc"] == "Run" {
+            running = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(running, "RUN never started");
+    assert_eq!(code(&sim.plcctl(&["ack"])), 0);
+    let o = sim.plcctl(&["clear-faults"]);
+    assert_eq!(code(&o), 5);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("RUN"));
+    drop(hold);
+    sim.finish();
+}
