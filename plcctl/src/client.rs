@@ -27,6 +27,8 @@ pub struct Client {
     pub identity: Identity,
     /// When `Identify` was answered (the host's clock for the PLC's uptime).
     pub identified_at: chrono::DateTime<chrono::Utc>,
+    /// When this PLC's power-ups began, as recorded at connections.
+    pub power_ups: crate::clock::PowerUps,
 }
 
 /// Opens `path` at `baud` (8N1, raw), exit 2 when it cannot be opened.
@@ -57,6 +59,7 @@ impl Client {
                 uptime_ms: 0,
             },
             identified_at: chrono::Utc::now(),
+            power_ups: crate::clock::PowerUps::default(),
         };
         match c.request(Request::Hello {
             version: SERVICE_VERSION,
@@ -72,8 +75,11 @@ impl Client {
         }
         match c.request(Request::Identify)? {
             Answer::Identity(id) => {
-                c.identity = id;
                 c.identified_at = chrono::Utc::now();
+                c.power_ups = crate::clock::PowerUps::load(&id.uid);
+                let start = c.identified_at.timestamp_millis() - id.uptime_ms as i64;
+                c.power_ups.record(id.power_ups as u16, start);
+                c.identity = id;
             }
             other => return Err(unexpected("Identify", &other)),
         }

@@ -50,7 +50,8 @@ pub fn read_log(c: &mut Client) -> Result<Vec<LogEntry>> {
 }
 
 /// The entry's time: on the host's clock for the current power-up (now − (uptime now −
-/// entry uptime)), else `power-up #N + hh:mm:ss`.
+/// entry uptime)), for older ones from the recorded start of that power-up
+/// ([`crate::clock`]), else `power-up #N + hh:mm:ss`.
 fn time_of(c: &Client, e: &LogEntry) -> String {
     let id = &c.identity;
     let hms = |s: u32| {
@@ -67,6 +68,19 @@ fn time_of(c: &Client, e: &LogEntry) -> String {
             .with_timezone(&chrono::Local)
             .format("%Y-%m-%d %H:%M:%S")
             .to_string();
+    }
+    if let Some(start) = c
+        .power_ups
+        .start_of(e.power_up)
+        .filter(|_| e.uptime_s < UPTIME_LIMIT_S)
+    {
+        let t = chrono::DateTime::from_timestamp_millis(start + i64::from(e.uptime_s) * 1000);
+        if let Some(t) = t {
+            return t
+                .with_timezone(&chrono::Local)
+                .format("%Y-%m-%d %H:%M:%S")
+                .to_string();
+        }
     }
     format!("power-up #{} + {}", e.power_up, hms(e.uptime_s))
 }

@@ -2,6 +2,7 @@
 //! `shared-protocol/docs/service.md` "plcctl"). Exit codes: [`fail::Fail`].
 
 mod client;
+mod clock;
 mod detect;
 mod fail;
 mod faults;

@@ -82,6 +82,7 @@ impl Sim {
 
     fn plcctl(&self, args: &[&str]) -> Output {
         Command::new(PLCCTL)
+            .env("XDG_CACHE_HOME", temp("cache"))
             .args(["--port", &self.path])
             .args(args)
             .output()
@@ -142,6 +143,15 @@ fn pull_equals_disasm_byte_for_byte_and_guarded_requests_need_remote_service() {
     assert_eq!(v["status"]["plc"], "Stop", "{v}");
     assert_eq!(v["status"]["remote"], false);
     assert_eq!(v["status"]["slot"], 1);
+    // The host recorded when this power-up (#1) began, under the UID (seed 1, `HSIM`).
+    let cache = temp("cache").join("plcctl/01000000000000004853494d.txt");
+    let rec = std::fs::read_to_string(&cache).unwrap();
+    let start_ms: i64 = rec.strip_prefix("1 ").unwrap().trim().parse().unwrap();
+    let now_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis() as i64;
+    assert!((now_ms - start_ms).abs() < 60_000, "{rec}");
     drop(hold);
     assert!(sim.finish().contains("final state: PLC STOP"));
 }

@@ -1,5 +1,5 @@
 //! The PLC's service port in the simulation (service.md 9): the firmware's sans-IO
-//! [`Service`] endpoint bound to a byte-timed UART ([`ServiceLine`]), and that line bound
+//! [`Service`](firmware_plc::service::Service) endpoint bound to a byte-timed UART ([`ServiceLine`]), and that line bound
 //! to a real pseudo-terminal ([`pty::Pty`]) with real-time pacing while a client has it
 //! open ([`attach::Attached`]).
 //!
