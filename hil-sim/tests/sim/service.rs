@@ -155,3 +155,59 @@ fn a_flooded_service_port_leaves_the_record_byte_identical() {
     assert!(without.lines().count() > 1000);
     assert!(with_flood == without, "the flood changed the record");
 }
+
+#[test]
+fn the_panel_serves_the_service_port_on_a_pty_and_shows_its_path() {
+    use hil_sim::service::{pty::Pty, PtyOptions};
+    let pty = Pty::open().unwrap();
+    let path = pty.path().display().to_string();
+    let line = ServiceLine::new(line::build_info(3), SERVICE_BAUD, SERVICE_VERSION, None);
+    let opts = PtyOptions {
+        wait_for_client: false,
+        linger: Duration::ZERO,
+        pace: false,
+    };
+    let mut app = hil_sim::panel::open_with(
+        Some(std::path::Path::new(MOTOR)),
+        None,
+        Some((Attached::on_pty(line, pty, opts), path.clone())),
+    )
+    .unwrap();
+    assert_eq!(
+        app.notice.as_deref(),
+        Some(format!("service: {path}").as_str())
+    );
+    let mut port = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&path)
+        .unwrap();
+    let mut out = [0u8; MAX_WIRE_FRAME];
+    let n = encode(
+        9,
+        Request::Hello {
+            version: SERVICE_VERSION,
+        },
+        &mut out,
+    )
+    .unwrap();
+    port.write_all(&out[..n]).unwrap();
+    // The panel's own clock: 50 ms of simulated time carry the frame both ways.
+    app.advance(50);
+    let mut reader = ServiceReader::new();
+    let mut buf = [0u8; 64];
+    let got = port.read(&mut buf).unwrap();
+    let answers: Vec<(u8, Answer)> = buf[..got]
+        .iter()
+        .filter_map(|&b| reader.push::<Answer>(b).and_then(Result::ok))
+        .collect();
+    assert_eq!(
+        answers,
+        vec![(
+            9,
+            Answer::HelloReply {
+                version: SERVICE_VERSION
+            }
+        )]
+    );
+}
