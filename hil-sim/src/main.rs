@@ -336,6 +336,11 @@ fn cmd_run(a: &RecordArgs, svc: &ServiceArgs) -> Result<()> {
     if let Some(s) = service.as_mut() {
         std::io::stdout().flush()?;
         s.linger()?;
+        let l = s.line();
+        eprintln!(
+            "service: {} bytes from the client, {} bytes from the PLC",
+            l.host_bytes, l.plc_bytes
+        );
     }
     Ok(())
 }

@@ -85,6 +85,32 @@ fn time_of(c: &Client, e: &LogEntry) -> String {
     format!("power-up #{} + {}", e.power_up, hms(e.uptime_s))
 }
 
+/// The newest `count` entries as text lines (`watch`), or `fault log empty`.
+pub fn newest_text(c: &mut Client, count: u8) -> Result<String> {
+    let log = match c.ask(Request::ReadFaultLog {
+        from: LOG_FROM_NEWEST,
+        count,
+    })? {
+        Answer::FaultLog(l) => l,
+        other => return Err(unexpected("ReadFaultLog", &other)),
+    };
+    if log.entries.is_empty() {
+        return Ok("fault log empty\n".into());
+    }
+    let mut t = format!("fault log ({} entries), newest first:\n", log.total);
+    for e in &log.entries {
+        t += &format!(
+            "  #{:<2} {:<26} {:>3} {:<7} {}\n",
+            e.pos,
+            time_of(c, e),
+            e.code,
+            log_name(e.code),
+            LogText(e.code)
+        );
+    }
+    Ok(t)
+}
+
 fn csv_field(s: &str) -> String {
     if s.contains([',', '"', '\n']) {
         format!("\"{}\"", s.replace('"', "\"\""))

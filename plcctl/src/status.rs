@@ -115,12 +115,17 @@ pub fn status(c: &mut Client, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// `watch`: the screen and the status at 10 Hz; reconnects every second when the PLC
+/// Log entries `watch` shows.
+const WATCH_FAULTS: u8 = 4;
+
+/// `watch`: the screen, the status and the newest log entries at 10 Hz; reconnects every second when the PLC
 /// goes away.
 pub fn watch(connect: impl Fn() -> Result<Client>, duration: Option<f64>) -> Result<()> {
     let end = duration.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
     let mut client: Option<Client> = None;
     let mut out = std::io::stdout();
+    // The newest log entries, read again when the newest position changes.
+    let mut faults: (Option<(u8, u8)>, String) = (None, String::new());
     while end.is_none_or(|e| Instant::now() < e) {
         let tick = Instant::now();
         if client.is_none() {
@@ -142,12 +147,16 @@ pub fn watch(connect: impl Fn() -> Result<Client>, duration: Option<f64>) -> Res
                 other => return Err(unexpected("GetScreen", &other)),
             };
             let s = get_status(c)?;
+            if s.newest_log != faults.0 || faults.1.is_empty() {
+                faults = (s.newest_log, crate::faults::newest_text(c, WATCH_FAULTS)?);
+            }
             let mut v = String::from("+--------------------+\n");
             for r in &screen.rows {
                 v += &format!("|{:<20}|\n", r.as_str());
             }
             v += "+--------------------+\n";
             v += &status_text(&s);
+            v += &faults.1;
             Ok(v)
         })();
         match view {

@@ -183,6 +183,12 @@ fn faults_json_equals_the_run_summary() {
     let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
     let csv = sim.plcctl(&["faults", "--csv"]);
     assert!(text(&csv).starts_with("pos,time,power_up,uptime_s,code,name,text\n"));
+    // `watch` shows the LCD and the newest log entries.
+    let w = sim.plcctl(&["watch", "--duration", "0.3"]);
+    assert_eq!(code(&w), 0);
+    let view = text(&w);
+    assert!(view.contains("+--------------------+"), "{view}");
+    assert!(view.contains(" UV "), "{view}");
     drop(hold);
     let summary = sim.finish();
     // `  1.234 s  4 UV` lines after `faults:`.
