@@ -176,8 +176,22 @@ fn faults_json_equals_the_run_summary() {
         "20",
     ]);
     let hold = sim.hold();
-    // Real time while held: the run's 1.6 s, then the log holds the trip.
-    std::thread::sleep(std::time::Duration::from_millis(2000));
+    // Real time while held: wait until the PLC's uptime is past the run's 1.6 s (the
+    // run then lingers with the inputs held), so the log holds every trip of the summary.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    loop {
+        let o = sim.plcctl(&["status", "--json"]);
+        assert_eq!(code(&o), 0);
+        let v: serde_json::Value = serde_json::from_str(&text(&o)).unwrap();
+        if v["status"]["uptime_ms"].as_u64().unwrap() > 1_700 {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the run never reached 1.7 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
     let o = sim.plcctl(&["faults", "--json"]);
     assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
     let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
