@@ -7,6 +7,7 @@
 //! * [`sim`]: the virtual-time scheduler joining them with the UART wires.
 //! * [`scenario`]: scenario files; [`record`]: the CSV; [`plot`]: the PNG;
 //!   [`run`]: one whole run as the CLI does it; [`latency`]: `WR Q` latency end to end;
+//!   [`service`]: the PLC's service port on a pty (`--service-pty`);
 //!   [`lab`]: the source's lab chapter (ramp times, current ripple), `docs/lab.md`.
 //!
 //! Decisions and model equations: `hil-sim/docs/`.
@@ -22,6 +23,7 @@ pub mod plot;
 pub mod record;
 pub mod run;
 pub mod scenario;
+pub mod service;
 pub mod sim;
 pub mod tim1;
 
@@ -42,10 +44,12 @@ pub fn image_bytes(program: &shared_protocol::program::Program) -> anyhow::Resul
 
 /// `hil-sim panel`: the interactive front panel.
 /// `lift`: the lift plant on the shaft (`--lift`, lift.md 4).
+/// `service_version`: with `--service-pty`, the service port on a pty announcing it.
 pub fn panel_command(
     program: Option<&Path>,
     eeprom: Option<&Path>,
     lift: bool,
+    service_version: Option<u16>,
 ) -> anyhow::Result<()> {
     use std::io::IsTerminal;
     // Bad files first, with or without a terminal (nothing is created or changed yet).
@@ -62,5 +66,8 @@ pub fn panel_command(
              for scripted runs use `hil-sim run`"
         );
     }
-    panel::run(program, eeprom, lift)
+    match service_version {
+        Some(v) => panel::run_with_service(program, eeprom, lift, v),
+        None => panel::run(program, eeprom, lift),
+    }
 }

@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use hil_sim::record::CsvWriter;
-use hil_sim::run::{load_program, run};
+use hil_sim::run::{load_program, run_with};
 use hil_sim::scenario::Scenario;
 use hil_sim::sim::RunOptions;
 
@@ -29,6 +29,8 @@ enum Cmd {
     Run {
         #[command(flatten)]
         record: RecordArgs,
+        #[command(flatten)]
+        service: ServiceArgs,
     },
     /// Assemble a program: print errors, or write the EEPROM image with -o.
     Asm {
@@ -49,6 +51,12 @@ enum Cmd {
         /// `shared-protocol/programs/lift.plc`, call with the digital keys.
         #[arg(long)]
         lift: bool,
+        /// Serve the PLC's service port on a new pty (path on stderr and on the panel).
+        #[arg(long)]
+        service_pty: bool,
+        /// The service version the simulated PLC announces.
+        #[arg(long, default_value_t = shared_protocol::service::SERVICE_VERSION, requires = "service_pty")]
+        service_version: u16,
     },
     /// The same run on the real firmware images, in an emulator of both boards.
     Emu {
@@ -92,6 +100,59 @@ struct RecordArgs {
     /// Seed of the link's bit errors.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+}
+
+/// The PLC's service port on a pseudo-terminal (service.md 9).
+#[derive(clap::Args)]
+struct ServiceArgs {
+    /// Serve the PLC's service port on a new pty; its path is the first stderr line,
+    /// `service: <path>`. The run waits for a client at t = 0 and follows the wall clock
+    /// while the client keeps the pty open.
+    #[arg(long)]
+    service_pty: bool,
+    /// After the duration, keep serving the client (inputs held) this long, s.
+    #[arg(long, default_value_t = 5.0, requires = "service_pty")]
+    service_linger: f64,
+    /// The service version the simulated PLC announces (tests of version mismatch).
+    #[arg(long, default_value_t = shared_protocol::service::SERVICE_VERSION)]
+    service_version: u16,
+}
+
+impl ServiceArgs {
+    /// The service line for a run, on a pty when asked; prints `service: <path>`.
+    fn attach(&self, scen: &Scenario, seed: u64) -> Result<Option<hil_sim::service::Attached>> {
+        use hil_sim::service::{line, Attached, PtyOptions, ServiceLine};
+        let flood = scen.service_flood.then_some(seed ^ 0x5E4_71CE);
+        if !self.service_pty && flood.is_none() {
+            return Ok(None);
+        }
+        let line = ServiceLine::new(
+            line::build_info(seed),
+            shared_protocol::service::SERVICE_BAUD,
+            self.service_version,
+            flood,
+        );
+        if !self.service_pty {
+            return Ok(Some(Attached::detached(line)));
+        }
+        if cfg!(not(unix)) {
+            anyhow::bail!("--service-pty needs Linux or macOS");
+        }
+        if !(self.service_linger.is_finite() && self.service_linger >= 0.0) {
+            anyhow::bail!("--service-linger must be >= 0 s");
+        }
+        let pty = hil_sim::service::pty::Pty::open()?;
+        eprintln!("service: {}", pty.path().display());
+        Ok(Some(Attached::on_pty(
+            line,
+            pty,
+            PtyOptions {
+                wait_for_client: true,
+                linger: std::time::Duration::from_secs_f64(self.service_linger),
+                pace: true,
+            },
+        )))
+    }
 }
 
 /// A run's inputs, checked.
@@ -196,14 +257,21 @@ fn main() -> ExitCode {
 
 fn real_main() -> Result<()> {
     match Cli::parse().cmd {
-        Cmd::Run { record } => cmd_run(&record),
+        Cmd::Run { record, service } => cmd_run(&record, &service),
         Cmd::Asm { program, output } => cmd_asm(&program, output.as_deref()),
         Cmd::Disasm { program } => cmd_disasm(&program),
         Cmd::Panel {
             program,
             eeprom,
             lift,
-        } => hil_sim::panel_command(program.as_deref(), eeprom.as_deref(), lift),
+            service_pty,
+            service_version,
+        } => hil_sim::panel_command(
+            program.as_deref(),
+            eeprom.as_deref(),
+            lift,
+            service_pty.then_some(service_version),
+        ),
         Cmd::Emu {
             record,
             drive_elf,
@@ -227,17 +295,18 @@ fn sample_period_ns(sample_ms: f64) -> Result<u64> {
 
 const MIN_SAMPLE_MS: f64 = 0.001;
 
-fn cmd_run(a: &RecordArgs) -> Result<()> {
+fn cmd_run(a: &RecordArgs, svc: &ServiceArgs) -> Result<()> {
     let Prepared {
         prog,
         scen,
         duration_s,
         opts,
     } = a.prepare()?;
+    let mut service = svc.attach(&scen, opts.seed)?;
     let mut writer = a.csv_writer()?;
     let mut csv_err = None;
     let tty = std::io::stderr().is_terminal();
-    let report = run(
+    let report = run_with(
         &prog,
         scen,
         duration_s,
@@ -256,6 +325,7 @@ fn cmd_run(a: &RecordArgs) -> Result<()> {
                 let _ = std::io::stderr().flush();
             }
         },
+        service.as_mut(),
     )?;
     let title = format!(
         "{}, scenario {} ({duration_s} s)",
@@ -268,7 +338,17 @@ fn cmd_run(a: &RecordArgs) -> Result<()> {
         &report.samples,
         &title,
         report.marks.clone(),
-    )
+    )?;
+    if let Some(s) = service.as_mut() {
+        std::io::stdout().flush()?;
+        s.linger()?;
+        let l = s.line();
+        eprintln!(
+            "service: {} bytes from the client, {} bytes from the PLC",
+            l.host_bytes, l.plc_bytes
+        );
+    }
+    Ok(())
 }
 
 fn cmd_emu(

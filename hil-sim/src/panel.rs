@@ -42,23 +42,33 @@ pub fn read_program(path: &Path) -> Result<Program> {
 /// The panel with `program_path` (if any) and the EEPROM in `eeprom` (if any, else in
 /// memory), before the terminal is touched: every file error is reported here.
 pub fn open(program_path: Option<&Path>, eeprom: Option<&Path>) -> Result<PanelApp> {
-    open_with(program_path, eeprom, false)
+    open_with(program_path, eeprom, false, None)
 }
 
 /// [`open`], with the lift of lift.md 4 on the shaft when `lift` (`--lift`; not with
-/// `--eeprom` yet).
+/// `--eeprom` yet), and the PLC's service port served through `service`
+/// (`--service-pty`, whose path the notice line shows).
 pub fn open_with(
     program_path: Option<&Path>,
     eeprom: Option<&Path>,
     lift: bool,
+    service: Option<(crate::service::Attached, String)>,
 ) -> Result<PanelApp> {
     let program = program_path.map(read_program).transpose()?;
-    let (backend, note) = match eeprom {
+    let (mut backend, mut note) = match eeprom {
         Some(_) if lift => anyhow::bail!("--lift does not work with --eeprom yet"),
         Some(path) => SimBackend::with_eeprom_file(program.as_ref(), path)?,
         None if lift => (SimBackend::new_lift(program.as_ref())?, None),
         None => (SimBackend::new(program.as_ref())?, None),
     };
+    if let Some((svc, path)) = service {
+        backend.attach_service(svc);
+        let line = format!("service: {path}");
+        note = Some(match note {
+            Some(n) => format!("{line}; {n}"),
+            None => line,
+        });
+    }
     let mut app = PanelApp::new(backend);
     app.notice = note;
     let stem = program_path
@@ -78,7 +88,39 @@ pub fn open_with(
 
 /// Run the panel until it is quit (Esc / Ctrl-C, confirmed when the program is unsaved).
 pub fn run(program: Option<&Path>, eeprom: Option<&Path>, lift: bool) -> Result<()> {
-    let mut app = open_with(program, eeprom, lift)?;
+    let mut app = open_with(program, eeprom, lift, None)?;
+    run_app(&mut app)
+}
+
+/// [`run`] with the service port on a new pty (service.md 9): its path goes to stderr
+/// before the panel takes the terminal, and on the panel's notice line.
+pub fn run_with_service(
+    program: Option<&Path>,
+    eeprom: Option<&Path>,
+    lift: bool,
+    service_version: u16,
+) -> Result<()> {
+    use crate::service::{line, pty::Pty, Attached, PtyOptions, ServiceLine};
+    let pty = Pty::open()?;
+    let path = pty.path().display().to_string();
+    eprintln!("service: {path}");
+    let line = ServiceLine::new(
+        line::build_info(1),
+        shared_protocol::service::SERVICE_BAUD,
+        service_version,
+        None,
+    );
+    let opts = PtyOptions {
+        wait_for_client: false,
+        linger: Duration::ZERO,
+        pace: false,
+    };
+    let mut app = open_with(
+        program,
+        eeprom,
+        lift,
+        Some((Attached::on_pty(line, pty, opts), path)),
+    )?;
     run_app(&mut app)
 }
 

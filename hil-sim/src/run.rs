@@ -216,8 +216,35 @@ pub fn run(
     duration_s: f64,
     opts: RunOptions,
     keep_samples: crate::decimate::KeepSamples,
+    on_sample: impl FnMut(&Sample),
+    progress: impl FnMut(f64),
+) -> Result<RunReport> {
+    run_with(
+        program,
+        scenario,
+        duration_s,
+        opts,
+        keep_samples,
+        on_sample,
+        progress,
+        None,
+    )
+}
+
+/// [`run`] with the PLC's service port attached (service.md 9): stepped after each PLC
+/// tick; with a pty, the run waits for its client at t = 0. The simulation is left in
+/// `service` afterwards, for [`crate::service::Attached::linger`] once the report is out
+/// (service.md 9: the summary covers the duration only).
+#[allow(clippy::too_many_arguments)]
+pub fn run_with(
+    program: &Program,
+    scenario: Scenario,
+    duration_s: f64,
+    opts: RunOptions,
+    keep_samples: crate::decimate::KeepSamples,
     mut on_sample: impl FnMut(&Sample),
     mut progress: impl FnMut(f64),
+    mut service: Option<&mut crate::service::Attached>,
 ) -> Result<RunReport> {
     if !(duration_s.is_finite() && duration_s > 0.0) {
         bail!("the duration must be a positive number of seconds, got {duration_s}");
@@ -233,9 +260,12 @@ pub fn run(
     let mut seen: Vec<String> = Vec::new();
     let chunk_ns = 100_000_000;
     let mut t = 0;
+    if let Some(svc) = service.as_deref() {
+        svc.wait_for_client();
+    }
     while t < end_ns {
         t = (t + chunk_ns).min(end_ns);
-        sim.run_until(t, |s| {
+        let mut each = |s: &Sample| {
             if !s.warn.is_empty() {
                 for (short, long) in s.warn.texts() {
                     if !seen.contains(&short) {
@@ -248,7 +278,11 @@ pub fn run(
             peak_dc_v = peak_dc_v.max(s.u_dc_v);
             on_sample(s);
             samples.push(s);
-        });
+        };
+        match service.as_deref_mut() {
+            Some(svc) => svc.run_until(&mut sim, t, &mut each),
+            None => sim.run_until(t, each),
+        }
         progress(t as f64 * 1e-9);
     }
     let st = firmware_drive_status(&sim);
@@ -270,7 +304,7 @@ pub fn run(
     };
     let signature =
         shared_protocol::program::uses_safety(program).then(|| sim.drive().status().sf_signature);
-    Ok(RunReport {
+    let report = RunReport {
         signature,
         marks,
         drive_states: sim
@@ -291,7 +325,11 @@ pub fn run(
         final_f_hz: st.1,
         final_lift: sim.lift().map(|l| l.sample()),
         warnings,
-    })
+    };
+    if let Some(svc) = service {
+        svc.park(sim);
+    }
+    Ok(report)
 }
 
 /// `I>` (if the program sets one) and `OC_HW` as in effect at the end of the run, A.

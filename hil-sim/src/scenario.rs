@@ -38,6 +38,18 @@ pub struct ScenarioFile {
     pub lift: Option<LiftKeys>,
     #[serde(default, rename = "event")]
     pub events: Vec<EventKeys>,
+    #[serde(default)]
+    pub service: ServiceKeys,
+}
+
+/// `[service]`: the service port's test options (service.md 9).
+#[derive(Debug, Clone, Copy, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServiceKeys {
+    /// Seeded random bytes into the PLC's service receiver at line rate for the whole
+    /// run (with `--service-pty` or the library's `service::Attached`).
+    #[serde(default)]
+    pub flood: bool,
 }
 
 /// `[lift]`: every key optional (lift.md 4.1).
@@ -347,6 +359,8 @@ pub struct Scenario {
     pub keys_start_run: bool,
     /// `[lift]`: the lift on the shaft.
     pub lift: Option<LiftParams>,
+    /// `[service] flood = true`.
+    pub service_flood: bool,
 }
 
 impl Default for Scenario {
@@ -361,6 +375,7 @@ impl Default for Scenario {
             actions: Vec::new(),
             keys_start_run: false,
             lift: None,
+            service_flood: false,
         }
     }
 }
@@ -406,6 +421,7 @@ impl Scenario {
     pub fn from_file(f: ScenarioFile) -> Result<Scenario> {
         let mut s = Scenario {
             duration_s: positive("duration_s", f.duration_s)?,
+            service_flood: f.service.flood,
             ..Scenario::default()
         };
         let p = &f.plant;

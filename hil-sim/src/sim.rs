@@ -172,7 +172,7 @@ pub fn drive_config(rig: &RigParams) -> DriveConfig {
 }
 
 /// Every byte that has arrived on `wire` by `now`.
-fn receive_all(wire: &mut Channel, now: Micros) -> Vec<u8> {
+pub(crate) fn receive_all(wire: &mut Channel, now: Micros) -> Vec<u8> {
     let mut all = Vec::new();
     let mut buf = [0u8; 64];
     loop {
@@ -395,6 +395,12 @@ impl Simulation {
     /// its first 1 ms tick: a FAULT -> IDLE change is an accepted ACK.
     pub fn drive_states(&self) -> &[(u64, &'static str)] {
         &self.states
+    }
+
+    /// No more scenario actions: the inputs stay as they are (hil-sim's service port
+    /// serving its client after the run's duration, service.md 9).
+    pub fn hold_inputs(&mut self) {
+        self.next_action = self.scenario.actions.len();
     }
 
     /// Runs until `end_ns` (inclusive), calling `on_sample` at every sample time.

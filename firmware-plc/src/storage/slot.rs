@@ -184,6 +184,26 @@ pub fn payload_size(program: &Program) -> (usize, u16) {
     (len, lines)
 }
 
+/// Decodes a whole payload (the bytes [`for_each_payload_byte`] emits, which the service
+/// port transfers) into `program`, cleared first. `false` (and an empty program) when the
+/// bytes are not whole ascending runs of decodable lines: a program is never half read.
+pub fn program_from_payload(bytes: &[u8], program: &mut Program) -> bool {
+    *program = Program::default();
+    let mut parser = PayloadParser::new();
+    for &b in bytes {
+        parser.feed(b, |line, i| {
+            if let Some(slot) = program.lines.get_mut(usize::from(line)) {
+                *slot = Some(i);
+            }
+        });
+    }
+    let ok = parser.finished_ok(parser.lines);
+    if !ok {
+        *program = Program::default();
+    }
+    ok
+}
+
 /// Incremental payload decoder: fed byte by byte, reports each decoded line.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PayloadParser {
@@ -643,5 +663,24 @@ mod tests {
                 assert!(check_copy(&mut f, 384, 1).is_err(), "{addr}.{bit}");
             }
         }
+    }
+
+    #[test]
+    fn a_payload_decodes_to_its_program_and_a_cut_one_to_nothing() {
+        let p = sample();
+        let mut bytes = Vec::new();
+        for_each_payload_byte(&p, |b| bytes.push(b));
+        let mut q = Program::default();
+        assert!(program_from_payload(&bytes, &mut q));
+        assert_eq!(q, p);
+        for cut in [1, 3, 5, bytes.len() - 1] {
+            assert!(!program_from_payload(&bytes[..cut], &mut q), "{cut}");
+            assert_eq!(q, Program::default(), "{cut}");
+        }
+        let mut bad = bytes.clone();
+        bad[2] = 0; // a run of 0 lines
+        assert!(!program_from_payload(&bad, &mut q));
+        assert!(program_from_payload(&[], &mut q));
+        assert_eq!(q, Program::default());
     }
 }

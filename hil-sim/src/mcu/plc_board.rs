@@ -4,7 +4,7 @@
 //! key matrix (debouncing, scan cadence, one EEPROM page of storage work and the redraw
 //! cadence are the core's, as on the board), UART bytes in and out as the link task does.
 
-use firmware_plc::app::{PlcApp, RawIo, RunState, RunStatus};
+use firmware_plc::app::{PlcApp, RawIo, RunState, RunStatus, Tick};
 use firmware_plc::editor::{Editor, Key, Screen};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
@@ -26,6 +26,8 @@ pub struct PlcBoard {
     pins: PlcPins,
     /// Keys held down now (bit as in [`RawIo::keys`]).
     keys: u16,
+    /// What the last tick did, until the service port takes it (`crate::service`).
+    tick: Option<Tick>,
 }
 
 impl PlcBoard {
@@ -40,6 +42,7 @@ impl PlcBoard {
             pump: Pump::new(MAX_IDLE_US),
             pins: PlcPins::default(),
             keys: 0,
+            tick: None,
         };
         b.app.render(now, &mut b.screen);
         b.show();
@@ -94,9 +97,15 @@ impl PlcBoard {
         };
         let tick = self.app.tick_1ms(now, raw, &mut self.screen);
         self.outputs = tick.outputs;
+        self.tick = Some(tick);
         if tick.redrawn {
             self.show();
         }
+    }
+
+    /// What the last tick did, once (the service port's samples follow scans).
+    pub fn take_tick(&mut self) -> Option<Tick> {
+        self.tick.take()
     }
 
     /// One PLC scan with the pins as they are now.

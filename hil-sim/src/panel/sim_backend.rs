@@ -107,6 +107,8 @@ pub struct SimBackend {
     slots_at_start: u64,
     /// The last failure to write the EEPROM file (shown on the panel; retried).
     pub persist_error: Option<String>,
+    /// The PLC's service port on a pty (`panel --service-pty`).
+    service: Option<crate::service::Attached>,
 }
 
 /// The image of a fresh EEPROM with `program` (if any) in slot 1, loaded at power-up but
@@ -230,6 +232,7 @@ impl SimBackend {
             persisted_writes: 0,
             slots_at_start: 0,
             persist_error: None,
+            service: None,
         };
         b.slots_at_start = b.slots_hash();
         b
@@ -372,13 +375,22 @@ impl SimBackend {
         let end = self.sim.now_ns() + u64::from(ms) * MS_NS;
         let mut last = None;
         let rms = &mut self.rms;
-        self.sim.run_until(end, |s| {
+        let mut each = |s: &Sample| {
             rms.push(s.t_ns, s.i_abc_a);
             last = Some(s.clone());
-        });
+        };
+        match self.service.as_mut() {
+            Some(svc) => svc.run_until(&mut self.sim, end, &mut each),
+            None => self.sim.run_until(end, each),
+        }
         if last.is_some() {
             self.last = last;
         }
+    }
+
+    /// Serve the PLC's service port through `service` from now on.
+    pub fn attach_service(&mut self, service: crate::service::Attached) {
+        self.service = Some(service);
     }
 
     /// The LCD as the PLC drives it now (with its cursor; refreshed every 100 ms and

@@ -19,6 +19,7 @@ mod motor_program;
 mod overmodulation;
 mod reversal;
 mod safety;
+mod service;
 mod shipped_scenarios;
 mod trips;
 mod warnings;

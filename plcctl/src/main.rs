@@ -1,0 +1,142 @@
+//! `plcctl`: the PLC's service port from a PC (shared/spec/service.md part A, usage in
+//! `shared-protocol/docs/service.md` "plcctl"). Exit codes: [`fail::Fail`].
+
+mod client;
+mod clock;
+mod detect;
+mod fail;
+mod faults;
+mod program;
+mod status;
+mod trend;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use shared_protocol::service::{Answer, Request, SERVICE_BAUD};
+
+use client::{unexpected, Client};
+use fail::{Fail, Result};
+
+#[derive(Parser)]
+#[command(name = "plcctl", version, about = "The PLC's service port from a PC")]
+struct Cli {
+    /// Serial port (default: the one ST-LINK/V3 virtual COM port).
+    #[arg(long, global = true)]
+    port: Option<String>,
+    /// Line rate; must match the PLC's (115200).
+    #[arg(long, global = true, default_value_t = SERVICE_BAUD)]
+    baud: u32,
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// One-shot status.
+    Status {
+        #[arg(long)]
+        json: bool,
+    },
+    /// Terminal view at 10 Hz: LCD, values, I/O, newest faults (Ctrl-C ends).
+    Watch {
+        /// Stop after this many seconds (default: never).
+        #[arg(long)]
+        duration: Option<f64>,
+    },
+    /// Record samples as CSV with hil-sim's column names.
+    Trend {
+        #[arg(long)]
+        csv: PathBuf,
+        /// Sample period, 10-100 ms.
+        #[arg(long, default_value_t = 10)]
+        period_ms: u16,
+        /// Seconds to record (default: until Ctrl-C).
+        #[arg(long)]
+        duration: Option<f64>,
+        /// Up to 8 Q variables, e.g. Q04,Q05 (default Q00-Q07).
+        #[arg(long, value_delimiter = ',')]
+        q: Vec<String>,
+    },
+    /// The fault log, newest first.
+    Faults {
+        #[arg(long, conflicts_with = "json")]
+        csv: bool,
+        #[arg(long)]
+        json: bool,
+    },
+    /// The PLC's counters.
+    Counters {
+        #[arg(long)]
+        json: bool,
+    },
+    /// A program in canonical text; slot 0 = the program in RAM.
+    Pull {
+        slot: u8,
+        /// Output file (default: stdout).
+        #[arg(short = 'o', long = "output")]
+        output: Option<PathBuf>,
+    },
+    /// RUN (remote service on): the program in RAM, or slot n loaded first.
+    Run {
+        #[arg(long, default_value_t = 0)]
+        slot: u8,
+    },
+    /// STOP (always allowed).
+    Stop,
+    /// Acknowledge the drive's fault (keys * 9; remote service on).
+    Ack,
+    /// Erase the fault log (remote service on, PLC in STOP).
+    ClearFaults,
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match real_main(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("plcctl: {e}");
+            ExitCode::from(e.exit_code())
+        }
+    }
+}
+
+fn real_main(cli: Cli) -> Result<()> {
+    let port = detect::port(cli.port.as_deref())?;
+    let baud = cli.baud;
+    let connect = || Client::connect(&port, baud);
+    match cli.cmd {
+        Cmd::Status { json } => status::status(&mut connect()?, json),
+        Cmd::Watch { duration } => status::watch(connect, duration),
+        Cmd::Trend {
+            csv,
+            period_ms,
+            duration,
+            q,
+        } => trend::trend(connect, &csv, period_ms, duration, &q),
+        Cmd::Faults { csv, json } => faults::faults(&mut connect()?, csv, json),
+        Cmd::Counters { json } => status::counters(&mut connect()?, json),
+        Cmd::Pull { slot, output } => program::pull(&mut connect()?, slot, output.as_deref()),
+        Cmd::Run { slot } => done(&mut connect()?, Request::Run { slot }, "RUN requested"),
+        Cmd::Stop => done(&mut connect()?, Request::Stop, "STOP"),
+        Cmd::Ack => done(&mut connect()?, Request::Ack, "acknowledge sent"),
+        Cmd::ClearFaults => done(&mut connect()?, Request::ClearFaultLog, "fault log cleared"),
+    }
+}
+
+/// A request answered `Done` (refusals: exit 5).
+fn done(c: &mut Client, req: Request, text: &str) -> Result<()> {
+    match c.ask(req)? {
+        Answer::Done => {
+            println!("{text}");
+            Ok(())
+        }
+        other => Err(unexpected(text, &other)),
+    }
+}
+
+/// `Fail::Usage` from a message.
+fn usage(msg: impl std::fmt::Display) -> Fail {
+    Fail::Usage(anyhow::anyhow!("{msg}"))
+}

@@ -1,0 +1,150 @@
+//! `trend --csv`: samples as CSV with hil-sim's column names and number formats
+//! (service.md 8), reconnecting every second when the PLC goes away (a gap is missing
+//! rows).
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use shared_protocol::service::{Answer, Request, Sample, MAX_SUBSCRIBED_Q};
+
+use crate::client::{unexpected, Client};
+use crate::fail::{Fail, Result};
+use crate::status::{hundredths, tenths};
+use crate::usage;
+
+/// `--q Q04,Q05` as register numbers (default Q00-Q07).
+pub fn parse_q(q: &[String]) -> Result<Vec<u8>> {
+    if q.is_empty() {
+        return Ok((0..8).collect());
+    }
+    if q.len() > MAX_SUBSCRIBED_Q {
+        return Err(usage(format!(
+            "--q: at most {MAX_SUBSCRIBED_Q} Q variables"
+        )));
+    }
+    q.iter()
+        .map(|s| {
+            let n = s
+                .trim()
+                .strip_prefix(['Q', 'q'])
+                .and_then(|d| d.parse::<u8>().ok())
+                .filter(|n| *n <= 63);
+            n.ok_or_else(|| usage(format!("--q: {s:?} is not Q00-Q63")))
+        })
+        .collect()
+}
+
+/// The header: hil-sim's names for what the PLC knows, plus `imx_a`.
+pub fn header(q: &[u8]) -> String {
+    let mut cols: Vec<String> = ["t_s", "f_cmd_hz", "dir", "fault", "u_dc_v"]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    cols.extend((0..16).map(|n| format!("D{n:02}")));
+    cols.extend((0..8).map(|n| format!("O{n:02}")));
+    cols.extend(q.iter().map(|n| format!("Q{n:02}")));
+    cols.extend((0..4).map(|n| format!("lcd{n}")));
+    cols.push("imx_a".into());
+    cols.join(",")
+}
+
+/// One row; the drive's columns are empty while the link is down.
+pub fn row(s: &Sample) -> String {
+    let ms = s.uptime_ms;
+    let mut r = format!("{}.{:03}000", ms / 1000, ms % 1000);
+    match s.drive {
+        Some(d) => {
+            r += &format!(
+                ",{},{},{},{}00",
+                tenths(d.freq_dhz.into()),
+                if d.reverse { -1 } else { 1 },
+                d.fault,
+                tenths(d.udc_dv.into())
+            );
+        }
+        None => r += ",,,,",
+    }
+    for n in 0..16 {
+        r += &format!(",{}", (s.d >> n) & 1);
+    }
+    for n in 0..8 {
+        r += &format!(",{}", (s.o >> n) & 1);
+    }
+    for v in &s.q {
+        r += &format!(",{v}");
+    }
+    for f in s.lcd {
+        match f {
+            Some(v) => r += &format!(",{v}"),
+            None => r.push(','),
+        }
+    }
+    match s.drive {
+        Some(d) => r += &format!(",{}", hundredths(d.imax_ca.into())),
+        None => r.push(','),
+    }
+    r
+}
+
+fn subscribe(c: &mut Client, period_ms: u16, q: &[u8]) -> Result<()> {
+    let q = heapless::Vec::from_slice(q).map_err(|_| usage("--q: too many"))?;
+    match c.ask(Request::Subscribe { period_ms, q })? {
+        Answer::Subscribed { .. } => Ok(()),
+        other => Err(unexpected("Subscribe", &other)),
+    }
+}
+
+pub fn trend(
+    connect: impl Fn() -> Result<Client>,
+    csv: &Path,
+    period_ms: u16,
+    duration: Option<f64>,
+    q: &[String],
+) -> Result<()> {
+    let q = parse_q(q)?;
+    if !(10..=100).contains(&period_ms) {
+        return Err(usage("--period-ms must be 10-100"));
+    }
+    let file =
+        File::create(csv).map_err(|e| usage(format!("cannot create {}: {e}", csv.display())))?;
+    let mut w = BufWriter::new(file);
+    writeln!(w, "{}", header(&q))?;
+    let end = duration.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
+    let mut client = Some(connect()?);
+    if let Some(c) = client.as_mut() {
+        subscribe(c, period_ms, &q)?;
+    }
+    let mut rows = 0u64;
+    while end.is_none_or(|e| Instant::now() < e) {
+        let Some(c) = client.as_mut() else {
+            std::thread::sleep(Duration::from_secs(1));
+            client = match connect() {
+                Ok(mut c) => subscribe(&mut c, period_ms, &q).ok().map(|_| c),
+                Err(v @ Fail::Version { .. }) => return Err(v),
+                Err(_) => None,
+            };
+            continue;
+        };
+        match c.samples(Duration::from_millis(200)) {
+            Ok(samples) => {
+                for s in &samples {
+                    writeln!(w, "{}", row(s))?;
+                    rows += 1;
+                }
+                w.flush()?;
+            }
+            Err(_) => client = None,
+        }
+    }
+    if let Some(c) = client.as_mut() {
+        let _ = c.request(Request::Subscribe {
+            period_ms: 0,
+            q: heapless::Vec::new(),
+        });
+    }
+    w.flush()?;
+    eprintln!("{rows} samples written to {}", csv.display());
+    Ok(())
+}

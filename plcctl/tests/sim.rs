@@ -1,0 +1,429 @@
+//! `plcctl` against `hil-sim run … --service-pty` through a real pty (service.md 10):
+//! `pull` = `hil-sim disasm` byte for byte, `faults --json` = the run summary's faults,
+//! `trend --csv` = hil-sim's CSV (names and values), refusals and exit codes.
+//!
+//! hil-sim's binary is taken from this test's own target directory (`cargo test
+//! --workspace` builds it; alone: `cargo build -p hil-sim --release` first).
+
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+
+const PLCCTL: &str = env!("CARGO_BIN_EXE_plcctl");
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn motor() -> PathBuf {
+    root().join("shared-protocol/programs/motor.plc")
+}
+
+/// hil-sim next to this test's binary (`target/<profile>/`).
+fn hil_sim() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().and_then(Path::parent).unwrap();
+    let p = dir.join(format!("hil-sim{}", std::env::consts::EXE_SUFFIX));
+    assert!(
+        p.exists(),
+        "{} missing: build it first (cargo build -p hil-sim --release)",
+        p.display()
+    );
+    p
+}
+
+fn temp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("plcctl-test-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+/// A `hil-sim run --service-pty` and its pty path.
+struct Sim {
+    child: Child,
+    path: String,
+}
+
+impl Sim {
+    fn start(args: &[&str]) -> Sim {
+        let mut child = Command::new(hil_sim())
+            .arg("run")
+            .args(args)
+            .arg("--service-pty")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut err = BufReader::new(child.stderr.take().unwrap());
+        let mut first = String::new();
+        err.read_line(&mut first).unwrap();
+        let path = first
+            .trim_end()
+            .strip_prefix("service: ")
+            .unwrap_or_else(|| panic!("first stderr line {first:?}"))
+            .to_string();
+        // The rest of stderr must not fill its pipe.
+        std::thread::spawn(move || {
+            let mut sink = String::new();
+            let _ = err.read_to_string(&mut sink);
+        });
+        Sim { child, path }
+    }
+
+    /// Holds the pty open (virtual time follows the wall clock, the run lingers after
+    /// its duration while this is open).
+    fn hold(&self) -> std::fs::File {
+        std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&self.path)
+            .unwrap()
+    }
+
+    fn plcctl(&self, args: &[&str]) -> Output {
+        Command::new(PLCCTL)
+            .env("XDG_CACHE_HOME", temp("cache"))
+            .args(["--port", &self.path])
+            .args(args)
+            .output()
+            .unwrap()
+    }
+
+    /// Waits for the end; the summary.
+    fn finish(mut self) -> String {
+        let mut out = String::new();
+        self.child
+            .stdout
+            .take()
+            .unwrap()
+            .read_to_string(&mut out)
+            .unwrap();
+        assert!(self.child.wait().unwrap().success(), "{out}");
+        out
+    }
+}
+
+fn text(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn code(o: &Output) -> i32 {
+    o.status.code().unwrap_or(-1)
+}
+
+#[test]
+fn pull_equals_disasm_byte_for_byte_and_guarded_requests_need_remote_service() {
+    let sim = Sim::start(&[motor().to_str().unwrap(), "--duration", "1"]);
+    let hold = sim.hold();
+    let disasm = Command::new(hil_sim())
+        .arg("disasm")
+        .arg(motor())
+        .output()
+        .unwrap();
+    assert!(disasm.status.success());
+    for slot in ["1", "0"] {
+        let out = temp(&format!("pull{slot}.plc"));
+        let o = sim.plcctl(&["pull", slot, "-o", out.to_str().unwrap()]);
+        assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(std::fs::read(&out).unwrap(), disasm.stdout, "pull {slot}");
+    }
+    // Remote service is off: run, ack and clear-faults exit 5 and say why; stop works.
+    for cmd in ["run", "ack", "clear-faults"] {
+        let o = sim.plcctl(&[cmd]);
+        assert_eq!(code(&o), 5, "{cmd}");
+        assert!(
+            String::from_utf8_lossy(&o.stderr).contains("remote service is off"),
+            "{cmd}"
+        );
+    }
+    assert_eq!(code(&sim.plcctl(&["stop"])), 0);
+    let o = sim.plcctl(&["status", "--json"]);
+    assert_eq!(code(&o), 0);
+    let v: serde_json::Value = serde_json::from_str(&text(&o)).unwrap();
+    assert_eq!(v["status"]["plc"], "Stop", "{v}");
+    assert_eq!(v["status"]["remote"], false);
+    assert_eq!(v["status"]["slot"], 1);
+    // The host recorded when this power-up (#1) began, under the UID (seed 1, `HSIM`).
+    let cache = temp("cache").join("plcctl/01000000000000004853494d.txt");
+    let rec = std::fs::read_to_string(&cache).unwrap();
+    let start_ms: i64 = rec.strip_prefix("1 ").unwrap().trim().parse().unwrap();
+    let now_ms = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_millis() as i64;
+    assert!((now_ms - start_ms).abs() < 60_000, "{rec}");
+    drop(hold);
+    assert!(sim.finish().contains("final state: PLC STOP"));
+}
+
+#[test]
+fn faults_json_equals_the_run_summary() {
+    // motor.plc sets U< = 25 V: the supply drops to 20 V at 1 s and the drive trips UV.
+    let scen = temp("uv.toml");
+    std::fs::write(
+        &scen,
+        "duration_s = 1.6\n[plant]\nload_torque_nm = 0.03\n\
+         [[event]]\nat_s = 0.0\nset = { A00 = 980, A01 = 500 }\n\
+         [[event]]\nat_s = 0.2\npress = \"D00\"\n\
+         [[event]]\nat_s = 1.0\ndc_link_v = 20.0\n",
+    )
+    .unwrap();
+    let sim = Sim::start(&[
+        motor().to_str().unwrap(),
+        "--scenario",
+        scen.to_str().unwrap(),
+        "--service-linger",
+        "20",
+    ]);
+    let hold = sim.hold();
+    // Real time while held: wait until the PLC's uptime is past the run's 1.6 s (the
+    // run then lingers with the inputs held), so the log holds every trip of the summary.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    loop {
+        let o = sim.plcctl(&["status", "--json"]);
+        assert_eq!(code(&o), 0);
+        let v: serde_json::Value = serde_json::from_str(&text(&o)).unwrap();
+        if v["status"]["uptime_ms"].as_u64().unwrap() > 1_700 {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the run never reached 1.7 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let o = sim.plcctl(&["faults", "--json"]);
+    assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
+    let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
+    let csv = sim.plcctl(&["faults", "--csv"]);
+    assert!(text(&csv).starts_with("pos,time,power_up,uptime_s,code,name,text\n"));
+    // `watch` shows the LCD and the newest log entries.
+    let w = sim.plcctl(&["watch", "--duration", "0.3"]);
+    assert_eq!(code(&w), 0);
+    let view = text(&w);
+    assert!(view.contains("+--------------------+"), "{view}");
+    assert!(view.contains(" UV "), "{view}");
+    drop(hold);
+    let summary = sim.finish();
+    // `  1.234 s  4 UV` lines after `faults:`.
+    let trips: Vec<(f64, u64)> = summary
+        .lines()
+        .skip_while(|l| *l != "faults:")
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            (f[0].parse().unwrap(), f[2].parse().unwrap())
+        })
+        .collect();
+    assert!(!trips.is_empty(), "{summary}");
+    // Newest first in the log, oldest first in the summary; events are not trips.
+    let logged: Vec<&serde_json::Value> = rows
+        .iter()
+        .rev()
+        .filter(|r| r["code"].as_u64().unwrap() < 240)
+        .collect();
+    assert_eq!(logged.len(), trips.len(), "{rows:?} vs {summary}");
+    for (r, (t, c)) in logged.iter().zip(&trips) {
+        assert_eq!(r["code"].as_u64().unwrap(), *c);
+        let up = r["uptime_s"].as_f64().unwrap();
+        assert!((up - t).abs() <= 1.0, "log {up} s, summary {t} s");
+        assert_eq!(r["name"], "UV");
+        for k in ["pos", "time", "power_up", "text"] {
+            assert!(r.get(k).is_some(), "{k}");
+        }
+    }
+}
+
+fn csv_rows(text: &str) -> (Vec<String>, Vec<Vec<String>>) {
+    let mut lines = text.lines();
+    let header = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    (header, rows)
+}
+
+#[test]
+fn trend_csv_has_hil_sims_names_and_agrees_with_its_record() {
+    let sim_csv = temp("sim.csv");
+    let trend_csv = temp("trend.csv");
+    let sim = Sim::start(&[
+        motor().to_str().unwrap(),
+        "--scenario",
+        root()
+            .join("hil-sim/scenarios/motor.toml")
+            .to_str()
+            .unwrap(),
+        "--duration",
+        "2",
+        "--csv",
+        sim_csv.to_str().unwrap(),
+    ]);
+    let o = sim.plcctl(&[
+        "trend",
+        "--csv",
+        trend_csv.to_str().unwrap(),
+        "--duration",
+        "1.5",
+        "--q",
+        "Q00,Q01,Q02",
+    ]);
+    assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
+    sim.finish();
+    let (sh, srows) = csv_rows(&std::fs::read_to_string(&sim_csv).unwrap());
+    let (th, trows) = csv_rows(&std::fs::read_to_string(&trend_csv).unwrap());
+    // Every column is hil-sim's, except the PLC-only ones of service.md 8 (16 D, 8 O,
+    // `imx_a`; this hil-sim records 8 D and 6 O).
+    let extra = |c: &str| {
+        c == "imx_a"
+            || (c.starts_with('D') && c[1..].parse::<u8>().is_ok_and(|n| n < 16))
+            || (c.starts_with('O') && c[1..].parse::<u8>().is_ok_and(|n| n < 8))
+    };
+    for c in &th {
+        assert!(sh.contains(c) || extra(c), "column {c} is not hil-sim's");
+    }
+    assert!(trows.len() > 100, "{} samples", trows.len());
+    let col = |h: &[String], name: &str| h.iter().position(|c| c == name).unwrap();
+    let by_t: std::collections::HashMap<&str, &Vec<String>> =
+        srows.iter().map(|r| (r[0].as_str(), r)).collect();
+    let index: std::collections::HashMap<&str, usize> = srows
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (r[0].as_str(), i))
+        .collect();
+    let mut compared = 0;
+    for tr in &trows {
+        let Some(sr) = by_t.get(tr[0].as_str()) else {
+            continue;
+        };
+        compared += 1;
+        let exact = [
+            "O00", "O01", "O02", "O03", "O04", "O05", "Q00", "Q01", "Q02",
+        ]
+        .iter()
+        .chain(&["lcd0", "lcd1", "lcd2", "lcd3"]);
+        for name in exact {
+            assert_eq!(
+                tr[col(&th, name)],
+                sr[col(&sh, name)],
+                "{name} at t = {}",
+                tr[0]
+            );
+        }
+        // Debounced inputs: hil-sim's value at some instant of the preceding 6 ms; the
+        // drive's frequency within 20 ms (status period and transport).
+        let i = index[tr[0].as_str()];
+        for (names, window) in [(vec!["D00", "D01"], 6), (vec!["f_cmd_hz", "fault"], 20)] {
+            for name in names {
+                let v = &tr[col(&th, name)];
+                if v.is_empty() {
+                    continue;
+                }
+                let seen = (i.saturating_sub(window)..=i).any(|k| &srows[k][col(&sh, name)] == v);
+                assert!(
+                    seen,
+                    "{name} = {v} at t = {} not in hil-sim's last {window} ms",
+                    tr[0]
+                );
+            }
+        }
+    }
+    assert!(compared > 100, "{compared} rows at common instants");
+}
+
+#[test]
+fn exit_codes_no_device_timeout_and_version_mismatch() {
+    let o = Command::new(PLCCTL)
+        .args(["--port", "/nonexistent/tty", "status"])
+        .output()
+        .unwrap();
+    assert_eq!(code(&o), 2);
+    // A pty nobody serves: 3 attempts, then exit 3.
+    let pair = nix::pty::openpty(None, None).unwrap();
+    let path = nix::unistd::ttyname(&pair.slave).unwrap();
+    let o = Command::new(PLCCTL)
+        .arg("--port")
+        .arg(&path)
+        .arg("status")
+        .output()
+        .unwrap();
+    assert_eq!(code(&o), 3, "{}", String::from_utf8_lossy(&o.stderr));
+    drop(pair);
+    let sim = Sim::start(&[
+        motor().to_str().unwrap(),
+        "--duration",
+        "0.5",
+        "--service-version",
+        "99",
+        "--service-linger",
+        "0",
+    ]);
+    let o = sim.plcctl(&["status"]);
+    assert_eq!(code(&o), 4);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("99") && err.contains('1'), "{err}");
+    sim.finish();
+}
+
+#[test]
+fn run_ack_and_clear_faults_work_with_remote_service_on() {
+    // The scenario types `*` `7` (remote service on) at 0.05 s.
+    let scen = temp("remote.toml");
+    std::fs::write(
+        &scen,
+        "duration_s = 3.0\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n",
+    )
+    .unwrap();
+    let sim = Sim::start(&[
+        motor().to_str().unwrap(),
+        "--scenario",
+        scen.to_str().unwrap(),
+        "--service-linger",
+        "0",
+    ]);
+    let hold = sim.hold();
+    let status = |sim: &Sim| -> serde_json::Value {
+        let o = sim.plcctl(&["status", "--json"]);
+        assert_eq!(code(&o), 0);
+        serde_json::from_str(&text(&o)).unwrap()
+    };
+    let mut on = false;
+    for _ in 0..50 {
+        if status(&sim)["status"]["remote"] == true {
+            on = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(on, "remote service never came on");
+    assert_eq!(code(&sim.plcctl(&["stop"])), 0);
+    assert_eq!(status(&sim)["status"]["plc"], "Stop");
+    // In STOP the log may be cleared; in RUN it may not (exit 5, in RUN).
+    assert_eq!(code(&sim.plcctl(&["clear-faults"])), 0);
+    let o = sim.plcctl(&["faults", "--json"]);
+    let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
+    assert_eq!(rows.len(), 1, "{rows:?}");
+    assert_eq!(rows[0]["name"], "LOGCLR");
+    assert_eq!(code(&sim.plcctl(&["run", "--slot", "1"])), 0);
+    let mut running = false;
+    for _ in 0..50 {
+        if status(&sim)["status"]["plc"] == "Run" {
+            running = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(running, "RUN never started");
+    assert_eq!(code(&sim.plcctl(&["ack"])), 0);
+    let o = sim.plcctl(&["clear-faults"]);
+    assert_eq!(code(&o), 5);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("RUN"));
+    drop(hold);
+    sim.finish();
+}
