@@ -243,14 +243,18 @@ fn quitting_with_unsaved_changes_asks() {
     assert_eq!(app.modal, Some(Modal::ConfirmQuit(QuitLoss::Both)));
     app.modal_key(TextKey::Char('y'));
     assert!(app.quit);
-    // Unsaved, nothing saved: Ctrl-C asks about the program only, y quits.
-    let mut app = open(Some(&motor()), None).unwrap();
-    app.advance(100);
-    type_keys(&mut app, "#150*0");
-    app.input(Input::Quit);
-    assert_eq!(app.modal, unsaved);
-    app.modal_key(TextKey::Char('y'));
-    assert!(app.quit);
+    drop(app);
+    // Unsaved, nothing saved: Ctrl-C asks about the program only, y quits. (One panel at
+    // a time: each is ~120 KiB, and a test thread has 2 MiB.)
+    {
+        let mut app = open(Some(&motor()), None).unwrap();
+        app.advance(100);
+        type_keys(&mut app, "#150*0");
+        app.input(Input::Quit);
+        assert_eq!(app.modal, unsaved);
+        app.modal_key(TextKey::Char('y'));
+        assert!(app.quit);
+    }
     // Nothing edited, nothing saved: no question (RUN and STOP write the boot record,
     // not a slot).
     let mut app = open(Some(&motor()), None).unwrap();

@@ -90,7 +90,8 @@ pub const SENSOR_FAULT_COUNTS: i16 = 400;
 
 /// The co-simulated rig behind the panel, in virtual time that the panel advances.
 pub struct SimBackend {
-    sim: Simulation,
+    /// Boxed: ~90 KiB, and panels are built and moved on test threads with 2 MiB stacks.
+    sim: Box<Simulation>,
     last: Option<Sample>,
     /// Keypad keys not yet pressed.
     keys: VecDeque<char>,
@@ -221,7 +222,7 @@ impl SimBackend {
             ..RunOptions::default()
         };
         let mut b = SimBackend {
-            sim: Simulation::with_boards(drive, plc, scenario, opts),
+            sim: Box::new(Simulation::with_boards(drive, plc, scenario, opts)),
             last: None,
             keys: VecDeque::new(),
             pressing: None,

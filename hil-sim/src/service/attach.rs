@@ -30,8 +30,9 @@ pub struct Attached {
     /// (wall clock, virtual ns) when the client was last seen arriving: the pacing's
     /// reference.
     paced_since: Option<(Instant, u64)>,
-    /// The simulation after the run's duration, for [`Attached::linger`].
-    parked: Option<Simulation>,
+    /// The simulation after the run's duration, for [`Attached::linger`]. Boxed: a
+    /// `Simulation` is ~90 KiB, and the panel's backend holds an `Attached` inline.
+    parked: Option<Box<Simulation>>,
 }
 
 impl Attached {
@@ -120,7 +121,7 @@ impl Attached {
 
     /// Keeps the simulation after the run's duration (`run::run_with`).
     pub fn park(&mut self, sim: Simulation) {
-        self.parked = Some(sim);
+        self.parked = Some(Box::new(sim));
     }
 
     /// After the duration: keep serving, inputs held, until the client closes or the
@@ -129,7 +130,7 @@ impl Attached {
         let Some(mut sim) = self.parked.take() else {
             return Ok(());
         };
-        let sim = &mut sim;
+        let sim: &mut Simulation = &mut sim;
         let Some((pty, opts)) = &self.pty else {
             return Ok(());
         };
