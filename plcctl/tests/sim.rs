@@ -70,6 +70,20 @@ impl Sim {
         Sim { child, path }
     }
 
+    /// `motor.plc` with the scenario `toml` (written to the temp file `name`), lingering
+    /// `linger_s` after its duration.
+    fn with_scenario(name: &str, toml: &str, linger_s: &str) -> Sim {
+        let scen = temp(name);
+        std::fs::write(&scen, toml).unwrap();
+        Sim::start(&[
+            motor().to_str().unwrap(),
+            "--scenario",
+            scen.to_str().unwrap(),
+            "--service-linger",
+            linger_s,
+        ])
+    }
+
     /// Holds the pty open (virtual time follows the wall clock, the run lingers after
     /// its duration while this is open).
     fn hold(&self) -> std::fs::File {
@@ -159,22 +173,14 @@ fn pull_equals_disasm_byte_for_byte_and_guarded_requests_need_remote_service() {
 #[test]
 fn faults_json_equals_the_run_summary() {
     // motor.plc sets U< = 25 V: the supply drops to 20 V at 1 s and the drive trips UV.
-    let scen = temp("uv.toml");
-    std::fs::write(
-        &scen,
+    let sim = Sim::with_scenario(
+        "uv.toml",
         "duration_s = 1.6\n[plant]\nload_torque_nm = 0.03\n\
          [[event]]\nat_s = 0.0\nset = { A00 = 980, A01 = 500 }\n\
          [[event]]\nat_s = 0.2\npress = \"D00\"\n\
          [[event]]\nat_s = 1.0\ndc_link_v = 20.0\n",
-    )
-    .unwrap();
-    let sim = Sim::start(&[
-        motor().to_str().unwrap(),
-        "--scenario",
-        scen.to_str().unwrap(),
-        "--service-linger",
         "20",
-    ]);
+    );
     let hold = sim.hold();
     // Real time while held: wait until the PLC's uptime is past the run's 1.6 s (the
     // run then lingers with the inputs held), so the log holds every trip of the summary.
@@ -374,19 +380,11 @@ fn exit_codes_no_device_timeout_and_version_mismatch() {
 #[test]
 fn run_ack_and_clear_faults_work_with_remote_service_on() {
     // The scenario types `*` `7` (remote service on) at 0.05 s.
-    let scen = temp("remote.toml");
-    std::fs::write(
-        &scen,
+    let sim = Sim::with_scenario(
+        "remote.toml",
         "duration_s = 3.0\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n",
-    )
-    .unwrap();
-    let sim = Sim::start(&[
-        motor().to_str().unwrap(),
-        "--scenario",
-        scen.to_str().unwrap(),
-        "--service-linger",
         "0",
-    ]);
+    );
     let hold = sim.hold();
     let status = |sim: &Sim| -> serde_json::Value {
         let o = sim.plcctl(&["status", "--json"]);

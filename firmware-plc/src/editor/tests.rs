@@ -523,21 +523,25 @@ fn edits_save_and_load_wait_for_a_storage_job_holding_the_program() {
     assert_eq!(press(&mut ed, &mut p, false, "C1"), vec![Request::Save(1)]);
 }
 
-#[test]
-fn star_9_acknowledges_faults_on_every_page() {
-    let mut ed = Editor::new(20, 4);
+/// `keys` ask for `request` on every page, stopped or running, and leave the program alone.
+fn same_request_on_every_page(ed: &mut Editor, keys: &str, request: Request) {
     let mut p = Program::default();
     for page in [Page::Listing, Page::Run, Page::FaultLog] {
         ed.show_page(page);
         for running in [false, true] {
             assert_eq!(
-                press(&mut ed, &mut p, running, "*9"),
-                vec![Request::AckFaults],
-                "{page:?} running={running}"
+                press(ed, &mut p, running, keys),
+                vec![request],
+                "{keys} on {page:?} running={running}"
             );
         }
     }
     assert_eq!(p, Program::default());
+}
+
+#[test]
+fn star_9_acknowledges_faults_on_every_page() {
+    same_request_on_every_page(&mut Editor::new(20, 4), "*9", Request::AckFaults);
 }
 
 /// service.md 4: `*` `7` toggles remote service on every page, stopped or running,
@@ -545,18 +549,8 @@ fn star_9_acknowledges_faults_on_every_page() {
 #[test]
 fn star_7_toggles_remote_service_on_every_page_and_the_run_page_marks_it() {
     let mut ed = Editor::new(20, 4);
-    let mut p = Program::default();
-    for page in [Page::Listing, Page::Run, Page::FaultLog] {
-        ed.show_page(page);
-        for running in [false, true] {
-            assert_eq!(
-                press(&mut ed, &mut p, running, "*7"),
-                vec![Request::ToggleRemote],
-                "{page:?} running={running}"
-            );
-        }
-    }
-    assert_eq!(p, Program::default());
+    same_request_on_every_page(&mut ed, "*7", Request::ToggleRemote);
+    let p = Program::default();
     ed.show_page(Page::Run);
     let mut run = RunView {
         running: true,
