@@ -3,16 +3,18 @@
 //! `9` once its cause is removed.
 
 use hil_sim::panel::keys::{map_char, Input};
-use hil_sim::panel::{read_program, PanelApp, SimBackend};
+use hil_sim::panel::{open, PanelApp};
 use shared_protocol::fault::FaultCode;
+use std::path::Path;
+
+/// The source's motor program, as `hil-sim panel motor.plc` opens it.
+const MOTOR: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared-protocol/programs/motor.plc"
+);
 
 fn motor_panel() -> PanelApp {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared-protocol/programs/motor.plc"
-    );
-    let p = read_program(std::path::Path::new(path)).unwrap();
-    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    let mut app = open(Some(Path::new(MOTOR)), None).unwrap();
     app.advance(100);
     app
 }

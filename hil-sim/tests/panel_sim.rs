@@ -2,7 +2,14 @@
 //! short program, run it, see it work; and run the motor example from its file.
 
 use hil_sim::panel::keys::{map_char, Input};
-use hil_sim::panel::{read_program, PanelApp, SimBackend};
+use hil_sim::panel::{open, read_program, PanelApp, SimBackend};
+use std::path::Path;
+
+/// The source's motor program, as `hil-sim panel motor.plc` opens it.
+const MOTOR: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared-protocol/programs/motor.plc"
+);
 
 fn type_keys(app: &mut PanelApp, s: &str) {
     for c in s.chars() {
@@ -50,12 +57,7 @@ fn type_a_short_program_run_it_and_see_it_work() {
 
 #[test]
 fn motor_example_runs_from_the_panel() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared-protocol/programs/motor.plc"
-    );
-    let p = read_program(std::path::Path::new(path)).unwrap();
-    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    let mut app = open(Some(Path::new(MOTOR)), None).unwrap();
     app.advance(100);
     assert!(
         lcd_text(&app).contains("LOADED SLOT 1"),
@@ -113,12 +115,7 @@ fn bit_flip_in_the_eeprom_is_reported_on_the_lcd_at_power_up() {
 /// periods), where the instantaneous peak of the three phases moved by 13 %.
 #[test]
 fn the_rms_current_is_steady_where_the_instantaneous_peak_is_not() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared-protocol/programs/motor.plc"
-    );
-    let p = read_program(std::path::Path::new(path)).unwrap();
-    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    let mut app = open(Some(Path::new(MOTOR)), None).unwrap();
     app.advance(100);
     app.input(Input::Analog(0, 512));
     app.input(Input::Analog(1, 300));

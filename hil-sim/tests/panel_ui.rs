@@ -5,9 +5,16 @@
 use firmware_plc::editor::Key;
 use firmware_plc::storage::MemEeprom;
 use hil_sim::panel::keys::{map_char, Input};
-use hil_sim::panel::{read_program, ui, PanelApp, SimBackend};
+use hil_sim::panel::{open, ui, PanelApp, SimBackend};
 use ratatui::backend::TestBackend;
 use ratatui::Terminal;
+use std::path::Path;
+
+/// The source's motor program, as `hil-sim panel motor.plc` opens it.
+const MOTOR: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../shared-protocol/programs/motor.plc"
+);
 
 fn text(term: &Terminal<TestBackend>) -> String {
     let buf = term.backend().buffer();
@@ -89,12 +96,7 @@ fn switches_and_pots_follow_their_keys() {
 
 #[test]
 fn program_file_loads_into_the_panel() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared-protocol/programs/motor.plc"
-    );
-    let p = read_program(std::path::Path::new(path)).unwrap();
-    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    let mut app = open(Some(Path::new(MOTOR)), None).unwrap();
     type_keys(&mut app, "#150");
     let mut term = Terminal::new(TestBackend::new(110, 30)).unwrap();
     term.draw(|f| ui::draw(f, &app)).unwrap();
@@ -140,12 +142,7 @@ fn a_too_small_terminal_says_so_instead_of_clipping() {
 /// and the rig's keys change what it shows.
 #[test]
 fn the_rig_box_shows_setpoint_outputs_torque_rms_and_the_rig_settings() {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared-protocol/programs/motor.plc"
-    );
-    let p = read_program(std::path::Path::new(path)).unwrap();
-    let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
+    let mut app = open(Some(Path::new(MOTOR)), None).unwrap();
     app.advance(100);
     app.input(Input::Analog(0, 512));
     app.input(Input::Analog(1, 300));
