@@ -6,6 +6,7 @@ mod clock;
 mod detect;
 mod fail;
 mod faults;
+mod interrupt;
 mod program;
 mod status;
 mod trend;
@@ -45,10 +46,13 @@ enum Cmd {
         #[arg(long)]
         duration: Option<f64>,
     },
-    /// Record samples as CSV with hil-sim's column names.
+    /// Record samples as CSV with hil-sim's column names (Ctrl-C ends it like --duration).
     Trend {
         #[arg(long)]
         csv: PathBuf,
+        /// Also draw them (PNG or SVG by the extension) with hil-sim's plot.
+        #[arg(long)]
+        plot: Option<PathBuf>,
         /// Sample period, 10-100 ms.
         #[arg(long, default_value_t = 10)]
         period_ms: u16,
@@ -111,10 +115,21 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Watch { duration } => status::watch(connect, duration),
         Cmd::Trend {
             csv,
+            plot,
             period_ms,
             duration,
             q,
-        } => trend::trend(connect, &csv, period_ms, duration, &q),
+        } => trend::trend(
+            connect,
+            &trend::TrendArgs {
+                csv: &csv,
+                plot: plot.as_deref(),
+                period_ms,
+                duration,
+                q: &q,
+                port: &port,
+            },
+        ),
         Cmd::Faults { csv, json } => faults::faults(&mut connect()?, csv, json),
         Cmd::Counters { json } => status::counters(&mut connect()?, json),
         Cmd::Pull { slot, output } => program::pull(&mut connect()?, slot, output.as_deref()),

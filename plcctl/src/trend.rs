@@ -1,6 +1,8 @@
-//! `trend --csv`: samples as CSV with hil-sim's column names and number formats
+//! `trend --csv [--plot]`: samples as CSV with hil-sim's column names and number formats
 //! (service.md 8), reconnecting every second when the PLC goes away (a gap is missing
-//! rows).
+//! rows). `--plot` draws them with hil-sim's plotting code (the `trend-plot` crate) for
+//! the columns the PLC knows. Ctrl-C ends the recording like the end of `--duration`:
+//! the CSV is complete and the plot is drawn.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -8,6 +10,8 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use shared_protocol::service::{Answer, Request, Sample, MAX_SUBSCRIBED_Q};
+
+use trend_plot::{Column, Marks};
 
 use crate::client::{unexpected, Client};
 use crate::fail::{Fail, Result};
@@ -88,6 +92,63 @@ pub fn row(s: &Sample) -> String {
     r
 }
 
+/// What the plot needs of a sample: the drive's columns are `None` while the link is down
+/// (a gap in the traces, as in the CSV).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlotRow {
+    t_s: f64,
+    drive: Option<[f64; 5]>,
+}
+
+impl PlotRow {
+    pub fn of(s: &Sample) -> PlotRow {
+        PlotRow {
+            t_s: s.uptime_ms as f64 / 1000.0,
+            drive: s.drive.map(|d| {
+                [
+                    f64::from(d.freq_dhz) / 10.0,
+                    if d.reverse { -1.0 } else { 1.0 },
+                    f64::from(d.fault),
+                    f64::from(d.udc_dv) / 10.0,
+                    f64::from(d.imax_ca) / 100.0,
+                ]
+            }),
+        }
+    }
+}
+
+impl trend_plot::Row for PlotRow {
+    fn t_s(&self) -> f64 {
+        self.t_s
+    }
+
+    fn get(&self, c: Column) -> Option<f64> {
+        let [f, dir, fault, udc, imx] = self.drive?;
+        match c {
+            Column::FCmdHz => Some(f),
+            Column::Dir => Some(dir),
+            Column::Fault => Some(fault),
+            Column::UDcV => Some(udc),
+            Column::ImxA => Some(imx),
+            // Only a simulation knows these (service.md 8).
+            Column::SpeedRpm
+            | Column::IA
+            | Column::IB
+            | Column::IC
+            | Column::UAbV
+            | Column::Brake
+            | Column::PwmOn
+            | Column::CarMm => None,
+        }
+    }
+}
+
+/// The plot's title: the port and the first sample's uptime.
+fn plot_title(port: &str, rows: &[PlotRow]) -> String {
+    let from = rows.first().map_or(0.0, |r| r.t_s);
+    format!("plcctl trend, {port}, PLC uptime {from:.3} s on")
+}
+
 fn subscribe(c: &mut Client, period_ms: u16, q: &[u8]) -> Result<()> {
     let q = heapless::Vec::from_slice(q).map_err(|_| usage("--q: too many"))?;
     match c.ask(Request::Subscribe { period_ms, q })? {
@@ -96,17 +157,36 @@ fn subscribe(c: &mut Client, period_ms: u16, q: &[u8]) -> Result<()> {
     }
 }
 
-pub fn trend(
-    connect: impl Fn() -> Result<Client>,
-    csv: &Path,
-    period_ms: u16,
-    duration: Option<f64>,
-    q: &[String],
-) -> Result<()> {
+/// What `trend` records, and where.
+pub struct TrendArgs<'a> {
+    pub csv: &'a Path,
+    pub plot: Option<&'a Path>,
+    pub period_ms: u16,
+    pub duration: Option<f64>,
+    pub q: &'a [String],
+    /// The port's name, for the plot's title.
+    pub port: &'a str,
+}
+
+pub fn trend(connect: impl Fn() -> Result<Client>, args: &TrendArgs<'_>) -> Result<()> {
+    let TrendArgs {
+        csv,
+        plot,
+        period_ms,
+        duration,
+        q,
+        port,
+    } = *args;
     let q = parse_q(q)?;
     if !(10..=100).contains(&period_ms) {
         return Err(usage("--period-ms must be 10-100"));
     }
+    if let Some(p) = plot {
+        // A bad name or directory is refused before recording, not after.
+        trend_plot::check_target(p).map_err(usage)?;
+    }
+    let interrupted = crate::interrupt::on_ctrl_c()?;
+    let mut plot_rows: Vec<PlotRow> = Vec::new();
     let file =
         File::create(csv).map_err(|e| usage(format!("cannot create {}: {e}", csv.display())))?;
     let mut w = BufWriter::new(file);
@@ -117,7 +197,7 @@ pub fn trend(
         subscribe(c, period_ms, &q)?;
     }
     let mut rows = 0u64;
-    while end.is_none_or(|e| Instant::now() < e) {
+    while end.is_none_or(|e| Instant::now() < e) && !interrupted.is_set() {
         let Some(c) = client.as_mut() else {
             std::thread::sleep(Duration::from_secs(1));
             client = match connect() {
@@ -132,6 +212,9 @@ pub fn trend(
                 for s in &samples {
                     writeln!(w, "{}", row(s))?;
                     rows += 1;
+                    if plot.is_some() {
+                        plot_rows.push(PlotRow::of(s));
+                    }
                 }
                 w.flush()?;
             }
@@ -146,5 +229,15 @@ pub fn trend(
     }
     w.flush()?;
     eprintln!("{rows} samples written to {}", csv.display());
+    if let Some(p) = plot {
+        trend_plot::plot(
+            p,
+            &plot_rows,
+            &plot_title(port, &plot_rows),
+            &Marks::default(),
+        )
+        .map_err(|e| usage(format!("{e:#}")))?;
+        eprintln!("plot written to {}", p.display());
+    }
     Ok(())
 }

@@ -259,6 +259,7 @@ fn csv_rows(text: &str) -> (Vec<String>, Vec<Vec<String>>) {
 fn trend_csv_has_hil_sims_names_and_agrees_with_its_record() {
     let sim_csv = temp("sim.csv");
     let trend_csv = temp("trend.csv");
+    let trend_svg = temp("trend.svg");
     let sim = Sim::start(&[
         motor().to_str().unwrap(),
         "--scenario",
@@ -279,9 +280,23 @@ fn trend_csv_has_hil_sims_names_and_agrees_with_its_record() {
         "1.5",
         "--q",
         "Q00,Q01,Q02",
+        "--plot",
+        trend_svg.to_str().unwrap(),
     ]);
     assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
     sim.finish();
+    // hil-sim's plot, with the panels of the columns the PLC has (trend-plot's tests
+    // check the selection; this checks plcctl hands its samples over).
+    let svg = std::fs::read_to_string(&trend_svg).unwrap();
+    for caption in [
+        "f_cmd_hz * dir (blue)",
+        "imx_a (orange)",
+        "u_dc_v (brown)",
+        "fault (red)",
+    ] {
+        assert!(svg.contains(caption), "plot lacks {caption}");
+    }
+    assert!(!svg.contains("speed_rpm"), "no simulation-only panel");
     let (sh, srows) = csv_rows(&std::fs::read_to_string(&sim_csv).unwrap());
     let (th, trows) = csv_rows(&std::fs::read_to_string(&trend_csv).unwrap());
     // Every column is hil-sim's, except the PLC-only ones of service.md 8 (16 D, 8 O,
@@ -341,6 +356,49 @@ fn trend_csv_has_hil_sims_names_and_agrees_with_its_record() {
         }
     }
     assert!(compared > 100, "{compared} rows at common instants");
+}
+
+/// Ctrl-C ends `trend` as its duration would: exit 0, every row complete, the plot drawn.
+#[test]
+fn ctrl_c_ends_a_trend_with_the_csv_complete_and_the_plot_drawn() {
+    let csv = temp("ctrlc.csv");
+    let png = temp("ctrlc.png");
+    let sim = Sim::start(&[motor().to_str().unwrap(), "--duration", "20"]);
+    let trend = Command::new(PLCCTL)
+        .args(["--port", &sim.path, "trend", "--csv"])
+        .arg(&csv)
+        .arg("--plot")
+        .arg(&png)
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Until a second of samples is in the file.
+    let t0 = std::time::Instant::now();
+    while std::fs::read_to_string(&csv).map_or(0, |t| t.lines().count()) < 100 {
+        assert!(t0.elapsed().as_secs() < 20, "no samples");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &trend.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let out = trend.wait_with_output().unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.ends_with('\n'));
+    let (header, rows) = csv_rows(&text);
+    assert!(rows.len() >= 99);
+    assert!(rows.iter().all(|r| r.len() == header.len()), "a cut row");
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("plot written to"), "{stderr}");
+    sim.finish();
 }
 
 #[test]
