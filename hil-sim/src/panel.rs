@@ -45,8 +45,7 @@ pub fn open(program_path: Option<&Path>, eeprom: Option<&Path>) -> Result<PanelA
     open_with(program_path, eeprom, false, None)
 }
 
-/// [`open`], with the lift of lift.md 4 on the shaft when `lift` (`--lift`; not with
-/// `--eeprom` yet), and the PLC's service port served through `service`
+/// [`open`], with the lift of lift.md 4 on the shaft when `lift` (`--lift`), and the PLC's service port served through `service`
 /// (`--service-pty`, whose path the notice line shows).
 pub fn open_with(
     program_path: Option<&Path>,
@@ -56,8 +55,7 @@ pub fn open_with(
 ) -> Result<PanelApp> {
     let program = program_path.map(read_program).transpose()?;
     let (mut backend, mut note) = match eeprom {
-        Some(_) if lift => anyhow::bail!("--lift does not work with --eeprom yet"),
-        Some(path) => SimBackend::with_eeprom_file(program.as_ref(), path)?,
+        Some(path) => SimBackend::with_eeprom_file(program.as_ref(), path, lift)?,
         None if lift => (SimBackend::new_lift(program.as_ref())?, None),
         None => (SimBackend::new(program.as_ref())?, None),
     };

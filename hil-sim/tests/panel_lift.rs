@@ -52,3 +52,22 @@ fn the_panel_runs_the_lift_and_a_key_calls_it() {
     let t = text(&app);
     assert!(t.contains("floor 3") && t.contains("open"), "{t}");
 }
+
+/// `hil-sim panel --lift --eeprom FILE`: the lift on the shaft and the EEPROM in the file
+/// (created with lift.plc in slot 1); RUN with `A` runs the lift.
+#[test]
+fn the_lift_panel_keeps_its_eeprom_in_a_file() {
+    let dir = std::env::temp_dir().join(format!("panel-lift-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let eeprom = dir.join("lift.eeprom");
+    let program = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared-protocol/programs/lift.plc");
+    let mut app = hil_sim::panel::open_with(Some(&program), Some(&eeprom), true, None).unwrap();
+    assert_eq!(std::fs::metadata(&eeprom).unwrap().len(), 32 * 1024);
+    assert!(text(&app).contains("LIFT car   450.0 mm"));
+    app.input(map_char('A').unwrap());
+    app.advance(7000);
+    let l = app.status().lift.unwrap();
+    assert!(l.at_floor == 1 && l.brake_engaged, "{l:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

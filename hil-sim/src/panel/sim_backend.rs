@@ -147,9 +147,12 @@ impl SimBackend {
     ///   RAM as an unsaved program (no slot is overwritten). Not while the PLC runs at
     ///   power-up: the returned note says so.
     /// * A file that is not a 32 KiB image is refused and left unchanged.
+    ///
+    /// With `lift`, the lift of lift.md 4 is on the shaft ([`Self::with_lift`]).
     pub fn with_eeprom_file(
         program: Option<&Program>,
         path: &Path,
+        lift: bool,
     ) -> anyhow::Result<(Self, Option<String>)> {
         let existing = read_eeprom_image(path)?;
         let created = existing.is_none();
@@ -157,7 +160,11 @@ impl SimBackend {
             Some(bytes) => MemEeprom::from_image(bytes),
             None => fresh_image(program)?,
         };
-        let mut b = Self::with_eeprom(eeprom);
+        let mut b = if lift {
+            Self::with_lift(eeprom)
+        } else {
+            Self::with_eeprom(eeprom)
+        };
         b.eeprom_file = Some(path.to_path_buf());
         let mut note = None;
         if created {
