@@ -457,32 +457,8 @@ impl Lowering {
                 Operand::Sf(f) => Op::Sfr(sfr_cell(f)),
                 _ => return None,
             },
-            // Safety settings: drive section only.
-            m if m.safety_setting().is_some() => return None,
-            // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
-            M::Pwf
-            | M::Pr0
-            | M::Pr1
-            | M::Pr2
-            | M::Pi
-            | M::Sn1
-            | M::Sn2
-            | M::Sn3
-            | M::RsSet
-            | M::UcSet
-            | M::IzSet
-            | M::CalcDu
-            | M::DuSet
-            | M::UMax
-            | M::UMin
-            | M::IMax
-            | M::IMaxHw
-            | M::UMaxHw
-            | M::Fmn
-            | M::Fjm
-            | M::Fmx
-            | M::Frv => return None,
-            // The safety settings (matched above).
+            // Drive-section mnemonics (PWF, PI, SNx, the parameters, the safety
+            // settings): the verifier keeps them out of lines 150-999.
             _ => return None,
         };
         Some(op)

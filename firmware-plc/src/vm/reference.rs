@@ -346,29 +346,8 @@ impl ReferenceVm {
                     }
                 }
             }
-            // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
-            M::Pwf
-            | M::Pr0
-            | M::Pr1
-            | M::Pr2
-            | M::Pi
-            | M::Sn1
-            | M::Sn2
-            | M::Sn3
-            | M::RsSet
-            | M::UcSet
-            | M::IzSet
-            | M::CalcDu
-            | M::DuSet
-            | M::UMax
-            | M::UMin
-            | M::IMax
-            | M::IMaxHw
-            | M::UMaxHw
-            | M::Fmn
-            | M::Fjm
-            | M::Fmx
-            | M::Frv => {}
+            // Drive-section mnemonics (PWF, PI, SNx, the parameters, the safety
+            // settings): the verifier keeps them out of lines 150-999.
             _ => {}
         }
     }
