@@ -1,6 +1,7 @@
 //! `dwt-cycles`: DWT cycle counters for bring-up figures (170 cycles = 1 µs). Each board
 //! keeps its own [`CycleStat`]s and reports them; the link task's critical sections are
-//! measured here ([`LINK_RX`], [`LINK_TX`]).
+//! measured here ([`LINK_RX`], [`LINK_TX`]), and the PLC's service task's ([`SERVICE_RX`],
+//! [`SERVICE_TX`]).
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -61,6 +62,11 @@ impl Default for CycleStat {
 pub static LINK_RX: CycleStat = CycleStat::new();
 /// The link task's transmit section (`poll_tx`: one frame encoded).
 pub static LINK_TX: CycleStat = CycleStat::new();
+/// The PLC's service task's receive section (the frame reader over the bytes of a pass).
+pub static SERVICE_RX: CycleStat = CycleStat::new();
+/// The PLC's service task's transmit section (one request executed and its answer
+/// encoded, or one sample).
+pub static SERVICE_TX: CycleStat = CycleStat::new();
 
 /// Calls `report` once a second when called every millisecond.
 pub struct EverySecond(AtomicU32);

@@ -1,5 +1,8 @@
 //! The link UART (USART1, 8N1, TX and RX on DMA1 CH1/CH2, RX into a ring buffer) and the
-//! task glue around the core's link pump (`shared_protocol::link::pump`).
+//! task glue around the core's link pump (`shared_protocol::link::pump`). The PLC's
+//! service port (LPUART1) runs on the same machinery: [`open_port`] opens any U(S)ART with
+//! its DMA channels, and [`run_task`] pumps bytes for any [`SharedEndpoint`] with its own
+//! [`Task`] (kick signal, watchdog bit, cycle figures).
 //!
 //! The task only does I/O: it waits for received bytes, the pump's deadline or a
 //! [`kick`] (whichever comes first), hands the bytes to the pump, and writes what the pump
@@ -21,12 +24,13 @@
 //!   once a second with the count (`Pump::line_error`).
 
 use embassy_futures::select::{select, Either};
+use embassy_stm32::interrupt::typelevel::{Binding, Interrupt};
 use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::mode::Async;
 use embassy_stm32::usart::{
-    self, Config, DataBits, Parity, RingBufferedUartRx, StopBits, Uart, UartTx,
+    self, Config, DataBits, Parity, RingBufferedUartRx, RxDma, StopBits, TxDma, Uart, UartTx,
 };
-use embassy_stm32::{bind_interrupts, dma, interrupt, peripherals, Peri};
+use embassy_stm32::{bind_interrupts, dma, peripherals, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::with_deadline;
@@ -63,53 +67,117 @@ pub struct LinkPort {
     pub rx: RingBufferedUartRx<'static>,
 }
 
-/// Opens the USART 8N1 at `baud` with the RX pull-up, and puts its interrupts (and its
-/// DMA channels') below TIM1 ([`crate::boot::BACKGROUND`]).
+/// Opens the link USART 8N1 at `baud` with the RX pull-up ([`open_port`]).
 pub fn open<Tx, Rx>(l: LinkPins<Peri<'static, Tx>, Peri<'static, Rx>>, baud: u32) -> LinkPort
 where
     Tx: usart::TxPin<peripherals::USART1>,
     Rx: usart::RxPin<peripherals::USART1>,
 {
     static RX_RING: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
+    open_port(
+        l.usart,
+        l.tx,
+        l.rx,
+        l.tx_dma,
+        l.rx_dma,
+        Irqs,
+        RX_RING.init([0; RX_RING_BYTES]),
+        baud,
+    )
+}
+
+/// Opens any U(S)ART `T` 8N1 at `baud` with the RX pull-up, TX and RX on the DMA channels
+/// `D1`/`D2` (RX into the ring `rx_ring`), and puts its interrupt and its DMA channels'
+/// below TIM1 ([`crate::boot::BACKGROUND`]). The link's USART1 and the PLC's service
+/// LPUART1 are opened here.
+#[allow(clippy::too_many_arguments)]
+pub fn open_port<T, D1, D2>(
+    usart: Peri<'static, T>,
+    tx: Peri<'static, impl usart::TxPin<T>>,
+    rx: Peri<'static, impl usart::RxPin<T>>,
+    tx_dma: Peri<'static, D1>,
+    rx_dma: Peri<'static, D2>,
+    irqs: impl Binding<T::Interrupt, usart::InterruptHandler<T>>
+        + Binding<D1::Interrupt, dma::InterruptHandler<D1>>
+        + Binding<D2::Interrupt, dma::InterruptHandler<D2>>
+        + 'static,
+    rx_ring: &'static mut [u8],
+    baud: u32,
+) -> LinkPort
+where
+    T: usart::Instance,
+    D1: TxDma<T>,
+    D2: RxDma<T>,
+{
     let mut config = Config::default();
     config.baudrate = baud;
     config.data_bits = DataBits::DataBits8;
     config.parity = Parity::ParityNone;
     config.stop_bits = StopBits::STOP1;
     config.rx_pull = embassy_stm32::gpio::Pull::Up;
-    let uart = match Uart::new(l.usart, l.rx, l.tx, l.tx_dma, l.rx_dma, Irqs, config) {
+    let uart = match Uart::new(usart, rx, tx, tx_dma, rx_dma, irqs, config) {
         Ok(uart) => uart,
-        Err(e) => defmt::panic!("link USART config rejected: {}", e),
+        Err(e) => defmt::panic!("USART config rejected: {}", e),
     };
-    for irq in [
-        interrupt::USART1,
-        interrupt::DMA1_CHANNEL1,
-        interrupt::DMA1_CHANNEL2,
-    ] {
+    for irq in [T::Interrupt::IRQ, D1::Interrupt::IRQ, D2::Interrupt::IRQ] {
         irq.set_priority(crate::boot::BACKGROUND);
     }
     let (tx, rx) = uart.split();
     LinkPort {
         tx,
-        rx: rx.into_ring_buffered(RX_RING.init([0; RX_RING_BYTES])),
+        rx: rx.into_ring_buffered(rx_ring),
     }
 }
 
-static KICK: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+/// What distinguishes one pump task from another: its wake-up signal, its watchdog bit
+/// and its cycle figures.
+pub struct Task {
+    /// In log lines.
+    pub name: &'static str,
+    /// The supervisor bit reported every pass (0: not supervised).
+    pub alive: u32,
+    /// Wakes the task for a pass now ([`Task::kick`]).
+    pub kick: Signal<CriticalSectionRawMutex, ()>,
+    /// Receive and transmit calls, measured with `dwt-cycles`.
+    #[cfg(feature = "dwt-cycles")]
+    pub rx_cycles: &'static crate::cycles::CycleStat,
+    #[cfg(feature = "dwt-cycles")]
+    pub tx_cycles: &'static crate::cycles::CycleStat,
+}
+
+impl Task {
+    /// Wakes the task for a pass now (its endpoint has something due).
+    pub fn kick(&self) {
+        self.kick.signal(());
+    }
+}
+
+/// The link task of both boards.
+pub static LINK: Task = Task {
+    name: "link",
+    alive: supervisor::TASK_LINK,
+    kick: Signal::new(),
+    #[cfg(feature = "dwt-cycles")]
+    rx_cycles: &crate::cycles::LINK_RX,
+    #[cfg(feature = "dwt-cycles")]
+    tx_cycles: &crate::cycles::LINK_TX,
+};
 
 /// Wakes the link task for a pass now (the application queued something to send).
 /// Call it when `shared_protocol::link::pump::is_due` says the endpoint's deadline has
 /// come: the task otherwise sleeps until the deadline it knew.
 pub fn kick() {
-    KICK.signal(());
+    LINK.kick();
 }
 
 /// How the link task reaches the endpoint the board shares with its other tasks.
 pub trait SharedEndpoint {
-    type Endpoint: LinkEndpoint;
+    /// The endpoint, possibly a view borrowing more than one shared object for one call
+    /// (the PLC's service on its application).
+    type Endpoint<'a>: LinkEndpoint;
     /// Runs `f` on the endpoint (inside whatever lock the board uses); `None` when it is
     /// not there yet.
-    fn with<R>(&self, f: impl FnOnce(&mut Self::Endpoint) -> R) -> Option<R>;
+    fn with<R>(&self, f: impl for<'a> FnOnce(&mut Self::Endpoint<'a>) -> R) -> Option<R>;
 }
 
 /// The link task's loop: never returns. Each board wraps it in its own
@@ -119,21 +187,32 @@ pub trait SharedEndpoint {
 /// separate calls of [`SharedEndpoint::with`], so that none holds the board's lock for
 /// all (the drive's lock masks the PWM interrupt; `dwt-cycles` measures the first two),
 /// and the reaction runs after the pass's frame was written.
-pub async fn run<S: SharedEndpoint>(mut port: LinkPort, shared: S) -> ! {
+pub async fn run<S: SharedEndpoint>(port: LinkPort, shared: S) -> ! {
+    run_task(port, shared, &LINK).await
+}
+
+/// [`run`] for any pump task: the same loop with `task`'s kick signal, watchdog bit and
+/// cycle figures.
+pub async fn run_task<S: SharedEndpoint>(mut port: LinkPort, shared: S, task: &Task) -> ! {
     let mut pump = Pump::new(MAX_IDLE_US);
     let mut rx_buf = [0u8; 64];
     let mut wake = now();
     loop {
-        supervisor::alive(supervisor::TASK_LINK);
+        supervisor::alive(task.alive);
         let read = with_deadline(instant(wake), port.rx.read(&mut rx_buf));
-        let n = match select(read, KICK.wait()).await {
+        let n = match select(read, task.kick.wait()).await {
             Either::First(Ok(Ok(n))) => n,
             Either::First(Ok(Err(e))) => {
                 // Reception goes on with the next byte (see the module doc).
                 port.rx.start_uart();
                 let t = now();
                 if let Some(Some(count)) = shared.with(|ep| pump.line_error(ep, t)) {
-                    defmt::warn!("link: {=u32} line error(s), the last {}", count, e);
+                    defmt::warn!(
+                        "{=str}: {=u32} line error(s), the last {}",
+                        task.name,
+                        count,
+                        e
+                    );
                 }
                 0
             }
@@ -146,7 +225,7 @@ pub async fn run<S: SharedEndpoint>(mut port: LinkPort, shared: S) -> ! {
             let start = crate::cycles::now();
             shared.with(|ep| pump.receive(ep, rx, t));
             #[cfg(feature = "dwt-cycles")]
-            crate::cycles::LINK_RX.record(start);
+            task.rx_cycles.record(start);
         }
         let t = now();
         #[cfg(feature = "dwt-cycles")]
@@ -154,12 +233,12 @@ pub async fn run<S: SharedEndpoint>(mut port: LinkPort, shared: S) -> ! {
         // The transmitter is free here (the last write was awaited): a whole frame fits.
         let pass = shared.with(|ep| pump.transmit(ep, MAX_WIRE_FRAME, t));
         #[cfg(feature = "dwt-cycles")]
-        crate::cycles::LINK_TX.record(start);
+        task.tx_cycles.record(start);
         wake = pass.map_or(Micros(t.0 + MAX_IDLE_US), |p| p.wake_at);
         let tx = pump.tx();
         if !tx.is_empty() {
             if let Err(e) = port.tx.write(tx).await {
-                defmt::warn!("link: tx error {}", e);
+                defmt::warn!("{=str}: tx error {}", task.name, e);
             }
         }
         // The application's reaction to what arrived, once the frame (an acknowledgement,

@@ -15,6 +15,7 @@
 //! | keypad columns C0..C3 | PC2, PC3, PC4, PC5 | GPIO in, pull-up | morpho |
 //! | I2C SCL / SDA (24C256 at 0x50, PCF8574 LCD at 0x27) | PA8 / PB5 | I2C3 (AF2 / AF8) | Arduino D7 / D4 |
 //! | link TX / RX | PA9 / PA10 | USART1 (AF7), DMA1 CH1 / CH2 | Arduino D8 / D2 |
+//! | service port TX / RX (service.md 1) | PA2 / PA3 | LPUART1 (AF12), DMA1 CH3 / CH4 | ST-LINK/V3E virtual COM port (USB cable) |
 //! | heartbeat LED (toggles while the watchdog is fed) | PA5 | GPIO out | LD2 |
 //!
 //! The I2C bus is not on PB8/PB9 (I2C1): PB8 is BOOT0 with the factory option bytes
@@ -91,6 +92,15 @@ pub struct Bus {
 /// The drive link USART with its DMA channels.
 pub type Link = board_common::link::LinkPins<Peri<'static, p::PA9>, Peri<'static, p::PA10>>;
 
+/// The service port: LPUART1 on the ST-LINK's virtual COM port, with its DMA channels.
+pub struct Service {
+    pub lpuart: Peri<'static, p::LPUART1>,
+    pub tx: Peri<'static, p::PA2>,
+    pub rx: Peri<'static, p::PA3>,
+    pub tx_dma: Peri<'static, p::DMA1_CH3>,
+    pub rx_dma: Peri<'static, p::DMA1_CH4>,
+}
+
 /// Everything else the PLC binds.
 pub struct Misc {
     pub iwdg: Peri<'static, p::IWDG>,
@@ -105,6 +115,7 @@ pub struct Board {
     pub keypad: Keypad,
     pub bus: Bus,
     pub link: Link,
+    pub service: Service,
     pub misc: Misc,
 }
 
@@ -171,6 +182,13 @@ pub fn split(p: Peripherals) -> Board {
             rx: p.PA10,
             tx_dma: p.DMA1_CH1,
             rx_dma: p.DMA1_CH2,
+        },
+        service: Service {
+            lpuart: p.LPUART1,
+            tx: p.PA2,
+            rx: p.PA3,
+            tx_dma: p.DMA1_CH3,
+            rx_dma: p.DMA1_CH4,
         },
         misc: Misc {
             iwdg: p.IWDG,

@@ -777,6 +777,7 @@ impl Soc {
     fn after_event(&mut self, k: usize, t: Cycles) {
         if k == self.rcc {
             self.apply_rcc_resets();
+            self.sync_usart_clocks();
         }
         if k == self.wired.tim1 {
             self.tim1_events(t);
@@ -1013,6 +1014,22 @@ impl Soc {
             || w.dmamux == k
             || w.i2c.contains(&k)
             || w.adc12 == k
+    }
+
+    /// Gives each U(S)ART the kernel clock RCC selects for it now (after every RCC write:
+    /// CCIPR, the APB prescalers, a peripheral reset).
+    fn sync_usart_clocks(&mut self) {
+        let clocks: Vec<_> = USARTS
+            .into_iter()
+            .map(|u| (u, self.rcc().usart_kernel_hz(u)))
+            .collect();
+        for (u, (hz, source)) in clocks {
+            if let Some(m) = self.usart_mut(u) {
+                if m.kernel_clock_hz() != hz {
+                    m.set_kernel_clock_hz(hz, source);
+                }
+            }
+        }
     }
 
     fn apply_rcc_resets(&mut self) {

@@ -17,8 +17,8 @@ pub fn open(l: Link, baud: u32) -> LinkPort {
 struct Shared;
 
 impl SharedEndpoint for Shared {
-    type Endpoint = DriveApp;
-    fn with<R>(&self, f: impl FnOnce(&mut DriveApp) -> R) -> Option<R> {
+    type Endpoint<'a> = DriveApp;
+    fn with<R>(&self, f: impl for<'a> FnOnce(&mut DriveApp) -> R) -> Option<R> {
         shared::with(|s| f(&mut s.app))
     }
 }

@@ -1,7 +1,8 @@
 //! The application task: once per millisecond it samples the raw pins and key matrix,
 //! hands them to [`firmware_plc::app::PlcApp::tick_1ms`] (debouncing, scan, one EEPROM
 //! page of storage work, redraw: all core code), writes the output image and sends the
-//! LCD one changed cell.
+//! LCD one changed cell; after the outputs, the service port's share of the pass
+//! (`board::service::after_scan`).
 //!
 //! The pass schedule is [`Pacer`]: a late pass never replays the missed periods, and the
 //! task yields once per pass, so the link task and the supervisor always get their turn
@@ -36,7 +37,7 @@ pub struct PlcIo {
 
 /// Runs the scan loop.
 #[embassy_executor::task]
-pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
+pub async fn run(mut io: PlcIo, app: shared::SharedApp, svc: super::service::SharedService) {
     let mut screen = Screen::new(lcd::COLS, lcd::ROWS);
     let mut pacer = Pacer::new(PERIOD.as_micros());
     let mut lcd_retry = RetryTimer::new(LCD_RETRY_US);
@@ -59,6 +60,8 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp) {
         let tick = shared::with(app, |a| a.tick_1ms(now, raw, &mut screen));
         io.outputs.write(tick.outputs);
         super::link::kick_if_due(app);
+        // After the outputs: the trend sample, one EEPROM step of a service read.
+        super::service::after_scan(svc, app, &tick);
         if let Some(w) = tick.warning {
             defmt::warn!("scan: {}", w);
         }

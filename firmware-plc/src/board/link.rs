@@ -15,8 +15,8 @@ pub fn open(l: Link, baud: u32) -> LinkPort {
 struct Shared(SharedApp);
 
 impl SharedEndpoint for Shared {
-    type Endpoint = App;
-    fn with<R>(&self, f: impl FnOnce(&mut App) -> R) -> Option<R> {
+    type Endpoint<'a> = App;
+    fn with<R>(&self, f: impl for<'a> FnOnce(&mut App) -> R) -> Option<R> {
         Some(shared::with(self.0, f))
     }
 }

@@ -13,6 +13,7 @@ pub mod keypad;
 pub mod lcd;
 pub mod link;
 pub mod outputs;
+pub mod service;
 pub mod shared;
 
 /// The watchdog supervisor (`board_common::supervisor`), with this board's name for its
@@ -60,6 +61,7 @@ pub async fn start(spawner: Spawner) {
     };
     let link_cfg = LinkConfig::default();
     let port = link::open(board.link, link_cfg.baud);
+    let (service_port, svc) = service::open(board.service);
     // Power-up of the application: loads the slot last run from the EEPROM (and starts RUN
     // if it was running).
     let app = shared::install(eeprom::I2cEeprom::new(bus), link_cfg);
@@ -71,5 +73,7 @@ pub async fn start(spawner: Spawner) {
             .expect("spawn supervisor"),
     );
     spawner.spawn(link::run(port, app).expect("spawn link"));
-    spawner.spawn(app::run(io, app).expect("spawn app"));
+    spawner.spawn(app::run(io, app, svc).expect("spawn app"));
+    // Spawned last: below the application and the link (service.md 5).
+    spawner.spawn(service::run(service_port, svc, app).expect("spawn service"));
 }

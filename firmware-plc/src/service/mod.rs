@@ -8,6 +8,8 @@
 //!   subscriptions and samples.
 //! * [`reads`]: the paced EEPROM reads behind `ListSlots`, `ReadProgram` and `Run` of
 //!   slots 1-4.
+//! * [`endpoint`]: the service on the application as the board's byte pump sees it, and
+//!   the application task's share (one EEPROM step after each scan).
 //! * The requests themselves are answered by the application (`app/service.rs`), which
 //!   holds everything they read and change.
 //!
@@ -20,6 +22,7 @@
 //!
 //! [`PlcLink`]: shared_protocol::link::PlcLink
 
+pub mod endpoint;
 pub mod port;
 pub mod reads;
 

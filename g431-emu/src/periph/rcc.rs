@@ -6,8 +6,9 @@
 //! assumes it (see `crate::time`). [`Rcc::sysclk_is_pll`] lets the SoC report an image that
 //! runs the PLL-dependent peripherals without switching to the PLL.
 
+use crate::periph::usart::UsartInstance;
 use crate::periph::{Peripheral, Write};
-use crate::time::{Cycles, CYCLES_PER_US};
+use crate::time::{Cycles, CYCLES_PER_US, HCLK_HZ};
 
 /// HSI16 start-up time, maximum (DS12589 tsu(HSI16), rounded up).
 const HSI_STARTUP: Cycles = 4 * CYCLES_PER_US;
@@ -27,6 +28,7 @@ const PLLCFGR: u32 = 0x0C;
 const CIER: u32 = 0x18;
 const CIFR: u32 = 0x1C;
 const CICR: u32 = 0x20;
+const CCIPR: u32 = 0x88;
 const CSR: u32 = 0x94;
 const CRRCR: u32 = 0x98;
 
@@ -191,6 +193,36 @@ impl Rcc {
     /// resets those peripherals (they stay in reset while the bit is 1).
     pub fn take_resets(&mut self) -> Vec<(u32, u32)> {
         core::mem::take(&mut self.resets_asserted)
+    }
+
+    /// The kernel clock of `usart` (RM0440 §7.4.26 RCC_CCIPR USARTxSEL/LPUART1SEL, §7.4.3
+    /// CFGR PPRE1/PPRE2) in Hz, with the source's name; `None` for LSE, which the
+    /// emulator does not model. PCLK is HCLK divided by its APB prescaler (USART1 is on
+    /// APB2, the others on APB1); SYSCLK is the 170 MHz every model assumes.
+    pub fn usart_kernel_hz(&self, usart: UsartInstance) -> (Option<u64>, &'static str) {
+        let shift = match usart {
+            UsartInstance::Usart1 => 0,
+            UsartInstance::Usart2 => 2,
+            UsartInstance::Usart3 => 4,
+            UsartInstance::Uart4 => 6,
+            UsartInstance::Lpuart1 => 10,
+        };
+        let ccipr = self.regs.get((CCIPR / 4) as usize).copied().unwrap_or(0);
+        match (ccipr >> shift) & 3 {
+            0 => {
+                let (ppre, name) = if usart == UsartInstance::Usart1 {
+                    ((self.cfgr >> 11) & 7, "PCLK2")
+                } else {
+                    ((self.cfgr >> 8) & 7, "PCLK1")
+                };
+                // 0xx: not divided; 100..111: 2, 4, 8, 16.
+                let div = if ppre < 4 { 1 } else { 2u64 << (ppre - 4) };
+                (Some(HCLK_HZ / div), name)
+            }
+            1 => (Some(HCLK_HZ), "SYSCLK"),
+            2 => (Some(16_000_000), "HSI16"),
+            _ => (None, "LSE"),
+        }
     }
 
     /// The system clock is the PLL (SWS = 3).
@@ -359,6 +391,36 @@ mod tests {
 
     fn settle(r: &mut Rcc, now: Cycles) {
         r.advance(now);
+    }
+
+    #[test]
+    fn usart_kernel_clocks_follow_ccipr_and_the_apb_prescalers() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        // Reset: every U(S)ART on its PCLK, prescalers 1.
+        for u in [UsartInstance::Usart1, UsartInstance::Lpuart1] {
+            assert_eq!(r.usart_kernel_hz(u).0, Some(HCLK_HZ));
+        }
+        // PPRE1 = 100 (/2), PPRE2 = 101 (/4); SW = PLL kept.
+        r.write(Write::word(CFGR, (0b101 << 11) | (0b100 << 8) | 3), 0);
+        assert_eq!(
+            r.usart_kernel_hz(UsartInstance::Lpuart1),
+            (Some(85_000_000), "PCLK1")
+        );
+        assert_eq!(
+            r.usart_kernel_hz(UsartInstance::Usart1),
+            (Some(42_500_000), "PCLK2")
+        );
+        // LPUART1SEL (bits 11:10) = HSI16, USART1SEL = SYSCLK, USART2SEL = LSE.
+        r.write(Write::word(CCIPR, (0b10 << 10) | (0b11 << 2) | 0b01), 0);
+        assert_eq!(
+            r.usart_kernel_hz(UsartInstance::Lpuart1),
+            (Some(16_000_000), "HSI16")
+        );
+        assert_eq!(
+            r.usart_kernel_hz(UsartInstance::Usart1),
+            (Some(HCLK_HZ), "SYSCLK")
+        );
+        assert_eq!(r.usart_kernel_hz(UsartInstance::Usart2), (None, "LSE"));
     }
 
     #[test]

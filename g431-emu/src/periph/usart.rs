@@ -6,11 +6,12 @@
 //!   an 8-deep TXFIFO in front of the shift register, and an RXFIFO of 8 behind RDR (RXFF is
 //!   "RXFIFO full + 1 data in RDR", RM0440 USART_ISR.RXFF). Without FIFOEN, TDR and RDR are
 //!   single registers.
-//! * Timing in CPU cycles from BRR, PRESC and OVER8 (the kernel clock is the 170 MHz CPU
-//!   clock, so a USART bit is `BRR·presc` cycles, `USARTDIV·presc/2` with OVER8 (USARTDIV
-//!   is even there: `BRR[2:0]` holds `USARTDIV[3:1]`), and an LPUART bit `BRR·presc/256`
-//!   cycles). Line times are kept in 1/512 cycle so that back-to-back LPUART frames at a
-//!   fractional bit time do not drift.
+//! * Timing in CPU cycles from BRR, PRESC, OVER8 and the kernel clock RCC selects
+//!   ([`Usart::set_kernel_clock_hz`]). At the images' 170 MHz PCLK a USART bit is
+//!   `BRR·presc` cycles, `USARTDIV·presc/2` with OVER8 (USARTDIV is even there: `BRR[2:0]`
+//!   holds `USARTDIV[3:1]`), and an LPUART bit `BRR·presc/256` cycles. Line times are kept
+//!   in 1/512 cycle so that back-to-back LPUART frames at a fractional bit time do not
+//!   drift.
 //! * TX: a word written to TDR moves to the shift register as soon as it is free (TXE/TXFNF
 //!   sets again then) and is on the wire for one frame (start + word + stop bits); TC sets
 //!   when a data frame ends with nothing left to send. Setting TE (with UE) first sends an
@@ -216,7 +217,7 @@ pub struct LineConfig {
 }
 
 impl LineConfig {
-    /// The baud rate this bit time gives at the 170 MHz kernel clock.
+    /// The baud rate this bit time gives (CPU cycles at 170 MHz).
     pub fn baud_hz(&self) -> f64 {
         (HCLK_HZ as f64) * (SUB as f64) / (self.bit_time_sub.max(1) as f64)
     }
@@ -284,6 +285,9 @@ struct RxEntry {
 #[derive(Debug)]
 pub struct Usart {
     instance: UsartInstance,
+    /// The kernel clock RCC selects for this instance (RCC_CCIPR and the APB prescaler),
+    /// Hz; `None`: a source the emulator does not model (LSE), nothing is timed.
+    kernel_hz: Option<u64>,
     irq: Option<u16>,
     rx_request: Option<u8>,
     tx_request: Option<u8>,
@@ -332,6 +336,7 @@ impl Usart {
         let name = instance.name();
         Usart {
             instance,
+            kernel_hz: Some(HCLK_HZ),
             irq: names::irq(name),
             rx_request: names::dma_request(name, "RX"),
             tx_request: names::dma_request(name, "TX"),
@@ -434,26 +439,33 @@ impl Usart {
             10 => 128,
             _ => 256,
         };
-        let bit_time_sub = if self.instance.is_lpuart() {
+        // A bit in kernel clock periods, as a fraction `ticks / per`.
+        let (ticks, per): (u64, u64) = if self.instance.is_lpuart() {
             let brr = u64::from(self.brr & 0xf_ffff);
             if brr < 0x300 {
                 return None;
             }
-            brr * presc * SUB / 256
+            (brr * presc, 256)
         } else if self.cr1 & CR1_OVER8 != 0 {
             let brr = u64::from(self.brr & 0xffff);
             let usartdiv = (brr & 0xfff0) | ((brr & 0x7) << 1);
             if usartdiv < 16 {
                 return None;
             }
-            usartdiv * presc * SUB / 2
+            (usartdiv * presc, 2)
         } else {
             let brr = u64::from(self.brr & 0xffff);
             if brr < 16 {
                 return None;
             }
-            brr * presc * SUB
+            (brr * presc, 1)
         };
+        // In 1/SUB CPU cycle: exact at the 170 MHz kernel clock, rounded to the nearest
+        // 1/SUB cycle for another (HSI16: 10.625 CPU cycles per kernel period, exact too).
+        let kernel = u128::from(self.kernel_hz?.max(1));
+        let num = u128::from(ticks) * u128::from(SUB) * u128::from(HCLK_HZ);
+        let den = u128::from(per) * kernel;
+        let bit_time_sub = u64::try_from((num + den / 2) / den).unwrap_or(u64::MAX);
         let word_bits = match (self.cr1 & CR1_M1 != 0, self.cr1 & CR1_M0 != 0) {
             (false, false) => 8,
             (false, true) => 9,
@@ -480,6 +492,25 @@ impl Usart {
             parity,
             stop_half_bits,
         })
+    }
+
+    /// The kernel clock RCC gives this instance (RCC_CCIPR's selection, the APB
+    /// prescaler: [`crate::periph::rcc::Rcc::usart_kernel_hz`]); `None` for a source the
+    /// emulator does not model, which is reported and stops the line (nothing is timed
+    /// against a clock the silicon would not have at that rate).
+    pub fn set_kernel_clock_hz(&mut self, hz: Option<u64>, source: &str) {
+        if hz.is_none() {
+            self.report(format!(
+                "{}: kernel clock {source} is not modelled (the line stops)",
+                self.instance.name()
+            ));
+        }
+        self.kernel_hz = hz;
+    }
+
+    /// The kernel clock in Hz (`None`: not modelled).
+    pub fn kernel_clock_hz(&self) -> Option<u64> {
+        self.kernel_hz
     }
 
     /// Uses of features this model does not implement (or of values RM0440 forbids), each
@@ -1150,7 +1181,10 @@ impl Peripheral for Usart {
         let now = self.now;
         let reports = std::mem::take(&mut self.reports);
         let reported = std::mem::take(&mut self.reported);
+        // The kernel clock is RCC's, not the peripheral's: a peripheral reset keeps it.
+        let kernel_hz = self.kernel_hz;
         *self = Usart::new(self.instance);
+        self.kernel_hz = kernel_hz;
         self.now = now;
         self.reports = reports;
         self.reported = reported;
@@ -1324,6 +1358,37 @@ mod tests {
         assert_eq!(rd(&mut lp, CR1, 0), 0);
         wr(&mut lp, BRR, 0x2ff, 0);
         assert_eq!(lp.line_config(), None, "LPUARTDIV below 0x300 is forbidden");
+    }
+
+    #[test]
+    fn the_lpuart_is_timed_by_its_kernel_clock_not_by_the_cpu_clock() {
+        // RM0440 §38.4.7: baud = 256 · f_lpuart_ker_ck / LPUARTDIV. The BRR embassy writes
+        // for 115200 at PCLK1 = 170 MHz gives 10 842 baud on HSI16 (CCIPR LPUART1SEL = 10):
+        // an image that selected HSI16 but computed BRR for 170 MHz talks at the wrong rate.
+        let mut u = Usart::new(UsartInstance::Lpuart1);
+        u.set_kernel_clock_hz(Some(16_000_000), "HSI16");
+        embassy_configure(&mut u, 377_778, false, 0);
+        let c = u.line_config().unwrap_or_else(|| panic!("config"));
+        assert!((c.baud_hz() - 10_842.35).abs() < 0.1, "{}", c.baud_hz());
+        // The BRR for HSI16 (256 · 16e6 / 115200 = 35 555.6 → 35 556) gives 115200 again.
+        let mut u = Usart::new(UsartInstance::Lpuart1);
+        u.set_kernel_clock_hz(Some(16_000_000), "HSI16");
+        embassy_configure(&mut u, 35_556, false, 0);
+        let c = u.line_config().unwrap_or_else(|| panic!("config"));
+        assert!((c.baud_hz() - 115_198.56).abs() < 0.1, "{}", c.baud_hz());
+        // A peripheral reset keeps RCC's selection; an unmodelled source stops the line.
+        u.reset();
+        assert_eq!(u.kernel_clock_hz(), Some(16_000_000));
+        u.set_kernel_clock_hz(None, "LSE");
+        embassy_configure(&mut u, 0x300, false, 0);
+        assert_eq!(u.line_config(), None);
+        assert!(u.take_reports().iter().any(|r| r.contains("LSE")));
+        // USART2 on PCLK1 / 2 (PPRE1 = 100): the same BRR is half the rate.
+        let mut u = Usart::new(UsartInstance::Usart2);
+        u.set_kernel_clock_hz(Some(85_000_000), "PCLK1");
+        embassy_configure(&mut u, BRR_115200, false, 0);
+        let c = u.line_config().unwrap_or_else(|| panic!("config"));
+        assert_eq!(c.bit_time_sub, 2 * 1476 * SUB);
     }
 
     #[test]

@@ -369,6 +369,9 @@ pub mod plc_pins {
     /// The link's wires: TX and RX of the PLC.
     pub const LINK_TX: &str = "PA9";
     pub const LINK_RX: &str = "PA10";
+    /// The service port (LPUART1 on the ST-LINK's virtual COM port): TX and RX of the PLC.
+    pub const SERVICE_TX: &str = "PA2";
+    pub const SERVICE_RX: &str = "PA3";
 }
 
 /// The PLC board (NUCLEO-G431RB with the PLC's I/O).

@@ -13,8 +13,14 @@
 //! state, frequency, direction and fault come from the status frames on the wire (the same
 //! decoder as the PLC's), Q00-Q07 are the values the PLC sent in its Q writes, the LCD
 //! fields are read off the LCD, and `m` is derived from the three leg duties.
+//!
+//! The PLC's service port (LPUART1, PA2/PA3) has a host end ([`EmuSim::service_write`],
+//! [`EmuSim::service_read`]): the host's bytes go onto PA3 back to back at the line rate
+//! the image programmed, as the ST-LINK's USB bridge would send them, and what the image
+//! sends on PA2 is collected for the host.
 
 use std::cell::RefCell;
+use std::collections::VecDeque;
 use std::path::Path;
 use std::rc::Rc;
 
@@ -150,6 +156,23 @@ pub struct EmuSim {
     last_fault: u8,
     next_sample_ns: u64,
     sample_ns: u64,
+    service: ServiceHost,
+}
+
+/// The host end of the PLC's service port.
+#[derive(Default)]
+struct ServiceHost {
+    /// Bytes the host wrote, not yet on the wire.
+    to_plc: VecDeque<u8>,
+    /// When the wire to the PLC is free again (cycles): the end of the last character.
+    free_at: u64,
+    /// The end of the previous slice (cycles): bytes the host wrote since then start
+    /// there at the earliest.
+    slice_start: u64,
+    /// Bytes the PLC sent, not yet read by the host.
+    from_plc: Vec<u8>,
+    /// Host bytes dropped: the PLC had no receiver on PA3.
+    pub lost: u64,
 }
 
 impl EmuSim {
@@ -227,6 +250,7 @@ impl EmuSim {
             last_fault: 0,
             next_sample_ns: 0,
             sample_ns: opts.sample_ns.max(1),
+            service: ServiceHost::default(),
             scenario,
         })
     }
@@ -304,6 +328,22 @@ impl EmuSim {
             &mut self.to_plc
         };
         wire.force_framing = chars;
+    }
+
+    /// Bytes from the host to the PLC's service port: they go on the wire after what is
+    /// queued, back to back at the line rate of the PLC's LPUART1.
+    pub fn service_write(&mut self, bytes: &[u8]) {
+        self.service.to_plc.extend(bytes);
+    }
+
+    /// What the PLC has sent on its service port since the last call.
+    pub fn service_read(&mut self) -> Vec<u8> {
+        std::mem::take(&mut self.service.from_plc)
+    }
+
+    /// Host bytes lost because the PLC had no service receiver on PA3.
+    pub fn service_lost(&self) -> u64 {
+        self.service.lost
     }
 
     /// Cuts (or reconnects) both wires of the link.
@@ -385,6 +425,54 @@ impl EmuSim {
             &mut status,
         );
         self.status = status;
+        self.exchange_service();
+    }
+
+    /// The service port: the PLC's characters to the host, and the host's characters
+    /// that start in this slice to the PLC (each pushed at its start with the cycle its
+    /// stop bit ends, as the model wants).
+    fn exchange_service(&mut self) {
+        if let Some(tx) = usart_on_pin(self.plc.soc(), plc_pins::SERVICE_TX, "TX") {
+            while let Some(f) = self.plc.soc_mut().usart_mut(tx).and_then(|u| u.take_tx()) {
+                self.service.from_plc.push(f.data as u8);
+            }
+        }
+        let now = ns_to_cycles(self.now_ns);
+        let slice_start = std::mem::replace(&mut self.service.slice_start, now);
+        if self.service.to_plc.is_empty() {
+            return;
+        }
+        let Some(rx) = usart_on_pin(self.plc.soc(), plc_pins::SERVICE_RX, "RX") else {
+            self.service.lost += self.service.to_plc.len() as u64;
+            self.service.to_plc.clear();
+            return;
+        };
+        let frame = self
+            .plc
+            .soc_mut()
+            .usart_mut(rx)
+            .and_then(|u| u.line_config())
+            .map(|c| c.frame_cycles());
+        let Some(frame) = frame else {
+            self.service.lost += self.service.to_plc.len() as u64;
+            self.service.to_plc.clear();
+            return;
+        };
+        // Characters start back to back, the first when the previous one ended or when
+        // the host wrote it (in this slice), whichever is later.
+        let mut start = self.service.free_at.max(slice_start);
+        while start <= now {
+            let Some(b) = self.service.to_plc.pop_front() else {
+                break;
+            };
+            let end = start + frame;
+            if let Some(u) = self.plc.soc_mut().usart_mut(rx) {
+                u.push_rx(end, RxByte::clean(u16::from(b)));
+            }
+            self.service.free_at = end;
+            start = end;
+        }
+        self.plc.soc_mut().refresh_usart(rx);
     }
 
     fn apply_actions(&mut self) {

@@ -12,5 +12,6 @@ mod link;
 mod motor;
 mod power_stage;
 mod safety;
+mod service;
 mod storage;
 mod trips;
