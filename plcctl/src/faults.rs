@@ -119,8 +119,9 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-pub fn faults(c: &mut Client, csv: bool, json: bool) -> Result<()> {
-    let rows: Vec<Row> = read_log(c)?
+/// The whole log as `faults --json` rows, newest first (also `serve`'s `/api/faults`).
+pub fn rows(c: &mut Client) -> Result<Vec<Row>> {
+    Ok(read_log(c)?
         .iter()
         .map(|e| Row {
             pos: e.pos,
@@ -131,7 +132,11 @@ pub fn faults(c: &mut Client, csv: bool, json: bool) -> Result<()> {
             name: log_name(e.code),
             text: LogText(e.code).to_string(),
         })
-        .collect();
+        .collect())
+}
+
+pub fn faults(c: &mut Client, csv: bool, json: bool) -> Result<()> {
+    let rows = rows(c)?;
     if json {
         println!(
             "{}",

@@ -8,6 +8,7 @@ mod fail;
 mod faults;
 mod interrupt;
 mod program;
+mod serve;
 mod status;
 mod trend;
 
@@ -93,6 +94,15 @@ enum Cmd {
     Ack,
     /// Erase the fault log (remote service on, PLC in STOP).
     ClearFaults,
+    /// The web monitor: one page, a JSON API and an event stream (plcctl/docs/serve.md).
+    Serve {
+        /// Address and port; port 0 picks a free one. Off loopback a token is required.
+        #[arg(long, default_value = "127.0.0.1:8080")]
+        bind: String,
+        /// The access token (default off loopback: a random one, printed).
+        #[arg(long)]
+        token: Option<String>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -137,6 +147,10 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Stop => done(&mut connect()?, Request::Stop, "STOP"),
         Cmd::Ack => done(&mut connect()?, Request::Ack, "acknowledge sent"),
         Cmd::ClearFaults => done(&mut connect()?, Request::ClearFaultLog, "fault log cleared"),
+        Cmd::Serve { bind, token } => serve::serve(
+            move || Client::connect(&port, baud),
+            serve::ServeArgs { bind, token },
+        ),
     }
 }
 

@@ -171,7 +171,8 @@ pub fn watch(connect: impl Fn() -> Result<Client>, duration: Option<f64>) -> Res
     Ok(())
 }
 
-fn counters_json(c: &Counters) -> serde_json::Value {
+/// `counters --json` (also `serve`'s `/api/counters`).
+pub fn counters_json(c: &Counters) -> serde_json::Value {
     json!({
         "run_starts": c.run_starts,
         "run_minutes": c.run_minutes,

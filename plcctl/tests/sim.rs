@@ -483,3 +483,6 @@ fn run_ack_and_clear_faults_work_with_remote_service_on() {
     drop(hold);
     sim.finish();
 }
+
+/// `plcctl serve` (service.md part B), on the helpers above.
+mod serve;
