@@ -99,6 +99,9 @@ enum Cmd {
         /// Address and port; port 0 picks a free one. Off loopback a token is required.
         #[arg(long, default_value = "127.0.0.1:8080")]
         bind: String,
+        /// The application profile (TOML): names, lift mimic, state texts, counters.
+        #[arg(long)]
+        profile: Option<PathBuf>,
         /// The access token (default off loopback: a random one, printed).
         #[arg(long)]
         token: Option<String>,
@@ -147,9 +150,17 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Stop => done(&mut connect()?, Request::Stop, "STOP"),
         Cmd::Ack => done(&mut connect()?, Request::Ack, "acknowledge sent"),
         Cmd::ClearFaults => done(&mut connect()?, Request::ClearFaultLog, "fault log cleared"),
-        Cmd::Serve { bind, token } => serve::serve(
+        Cmd::Serve {
+            bind,
+            profile,
+            token,
+        } => serve::serve(
             move || Client::connect(&port, baud),
-            serve::ServeArgs { bind, token },
+            serve::ServeArgs {
+                bind,
+                profile,
+                token,
+            },
         ),
     }
 }

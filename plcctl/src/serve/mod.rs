@@ -6,6 +6,7 @@
 //! | route | answer |
 //! | --- | --- |
 //! | `GET /` | the page (`assets/index.html`), its `app.js` and `app.css` |
+//! | `GET /api/profile` | the profile (`--profile`, else a table without names) |
 //! | `GET /api/status` | `{connected, error, identity, status}`: `status --json` plus the connection |
 //! | `GET /api/faults` | `faults --json` |
 //! | `GET /api/counters` | `counters --json` (`{error}` while the PLC has none) |
@@ -16,6 +17,7 @@
 pub mod access;
 pub mod http;
 pub mod plc;
+pub mod profile;
 
 use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::sync::mpsc::{self, Sender};
@@ -44,6 +46,7 @@ const KEEPALIVE: Duration = Duration::from_secs(5);
 /// What `serve` was asked for.
 pub struct ServeArgs {
     pub bind: String,
+    pub profile: Option<std::path::PathBuf>,
     pub token: Option<String>,
 }
 
@@ -52,10 +55,15 @@ struct Ctx {
     shared: Arc<Shared>,
     access: Access,
     actions: Sender<Action>,
+    profile: Value,
 }
 
 pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeArgs) -> Result<()> {
-    let q: Vec<u8> = (0..8).collect();
+    let profile = match &args.profile {
+        Some(p) => profile::Profile::load(p)?,
+        None => profile::Profile::default(),
+    };
+    let q = profile.subscribed_q();
     let listener = TcpListener::bind(&args.bind)
         .map_err(|e| Fail::Usage(anyhow::anyhow!("cannot bind {}: {e}", args.bind)))?;
     let addr: SocketAddr = listener.local_addr()?;
@@ -77,6 +85,7 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
         shared,
         access,
         actions: tx,
+        profile: serde_json::to_value(&profile).map_err(anyhow::Error::from)?,
     });
     for stream in listener.incoming() {
         let Ok(stream) = stream else { continue };
@@ -122,6 +131,7 @@ fn route(req: &http::Request, ctx: &Ctx) -> Response {
         }
         "/app.js" if get => Response::new(200, "text/javascript; charset=utf-8", APP_JS.as_bytes()),
         "/app.css" if get => Response::new(200, "text/css; charset=utf-8", APP_CSS.as_bytes()),
+        "/api/profile" if get => Response::json(200, &ctx.profile),
         "/api/status" if get => Response::json(200, &status_json(&ctx.shared)),
         "/api/faults" if get => Response::json(200, &ctx.shared.lock().faults.clone()),
         "/api/counters" if get => Response::json(200, &ctx.shared.lock().counters.clone()),
@@ -138,9 +148,9 @@ fn route(req: &http::Request, ctx: &Ctx) -> Response {
         "/api/stop" | "/api/run" | "/api/ack" | "/api/clear-faults" if req.method == "POST" => {
             action(req, ctx)
         }
-        "/" | "/index.html" | "/app.js" | "/app.css" | "/api/status" | "/api/faults"
-        | "/api/counters" | "/api/trend" | "/api/stop" | "/api/run" | "/api/ack"
-        | "/api/clear-faults" => Response::error(405, "method not allowed"),
+        "/" | "/index.html" | "/app.js" | "/app.css" | "/api/profile" | "/api/status"
+        | "/api/faults" | "/api/counters" | "/api/trend" | "/api/stop" | "/api/run"
+        | "/api/ack" | "/api/clear-faults" => Response::error(405, "method not allowed"),
         _ => Response::error(404, "not found"),
     }
 }

@@ -168,7 +168,16 @@ fn serve_api_stream_actions_and_token_against_the_simulator() {
         "--service-linger",
         "0",
     ]);
-    let serve = Serve::start(&sim, &["--token", "0123abcd"]);
+    let profile = super::root().join("shared-protocol/programs/motor.profile.toml");
+    let serve = Serve::start(
+        &sim,
+        &[
+            "--token",
+            "0123abcd",
+            "--profile",
+            profile.to_str().unwrap(),
+        ],
+    );
     // Token (service.md 14): nothing without it, the page's URL sets the cookie.
     let (code, _, _) = serve.raw("GET", "/api/status", &[], "", true);
     assert_eq!(code, 401);
@@ -220,7 +229,12 @@ fn serve_api_stream_actions_and_token_against_the_simulator() {
         .map(|c| c.as_str().unwrap())
         .collect();
     assert_eq!(&cols[..5], ["t_s", "f_cmd_hz", "dir", "fault", "u_dc_v"]);
-    assert!(cols.contains(&"Q07") && cols.contains(&"lcd3") && cols.contains(&"imx_a"));
+    // The profile's Q variables are subscribed (motor.profile.toml: Q00-Q02).
+    assert!(cols.contains(&"Q02") && !cols.contains(&"Q03"), "{cols:?}");
+    assert!(cols.contains(&"lcd3") && cols.contains(&"imx_a"));
+    let p = serve.get("/api/profile");
+    assert_eq!(p["kind"], "table");
+    assert_eq!(p["vars"]["speed pot"], "A01");
     let rows = t["rows"].as_array().unwrap();
     assert!(rows.len() >= 20, "{} rows", rows.len());
     assert!(rows
@@ -260,4 +274,26 @@ fn serve_api_stream_actions_and_token_against_the_simulator() {
     sim.child.wait().unwrap();
     let s = serve.wait_status(5.0, |s| s["connected"] == false);
     assert!(s["error"].is_string(), "{s}");
+}
+
+#[test]
+fn a_bad_profile_exits_1_naming_the_key() {
+    let bad = temp("bad.profile.toml");
+    std::fs::write(&bad, "kind = \"lift\"\n[vars]\nfloor = \"Q99\"\n").unwrap();
+    let o = Command::new(PLCCTL)
+        .args([
+            "--port",
+            "/dev/null",
+            "serve",
+            "--bind",
+            "127.0.0.1:0",
+            "--profile",
+        ])
+        .arg(&bad)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("vars.floor") && err.contains("Q99"), "{err}");
+    assert!(o.stdout.is_empty(), "nothing served");
 }
