@@ -1,5 +1,532 @@
+// plcctl serve: the monitor page (service.md 12). Plain JavaScript, no library, no build
+// step. Data: /api/profile once, /api/trend once, then the /api/stream events (status and
+// samples at 10 Hz); /api/faults when the newest log position changes, /api/counters
+// every 5 s. Tests read the state from the `data-*` attributes and `window.monitor`.
 "use strict";
-// Placeholder until the page (service.md 12) lands: shows /api/status.
-fetch("/api/status").then(r => r.json()).then(s => {
-  document.getElementById("status").textContent = JSON.stringify(s, null, 2);
-});
+
+const TREND_S = 60;
+const $ = (id) => document.getElementById(id);
+
+const monitor = {
+  profile: { kind: "table", vars: {}, states: {}, counters: {}, lift: null, name: "" },
+  columns: [],
+  rows: [],            // trend rows (arrays in `columns` order), oldest first
+  status: null,        // the last status event
+  values: {},          // operand name -> value (D00, O00, A00, lcd0, Q04, ...)
+  faults: [],
+  newestLog: undefined,
+  doorCmdSince: null,  // wall-clock ms when the door command went on
+  paused: false,
+  zoom: null,          // [t0, t1] in t_s, or null = the last 60 s
+  serverLost: false,
+};
+window.monitor = monitor;
+
+// ---------------------------------------------------------------- helpers
+const pad = (n) => String(n).padStart(2, "0");
+const opName = (kind, n) => kind + pad(n);
+function el(tag, attrs, text) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, v);
+  if (text !== undefined) e.textContent = text;
+  return e;
+}
+async function getJson(path) {
+  const r = await fetch(path, { cache: "no-store" });
+  if (!r.ok) throw new Error(path + ": " + r.status);
+  return r.json();
+}
+function val(op) {
+  const v = monitor.values[op];
+  return v === undefined ? null : v;
+}
+function nameOf(op) {
+  for (const [name, o] of Object.entries(monitor.profile.vars)) if (o === op) return name;
+  return null;
+}
+function tenths(v) { return (v / 10).toFixed(1); }
+
+// ---------------------------------------------------------------- banner
+function stateInfo() {
+  const p = monitor.profile;
+  const op = p.vars.state;
+  if (!op) return null;
+  const v = val(op);
+  if (v === null) return null;
+  return p.states[String(v)] || { text: "state " + v, level: "ok" };
+}
+
+/** [colour, title, detail] by service.md 12's first-match rules. */
+function bannerOf(ev) {
+  if (monitor.serverLost) return ["red", "no answer from the monitor", "plcctl serve is not running"];
+  if (!ev || !ev.connected || !ev.status) return ["red", "no answer from the PLC", ev && ev.error ? ev.error : ""];
+  const s = ev.status;
+  const d = s.drive;
+  const driveText = d ? `drive ${d.state.toUpperCase()} ${tenths(d.freq_dhz)} Hz ${d.reverse ? "REV" : "FWD"}` : "drive —";
+  const title = `PLC ${s.plc.toUpperCase()} · ${driveText}`;
+  const st = stateInfo();
+  const stText = st ? st.text : "";
+  if (s.link !== "Up") {
+    const why = s.link === "Lost" ? "PLC-drive link lost" :
+      `PLC-drive version mismatch (drive ${s.link.VersionMismatch.drive_version})`;
+    return ["red", title, why];
+  }
+  if (d && d.fault) return ["red", title, `drive fault ${d.fault}: ${ev.drive_fault_text || ""}`];
+  if (st && st.level === "fault") return ["red", title, stText];
+  if (s.plc !== "Run") return ["orange", title, stText || "PLC not in RUN"];
+  if (s.remote) return ["orange", title, (stText ? stText + " · " : "") + "remote service enabled"];
+  if (s.warning) return ["orange", title, "warning: DIV0 at line " + s.warning.Div0.line];
+  if (st && st.level === "warning") return ["orange", title, stText];
+  return ["green", title, stText];
+}
+
+function renderBanner() {
+  const [colour, title, detail] = bannerOf(monitor.status);
+  const b = $("banner");
+  b.dataset.colour = colour;
+  $("banner-title").textContent = title;
+  $("banner-detail").textContent = detail;
+  // Actions (service.md 12): Stop always; Run, Ack, Clear log only with remote service.
+  const ev = monitor.status;
+  const up = !!(ev && ev.connected && ev.status && !monitor.serverLost);
+  const remote = up && ev.status.remote;
+  $("act-stop").disabled = !up;
+  for (const id of ["act-run", "act-ack", "act-clear-faults"]) $(id).disabled = !remote;
+  $("action-note").textContent = !up ? "no PLC" :
+    remote ? "" : "Run, Ack and Clear log need remote service: keys * 7 on the PLC";
+}
+
+// ---------------------------------------------------------------- live values
+function lampsInto(box, kind, count, bits) {
+  if (box.childElementCount !== count) {
+    box.textContent = "";
+    for (let n = 0; n < count; n++) {
+      const op = opName(kind, n);
+      const name = nameOf(op);
+      box.appendChild(el("div", { class: "lamp", "data-op": op, title: op }, name ? `${op} ${name}` : op));
+    }
+  }
+  for (let n = 0; n < count; n++) box.children[n].dataset.on = (bits >> n) & 1 ? "1" : "0";
+}
+function kvInto(box, pairs) {
+  box.textContent = "";
+  for (const [k, v] of pairs) {
+    box.appendChild(el("div", { class: "k" }, k));
+    box.appendChild(el("div", { class: "v" }, v));
+  }
+}
+function renderValues() {
+  const ev = monitor.status;
+  const s = ev && ev.status;
+  if (!s) return;
+  const d = s.drive;
+  kvInto($("drive-values"), [
+    ["FRQ", d ? `${tenths(d.freq_dhz)} Hz ${d.reverse ? "REV" : "FWD"}` : "—"],
+    ["UDC", d ? `${tenths(d.udc_dv)} V` : "—"],
+    ["IMX", d ? `${(d.imax_ca / 100).toFixed(2)} A` : "—"],
+    ["COM", d ? String(d.com) : "—"],
+    ["drive", d ? `${d.state.toUpperCase()}, fault ${d.fault}` : "link not up"],
+  ]);
+  lampsInto($("lamps-d"), "D", 16, s.d);
+  lampsInto($("lamps-o"), "O", 8, s.o);
+  const analog = s.a.map((v, n) => {
+    const op = opName("A", n);
+    const name = nameOf(op);
+    return [name ? `${op} ${name}` : op, String(v)];
+  });
+  s.lcd.forEach((v, n) => {
+    const op = "lcd" + n;
+    const name = nameOf(op);
+    analog.push([name ? `${op} ${name}` : op, v === null ? "—" : String(v)]);
+  });
+  kvInto($("analog"), analog);
+  const id = ev.identity || {};
+  kvInto($("plc-values"), [
+    ["state", `${s.plc.toUpperCase()}${s.remote ? ", remote service ON" : ""}`],
+    ["slot", s.slot === null ? "—" : String(s.slot) + (s.unsaved ? " (unsaved edits)" : "")],
+    ["scan", `${s.scan_last_us} µs (max ${s.scan_max_us} µs)`],
+    ["uptime", `${(s.uptime_ms / 1000).toFixed(1)} s`],
+    ["firmware", `${id.firmware || "?"} (${id.git || "?"})`],
+    ["service version", String(ev.service_version)],
+  ]);
+}
+
+// ---------------------------------------------------------------- mimic / table
+const SVG = "http://www.w3.org/2000/svg";
+function svg(tag, attrs, text) {
+  const e = document.createElementNS(SVG, tag);
+  for (const [k, v] of Object.entries(attrs || {})) e.setAttribute(k, v);
+  if (text !== undefined) e.textContent = text;
+  return e;
+}
+const LOAD_TEXT = ["unloaded", "loaded", "full", "overloaded"];
+
+function doorState() {
+  const p = monitor.profile, l = p.lift;
+  const st = val(p.vars.state);
+  if (st !== null && l.door_fault_states.includes(st)) return "fault";
+  if (val(p.vars.door_closed) === 1) return "closed";
+  const cmd = val(p.vars.door_open_cmd) === 1;
+  if (cmd && monitor.doorCmdSince !== null &&
+      Date.now() - monitor.doorCmdSince >= l.door_stroke_s * 1000) return "open";
+  return "partly";
+}
+
+function renderLift() {
+  const p = monitor.profile, l = p.lift, v = p.vars;
+  const box = $("mimic");
+  const N = l.floors, H = 90, top = 20, w = 260;
+  const floor = val(v.floor), target = val(v.target);
+  const up = val(v.up) === 1, down = val(v.down) === 1;
+  const moving = up || down;
+  const door = doorState();
+  const load = val(v.load);
+  const y = (f) => top + (N - f) * H;  // top edge of floor f's band
+  // Between floors while moving, in the direction of travel.
+  let pos = floor >= 1 ? floor : 1;
+  if (floor >= 1 && moving) pos = Math.min(N, Math.max(1, floor + (up ? 0.5 : -0.5)));
+  box.dataset.floor = floor === null ? "" : String(floor);
+  box.dataset.target = target === null ? "" : String(target);
+  box.dataset.door = door;
+  box.dataset.moving = moving ? (up ? "up" : "down") : "";
+  const s = svg("svg", { viewBox: `0 0 ${w} ${N * H + 2 * top}`, role: "img" });
+  s.appendChild(svg("rect", { x: 70, y: top, width: 110, height: N * H, fill: "#eceff1", stroke: "#90a4ae" }));
+  for (let f = 1; f <= N; f++) {
+    const fy = y(f);
+    s.appendChild(svg("line", { x1: 70, x2: 180, y1: fy + H, y2: fy + H, stroke: "#b0bec5" }));
+    s.appendChild(svg("text", { x: 190, y: fy + H - 8, "font-size": 16, fill: "#37474f" }, String(f)));
+    const btn = l.call_buttons[f - 1];
+    const lit = btn && val(btn) === 1;
+    s.appendChild(svg("circle", {
+      cx: 40, cy: fy + H / 2, r: 9, fill: lit ? "#fbbc04" : "#dadce0", stroke: "#0003",
+      "data-call": String(f), "data-on": lit ? "1" : "0",
+    }));
+    if (target === f) {
+      s.appendChild(svg("polygon", {
+        points: `${215},${fy + H / 2} ${235},${fy + H / 2 - 10} ${235},${fy + H / 2 + 10}`,
+        fill: "#1a73e8", "data-target-mark": String(f),
+      }));
+    }
+  }
+  const cy = y(pos) + 6, ch = H - 12;
+  const known = floor !== null && floor >= 1;
+  const car = svg("g", { "data-car": "" });
+  car.appendChild(svg("rect", { x: 80, y: cy, width: 90, height: ch, rx: 4,
+    fill: known ? "#ffffff" : "#cfd8dc", stroke: "#263238", "stroke-width": 2 }));
+  // The door: two leaves, the gap by its state (004's four states).
+  const gap = { closed: 0, partly: 22, open: 56, fault: 22 }[door];
+  const leaf = (70 - gap) / 2;
+  const doorColour = door === "fault" ? "#c5221f" : "#78909c";
+  car.appendChild(svg("rect", { x: 90, y: cy + 8, width: leaf, height: ch - 16, fill: doorColour }));
+  car.appendChild(svg("rect", { x: 160 - leaf, y: cy + 8, width: leaf, height: ch - 16, fill: doorColour }));
+  if (moving) {
+    car.appendChild(svg("text", { x: 125, y: cy + ch / 2 + 8, "font-size": 26, "text-anchor": "middle",
+      fill: "#1a73e8" }, up ? "▲" : "▼"));
+  }
+  if (load !== null) {
+    const lw = Math.min(3, Math.max(0, load)) / 3 * 86;
+    car.appendChild(svg("rect", { x: 82, y: cy + ch - 6, width: lw, height: 4,
+      fill: load >= 3 ? "#c5221f" : load >= 2 ? "#e37400" : "#1e8e3e" }));
+  }
+  s.appendChild(car);
+  box.textContent = "";
+  box.appendChild(s);
+  const st = stateInfo();
+  box.appendChild(el("div", { class: "mimic-info" },
+    `floor ${known ? floor : "unknown"} · target ${target || "—"} · door ${door} · ` +
+    `load ${load === null ? "—" : LOAD_TEXT[load] || load}${st ? " · " + st.text : ""}`));
+}
+
+function renderTable() {
+  const p = monitor.profile;
+  let entries = Object.entries(p.vars);
+  if (entries.length === 0) {
+    entries = monitor.columns.filter((c) => /^Q\d\d$/.test(c)).map((c) => [c, c]);
+  }
+  const t = el("table", { "data-table": "" });
+  const head = el("tr");
+  for (const h of ["name", "variable", "value"]) head.appendChild(el("th", {}, h));
+  t.appendChild(head);
+  for (const [name, op] of entries) {
+    const tr = el("tr", { "data-op": op });
+    const v = val(op);
+    tr.appendChild(el("td", {}, name));
+    tr.appendChild(el("td", {}, op));
+    tr.appendChild(el("td", {}, v === null ? "—" : String(v)));
+    t.appendChild(tr);
+  }
+  $("mimic").textContent = "";
+  $("mimic").appendChild(t);
+}
+
+function renderMimic() {
+  if (monitor.profile.kind === "lift" && monitor.profile.lift) renderLift();
+  else renderTable();
+}
+
+// ---------------------------------------------------------------- trend
+const COLOURS = ["#1a73e8", "#e37400", "#188038", "#a142f4", "#d01884", "#12b5cb", "#5f6368", "#b06000", "#3c4043", "#9aa0a6"];
+function series() {
+  const c = monitor.columns;
+  const idx = (name) => c.indexOf(name);
+  const f = idx("f_cmd_hz"), dir = idx("dir"), u = idx("u_dc_v");
+  const top = [
+    { label: "f_cmd_hz * dir", get: (r) => (r[f] === null ? null : r[f] * (r[dir] || 1)) },
+    { label: "u_dc_v", get: (r) => r[u] },
+  ];
+  const named = Object.entries(monitor.profile.vars).filter(([, o]) => /^Q\d\d$/.test(o));
+  const qs = named.length ? named.map(([n, o]) => [`${o} ${n}`, o]) :
+    c.filter((x) => /^Q\d\d$/.test(x)).map((o) => [o, o]);
+  const bottom = qs.filter(([, o]) => idx(o) >= 0).map(([label, o]) => ({ label, get: (r) => r[idx(o)] }));
+  return [top, bottom];
+}
+function visibleRows() {
+  const rows = monitor.rows;
+  if (!rows.length) return [];
+  const [t0, t1] = viewWindow();
+  return rows.filter((r) => r[0] >= t0 && r[0] <= t1);
+}
+function viewWindow() {
+  if (monitor.zoom) return monitor.zoom;
+  const last = monitor.rows.length ? monitor.rows[monitor.rows.length - 1][0] : 0;
+  return [last - TREND_S, last];
+}
+function drawTrend() {
+  const cv = $("trend");
+  const dpr = window.devicePixelRatio || 1;
+  const W = cv.clientWidth, Hh = cv.clientHeight;
+  if (cv.width !== Math.round(W * dpr)) { cv.width = Math.round(W * dpr); cv.height = Math.round(Hh * dpr); }
+  const g = cv.getContext("2d");
+  g.setTransform(dpr, 0, 0, dpr, 0, 0);
+  g.clearRect(0, 0, W, Hh);
+  const rows = visibleRows();
+  cv.dataset.samples = String(rows.length);
+  cv.dataset.span = rows.length ? (rows[rows.length - 1][0] - rows[0][0]).toFixed(1) : "0";
+  const [t0, t1] = viewWindow();
+  const panes = series();
+  const legend = $("trend-legend");
+  legend.textContent = "";
+  const L = 48, R = 8, gap = 18;
+  const paneH = (Hh - gap * 2) / 2;
+  panes.forEach((ser, p) => {
+    const py = 6 + p * (paneH + gap);
+    let lo = Infinity, hi = -Infinity;
+    for (const s of ser) for (const r of rows) {
+      const v = s.get(r);
+      if (v !== null && v !== undefined) { lo = Math.min(lo, v); hi = Math.max(hi, v); }
+    }
+    if (!isFinite(lo)) { lo = 0; hi = 1; }
+    if (hi - lo < 1e-9) { hi += 1; lo -= 1; }
+    const x = (t) => L + (t - t0) / Math.max(1e-9, t1 - t0) * (W - L - R);
+    const y = (v) => py + paneH - (v - lo) / (hi - lo) * paneH;
+    g.strokeStyle = "#dadce0"; g.lineWidth = 1;
+    g.strokeRect(L, py, W - L - R, paneH);
+    g.fillStyle = "#5f6368"; g.font = "11px system-ui, sans-serif";
+    g.fillText(hi.toFixed(1), 2, py + 10);
+    g.fillText(lo.toFixed(1), 2, py + paneH);
+    ser.forEach((s, k) => {
+      const colour = COLOURS[(p * 2 + k) % COLOURS.length];
+      g.strokeStyle = colour; g.lineWidth = 1.5; g.beginPath();
+      let pen = false;
+      for (const r of rows) {
+        const v = s.get(r);
+        if (v === null || v === undefined) { pen = false; continue; }
+        if (pen) g.lineTo(x(r[0]), y(v)); else { g.moveTo(x(r[0]), y(v)); pen = true; }
+      }
+      g.stroke();
+      const item = el("span", { style: `--c:${colour}` }, s.label);
+      legend.appendChild(item);
+    });
+  });
+  g.fillStyle = "#5f6368";
+  g.fillText(`t_s ${t0.toFixed(1)} … ${t1.toFixed(1)}${monitor.paused ? " (paused)" : ""}`, L, Hh - 2);
+  if (drag) {
+    g.fillStyle = "#1a73e833";
+    g.fillRect(Math.min(drag.x0, drag.x1), 0, Math.abs(drag.x1 - drag.x0), Hh);
+  }
+}
+let drag = null;
+function tOfX(xpx) {
+  const cv = $("trend");
+  const [t0, t1] = viewWindow();
+  const L = 48, R = 8;
+  return t0 + (xpx - L) / (cv.clientWidth - L - R) * (t1 - t0);
+}
+function setupTrend() {
+  const cv = $("trend");
+  cv.addEventListener("mousedown", (e) => { drag = { x0: e.offsetX, x1: e.offsetX }; });
+  cv.addEventListener("mousemove", (e) => { if (drag) { drag.x1 = e.offsetX; drawTrend(); } });
+  window.addEventListener("mouseup", () => {
+    if (!drag) return;
+    const a = tOfX(Math.min(drag.x0, drag.x1)), b = tOfX(Math.max(drag.x0, drag.x1));
+    drag = null;
+    if (b - a > 0.05) { monitor.zoom = [a, b]; monitor.paused = true; $("trend-pause").textContent = "Resume"; }
+    drawTrend();
+  });
+  $("trend-pause").addEventListener("click", () => {
+    monitor.paused = !monitor.paused;
+    $("trend-pause").textContent = monitor.paused ? "Resume" : "Pause";
+    if (!monitor.paused) monitor.zoom = null;
+    drawTrend();
+  });
+  $("trend-reset").addEventListener("click", () => {
+    monitor.zoom = null; monitor.paused = false; $("trend-pause").textContent = "Pause"; drawTrend();
+  });
+  $("trend-csv").addEventListener("click", () => download("trend.csv", trendCsv()));
+}
+/** The visible window as CSV with hil-sim's column names and number formats. */
+function trendCsv() {
+  const c = monitor.columns;
+  const fmt = (name, v) => {
+    if (v === null || v === undefined) return "";
+    if (name === "t_s") return v.toFixed(6);
+    if (name === "u_dc_v") return v.toFixed(3);
+    if (name === "f_cmd_hz") return v.toFixed(1);
+    if (name === "imx_a") return v.toFixed(2);
+    return String(v);
+  };
+  const lines = [c.join(",")];
+  for (const r of visibleRows()) lines.push(r.map((v, i) => fmt(c[i], v)).join(","));
+  return lines.join("\n") + "\n";
+}
+function download(name, text) {
+  const a = el("a", { href: URL.createObjectURL(new Blob([text], { type: "text/csv" })), download: name });
+  document.body.appendChild(a); a.click(); a.remove();
+}
+
+// ---------------------------------------------------------------- faults, counters
+function splitTime(t) {
+  const m = /^(\d{4}-\d\d-\d\d) (\d\d:\d\d:\d\d)$/.exec(t);
+  return m ? [m[1], m[2]] : ["", t];
+}
+function renderFaults() {
+  const body = $("faults").tBodies[0];
+  body.textContent = "";
+  for (const f of monitor.faults) {
+    const [date, time] = splitTime(f.time);
+    const tr = el("tr", { "data-pos": String(f.pos), "data-code": String(f.code) });
+    for (const v of [date, time, String(f.code), f.text]) tr.appendChild(el("td", {}, v));
+    body.appendChild(tr);
+  }
+  if (!monitor.faults.length) {
+    const tr = el("tr"); tr.appendChild(el("td", { colspan: "4" }, "fault log empty")); body.appendChild(tr);
+  }
+}
+async function loadFaults() {
+  try { monitor.faults = await getJson("/api/faults"); renderFaults(); } catch (e) { /* next change */ }
+}
+function faultsCsv() {
+  const q = (s) => (/[",\n]/.test(s) ? `"${s.replace(/"/g, '""')}"` : s);
+  const lines = ["pos,time,power_up,uptime_s,code,name,text"];
+  for (const f of monitor.faults) {
+    lines.push([f.pos, q(f.time), f.power_up, f.uptime_s, f.code, f.name, q(f.text)].join(","));
+  }
+  return lines.join("\n") + "\n";
+}
+async function loadCounters() {
+  let k;
+  try { k = await getJson("/api/counters"); } catch (e) { return; }
+  const box = $("counters");
+  // A PLC without counters (or before the first read) refuses GetCounters: say so.
+  if (!k || k.error) {
+    box.dataset.available = "0";
+    kvInto(box, [["counters", k && k.error ? `not available (PLC: ${k.error})` : "not read yet"]]);
+    return;
+  }
+  box.dataset.available = "1";
+  const pairs = [
+    ["RUN starts", k.run_starts], ["minutes in RUN", k.run_minutes], ["minutes PWM on", k.pwm_minutes],
+    ["link errors", k.link_errors], ["program saves", k.program_saves], ["power-ups", k.power_ups],
+  ].map(([a, b]) => [a, String(b)]);
+  (k.trips || []).forEach((n, i) => { if (n) pairs.push([`trips code ${i + 1}`, String(n)]); });
+  const names = {};
+  for (const [name, op] of Object.entries(monitor.profile.counters)) names[op] = name;
+  (k.app || []).forEach((n, i) => {
+    const op = "Q" + (60 + i);
+    pairs.push([names[op] ? `${names[op]} (${op})` : `app counter ${i + 1} (${op})`, String(n)]);
+  });
+  kvInto(box, pairs);
+}
+
+// ---------------------------------------------------------------- actions
+function confirmBox(text) {
+  return new Promise((resolve) => {
+    $("confirm-text").textContent = text;
+    $("confirm").hidden = false;
+    const done = (ok) => { $("confirm").hidden = true; resolve(ok); };
+    $("confirm-yes").onclick = () => done(true);
+    $("confirm-no").onclick = () => done(false);
+  });
+}
+async function act(action) {
+  const words = { stop: "Stop the PLC?", run: "Start RUN?", ack: "Acknowledge the drive fault?",
+    "clear-faults": "Erase the fault log?" };
+  if (!(await confirmBox(words[action]))) return;
+  $("action-note").textContent = action + "…";
+  const r = await fetch("/api/" + action, { method: "POST", headers: { "Content-Type": "application/json" }, body: "{}" });
+  const body = await r.json().catch(() => ({}));
+  $("action-note").textContent = r.ok ? action + ": done" : action + ": " + (body.error || r.status);
+}
+
+// ---------------------------------------------------------------- data flow
+function onStatus(ev) {
+  monitor.status = ev;
+  const s = ev.status;
+  if (ev.connected && s) {
+    for (let n = 0; n < 16; n++) monitor.values[opName("D", n)] = (s.d >> n) & 1;
+    for (let n = 0; n < 8; n++) monitor.values[opName("O", n)] = (s.o >> n) & 1;
+    s.a.forEach((v, n) => { monitor.values[opName("A", n)] = v; });
+    s.lcd.forEach((v, n) => { monitor.values["lcd" + n] = v; });
+    const key = JSON.stringify(s.newest_log);
+    if (key !== monitor.newestLog) { monitor.newestLog = key; loadFaults(); }
+  }
+  trackDoor();
+  renderBanner();
+  renderValues();
+  renderMimic();
+}
+function onSample(row) {
+  monitor.rows.push(row);
+  const newest = row[0];
+  while (monitor.rows.length && monitor.rows[0][0] < newest - 600) monitor.rows.shift();
+  monitor.columns.forEach((c, i) => { if (/^Q\d\d$/.test(c)) monitor.values[c] = row[i]; });
+}
+function trackDoor() {
+  const v = monitor.profile.vars;
+  if (!v.door_open_cmd) return;
+  const on = val(v.door_open_cmd) === 1;
+  if (on && monitor.doorCmdSince === null) monitor.doorCmdSince = Date.now();
+  if (!on) monitor.doorCmdSince = null;
+}
+
+async function start() {
+  // The token came in the URL once; the cookie carries it from now on.
+  if (location.search.includes("token=")) history.replaceState(null, "", "/");
+  try { monitor.profile = await getJson("/api/profile"); } catch (e) { /* a table */ }
+  if (monitor.profile.name) document.title = monitor.profile.name + " · PLC monitor";
+  $("mimic-title").textContent = monitor.profile.kind === "lift" ? (monitor.profile.name || "Lift") :
+    (monitor.profile.name || "Variables");
+  try {
+    const t = await getJson("/api/trend?s=" + TREND_S);
+    monitor.columns = t.columns;
+    t.rows.forEach(onSample);
+  } catch (e) { /* the stream fills it */ }
+  try { onStatus(await getJson("/api/status")); } catch (e) { renderBanner(); }
+  setupTrend();
+  for (const b of document.querySelectorAll("[data-action]")) b.addEventListener("click", () => act(b.dataset.action));
+  $("faults-csv").addEventListener("click", () => download("faults.csv", faultsCsv()));
+  const es = new EventSource("/api/stream");
+  es.addEventListener("status", (e) => { monitor.serverLost = false; onStatus(JSON.parse(e.data)); });
+  es.addEventListener("sample", (e) => { onSample(JSON.parse(e.data).row); });
+  es.addEventListener("error", () => { monitor.serverLost = true; renderBanner(); });
+  es.addEventListener("open", () => { monitor.serverLost = false; });
+  loadCounters();
+  setInterval(loadCounters, 5000);
+  // Redraw at 10 Hz (the door's stroke time runs on the page's clock).
+  setInterval(() => {
+    if (!monitor.paused) drawTrend();
+    if (monitor.profile.kind === "lift") { trackDoor(); renderMimic(); }
+  }, 100);
+  drawTrend();
+}
+start();

@@ -7,7 +7,7 @@
 //! | --- | --- |
 //! | `GET /` | the page (`assets/index.html`), its `app.js` and `app.css` |
 //! | `GET /api/profile` | the profile (`--profile`, else a table without names) |
-//! | `GET /api/status` | `{connected, error, identity, status}`: `status --json` plus the connection |
+//! | `GET /api/status` | `{connected, error, identity, status, service_version, drive_fault_text}`: `status --json` plus the connection |
 //! | `GET /api/faults` | `faults --json` |
 //! | `GET /api/counters` | `counters --json` (`{error}` while the PLC has none) |
 //! | `GET /api/trend?s=60` | `{columns, rows}`: `trend --csv`'s columns and rows of the last `s` seconds |
@@ -25,7 +25,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use serde_json::{json, Value};
-use shared_protocol::service::Request;
+use shared_protocol::service::{LogText, Request, SERVICE_VERSION};
 
 use crate::client::Client;
 use crate::fail::{Fail, Result};
@@ -156,12 +156,20 @@ fn route(req: &http::Request, ctx: &Ctx) -> Response {
 }
 
 fn status_json(shared: &Shared) -> Value {
-    let s = shared.lock();
+    status_view(&shared.lock())
+}
+
+/// `/api/status` and the stream's `status` event: `status --json` plus the connection,
+/// the service version and the latched drive fault's text (the fault log's words).
+fn status_view(s: &plc::State) -> Value {
+    let fault = s.status["drive"]["fault"].as_u64().unwrap_or(0);
     json!({
         "connected": s.connected,
         "error": s.error,
         "identity": s.identity,
         "status": s.status,
+        "service_version": SERVICE_VERSION,
+        "drive_fault_text": (fault != 0).then(|| LogText(fault as u8).to_string()),
     })
 }
 
@@ -228,12 +236,7 @@ fn stream_events(stream: &mut TcpStream, shared: &Shared) -> std::io::Result<()>
                 out += ": keep-alive\n\n";
             }
             generation = s.generation;
-            let status = json!({
-                "connected": s.connected,
-                "error": s.error,
-                "identity": s.identity,
-                "status": s.status,
-            });
+            let status = status_view(&s);
             if status != last_status {
                 out += &http::event("status", &status.to_string());
                 last_status = status;
