@@ -277,8 +277,12 @@ function series() {
   const named = Object.entries(monitor.profile.vars).filter(([, o]) => /^Q\d\d$/.test(o));
   const qs = named.length ? named.map(([n, o]) => [`${o} ${n}`, o]) :
     c.filter((x) => /^Q\d\d$/.test(x)).map((o) => [o, o]);
-  const bottom = qs.filter(([, o]) => idx(o) >= 0).map(([label, o]) => ({ label, get: (r) => r[idx(o)] }));
-  return [top, bottom];
+  const qser = qs.filter(([, o]) => idx(o) >= 0).map(([label, o]) => ({ label, get: (r) => r[idx(o)] }));
+  // Codes and counts (a floor, a state: 0..31 in the window) in one pane, larger
+  // values (a setpoint) in another, so that neither flattens the other.
+  const rows = visibleRows();
+  const small = (s) => rows.every((r) => { const v = s.get(r); return v === null || (v >= -31 && v <= 31); });
+  return [top, qser.filter(small), qser.filter((s) => !small(s))].filter((p) => p.length);
 }
 function visibleRows() {
   const rows = monitor.rows;
@@ -307,7 +311,8 @@ function drawTrend() {
   const legend = $("trend-legend");
   legend.textContent = "";
   const L = 48, R = 8, gap = 18;
-  const paneH = (Hh - gap * 2) / 2;
+  const paneH = (Hh - gap * panes.length) / panes.length;
+  let colourAt = 0;
   panes.forEach((ser, p) => {
     const py = 6 + p * (paneH + gap);
     let lo = Infinity, hi = -Infinity;
@@ -325,7 +330,7 @@ function drawTrend() {
     g.fillText(hi.toFixed(1), 2, py + 10);
     g.fillText(lo.toFixed(1), 2, py + paneH);
     ser.forEach((s, k) => {
-      const colour = COLOURS[(p * 2 + k) % COLOURS.length];
+      const colour = COLOURS[(colourAt + k) % COLOURS.length];
       g.strokeStyle = colour; g.lineWidth = 1.5; g.beginPath();
       let pen = false;
       for (const r of rows) {
@@ -337,9 +342,10 @@ function drawTrend() {
       const item = el("span", { style: `--c:${colour}` }, s.label);
       legend.appendChild(item);
     });
+    colourAt += ser.length;
   });
-  g.fillStyle = "#5f6368";
-  g.fillText(`t_s ${t0.toFixed(1)} … ${t1.toFixed(1)}${monitor.paused ? " (paused)" : ""}`, L, Hh - 2);
+  legend.appendChild(el("span", { class: "window" },
+    `t_s ${t0.toFixed(1)} … ${t1.toFixed(1)}${monitor.paused ? " (paused)" : ""}`));
   if (drag) {
     g.fillStyle = "#1a73e833";
     g.fillRect(Math.min(drag.x0, drag.x1), 0, Math.abs(drag.x1 - drag.x0), Hh);

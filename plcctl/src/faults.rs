@@ -62,8 +62,10 @@ fn time_of(c: &Client, e: &LogEntry) -> String {
         }
     };
     if e.power_up == id.power_ups as u16 && e.uptime_s < UPTIME_LIMIT_S {
-        let ago_ms = id.uptime_ms.saturating_sub(u64::from(e.uptime_s) * 1000);
-        let t = c.identified_at - chrono::Duration::milliseconds(ago_ms as i64);
+        // Signed: a long-lived connection (`serve`, `watch`) reads entries written
+        // after its `Identify`.
+        let after_ms = i64::from(e.uptime_s) * 1000 - id.uptime_ms as i64;
+        let t = c.identified_at + chrono::Duration::milliseconds(after_ms);
         return t
             .with_timezone(&chrono::Local)
             .format("%Y-%m-%d %H:%M:%S")

@@ -9,6 +9,9 @@ use std::time::{Duration, Instant};
 
 use super::{motor, temp, Sim, PLCCTL};
 
+mod browser;
+mod cdp;
+
 /// A running `plcctl serve` on a free loopback port.
 pub struct Serve {
     child: Child,

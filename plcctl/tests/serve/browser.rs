@@ -1,0 +1,367 @@
+//! service.md 15: the page in a real headless Chromium, over the DevTools protocol, at
+//! 1920 x 1080 and 720 x 1520 at once (two pages of one browser), against
+//! `hil-sim run lift.plc --service-pty` and `plcctl serve --profile lift.profile.toml`.
+//!
+//! The run (virtual time = wall time while the pty is held): the initialisation, a call
+//! to floor 3 with its door cycle, `*7` twice (remote service on, off), a call to floor 1
+//! and a supply drop to 18 V on the way (lift scenario L7's UV trip). Screenshots go to
+//! `target/serve-screens/`. Without a Chromium the test is skipped with a message, unless
+//! `CI` is set.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+use super::cdp::{find_chromium, pixel, Browser};
+use super::Serve;
+use crate::Sim;
+
+const SCENARIO: &str = "\
+duration_s = 45.0
+[lift]
+[[event]]
+at_s = 7.0
+call = 3
+[[event]]
+at_s = 27.0
+keys = \"*7\"
+[[event]]
+at_s = 29.0
+keys = \"*7\"
+[[event]]
+at_s = 30.0
+call = 1
+[[event]]
+at_s = 33.0
+dc_link_v = 18.0
+";
+
+/// The banner colours of `app.css`.
+const GREEN: [u8; 3] = [0x1e, 0x8e, 0x3e];
+const ORANGE: [u8; 3] = [0xe3, 0x74, 0x00];
+const RED: [u8; 3] = [0xc5, 0x22, 0x1f];
+
+/// What the test reads of a page (the page keeps its state in `data-*` attributes).
+const OBSERVE: &str = r##"(() => {
+  const $ = (i) => document.getElementById(i);
+  const b = $("banner"), m = $("mimic"), t = $("trend");
+  if (!b || !m) return null;
+  const r = b.getBoundingClientRect();
+  return {
+    colour: b.dataset.colour, title: $("banner-title").textContent,
+    detail: $("banner-detail").textContent,
+    floor: m.dataset.floor === undefined ? null : m.dataset.floor,
+    door: m.dataset.door === undefined ? null : m.dataset.door,
+    stop: $("act-stop").disabled, run: $("act-run").disabled, ack: $("act-ack").disabled,
+    clear: $("act-clear-faults").disabled, note: $("action-note").textContent,
+    span: Number(t.dataset.span || 0),
+    rows: [...document.querySelectorAll("#faults tbody tr[data-pos]")]
+      .map((tr) => [tr.dataset.pos, ...[...tr.cells].map((c) => c.textContent)]),
+    counters: $("counters").textContent,
+    bx: Math.round(r.left + 4), by: Math.round(r.top + r.height / 2),
+  };
+})()"##;
+
+struct Page {
+    name: &'static str,
+    session: String,
+    /// The newest `lcd0` change this page's mimic has not shown yet: (when, value).
+    pending_floor: Option<(Instant, i64)>,
+    doors: Vec<String>,
+    max_span_s: f64,
+}
+
+struct Run {
+    browser: Browser,
+    pages: Vec<Page>,
+    serve: Option<Serve>,
+    lcd0: Option<i64>,
+    floor_changes: usize,
+    screens: PathBuf,
+}
+
+impl Run {
+    fn observe(&mut self, i: usize) -> Value {
+        let s = self.pages[i].session.clone();
+        self.browser.eval(&s, OBSERVE)
+    }
+
+    /// Polls the server and the pages every 100 ms until `done` holds for every page
+    /// (at most `secs`), checking on the way that each mimic follows `lcd0` within 1 s.
+    fn until(&mut self, what: &str, secs: f64, done: impl Fn(&Value) -> bool) -> Vec<Value> {
+        let end = Instant::now() + Duration::from_secs_f64(secs);
+        loop {
+            let now = Instant::now();
+            if let Some(serve) = &self.serve {
+                let st = serve.get("/api/status");
+                let lcd0 = st["status"]["lcd"][0].as_i64();
+                if lcd0.is_some() && lcd0 != self.lcd0 && lcd0 >= Some(1) {
+                    self.floor_changes += 1;
+                    for p in &mut self.pages {
+                        p.pending_floor = Some((now, lcd0.unwrap_or(0)));
+                    }
+                }
+                self.lcd0 = lcd0;
+            }
+            let obs: Vec<Value> = (0..self.pages.len()).map(|i| self.observe(i)).collect();
+            for (p, o) in self.pages.iter_mut().zip(&obs) {
+                if let Some((t, v)) = p.pending_floor {
+                    if o["floor"].as_str().and_then(|f| f.parse().ok()) == Some(v) {
+                        p.pending_floor = None;
+                    } else {
+                        assert!(
+                            now - t <= Duration::from_millis(1000),
+                            "{}: lcd0 = {v} for {:?}, the mimic shows floor {}",
+                            p.name,
+                            now - t,
+                            o["floor"]
+                        );
+                    }
+                }
+                if let Some(d) = o["door"].as_str() {
+                    if !p.doors.iter().any(|x| x == d) {
+                        p.doors.push(d.to_string());
+                    }
+                }
+                p.max_span_s = p.max_span_s.max(o["span"].as_f64().unwrap_or(0.0));
+            }
+            if obs.iter().all(|o| !o.is_null() && done(o)) {
+                return obs;
+            }
+            assert!(now < end, "{what}: never so in {secs} s: {obs:#?}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// Screenshots of every page as `<page>-<moment>.png`, the banner's pixels checked.
+    fn screens(&mut self, moment: &str, colour: [u8; 3], obs: &[Value]) {
+        for (i, o) in obs.iter().enumerate() {
+            let s = self.pages[i].session.clone();
+            let png = self.browser.screenshot(&s);
+            let file = self
+                .screens
+                .join(format!("{}-{moment}.png", self.pages[i].name));
+            std::fs::write(&file, &png).unwrap();
+            let (x, y) = (o["bx"].as_u64().unwrap(), o["by"].as_u64().unwrap());
+            let px = pixel(&png, x as u32, y as u32);
+            let near = px.iter().zip(colour).all(|(a, b)| a.abs_diff(b) <= 6);
+            assert!(
+                near,
+                "{}: banner pixel ({x}, {y}) is {px:?}, expected {colour:?}",
+                file.display()
+            );
+        }
+    }
+}
+
+fn screens_dir() -> PathBuf {
+    // target/<profile>/deps/sim-… → target/serve-screens
+    let exe = std::env::current_exe().unwrap();
+    let target = exe.ancestors().nth(3).unwrap().to_path_buf();
+    let d = target.join("serve-screens");
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn the_page_in_headless_chromium_follows_the_lift() {
+    let Some(chromium) = find_chromium() else {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "CI is set and no Chromium was found (apt-get install chromium, or set CHROMIUM)"
+        );
+        eprintln!("SKIPPED: no Chromium found (install the chromium package or set CHROMIUM)");
+        return;
+    };
+    let scen = crate::temp("browser-lift.toml");
+    std::fs::write(&scen, SCENARIO).unwrap();
+    let lift = crate::root().join("shared-protocol/programs/lift.plc");
+    let profile = crate::root().join("shared-protocol/programs/lift.profile.toml");
+    let profile = profile.to_str().unwrap().to_string();
+    let sim = Sim::start(&[
+        lift.to_str().unwrap(),
+        "--scenario",
+        scen.to_str().unwrap(),
+        "--service-linger",
+        "0",
+    ]);
+    let serve = Serve::start(&sim, &["--profile", &profile]);
+    // Virtual time follows the wall clock while the pty is held, also between servers.
+    let hold = sim.hold();
+    let mut browser = Browser::launch(&chromium, &crate::temp("chromium-profile"));
+    let mut pages = Vec::new();
+    for (name, w, h) in [("wide", 1920, 1080), ("narrow", 720, 1520)] {
+        let session = browser.page(w, h);
+        browser.navigate(&session, &format!("{}/", serve.base));
+        pages.push(Page {
+            name,
+            session,
+            pending_floor: None,
+            doors: Vec::new(),
+            max_span_s: 0.0,
+        });
+    }
+    let base = serve.base.clone();
+    let mut run = Run {
+        browser,
+        pages,
+        serve: Some(serve),
+        lcd0: None,
+        floor_changes: 0,
+        screens: screens_dir(),
+    };
+
+    // RUN, idle at floor 1 after the initialisation: green; the guarded actions are
+    // disabled without remote service, with the reason; Stop is not.
+    let o = run.until("green, idle at a floor", 20.0, |o| {
+        o["colour"] == "green" && o["detail"] == "idle at a floor"
+    });
+    for o in &o {
+        assert_eq!(
+            (&o["run"], &o["ack"], &o["clear"], &o["stop"]),
+            (
+                &Value::Bool(true),
+                &Value::Bool(true),
+                &Value::Bool(true),
+                &Value::Bool(false)
+            ),
+            "{o}"
+        );
+        assert!(
+            o["note"].as_str().unwrap().contains("remote service"),
+            "{o}"
+        );
+        assert!(o["title"].as_str().unwrap().starts_with("PLC RUN"), "{o}");
+        // This branch's PLC may have no counters: the block says so.
+        let c = o["counters"].as_str().unwrap();
+        assert!(
+            c.contains("RUN starts") || c.contains("not available"),
+            "{c}"
+        );
+    }
+    // The call to floor 3: the mimic follows lcd0 (checked while polling), the door
+    // shows open during the door cycle.
+    let o = run.until("door open at floor 3", 30.0, |o| {
+        o["door"] == "open" && o["floor"] == "3"
+    });
+    run.screens("door-open", GREEN, &o);
+    // `*7`: remote service on, orange; the guarded actions enabled.
+    let o = run.until("orange, remote service", 15.0, |o| o["colour"] == "orange");
+    for o in &o {
+        assert!(
+            o["detail"]
+                .as_str()
+                .unwrap()
+                .contains("remote service enabled"),
+            "{o}"
+        );
+        assert_eq!(
+            (&o["run"], &o["ack"], &o["clear"]),
+            (
+                &Value::Bool(false),
+                &Value::Bool(false),
+                &Value::Bool(false)
+            ),
+            "{o}"
+        );
+    }
+    run.screens("remote", ORANGE, &o);
+    // The call to floor 1 and the UV trip on the way: red with the drive's fault.
+    let o = run.until("red, drive trip", 15.0, |o| {
+        o["colour"] == "red" && o["detail"].as_str().unwrap_or("").contains("drive fault 4")
+    });
+    run.screens("trip", RED, &o);
+    let o = run.until("the trip in the fault archive", 5.0, |o| {
+        o["rows"]
+            .as_array()
+            .is_some_and(|r| !r.is_empty() && r[0][3] == "4")
+    });
+    for p in &run.pages {
+        assert!(
+            p.max_span_s >= 10.0,
+            "{}: trend spans {} s",
+            p.name,
+            p.max_span_s
+        );
+        assert!(
+            p.doors.iter().any(|d| d == "closed"),
+            "{}: {:?}",
+            p.name,
+            p.doors
+        );
+        assert!(p.pending_floor.is_none(), "{}", p.name);
+        let errors = run.browser.errors(&p.session);
+        assert!(errors.is_empty(), "{}: console errors {errors:#?}", p.name);
+        for url in run.browser.requests(&p.session) {
+            assert!(
+                url.starts_with(&format!("{base}/")),
+                "{}: request outside the server: {url}",
+                p.name
+            );
+        }
+    }
+    assert!(
+        run.floor_changes >= 3,
+        "lcd0 changed {} times",
+        run.floor_changes
+    );
+    // Stop (confirmed in the page's dialog) puts the PLC in STOP.
+    let s = run.pages[0].session.clone();
+    run.browser.eval(
+        &s,
+        r#"document.getElementById("act-stop").click();
+           document.getElementById("confirm").hidden === false
+             && (document.getElementById("confirm-yes").click(), true)"#,
+    );
+    run.serve
+        .as_ref()
+        .unwrap()
+        .wait_status(5.0, |s| s["status"]["plc"] == "Stop");
+    // The fault archive's rows = `plcctl faults --json` (serve gives the port up first).
+    drop(run.serve.take());
+    let out = sim.plcctl(&["faults", "--json"]);
+    assert_eq!(
+        crate::code(&out),
+        0,
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let log: Vec<Value> = serde_json::from_str(&crate::text(&out)).unwrap();
+    for o in &o {
+        let rows = o["rows"].as_array().unwrap();
+        assert_eq!(rows.len(), log.len(), "{rows:?} vs {log:?}");
+        for (r, f) in rows.iter().zip(&log) {
+            assert_eq!(r[0], f["pos"].to_string(), "{r} vs {f}");
+            assert_eq!(r[3], f["code"].to_string(), "{r} vs {f}");
+            assert_eq!(r[4], f["text"], "{r} vs {f}");
+            // The same power-up's time, mapped twice from the PLC's uptime: the second
+            // may round the other way.
+            let t = format!("{} {}", r[1].as_str().unwrap(), r[2].as_str().unwrap());
+            let page = chrono::NaiveDateTime::parse_from_str(&t, "%Y-%m-%d %H:%M:%S").unwrap();
+            let cli = chrono::NaiveDateTime::parse_from_str(
+                f["time"].as_str().unwrap(),
+                "%Y-%m-%d %H:%M:%S",
+            )
+            .unwrap();
+            assert!((page - cli).num_seconds().abs() <= 1, "{r} vs {f}");
+        }
+    }
+    // A new server; the pages show the latched trip; then hil-sim ends: red, no answer.
+    let serve = Serve::start(&sim, &["--profile", &profile]);
+    for i in 0..run.pages.len() {
+        let s = run.pages[i].session.clone();
+        run.browser.navigate(&s, &format!("{}/", serve.base));
+    }
+    run.serve = Some(serve);
+    run.until("red, connected again", 10.0, |o| {
+        o["colour"] == "red" && o["title"].as_str().unwrap_or("").starts_with("PLC STOP")
+    });
+    drop(hold);
+    let summary = sim.finish();
+    assert!(summary.contains("LCD"), "{summary}");
+    let o = run.until("red, hil-sim gone", 10.0, |o| {
+        o["colour"] == "red" && o["title"] == "no answer from the PLC"
+    });
+    run.screens("no-answer", RED, &o);
+}
