@@ -3,8 +3,6 @@
 //! `?token=` (the page's URL, once), as the cookie that URL sets, or as
 //! `Authorization: Bearer`.
 
-use std::collections::hash_map::RandomState;
-use std::hash::{BuildHasher, Hasher};
 use std::net::SocketAddr;
 
 /// The cookie that carries the token after the first visit.
@@ -21,12 +19,13 @@ pub enum Access {
 
 impl Access {
     /// The rule for `bind`: a token (`given`, else a random one) unless it is loopback.
-    pub fn for_bind(bind: &SocketAddr, given: Option<String>) -> Access {
-        match given {
+    /// Fails only when the operating system has no random source.
+    pub fn for_bind(bind: &SocketAddr, given: Option<String>) -> Result<Access, getrandom::Error> {
+        Ok(match given {
             Some(t) => Access::Token(t),
             None if bind.ip().is_loopback() => Access::Open,
-            None => Access::Token(random_token()),
-        }
+            None => Access::Token(random_token()?),
+        })
     }
 
     /// Whether a request with this query string and these headers may pass.
@@ -74,15 +73,12 @@ fn same(a: &str, b: &str) -> bool {
             == 0
 }
 
-/// 128 random bits as 32 hex digits: std's `RandomState` keys come from the operating
-/// system's random source (no extra crate).
-pub fn random_token() -> String {
-    let word = || {
-        let mut h = RandomState::new().build_hasher();
-        h.write_u64(0x706c_6363_746c);
-        h.finish()
-    };
-    format!("{:016x}{:016x}", word(), word())
+/// 128 random bits as 32 hex digits, from the operating system's random source (never
+/// a made-up fallback: a guessable token is worse than none).
+pub fn random_token() -> Result<String, getrandom::Error> {
+    let mut bytes = [0u8; 16];
+    getrandom::fill(&mut bytes)?;
+    Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
 #[cfg(test)]
@@ -97,14 +93,14 @@ mod tests {
     fn loopback_is_open_and_any_other_bind_needs_the_token() {
         let lo: SocketAddr = "127.0.0.1:0".parse().unwrap();
         let any: SocketAddr = "0.0.0.0:8080".parse().unwrap();
-        assert_eq!(Access::for_bind(&lo, None), Access::Open);
+        assert_eq!(Access::for_bind(&lo, None).unwrap(), Access::Open);
         assert!(Access::Open.allows(None, &[]));
-        let Access::Token(t) = Access::for_bind(&any, None) else {
+        let Access::Token(t) = Access::for_bind(&any, None).unwrap() else {
             panic!("a token off loopback");
         };
         assert_eq!(t.len(), 32);
         assert!(t.chars().all(|c| c.is_ascii_hexdigit()));
-        let other = random_token();
+        let other = random_token().unwrap();
         assert_ne!(t, other, "random tokens differ");
         let a = Access::Token(t.clone());
         assert!(!a.allows(None, &[]));
@@ -115,7 +111,7 @@ mod tests {
         assert!(!a.allows(None, &[h("Cookie", &format!("{COOKIE}={other}"))]));
         // A given token applies on loopback too.
         assert_eq!(
-            Access::for_bind(&lo, Some("abc".into())),
+            Access::for_bind(&lo, Some("abc".into())).unwrap(),
             Access::Token("abc".into())
         );
     }

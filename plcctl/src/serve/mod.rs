@@ -67,7 +67,9 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
     let listener = TcpListener::bind(&args.bind)
         .map_err(|e| Fail::Usage(anyhow::anyhow!("cannot bind {}: {e}", args.bind)))?;
     let addr: SocketAddr = listener.local_addr()?;
-    let access = Access::for_bind(&addr, args.token);
+    let access = Access::for_bind(&addr, args.token).map_err(|e| {
+        anyhow::anyhow!("no random source for the token ({e}): give one with --token")
+    })?;
     println!("serving http://{addr}/");
     if let Access::Token(t) = &access {
         println!("token: {t}");
