@@ -8,6 +8,8 @@
 //!   subscriptions and samples.
 //! * [`reads`]: the paced EEPROM reads behind `ListSlots`, `ReadProgram` and `Run` of
 //!   slots 1-4.
+//! * [`write`](mod@write): program writes (`WriteBegin`, `WriteChunk`, `WriteCommit`),
+//!   staged in the slot's spare copy in the EEPROM.
 //! * The requests themselves are answered by the application (`app/service.rs`), which
 //!   holds everything they read and change.
 //!
@@ -22,9 +24,11 @@
 
 pub mod port;
 pub mod reads;
+pub mod write;
 
 pub use port::{PortStats, ServicePort, Step, Stored};
 pub use reads::{SlotReads, SlotRecord};
+pub use write::ProgramWrite;
 
 use shared_protocol::service::{encode, Answer, Request};
 use shared_protocol::units::Micros;
@@ -41,6 +45,7 @@ pub const STEP_BYTES: usize = 64;
 pub struct Service {
     port: ServicePort,
     reads: SlotReads,
+    write: ProgramWrite,
     build: BuildInfo,
 }
 
@@ -49,6 +54,7 @@ impl Service {
         Service {
             port: ServicePort::new(),
             reads: SlotReads::new(),
+            write: ProgramWrite::new(),
             build,
         }
     }
@@ -88,7 +94,15 @@ impl Service {
                     if request.is_guarded() {
                         app.renew_remote(now);
                     }
-                    match app.service_request(&mut self.reads, &self.build, &request, now) {
+                    let outcome = match request {
+                        Request::WriteBegin { .. }
+                        | Request::WriteChunk { .. }
+                        | Request::WriteCommit => {
+                            self.write.request(app, &mut self.reads, &request)
+                        }
+                        _ => app.service_request(&mut self.reads, &self.build, &request, now),
+                    };
+                    match outcome {
                         Outcome::Answer(a) => {
                             self.port.answered(id, &request, &a);
                             (id, a)
@@ -121,8 +135,16 @@ impl Service {
     /// after the subscription's period boundary (service.md 3 `Sample`).
     /// A keypad save also lands here: what the reads found in that slot is forgotten.
     pub fn after_tick<E: Eeprom>(&mut self, app: &PlcApp<E>, tick: &Tick, now: Micros) {
-        if let Some(JobDone::Saved { slot, .. }) = tick.storage {
-            self.reads.invalidate(slot);
+        match tick.storage {
+            Some(JobDone::Saved { slot, .. }) => {
+                self.reads.invalidate(slot);
+                self.write.slot_saved(slot);
+            }
+            Some(JobDone::Written { slot, result }) => {
+                self.reads.invalidate(slot);
+                self.write.committed(slot, result);
+            }
+            _ => {}
         }
         if !tick.scanned {
             return;
@@ -133,12 +155,18 @@ impl Service {
         }
     }
 
-    /// Moves the EEPROM reads a `ListSlots`, `ReadProgram` or `Run` of a slot wait for on
-    /// by at most [`STEP_BYTES`] (one transfer), and only while the storage queue is idle:
-    /// the board calls it between scans when the I2C bus is free. Returns whether the bus
-    /// was used.
+    /// Moves the chunk of a program write being staged, or else the EEPROM reads a
+    /// `ListSlots`, `ReadProgram` or `Run` of a slot wait for, on by at most
+    /// [`STEP_BYTES`] (one transfer), and only while the storage queue is idle: the board
+    /// calls it between scans when the I2C bus is free. Returns whether the bus was used.
     pub fn eeprom_step<E: Eeprom>(&mut self, app: &mut PlcApp<E>) -> bool {
-        if self.reads.idle() || app.storage().busy() {
+        if !app.storage().idle() {
+            return false;
+        }
+        if self.write.writing() {
+            return self.write.step(app, self.port.working());
+        }
+        if self.reads.idle() {
             return false;
         }
         // A read error is kept in `reads` and answered `Refused(Storage)`.
