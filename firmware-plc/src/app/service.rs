@@ -410,6 +410,7 @@ impl<E: Eeprom> PlcApp<E> {
             Request::ReadFaultLog { from, count } => {
                 Outcome::Answer(Answer::FaultLog(self.service_fault_log(from, count)))
             }
+            // Answered by the service's tally (`service::counters`), never handed here.
             Request::GetCounters => refused(RefuseReason::Storage),
             Request::ListSlots => self.service_slots(reads),
             Request::ReadProgram { slot: 0, offset } => self.ram_chunk(offset),
@@ -443,6 +444,11 @@ impl<E: Eeprom> PlcApp<E> {
                 Err(()) => refused(RefuseReason::Busy),
             },
         }
+    }
+
+    /// Shows `text` on the status row (the service's messages, e.g. `COUNTERS RESET`).
+    pub(crate) fn notify_text(&mut self, text: &'static str) {
+        self.editor.notify(Notice::Text(text));
     }
 
     /// A program write over the service port ended (its [`Job::Commit`]). After `Saved`

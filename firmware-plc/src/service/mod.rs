@@ -10,6 +10,7 @@
 //!   slots 1-4.
 //! * [`write`](mod@write): program writes (`WriteBegin`, `WriteChunk`, `WriteCommit`),
 //!   staged in the slot's spare copy in the EEPROM.
+//! * [`counters`]: the counters of service.md 7 and their EEPROM record.
 //! * The requests themselves are answered by the application (`app/service.rs`), which
 //!   holds everything they read and change.
 //!
@@ -22,19 +23,23 @@
 //!
 //! [`PlcLink`]: shared_protocol::link::PlcLink
 
+pub mod counters;
 pub mod port;
 pub mod reads;
 pub mod write;
 
+pub use counters::Tally;
 pub use port::{PortStats, ServicePort, Step, Stored};
 pub use reads::{SlotReads, SlotRecord};
 pub use write::ProgramWrite;
 
-use shared_protocol::service::{encode, Answer, Request};
+use shared_protocol::drive_state::DriveState;
+use shared_protocol::service::{encode, Answer, Request, WriteResult};
 use shared_protocol::units::Micros;
 
-use crate::app::{BuildInfo, Outcome, PlcApp, Tick};
+use crate::app::{BuildInfo, Outcome, PlcApp, RunState, Tick};
 use crate::storage::{Eeprom, JobDone};
+use counters::{Observation, TallyStep, APP_FIRST_Q};
 
 /// EEPROM bytes read per [`Service::eeprom_step`]: one page, the storage jobs' unit.
 pub const STEP_BYTES: usize = 64;
@@ -46,6 +51,7 @@ pub struct Service {
     port: ServicePort,
     reads: SlotReads,
     write: ProgramWrite,
+    counters: Tally,
     build: BuildInfo,
 }
 
@@ -55,6 +61,7 @@ impl Service {
             port: ServicePort::new(),
             reads: SlotReads::new(),
             write: ProgramWrite::new(),
+            counters: Tally::new(),
             build,
         }
     }
@@ -100,6 +107,9 @@ impl Service {
                         | Request::WriteCommit => {
                             self.write.request(app, &mut self.reads, &request)
                         }
+                        Request::GetCounters => Outcome::Answer(Answer::Counters(
+                            self.counters.answer(app.storage().power_cycle(), now),
+                        )),
                         _ => app.service_request(&mut self.reads, &self.build, &request, now),
                     };
                     match outcome {
@@ -135,6 +145,7 @@ impl Service {
     /// after the subscription's period boundary (service.md 3 `Sample`).
     /// A keypad save also lands here: what the reads found in that slot is forgotten.
     pub fn after_tick<E: Eeprom>(&mut self, app: &PlcApp<E>, tick: &Tick, now: Micros) {
+        self.counters.observe(&observation(app, tick), now);
         match tick.storage {
             Some(JobDone::Saved { slot, .. }) => {
                 self.reads.invalidate(slot);
@@ -166,6 +177,14 @@ impl Service {
         if self.write.writing() {
             return self.write.step(app, self.port.working());
         }
+        match self.counters.eeprom_step(app.storage()) {
+            TallyStep::Idle => {}
+            TallyStep::UsedBus => return true,
+            TallyStep::Reset => {
+                app.notify_text("COUNTERS RESET");
+                return true;
+            }
+        }
         if self.reads.idle() {
             return false;
         }
@@ -186,8 +205,44 @@ impl Service {
         !self.reads.idle()
     }
 
+    /// The counters (tests read them).
+    pub fn counters(&self) -> &Tally {
+        &self.counters
+    }
+
     /// The request being worked on, if any (diagnostics).
     pub fn working(&self) -> Option<&Request> {
         self.port.working()
+    }
+}
+
+/// What a tick showed the counters (service.md 7).
+fn observation<E: Eeprom>(app: &PlcApp<E>, tick: &Tick) -> Observation {
+    let stats = app.link().stats();
+    let to = tick.run_change.map(|(_, to)| to);
+    Observation {
+        run_started: to == Some(RunState::Running),
+        stopped: to == Some(RunState::Stopped),
+        running: app.run_state() == RunState::Running,
+        pwm_on: app
+            .status()
+            .drive
+            .is_some_and(|d| d.state == DriveState::Run && d.freq_dhz != 0),
+        link_errors_total: stats.frames_bad.wrapping_add(stats.link_losses),
+        saved: matches!(
+            tick.storage,
+            Some(JobDone::Saved { result: Ok(_), .. })
+                | Some(JobDone::Written {
+                    result: Ok(WriteResult::Saved { .. }),
+                    ..
+                })
+        ),
+        fault: match tick.storage {
+            Some(JobDone::FaultLogged { entry, .. }) => Some(entry.code),
+            _ => None,
+        },
+        q: tick
+            .scanned
+            .then(|| core::array::from_fn(|i| app.q(APP_FIRST_Q + i as u8))),
     }
 }

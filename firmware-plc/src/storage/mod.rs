@@ -17,6 +17,7 @@
 //! tests and hil-sim; `image` (feature `sim`) builds EEPROM images with it.
 
 pub mod boot;
+pub mod counters;
 pub mod eeprom;
 pub mod fault_log;
 #[cfg(any(test, feature = "sim"))]
