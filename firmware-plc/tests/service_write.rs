@@ -366,3 +366,30 @@ fn a_cut_cable_a_new_begin_run_or_a_keypad_save_leave_the_old_program() {
     );
     assert_eq!(stored(rig.plc.storage().eeprom(), 1), Ok(old));
 }
+
+/// A client that gives up a chunk half-written (one of its two page writes made) and asks
+/// something else gets its answer: the abandoned chunk does not hold up the EEPROM reads.
+#[test]
+fn a_chunk_given_up_half_written_does_not_block_the_reads() {
+    let bytes = payload(&assemble(MOTOR).unwrap());
+    let mut rig = rig_with_small_in_slot_1();
+    let begin = Request::WriteBegin {
+        slot: 1,
+        len: bytes.len() as u16,
+        crc: CRC32C.checksum(&bytes),
+    };
+    assert_eq!(rig.ask_long(begin), Answer::Done);
+    rig.id += 1;
+    let id = rig.id;
+    rig.send(
+        id,
+        &Request::WriteChunk {
+            offset: 0,
+            data: bytes[..CHUNK_BYTES].iter().copied().collect(),
+        },
+    );
+    // One pass: the chunk's first page write, no answer yet.
+    assert!(rig.tick().is_empty());
+    // ListSlots reads slots 2-4 from the EEPROM: answered within 100 ms.
+    assert!(matches!(rig.ask(Request::ListSlots), Answer::Slots(_)));
+}

@@ -174,8 +174,10 @@ impl Service {
         if !app.storage().idle() {
             return false;
         }
-        if self.write.writing() {
-            return self.write.step(app, self.port.working());
+        // A chunk being staged goes first; one whose request was given up (the client
+        // moved on) must not hold up the reads and the counters.
+        if self.write.writing() && self.write.step(app, self.port.working()) {
+            return true;
         }
         match self.counters.eeprom_step(app.storage()) {
             TallyStep::Idle => {}
@@ -224,10 +226,11 @@ fn observation<E: Eeprom>(app: &PlcApp<E>, tick: &Tick) -> Observation {
         run_started: to == Some(RunState::Running),
         stopped: to == Some(RunState::Stopped),
         running: app.run_state() == RunState::Running,
-        pwm_on: app
-            .status()
-            .drive
-            .is_some_and(|d| d.state == DriveState::Run && d.freq_dhz != 0),
+        pwm_on: app.link().is_up()
+            && app
+                .link()
+                .last_status()
+                .is_some_and(|(d, _)| d.state == DriveState::Run && d.freq_dhz != 0),
         link_errors_total: stats.frames_bad.wrapping_add(stats.link_losses),
         saved: matches!(
             tick.storage,
