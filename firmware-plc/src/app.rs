@@ -791,6 +791,9 @@ impl<E: Eeprom> PlcApp<E> {
                     Ok(r) => Notice::Loaded(r),
                     Err(error) => Notice::LoadFailed { slot, error },
                 });
+                if self.observed.written_load.take() == Some(slot) && result.is_ok() {
+                    self.editor.notify(Notice::Written { slot });
+                }
                 if run_now {
                     self.run(Some(slot), now);
                 }
@@ -820,6 +823,7 @@ impl<E: Eeprom> PlcApp<E> {
                     self.editor.notify(Notice::Text("EEPROM ERROR"));
                 }
             }
+            JobDone::Written { slot, result } => self.program_written(slot, result, now),
         }
     }
 

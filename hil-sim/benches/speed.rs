@@ -85,13 +85,22 @@ fn main() {
     );
     let _ = sw;
     println!("WR Q latency (scan that writes -> drive's copy updated), clean link, 200 writes:");
-    for baud in [115_200, 1_000_000] {
-        let l = hil_sim::latency::q_write_latencies_ns(baud, 200, 1.0).expect("latency");
+    let runs: [(&str, u32, Option<u64>); 3] = [
+        ("", 115_200, None),
+        ("", 1_000_000, None),
+        (", service port flooded", 115_200, Some(7)),
+    ];
+    for (what, baud, flood) in runs {
+        let l = match flood {
+            None => hil_sim::latency::q_write_latencies_ns(baud, 200, 1.0),
+            Some(seed) => hil_sim::latency::q_write_latencies_flooded_ns(baud, 200, 1.0, seed),
+        }
+        .expect("latency");
         let max = l.iter().max().copied().unwrap_or(0);
         let min = l.iter().min().copied().unwrap_or(0);
         let mean = l.iter().sum::<u64>() as f64 / l.len().max(1) as f64;
         println!(
-            "  {baud:>7} baud: min {:.0} us, mean {:.0} us, max {:.0} us (link.md: < 2 ms at 115200)",
+            "  {baud:>7} baud{what}: min {:.0} us, mean {:.0} us, max {:.0} us (link.md: < 2 ms at 115200)",
             min as f64 / 1e3,
             mean / 1e3,
             max as f64 / 1e3

@@ -1,5 +1,4 @@
-//! Why a command failed, and its exit code (service.md 8). Exit 6 (read-back differs)
-//! belongs to `push`, which is not built yet.
+//! Why a command failed, and its exit code (service.md 8).
 
 use shared_protocol::service::RefuseReason;
 
@@ -16,6 +15,8 @@ pub enum Fail {
     Version { host: u16, plc: u16 },
     /// 5: refused by the PLC.
     Refused(RefuseReason),
+    /// 6: `push` read back something else than it wrote.
+    ReadBack(String),
 }
 
 impl Fail {
@@ -26,6 +27,7 @@ impl Fail {
             Fail::Timeout(_) => 3,
             Fail::Version { .. } => 4,
             Fail::Refused(_) => 5,
+            Fail::ReadBack(_) => 6,
         }
     }
 }
@@ -41,6 +43,7 @@ impl std::fmt::Display for Fail {
                 "service version mismatch: plcctl speaks {host}, the PLC {plc}"
             ),
             Fail::Refused(r) => write!(f, "refused by the PLC: {}", r.text()),
+            Fail::ReadBack(m) => write!(f, "read-back differs: {m}"),
         }
     }
 }

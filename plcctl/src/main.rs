@@ -4,10 +4,12 @@
 mod client;
 mod clock;
 mod detect;
+mod diff;
 mod fail;
 mod faults;
 mod interrupt;
 mod program;
+mod push;
 mod serve;
 mod status;
 mod trend;
@@ -83,6 +85,16 @@ enum Cmd {
         #[arg(short = 'o', long = "output")]
         output: Option<PathBuf>,
     },
+    /// Assemble, verify, show the diff, write into a slot, read back (remote service on,
+    /// PLC in STOP).
+    Push {
+        file: PathBuf,
+        #[arg(long)]
+        slot: u8,
+        /// Write without asking.
+        #[arg(long)]
+        yes: bool,
+    },
     /// RUN (remote service on): the program in RAM, or slot n loaded first.
     Run {
         #[arg(long, default_value_t = 0)]
@@ -146,6 +158,7 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Faults { csv, json } => faults::faults(&mut connect()?, csv, json),
         Cmd::Counters { json } => status::counters(&mut connect()?, json),
         Cmd::Pull { slot, output } => program::pull(&mut connect()?, slot, output.as_deref()),
+        Cmd::Push { file, slot, yes } => push::push(connect, &file, slot, yes),
         Cmd::Run { slot } => done(&mut connect()?, Request::Run { slot }, "RUN requested"),
         Cmd::Stop => done(&mut connect()?, Request::Stop, "STOP"),
         Cmd::Ack => done(&mut connect()?, Request::Ack, "acknowledge sent"),

@@ -484,5 +484,210 @@ fn run_ack_and_clear_faults_work_with_remote_service_on() {
     sim.finish();
 }
 
+#[test]
+fn push_writes_reads_back_and_pull_round_trips() {
+    let lift = root().join("shared-protocol/programs/lift.plc");
+    // Without remote service: exit 5 (the diff is shown first; nothing is written).
+    let sim = Sim::start(&[motor().to_str().unwrap(), "--duration", "1"]);
+    let hold = sim.hold();
+    let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2", "--yes"]);
+    assert_eq!(code(&o), 5, "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("remote service is off"));
+    drop(hold);
+    sim.finish();
+
+    // The scenario types `*` `7` (remote service on) at 0.05 s; motor.plc runs.
+    let sim = Sim::with_scenario(
+        "push.toml",
+        "duration_s = 30.0\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n",
+        "0",
+    );
+    let hold = sim.hold();
+    let status = |sim: &Sim| -> serde_json::Value {
+        let o = sim.plcctl(&["status", "--json"]);
+        assert_eq!(code(&o), 0);
+        serde_json::from_str(&text(&o)).unwrap()
+    };
+    let mut on = false;
+    for _ in 0..50 {
+        if status(&sim)["status"]["remote"] == true {
+            on = true;
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    assert!(on, "remote service never came on");
+    // In RUN: exit 5.
+    assert_ne!(status(&sim)["status"]["plc"], "Stop");
+    let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2", "--yes"]);
+    assert_eq!(code(&o), 5, "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("RUN"));
+    assert_eq!(code(&sim.plcctl(&["stop"])), 0);
+
+    // An assembler error: file:line:col: message, exit 1.
+    let bad = temp("bad.plc");
+    std::fs::write(&bad, "000 LD K00 0001\n001 XYZ Q00\n").unwrap();
+    let o = sim.plcctl(&["push", bad.to_str().unwrap(), "--slot", "2", "--yes"]);
+    assert_eq!(code(&o), 1);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(err.contains(&format!("{}:2:5: ", bad.display())), "{err}");
+    // Without --yes and without a terminal on stdin: refused, exit 1.
+    let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2"]);
+    assert_eq!(code(&o), 1);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a terminal"));
+
+    // Into the empty slot 2: the whole program is added; pull gives `hil-sim disasm`.
+    let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2", "--yes"]);
+    assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
+    let out = text(&o);
+    let disasm = Command::new(hil_sim())
+        .arg("disasm")
+        .arg(&lift)
+        .output()
+        .unwrap();
+    let lines = String::from_utf8_lossy(&disasm.stdout).lines().count();
+    assert!(
+        out.starts_with(&format!(
+            "--- slot 2 (PLC)\n+++ {}\n@@ -0,0 +1,{lines} @@\n+",
+            lift.display()
+        )),
+        "{out}"
+    );
+    assert!(out.contains("read back: identical"), "{out}");
+    let pulled = temp("pull2.plc");
+    let o = sim.plcctl(&["pull", "2", "-o", pulled.to_str().unwrap()]);
+    assert_eq!(code(&o), 0);
+    assert_eq!(std::fs::read(&pulled).unwrap(), disasm.stdout);
+
+    // One line changed in slot 1 (the program in RAM came from it): a one-line hunk,
+    // and RAM holds the new program.
+    let motor_text = Command::new(hil_sim())
+        .arg("disasm")
+        .arg(motor())
+        .output()
+        .unwrap();
+    let motor_text = String::from_utf8(motor_text.stdout).unwrap();
+    let old_line = motor_text
+        .lines()
+        .find(|l| l.contains("2333"))
+        .unwrap()
+        .to_string();
+    let changed = motor_text.replacen("2333", "2334", 1);
+    let file = temp("changed.plc");
+    std::fs::write(&file, &changed).unwrap();
+    let o = sim.plcctl(&["push", file.to_str().unwrap(), "--slot", "1", "--yes"]);
+    let out = text(&o);
+    assert_eq!(code(&o), 0, "{out}{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.contains(&format!("\n-{old_line}\n+")), "{out}");
+    assert_eq!(
+        out.matches("\n@@ ").count() + usize::from(out.starts_with("@@")),
+        1,
+        "{out}"
+    );
+    let ram = temp("pull0.plc");
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    assert_eq!(
+        code(&sim.plcctl(&["pull", "0", "-o", ram.to_str().unwrap()])),
+        0
+    );
+    let slot1 = temp("pull1.plc");
+    assert_eq!(
+        code(&sim.plcctl(&["pull", "1", "-o", slot1.to_str().unwrap()])),
+        0
+    );
+    assert_eq!(std::fs::read(&ram).unwrap(), std::fs::read(&slot1).unwrap());
+    // The log has the event PGMSVC twice.
+    let o = sim.plcctl(&["faults", "--json"]);
+    let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
+    assert_eq!(
+        rows.iter().filter(|r| r["name"] == "PGMSVC").count(),
+        2,
+        "{rows:?}"
+    );
+    drop(hold);
+    sim.finish();
+}
+
+/// service.md 10: after lift scenario L3 the application counters (Q60-Q63, arrivals at
+/// floors 1-4 in `lift.plc`) equal the arrivals in hil-sim's CSV of the same run: the
+/// level stops, each a rising edge of O00 (door open) at the plant's `at_floor`.
+#[test]
+fn counters_after_lift_l3_equal_the_arrivals_in_the_csv() {
+    let csv = temp("l3.csv");
+    let sim = Sim::start(&[
+        root()
+            .join("shared-protocol/programs/lift.plc")
+            .to_str()
+            .unwrap(),
+        "--scenario",
+        root()
+            .join("hil-sim/scenarios/lift/l3_press_order.toml")
+            .to_str()
+            .unwrap(),
+        "--csv",
+        csv.to_str().unwrap(),
+        "--service-linger",
+        "30",
+    ]);
+    // Full speed while nobody holds the pty; real time while held. Look now and then,
+    // and stay once the run is near its end (50 s), so that a client is there at the
+    // end and the run lingers.
+    let hold = loop {
+        let hold = sim.hold();
+        let o = sim.plcctl(&["status", "--json"]);
+        assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_str(&text(&o)).unwrap();
+        if v["status"]["uptime_ms"].as_u64().unwrap() > 44_000 {
+            break hold;
+        }
+        drop(hold);
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    };
+    let counters = |sim: &Sim| -> serde_json::Value {
+        let o = sim.plcctl(&["counters", "--json"]);
+        assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_str(&text(&o)).unwrap()
+    };
+    // Past the duration: the CSV is complete (it covers the duration only).
+    loop {
+        let o = sim.plcctl(&["status", "--json"]);
+        let v: serde_json::Value = serde_json::from_str(&text(&o)).unwrap();
+        if v["status"]["uptime_ms"].as_u64().unwrap() > 50_200 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(200));
+    }
+    let got = counters(&sim);
+    let o = sim.plcctl(&["counters"]);
+    assert!(text(&o).contains("app counter 1 (Q60)"), "{}", text(&o));
+    drop(hold);
+    sim.finish();
+
+    let (h, rows) = csv_rows(&std::fs::read_to_string(&csv).unwrap());
+    let col = |name: &str| h.iter().position(|c| c == name).unwrap();
+    let (door, floor) = (col("O00"), col("at_floor"));
+    let mut arrivals = [0u64; 4];
+    let mut was_open = false;
+    for r in &rows {
+        let open = r[door] == "1";
+        if open && !was_open {
+            let f: usize = r[floor].parse().unwrap();
+            arrivals[f - 1] += 1;
+        }
+        was_open = open;
+    }
+    assert!(arrivals.iter().sum::<u64>() >= 3, "{arrivals:?}");
+    let app: Vec<u64> = got["app"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_u64().unwrap())
+        .collect();
+    assert_eq!(app, arrivals.to_vec(), "counters {got}");
+    // One RUN start (the power-up RUN of the image), no trips.
+    assert_eq!(got["run_starts"], 1, "{got}");
+    assert!(got["trips"].as_array().unwrap().iter().all(|t| t == 0));
+}
+
 /// `plcctl serve` (service.md part B), on the helpers above.
 mod serve;

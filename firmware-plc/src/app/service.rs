@@ -14,7 +14,8 @@ use shared_protocol::link::FaultCode;
 use shared_protocol::service::{
     Answer, DriveInfo, DriveSample, FaultLog, Identity, LinkView, LogEntry, PlcState, ProgramChunk,
     RefuseReason, Request, RunWarning, Sample, Screen as ScreenRows, SlotState, SlotSummary, Slots,
-    Status, CHUNK_BYTES, LOG_ENTRIES_PER_ANSWER, LOG_FROM_NEWEST, REMOTE_TIMEOUT_MS,
+    Status, WriteResult, CHUNK_BYTES, EVENT_PROGRAM_WRITTEN, LOG_ENTRIES_PER_ANSWER,
+    LOG_FROM_NEWEST, REMOTE_TIMEOUT_MS,
 };
 use shared_protocol::units::Micros;
 
@@ -23,7 +24,7 @@ use crate::editor::Notice;
 use crate::service::SlotReads;
 use crate::storage::layout::SLOTS;
 use crate::storage::slot::for_each_payload_byte;
-use crate::storage::{Eeprom, Job, FAULT_LOG_ENTRIES};
+use crate::storage::{Eeprom, Job, StorageError, FAULT_LOG_ENTRIES};
 use crate::vm;
 
 /// What the service reports that the rest of the application does not keep.
@@ -43,6 +44,9 @@ pub(crate) struct Observed {
     pub(crate) log_head: Option<u8>,
     /// `Run { slot }` queued this slot's load: RUN starts when it succeeds.
     pub(crate) run_after_load: Option<u8>,
+    /// A program written over the service port is being loaded into RAM: the status row
+    /// keeps saying `SLOT n WRITTEN (SVC)` after the load.
+    pub(crate) written_load: Option<u8>,
 }
 
 impl Observed {
@@ -406,6 +410,7 @@ impl<E: Eeprom> PlcApp<E> {
             Request::ReadFaultLog { from, count } => {
                 Outcome::Answer(Answer::FaultLog(self.service_fault_log(from, count)))
             }
+            // Answered by the service's tally (`service::counters`), never handed here.
             Request::GetCounters => refused(RefuseReason::Storage),
             Request::ListSlots => self.service_slots(reads),
             Request::ReadProgram { slot: 0, offset } => self.ram_chunk(offset),
@@ -413,13 +418,7 @@ impl<E: Eeprom> PlcApp<E> {
                 self.slot_chunk(reads, slot, offset)
             }
             Request::ReadProgram { .. } => refused(RefuseReason::Slot),
-            Request::WriteBegin { .. } | Request::WriteCommit if !stopped => {
-                refused(RefuseReason::InRun)
-            }
-            Request::WriteBegin { slot, .. } if !(1..=SLOTS).contains(&slot) => {
-                refused(RefuseReason::Slot)
-            }
-            // Program writes come with the staging of issue 18 step 4.
+            // Executed by the service's staging (`service::write`), never handed here.
             Request::WriteBegin { .. } | Request::WriteChunk { .. } | Request::WriteCommit => {
                 refused(RefuseReason::Transfer)
             }
@@ -444,6 +443,46 @@ impl<E: Eeprom> PlcApp<E> {
                 Ok(()) => Outcome::Answer(Answer::Done),
                 Err(()) => refused(RefuseReason::Busy),
             },
+        }
+    }
+
+    /// Shows `text` on the status row (the service's messages, e.g. `COUNTERS RESET`).
+    pub(crate) fn notify_text(&mut self, text: &'static str) {
+        self.editor.notify(Notice::Text(text));
+    }
+
+    /// A program write over the service port ended (its [`Job::Commit`]). After `Saved`
+    /// (service.md 3): the status row says `SLOT n WRITTEN (SVC)`, the log gets the event
+    /// `PGMSVC` (241), and when RAM held that slot without unsaved edits the new program
+    /// is loaded (while stopped; in RUN the running program stays and counts as edited,
+    /// so nothing discards it unasked).
+    pub(crate) fn program_written(
+        &mut self,
+        slot: u8,
+        result: Result<WriteResult, StorageError>,
+        now: Micros,
+    ) {
+        match result {
+            Ok(WriteResult::Saved { .. }) => {
+                let held = self.editor.loaded_slot() == Some(slot) && !self.editor.modified();
+                let event = self
+                    .storage
+                    .fault_entry(EVENT_PROGRAM_WRITTEN, now.0 / 1000);
+                if self.storage.queue(Job::LogFault(event)).is_err() {
+                    self.editor.notify(Notice::Text("FAULT LOG ERROR"));
+                }
+                if held && self.run == RunState::Stopped {
+                    match self.storage.queue(Job::Load { slot }) {
+                        Ok(()) => self.observed.written_load = Some(slot),
+                        Err(_) => self.editor.mark_modified(),
+                    }
+                } else if held {
+                    self.editor.mark_modified();
+                }
+                self.editor.notify(Notice::Written { slot });
+            }
+            Ok(_) => {}
+            Err(error) => self.editor.notify(Notice::SaveFailed { slot, error }),
         }
     }
 

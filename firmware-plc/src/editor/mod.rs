@@ -87,6 +87,10 @@ pub enum Notice {
         line: Option<u16>,
         reason: ShortText,
     },
+    /// A program was written into `slot` over the service port (service.md 3).
+    Written {
+        slot: u8,
+    },
     /// Any other short text (at most 20 characters).
     Text(&'static str),
     /// RUN started a program that uses the safety functions: `NOT RATED SIG 3A7F`
@@ -398,6 +402,10 @@ impl Editor {
                 self.modified = false;
                 self.set_message(format_args!("SAVED IN SLOT {slot}"));
             }
+            Notice::Written { slot } if narrow => {
+                self.set_message(format_args!("S{slot} WRITTEN (SVC)"));
+            }
+            Notice::Written { slot } => self.set_message(format_args!("SLOT {slot} WRITTEN (SVC)")),
             Notice::SaveFailed { slot, error } => {
                 self.set_message(format_args!("SAVE S{slot} FAILED {}", storage_short(error)));
             }

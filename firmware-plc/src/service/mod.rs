@@ -10,6 +10,9 @@
 //!   slots 1-4.
 //! * [`endpoint`]: the service on the application as the board's byte pump sees it, and
 //!   the application task's share (one EEPROM step after each scan).
+//! * [`write`](mod@write): program writes (`WriteBegin`, `WriteChunk`, `WriteCommit`),
+//!   staged in the slot's spare copy in the EEPROM.
+//! * [`counters`]: the counters of service.md 7 and their EEPROM record.
 //! * The requests themselves are answered by the application (`app/service.rs`), which
 //!   holds everything they read and change.
 //!
@@ -22,18 +25,24 @@
 //!
 //! [`PlcLink`]: shared_protocol::link::PlcLink
 
+pub mod counters;
 pub mod endpoint;
 pub mod port;
 pub mod reads;
+pub mod write;
 
+pub use counters::Tally;
 pub use port::{PortStats, ServicePort, Step, Stored};
 pub use reads::{SlotReads, SlotRecord};
+pub use write::ProgramWrite;
 
-use shared_protocol::service::{encode, Answer, Request};
+use shared_protocol::drive_state::DriveState;
+use shared_protocol::service::{encode, Answer, Request, WriteResult};
 use shared_protocol::units::Micros;
 
-use crate::app::{BuildInfo, Outcome, PlcApp, Tick};
+use crate::app::{BuildInfo, Outcome, PlcApp, RunState, Tick};
 use crate::storage::{Eeprom, JobDone};
+use counters::{Observation, TallyStep, APP_FIRST_Q};
 
 /// EEPROM bytes read per [`Service::eeprom_step`]: one page, the storage jobs' unit.
 pub const STEP_BYTES: usize = 64;
@@ -44,6 +53,8 @@ pub const STEP_BYTES: usize = 64;
 pub struct Service {
     port: ServicePort,
     reads: SlotReads,
+    write: ProgramWrite,
+    counters: Tally,
     build: BuildInfo,
 }
 
@@ -52,6 +63,8 @@ impl Service {
         Service {
             port: ServicePort::new(),
             reads: SlotReads::new(),
+            write: ProgramWrite::new(),
+            counters: Tally::new(),
             build,
         }
     }
@@ -91,7 +104,18 @@ impl Service {
                     if request.is_guarded() {
                         app.renew_remote(now);
                     }
-                    match app.service_request(&mut self.reads, &self.build, &request, now) {
+                    let outcome = match request {
+                        Request::WriteBegin { .. }
+                        | Request::WriteChunk { .. }
+                        | Request::WriteCommit => {
+                            self.write.request(app, &mut self.reads, &request)
+                        }
+                        Request::GetCounters => Outcome::Answer(Answer::Counters(
+                            self.counters.answer(app.storage().power_cycle(), now),
+                        )),
+                        _ => app.service_request(&mut self.reads, &self.build, &request, now),
+                    };
+                    match outcome {
                         Outcome::Answer(a) => {
                             self.port.answered(id, &request, &a);
                             (id, a)
@@ -124,8 +148,17 @@ impl Service {
     /// after the subscription's period boundary (service.md 3 `Sample`).
     /// A keypad save also lands here: what the reads found in that slot is forgotten.
     pub fn after_tick<E: Eeprom>(&mut self, app: &PlcApp<E>, tick: &Tick, now: Micros) {
-        if let Some(JobDone::Saved { slot, .. }) = tick.storage {
-            self.reads.invalidate(slot);
+        self.counters.observe(&observation(app, tick), now);
+        match tick.storage {
+            Some(JobDone::Saved { slot, .. }) => {
+                self.reads.invalidate(slot);
+                self.write.slot_saved(slot);
+            }
+            Some(JobDone::Written { slot, result }) => {
+                self.reads.invalidate(slot);
+                self.write.committed(slot, result);
+            }
+            _ => {}
         }
         if !tick.scanned {
             return;
@@ -136,12 +169,28 @@ impl Service {
         }
     }
 
-    /// Moves the EEPROM reads a `ListSlots`, `ReadProgram` or `Run` of a slot wait for on
-    /// by at most [`STEP_BYTES`] (one transfer), and only while the storage queue is idle:
-    /// the board calls it between scans when the I2C bus is free. Returns whether the bus
-    /// was used.
+    /// Moves the chunk of a program write being staged, or else the EEPROM reads a
+    /// `ListSlots`, `ReadProgram` or `Run` of a slot wait for, on by at most
+    /// [`STEP_BYTES`] (one transfer), and only while the storage queue is idle: the board
+    /// calls it between scans when the I2C bus is free. Returns whether the bus was used.
     pub fn eeprom_step<E: Eeprom>(&mut self, app: &mut PlcApp<E>) -> bool {
-        if self.reads.idle() || app.storage().busy() {
+        if !app.storage().idle() {
+            return false;
+        }
+        // A chunk being staged goes first; one whose request was given up (the client
+        // moved on) must not hold up the reads and the counters.
+        if self.write.writing() && self.write.step(app, self.port.working()) {
+            return true;
+        }
+        match self.counters.eeprom_step(app.storage()) {
+            TallyStep::Idle => {}
+            TallyStep::UsedBus => return true,
+            TallyStep::Reset => {
+                app.notify_text("COUNTERS RESET");
+                return true;
+            }
+        }
+        if self.reads.idle() {
             return false;
         }
         // A read error is kept in `reads` and answered `Refused(Storage)`.
@@ -161,8 +210,45 @@ impl Service {
         !self.reads.idle()
     }
 
+    /// The counters (tests read them).
+    pub fn counters(&self) -> &Tally {
+        &self.counters
+    }
+
     /// The request being worked on, if any (diagnostics).
     pub fn working(&self) -> Option<&Request> {
         self.port.working()
+    }
+}
+
+/// What a tick showed the counters (service.md 7).
+fn observation<E: Eeprom>(app: &PlcApp<E>, tick: &Tick) -> Observation {
+    let stats = app.link().stats();
+    let to = tick.run_change.map(|(_, to)| to);
+    Observation {
+        run_started: to == Some(RunState::Running),
+        stopped: to == Some(RunState::Stopped),
+        running: app.run_state() == RunState::Running,
+        pwm_on: app.link().is_up()
+            && app
+                .link()
+                .last_status()
+                .is_some_and(|(d, _)| d.state == DriveState::Run && d.freq_dhz != 0),
+        link_errors_total: stats.frames_bad.wrapping_add(stats.link_losses),
+        saved: matches!(
+            tick.storage,
+            Some(JobDone::Saved { result: Ok(_), .. })
+                | Some(JobDone::Written {
+                    result: Ok(WriteResult::Saved { .. }),
+                    ..
+                })
+        ),
+        fault: match tick.storage {
+            Some(JobDone::FaultLogged { entry, .. }) => Some(entry.code),
+            _ => None,
+        },
+        q: tick
+            .scanned
+            .then(|| core::array::from_fn(|i| app.q(APP_FIRST_Q + i as u8))),
     }
 }

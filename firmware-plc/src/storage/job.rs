@@ -18,12 +18,14 @@
 //! unchanged, only spread over passes.
 
 use shared_protocol::program::Program;
+use shared_protocol::service::WriteResult;
 
 use super::boot::{self, BootRecord, RECORD_BYTES};
 use super::eeprom::{PAGE_BYTES, PAGE_WRITE_MS};
 use super::fault_log::{self, FaultEntry, NewestFinder, LOG_PAGES};
 use super::layout::BOOT_ADDR;
-use super::slot::{CopyError, CopyHeader, CopyReader, CopyWriter};
+use super::slot::{CopyError, CopyHeader, CopyReader, CopyWriter, WriterStep};
+use super::staged::{Checked, StagedCheck};
 use super::{LoadReport, OtherCopy, SlotCopy, StorageError};
 
 /// How long a write cycle may take before the job fails: twice the datasheet's worst case.
@@ -55,6 +57,15 @@ pub enum Job {
     ClearFaultLog,
     /// Write the boot record.
     Boot(BootChange),
+    /// Seal a program staged over the service port in `copy` of `slot` (see
+    /// [`super::staged`]): `len` payload bytes whose CRC-32C must be `crc`. Checked,
+    /// verified, then saved power-fail safe like [`Job::Save`], the staged copy first.
+    Commit {
+        slot: u8,
+        copy: SlotCopy,
+        len: u16,
+        crc: u32,
+    },
 }
 
 impl Job {
@@ -103,6 +114,11 @@ pub enum JobDone {
         change: BootChange,
         result: Result<(), StorageError>,
     },
+    /// A [`Job::Commit`]: `Saved` with the new generation, or why nothing was written.
+    Written {
+        slot: u8,
+        result: Result<WriteResult, StorageError>,
+    },
 }
 
 impl JobDone {
@@ -126,6 +142,10 @@ impl JobDone {
                 change,
                 result: Err(e),
             },
+            Job::Commit { slot, .. } => JobDone::Written {
+                slot,
+                result: Err(e),
+            },
         }
     }
 
@@ -134,6 +154,7 @@ impl JobDone {
         match *self {
             JobDone::Saved { result, .. } => result.err(),
             JobDone::Loaded { result, .. } => result.err(),
+            JobDone::Written { result, .. } => result.err(),
             JobDone::FaultLogged { result, .. }
             | JobDone::FaultLogCleared { result }
             | JobDone::BootWritten { result, .. } => result.err(),
@@ -203,6 +224,10 @@ pub(crate) enum Phase {
         generation: u32,
         r: CopyReader,
     },
+    /// Commit: reading the staged payload back (two passes).
+    StagedRead { generation: u32, check: StagedCheck },
+    /// Commit: the staged payload checks; write its header.
+    StagedHeader(CopyHeader),
     /// Load: reading the chosen copy into the program.
     LoadRead { report: LoadReport, r: CopyReader },
     /// Boot record: reading copy `next` (0, 1) of it.
@@ -248,7 +273,7 @@ fn eeprom_err(e: CopyError) -> Result<Result<CopyHeader, CopyError>, StorageErro
 /// The first phase of `job`.
 pub(crate) fn start(job: Job) -> Result<Phase, StorageError> {
     Ok(match job {
-        Job::Save { slot } | Job::Load { slot } => {
+        Job::Save { slot } | Job::Load { slot } | Job::Commit { slot, .. } => {
             Phase::CheckA(CopyReader::check(copy_addr(slot, SlotCopy::A)?, slot))
         }
         Job::LogFault(_) => Phase::RingScan {
@@ -314,6 +339,12 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
                 let next = match job {
                     Job::Save { slot } => save_plan(slot, a, b, prog.get()).map_err(r)?,
                     Job::Load { slot } => load_plan(slot, a, b).map_err(r)?,
+                    Job::Commit {
+                        slot, copy, len, ..
+                    } => Phase::StagedRead {
+                        generation: newest_generation(&a, &b).wrapping_add(1),
+                        check: StagedCheck::new(copy_addr(slot, copy).map_err(r)?, len),
+                    },
                     _ => return Err(r(StorageError::Busy)),
                 };
                 Ok((Went::Later(next), Access::Read))
@@ -325,11 +356,21 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
             w: mut wr,
         } => {
             let slot = job_slot(job);
-            let done = wr.step(e, prog.get()).map_err(|err| match err {
+            let went = wr.step(e, prog.get()).map_err(|err| match err {
                 CopyError::Eeprom(x) => w(StorageError::Eeprom(x)),
                 _ => w(StorageError::TooBig),
             })?;
-            let next = if done {
+            if went == WriterStep::Read {
+                return Ok((
+                    Went::Later(Phase::SaveWrite {
+                        copy,
+                        second,
+                        w: wr,
+                    }),
+                    Access::Read,
+                ));
+            }
+            let next = if went == WriterStep::Done {
                 let addr = copy_addr(slot, copy).map_err(w)?;
                 Phase::SaveVerify {
                     copy,
@@ -365,18 +406,30 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
                 )),
                 Ok(Some(h)) if h.generation == generation => {
                     if second {
-                        return Ok((
-                            Went::Over(JobDone::Saved {
+                        let done = match job {
+                            Job::Commit { .. } => JobDone::Written {
+                                slot,
+                                result: Ok(WriteResult::Saved { generation }),
+                            },
+                            _ => JobDone::Saved {
                                 slot,
                                 result: Ok(generation),
-                            }),
-                            Access::Read,
-                        ));
+                            },
+                        };
+                        return Ok((Went::Over(done), Access::Read));
                     }
                     let other = copy.other();
                     let addr = copy_addr(slot, other).map_err(r)?;
-                    let wr = CopyWriter::new(addr, slot, generation, prog.get())
-                        .map_err(|_| r(StorageError::TooBig))?;
+                    // The second copy: from the program in RAM (a keypad save), or as a
+                    // duplicate of the copy just checked (a program written over the
+                    // service port is in no RAM).
+                    let wr = match job {
+                        Job::Commit { .. } => {
+                            CopyWriter::copy_of(copy_addr(slot, copy).map_err(r)?, addr, h)
+                        }
+                        _ => CopyWriter::new(addr, slot, generation, prog.get())
+                            .map_err(|_| r(StorageError::TooBig))?,
+                    };
                     Ok((
                         Went::Later(Phase::SaveWrite {
                             copy: other,
@@ -389,6 +442,47 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
                 Err(CopyError::Eeprom(x)) => Err(r(StorageError::Eeprom(x))),
                 _ => Err(r(StorageError::VerifyFailed)),
             }
+        }
+        Phase::StagedRead {
+            generation,
+            mut check,
+        } => {
+            let Job::Commit { slot, len, crc, .. } = job else {
+                return Err(r(StorageError::Busy));
+            };
+            let access = if len > 0 { Access::Read } else { Access::None };
+            match check
+                .step(e, slot, generation, crc)
+                .map_err(|x| r(x.into()))?
+            {
+                Checked::More => Ok((Went::Later(Phase::StagedRead { generation, check }), access)),
+                Checked::Refused(why) => Ok((
+                    Went::Over(JobDone::Written {
+                        slot,
+                        result: Ok(why),
+                    }),
+                    access,
+                )),
+                Checked::Header(h) => Ok((Went::Later(Phase::StagedHeader(h)), access)),
+            }
+        }
+        Phase::StagedHeader(h) => {
+            let Job::Commit { slot, copy, .. } = job else {
+                return Err(w(StorageError::Busy));
+            };
+            let addr = copy_addr(slot, copy).map_err(w)?;
+            // From here on this copy is the slot's newest: the old program is replaced.
+            e.start_write(addr, &h.to_bytes())
+                .map_err(|x| w(x.into()))?;
+            Ok((
+                Went::Later(Phase::SaveVerify {
+                    copy,
+                    second: false,
+                    generation: h.generation,
+                    r: CopyReader::check(addr, slot),
+                }),
+                Access::Write,
+            ))
         }
         Phase::LoadRead { report, r: mut rd } => {
             let Some(p) = prog.get_mut() else {
@@ -501,7 +595,7 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
 
 fn job_slot(job: Job) -> u8 {
     match job {
-        Job::Save { slot } | Job::Load { slot } => slot,
+        Job::Save { slot } | Job::Load { slot } | Job::Commit { slot, .. } => slot,
         _ => 0,
     }
 }
@@ -520,12 +614,7 @@ fn save_plan(
         (Ok(ha), Ok(hb)) if hb.generation < ha.generation => SlotCopy::B,
         _ => SlotCopy::A,
     };
-    let newest = [&a, &b]
-        .iter()
-        .filter_map(|r| r.as_ref().ok().map(|h| h.generation))
-        .max()
-        .unwrap_or(0);
-    let generation = newest.wrapping_add(1);
+    let generation = newest_generation(&a, &b).wrapping_add(1);
     let w = CopyWriter::new(copy_addr(slot, first)?, slot, generation, program)
         .map_err(|_| StorageError::TooBig)?;
     Ok(Phase::SaveWrite {
@@ -533,6 +622,15 @@ fn save_plan(
         second: false,
         w,
     })
+}
+
+/// The newest valid generation of a slot (0: none): a save gives the next one.
+fn newest_generation(a: &Result<CopyHeader, CopyError>, b: &Result<CopyHeader, CopyError>) -> u32 {
+    [a, b]
+        .iter()
+        .filter_map(|r| r.as_ref().ok().map(|h| h.generation))
+        .max()
+        .unwrap_or(0)
 }
 
 /// After both checks of a load: which copy to read, or why none.

@@ -29,6 +29,9 @@ pub const COPY_HEADER_BYTES: usize = 16;
 /// Largest payload a copy can hold.
 pub const PAYLOAD_MAX: usize = COPY_BYTES - COPY_HEADER_BYTES;
 
+/// Counters record copies: pages 510 and 511 (after slot 4's copy B).
+pub const COUNTERS_ADDR: [u16; 2] = [510 * PAGE_BYTES as u16, 511 * PAGE_BYTES as u16];
+
 /// First byte address of `copy` (0 = A, 1 = B) of `slot` (1..=SLOTS).
 pub fn copy_addr(slot: u8, copy: u8) -> Option<u16> {
     if !(1..=SLOTS).contains(&slot) || copy >= COPIES {
@@ -52,6 +55,8 @@ mod tests {
         assert!(log_end <= first);
         let last = usize::from(copy_addr(SLOTS, 1).unwrap()) + COPY_BYTES;
         assert!(last <= EEPROM_BYTES, "{last}");
+        assert!(last <= usize::from(COUNTERS_ADDR[0]), "{last}");
+        assert_eq!(usize::from(COUNTERS_ADDR[1]) + PAGE_BYTES, EEPROM_BYTES);
         assert_eq!(copy_addr(0, 0), None);
         assert_eq!(copy_addr(5, 0), None);
         assert_eq!(copy_addr(1, 2), None);

@@ -17,6 +17,7 @@
 //! tests and hil-sim; `image` (feature `sim`) builds EEPROM images with it.
 
 pub mod boot;
+pub mod counters;
 pub mod eeprom;
 pub mod fault_log;
 #[cfg(any(test, feature = "sim"))]
@@ -26,6 +27,7 @@ pub mod layout;
 #[cfg(any(test, feature = "sim"))]
 pub mod mem_eeprom;
 pub mod slot;
+pub mod staged;
 
 pub use boot::BootRecord;
 pub use eeprom::{Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES};
@@ -211,6 +213,27 @@ impl<E: Eeprom> Storage<E> {
         self.active.is_some() || !self.queue.is_empty()
     }
 
+    /// Whether the EEPROM is free for an access outside the queue: no job, and no write
+    /// cycle that may still be running (the chip does not answer during one).
+    pub fn idle(&self) -> bool {
+        !self.busy() && self.writing_since.is_none()
+    }
+
+    /// Writes `bytes` (within one page) at `addr` outside the job queue: the service
+    /// port's staging of a program write into a slot's spare copy
+    /// ([`staged`]), which only the [`Job::Commit`] after it makes count. Only while
+    /// nothing else uses the EEPROM ([`Storage::idle`], else `Busy`); the write cycle is
+    /// waited for like a job's, by the next [`Storage::step`].
+    pub fn write_outside_queue(&mut self, addr: u16, bytes: &[u8]) -> Result<(), StorageError> {
+        if !self.idle() {
+            return Err(StorageError::Busy);
+        }
+        // Even a failed write may have started a cycle.
+        self.writing_since = Some(None);
+        self.eeprom.start_write(addr, bytes)?;
+        Ok(())
+    }
+
     /// The job in progress.
     pub fn active_job(&self) -> Option<Job> {
         self.active.as_ref().map(|(j, _)| *j)
@@ -237,6 +260,21 @@ impl<E: Eeprom> Storage<E> {
     }
 
     fn step_with(&mut self, now: Micros, prog: &mut Prog<'_>) -> Step {
+        if self.active.is_none() && self.queue.is_empty() && self.writing_since.is_some() {
+            // Only a write outside the queue to wait for.
+            let since = self.writing_since.flatten().unwrap_or(now);
+            self.writing_since = match self.eeprom.ready() {
+                Ok(false) if now.0.saturating_sub(since.0) <= WRITE_CYCLE_LIMIT_US => {
+                    Some(Some(since))
+                }
+                // Ready, or a chip that never comes back: the next job finds out.
+                _ => None,
+            };
+            return Step {
+                used_bus: true,
+                done: None,
+            };
+        }
         let (job, phase) = match self.active.take() {
             Some(a) => a,
             None => {

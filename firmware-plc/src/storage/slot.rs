@@ -37,7 +37,7 @@ pub struct CopyHeader {
 }
 
 impl CopyHeader {
-    fn to_bytes(self) -> [u8; COPY_HEADER_BYTES] {
+    pub(crate) fn to_bytes(self) -> [u8; COPY_HEADER_BYTES] {
         let mut h = [0u8; COPY_HEADER_BYTES];
         let g = self.generation.to_be_bytes();
         let l = self.payload_len.to_be_bytes();
@@ -215,6 +215,8 @@ pub(crate) struct PayloadParser {
     line_pos: usize,
     lines: u16,
     failed: bool,
+    /// The failure was a line that does not decode (else the runs' layout).
+    undecodable: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -236,7 +238,25 @@ impl PayloadParser {
             line_pos: 0,
             lines: 0,
             failed: false,
+            undecodable: false,
         }
+    }
+
+    /// Where and why the bytes stopped being a payload: the line being decoded (or the
+    /// run's first line) and whether its bytes were no instruction (else the runs'
+    /// layout was wrong). `None` while everything decoded.
+    pub(crate) fn failure(&self) -> Option<(u16, bool)> {
+        self.failed.then_some((self.next_line, self.undecodable))
+    }
+
+    /// The line being decoded, or the first line of the run being read.
+    pub(crate) fn at_line(&self) -> u16 {
+        self.next_line
+    }
+
+    /// Used lines decoded so far.
+    pub(crate) fn lines(&self) -> u16 {
+        self.lines
     }
 
     pub(crate) fn feed(&mut self, byte: u8, mut apply: impl FnMut(u16, Instruction)) {
@@ -274,7 +294,11 @@ impl PayloadParser {
                     self.line_pos = 0;
                     match decode_line(&self.line_buf) {
                         Ok(i) => apply(self.next_line, i),
-                        Err(_) => self.failed = true,
+                        Err(_) => {
+                            self.failed = true;
+                            self.undecodable = true;
+                            return;
+                        }
                     }
                     self.lines = self.lines.saturating_add(1);
                     self.next_line = self.next_line.saturating_add(1);
@@ -438,6 +462,11 @@ impl CopyReader {
 /// first and the header page last, so a copy torn by a power cut usually still has its
 /// old header, and in any case fails its CRC. The chip's write cycle after each page is
 /// the caller's to wait for ([`Eeprom::ready`]) before the next step.
+///
+/// The bytes come from the program in RAM (a keypad save) or from the other copy of the
+/// slot, already written and checked (the second copy of a program written over the
+/// service port, which never was in RAM: [`CopyWriter::copy_of`]); the page order is the
+/// same.
 #[derive(Debug, Clone)]
 pub(crate) struct CopyWriter {
     addr: u16,
@@ -445,8 +474,31 @@ pub(crate) struct CopyWriter {
     /// Next page to write: 1, 2, ... up to the last, then 0.
     page: u16,
     pages: u16,
-    /// The payload bytes of the pages after the first, in order.
-    cursor: PayloadCursor,
+    source: Source,
+}
+
+/// Where a [`CopyWriter`] takes its bytes.
+#[derive(Debug, Clone)]
+enum Source {
+    /// The payload bytes of the pages after the first, in order, from the program.
+    Program(PayloadCursor),
+    /// The copy at `from`, page for page; `page` holds the page read in the previous
+    /// step (a step makes one transfer: the read, then the write).
+    Copy {
+        from: u16,
+        page: Option<[u8; PAGE_BYTES]>,
+    },
+}
+
+/// What one [`CopyWriter::step`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum WriterStep {
+    /// Read a page of the source copy (no write cycle to wait for).
+    Read,
+    /// Wrote a page; more follow.
+    Wrote,
+    /// Wrote the header page: the copy is written (once its write cycle ends).
+    Done,
 }
 
 impl CopyWriter {
@@ -472,21 +524,31 @@ impl CopyWriter {
         digest.update(header.to_bytes().get(..12).unwrap_or(&[]));
         for_each_payload_byte(program, |b| digest.update(&[b]));
         header.crc = digest.finalize();
-        let total = COPY_HEADER_BYTES + len;
-        let pages = total.div_ceil(PAGE_BYTES) as u16;
         let mut cursor = PayloadCursor::new();
         for _ in 0..(PAGE_BYTES - COPY_HEADER_BYTES) {
             if cursor.next(program).is_none() {
                 break;
             }
         }
-        Ok(CopyWriter {
+        Ok(Self::with(addr, header, Source::Program(cursor)))
+    }
+
+    /// The copy at `to` made a page-for-page duplicate of the valid copy at `from`, whose
+    /// header is `header` (both copies of a slot are identical after a save).
+    pub(crate) fn copy_of(from: u16, to: u16, header: CopyHeader) -> Self {
+        Self::with(to, header, Source::Copy { from, page: None })
+    }
+
+    fn with(addr: u16, header: CopyHeader, source: Source) -> Self {
+        let total = COPY_HEADER_BYTES + usize::from(header.payload_len);
+        let pages = total.div_ceil(PAGE_BYTES) as u16;
+        CopyWriter {
             addr,
             header,
             page: if pages > 1 { 1 } else { 0 },
             pages,
-            cursor,
-        })
+            source,
+        }
     }
 
     /// The header the copy gets.
@@ -494,39 +556,50 @@ impl CopyWriter {
         self.header
     }
 
-    /// Writes one page. `Ok(true)`: that was the header page, the copy is written (once
-    /// its write cycle ends).
+    /// One transfer: writes one page (or, copying, first reads it).
     pub(crate) fn step<E: Eeprom>(
         &mut self,
         e: &mut E,
         program: &Program,
-    ) -> Result<bool, CopyError> {
+    ) -> Result<WriterStep, CopyError> {
         let mut page = [0xFFu8; PAGE_BYTES];
         let total = COPY_HEADER_BYTES + usize::from(self.header.payload_len);
         let offset = usize::from(self.page) * PAGE_BYTES;
         let used = total.saturating_sub(offset).min(PAGE_BYTES);
-        if self.page == 0 {
-            let mut first = PayloadCursor::new();
-            for (i, d) in page.iter_mut().enumerate().take(used) {
-                *d = match self.header.to_bytes().get(i) {
-                    Some(&b) => b,
-                    None => first.next(program).ok_or(CopyError::Format)?,
-                };
+        match &mut self.source {
+            Source::Program(_) if self.page == 0 => {
+                let mut first = PayloadCursor::new();
+                for (i, d) in page.iter_mut().enumerate().take(used) {
+                    *d = match self.header.to_bytes().get(i) {
+                        Some(&b) => b,
+                        None => first.next(program).ok_or(CopyError::Format)?,
+                    };
+                }
             }
-        } else {
-            for d in page.iter_mut().take(used) {
-                *d = self.cursor.next(program).ok_or(CopyError::Format)?;
+            Source::Program(cursor) => {
+                for d in page.iter_mut().take(used) {
+                    *d = cursor.next(program).ok_or(CopyError::Format)?;
+                }
             }
+            Source::Copy { from, page: held } => match held.take() {
+                None => {
+                    let mut read = [0xFFu8; PAGE_BYTES];
+                    e.read(at(*from, offset)?, read.get_mut(..used).unwrap_or(&mut []))?;
+                    *held = Some(read);
+                    return Ok(WriterStep::Read);
+                }
+                Some(read) => page = read,
+            },
         }
         e.start_write(at(self.addr, offset)?, page.get(..used).unwrap_or(&[]))?;
         if self.page == 0 {
-            return Ok(true);
+            return Ok(WriterStep::Done);
         }
         self.page += 1;
         if self.page >= self.pages {
             self.page = 0;
         }
-        Ok(false)
+        Ok(WriterStep::Wrote)
     }
 }
 
@@ -581,9 +654,9 @@ pub fn write_copy<E: Eeprom>(
 ) -> Result<CopyHeader, CopyError> {
     let mut w = CopyWriter::new(addr, slot, generation, program)?;
     loop {
-        let done = w.step(e, program)?;
+        let step = w.step(e, program)?;
         wait_ready(e)?;
-        if done {
+        if step == WriterStep::Done {
             return Ok(w.header());
         }
     }

@@ -559,20 +559,56 @@ pub fn verify_line(line: u16, i: &Instruction) -> Result<(), VerifyErrorKind> {
 /// are checked against the drive section's settings (the drive's own check,
 /// [`verify_drive`], has no PLC lines and leaves that code out of its image).
 fn first_error<const PLC: bool>(lines: &[Option<Instruction>]) -> Result<(), VerifyError> {
-    let mut depth = 0u8;
+    let mut v = Verifier::<PLC>::new();
+    for (line, slot) in (0u16..).zip(lines) {
+        let Some(i) = slot else { continue };
+        v.line(line, i).map_err(|mut e| {
+            if let VerifyErrorKind::SettingTwice { mnemonic, first } = &mut e.kind {
+                *first = first_line_of(lines, *mnemonic, line);
+            }
+            e
+        })?;
+    }
+    Ok(())
+}
+
+/// The whole-program check fed one used line at a time, in ascending line order: for a
+/// program that is not in a [`Program`] (the PLC's service port checks a program written
+/// into the EEPROM while it streams it back, with no room for a second `Program`).
+/// `verify` and `verify_drive` are this over a program's lines. A `SettingTwice` error
+/// gives the repeated line as `first` (only the whole-program check finds the first
+/// line again).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Verifier<const PLC: bool> {
+    depth: u8,
     // The safety settings the drive section has set (bit = signature position), whether
     // SS1 then needs `fss` (early limit or ramp monitoring on), and whether a leg is in
     // direct mode: the PLC section's `SFR` lines are checked against them (the drive
     // section comes first in line order).
-    let mut present = 0u32;
-    let mut ss1_needs_fss = false;
-    let mut direct = false;
-    for (line, slot) in (0u16..).zip(lines) {
-        let Some(i) = slot else { continue };
+    present: u32,
+    ss1_needs_fss: bool,
+    direct: bool,
+}
+
+/// [`Verifier`] of a whole program (both sections), as [`verify`].
+pub type ProgramVerifier = Verifier<true>;
+
+impl<const PLC: bool> Verifier<PLC> {
+    pub const fn new() -> Self {
+        Verifier {
+            depth: 0,
+            present: 0,
+            ss1_needs_fss: false,
+            direct: false,
+        }
+    }
+
+    /// Checks used line `line` holding `i` (lines must come in ascending order).
+    pub fn line(&mut self, line: u16, i: &Instruction) -> Result<(), VerifyError> {
         let fail = |kind| VerifyError { line, kind };
         verify_line(line, i).map_err(fail)?;
         if line < PLC_FIRST_LINE {
-            depth = drive_stack_step(depth, i.mnemonic).map_err(|loaded| {
+            self.depth = drive_stack_step(self.depth, i.mnemonic).map_err(|loaded| {
                 fail(VerifyErrorKind::StackUnderflow {
                     mnemonic: i.mnemonic,
                     needs: drive_stack_use(i.mnemonic).needs,
@@ -581,34 +617,34 @@ fn first_error<const PLC: bool>(lines: &[Option<Instruction>]) -> Result<(), Ver
             })?;
             if let Some(s) = i.mnemonic.safety_setting() {
                 let bit = 1u32 << s.index();
-                if present & bit != 0 {
+                if self.present & bit != 0 {
                     return Err(fail(VerifyErrorKind::SettingTwice {
                         mnemonic: i.mnemonic,
-                        first: first_line_of(lines, i.mnemonic, line),
+                        first: line,
                     }));
                 }
-                present |= bit;
-                ss1_needs_fss |=
+                self.present |= bit;
+                self.ss1_needs_fss |=
                     matches!(s, SafetySetting::Tel | SafetySetting::Ard) && i.constant > 0;
             }
-            direct |= i.mnemonic == Mnemonic::Wr
+            self.direct |= i.mnemonic == Mnemonic::Wr
                 && matches!(i.operand, Some(Operand::Pw1 | Operand::Pw3 | Operand::Pw5));
         } else if PLC {
             if let (Mnemonic::Sfr, Some(Operand::Sf(function))) = (i.mnemonic, i.operand) {
-                if direct && function != SafetyFunction::Sto {
+                if self.direct && function != SafetyFunction::Sto {
                     return Err(fail(VerifyErrorKind::SafetyNeedsSine { function }));
                 }
                 let missing = function
-                    .needed(ss1_needs_fss)
+                    .needed(self.ss1_needs_fss)
                     .iter()
-                    .find(|s| present & (1 << s.index()) == 0);
+                    .find(|s| self.present & (1 << s.index()) == 0);
                 if let Some(&setting) = missing {
                     return Err(fail(VerifyErrorKind::SafetyNeeds { function, setting }));
                 }
             }
         }
+        Ok(())
     }
-    Ok(())
 }
 
 /// The line that first set `m`, for the error at the second one (`line`): the verifier
@@ -689,6 +725,60 @@ mod tests {
             operand,
             constant,
         }
+    }
+
+    /// The streaming check finds what the whole-program check finds: the shipped
+    /// programs pass both, and each single-line corruption of them fails both at the same
+    /// line with the same kind (a repeated setting's `first` aside).
+    #[test]
+    fn the_streaming_verifier_agrees_with_verify() {
+        let stream = |p: &Program| {
+            let mut v = ProgramVerifier::new();
+            p.lines
+                .iter()
+                .enumerate()
+                .filter_map(|(n, l)| l.map(|i| (n as u16, i)))
+                .try_for_each(|(n, i)| v.line(n, &i))
+        };
+        let texts = [
+            include_str!("../../programs/motor.plc"),
+            include_str!("../../programs/lift.plc"),
+            include_str!("../../programs/safety_lab.plc"),
+            include_str!("../../programs/direct_pwm.plc"),
+        ];
+        let mut failures = 0;
+        for text in texts {
+            let p = crate::program::assemble(text).unwrap();
+            assert_eq!(stream(&p), Ok(()));
+            assert_eq!(verify(&p), Ok(()));
+            let used: Vec<usize> = (0..crate::program::LINES)
+                .filter(|&n| p.lines[n].is_some())
+                .collect();
+            for &n in &used {
+                for m in [Mnemonic::Ld, Mnemonic::Add, Mnemonic::Wr, Mnemonic::Sfr] {
+                    let mut q = p.clone();
+                    let i = q.lines[n].as_mut().unwrap();
+                    i.mnemonic = m;
+                    let (a, b) = (verify(&q), stream(&q));
+                    match (a, b) {
+                        (Ok(()), Ok(())) => {}
+                        (Err(a), Err(b)) => {
+                            failures += 1;
+                            assert_eq!(a.line, b.line);
+                            match (a.kind, b.kind) {
+                                (
+                                    VerifyErrorKind::SettingTwice { mnemonic: x, .. },
+                                    VerifyErrorKind::SettingTwice { mnemonic: y, .. },
+                                ) => assert_eq!(x, y),
+                                (x, y) => assert_eq!(x, y),
+                            }
+                        }
+                        (a, b) => panic!("line {n}: {a:?} vs {b:?}"),
+                    }
+                }
+            }
+        }
+        assert!(failures > 10, "{failures}");
     }
 
     #[test]

@@ -57,8 +57,8 @@ pub enum Request {
         crc: u32,
     },
     /// Guarded: payload bytes at `offset` (a multiple of [`CHUNK_BYTES`]); every chunk but
-    /// the last is [`CHUNK_BYTES`] long. The PLC stages them in the EEPROM, so it refuses
-    /// chunks in RUN too.
+    /// the last is [`CHUNK_BYTES`] long. The PLC stages them in the EEPROM (the slot's
+    /// spare copy), so it refuses chunks in RUN too.
     WriteChunk {
         offset: u16,
         data: Vec<u8, CHUNK_BYTES>,
