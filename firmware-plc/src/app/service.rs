@@ -285,8 +285,7 @@ impl<E: Eeprom> PlcApp<E> {
 
     /// `ReadProgram` of slot 0: the program in RAM in the stored payload form.
     fn ram_chunk(&self, offset: u16) -> Outcome {
-        let digest_crc = shared_protocol::link::frame::CRC;
-        let mut digest = digest_crc.digest();
+        let mut digest = shared_protocol::link::frame::CRC.digest();
         let mut len = 0usize;
         let mut data: Vec<u8, CHUNK_BYTES> = Vec::new();
         let start = usize::from(offset);

@@ -9,16 +9,14 @@
 //! budget it is given: the board calls it once per millisecond after the scan, in place of
 //! an LCD cell update (see [`super::Service::eeprom_step`]).
 
-use crc::{Crc, Digest, CRC_32_ISCSI, CRC_32_ISO_HDLC};
+use crc::Digest;
 use heapless::Vec;
+use shared_protocol::link::frame::CRC as C32;
 use shared_protocol::service::{SlotState, SlotSummary, CHUNK_BYTES};
 
 use crate::storage::eeprom::{Eeprom, EepromError};
 use crate::storage::layout::{copy_addr, COPY_HEADER_BYTES, SLOTS};
-use crate::storage::slot::{CopyError, CopyHeader, PayloadParser};
-
-static ISO: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
-static C32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
+use crate::storage::slot::{CopyError, CopyHeader, PayloadParser, CRC32 as ISO};
 
 /// A slot as the service reports it, and the address of the copy a load would use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

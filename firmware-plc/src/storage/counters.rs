@@ -6,7 +6,7 @@
 //! record in force. This module is the record's bytes only; when it is written is the
 //! tally's business (`service::counters`).
 
-use crc::{Crc, CRC_16_IBM_3740};
+use super::fault_log::CRC16;
 
 use super::eeprom::PAGE_BYTES;
 use super::layout::COUNTERS_ADDR;
@@ -20,8 +20,6 @@ pub const U24_MAX: u32 = 0xFF_FFFF;
 pub const TRIP_CODES: usize = 16;
 /// Application counters (Q60-Q63).
 pub const APP_COUNTERS: usize = 4;
-/// As the fault log's entries.
-const CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_IBM_3740);
 
 /// The counted values (the record without magic, sequence and CRC).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

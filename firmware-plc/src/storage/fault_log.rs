@@ -11,7 +11,8 @@ use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::{FAULT_ENTRY_BYTES, FAULT_LOG_ADDR, FAULT_LOG_ENTRIES};
 use crc::{Crc, CRC_16_IBM_3740};
 
-const CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_IBM_3740);
+/// The entries' CRC (and the counters record's): one table in the image.
+pub(crate) static CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_IBM_3740);
 /// Largest uptime an entry can hold (24 bits of seconds, about 194 days); longer saturates.
 pub const UPTIME_MAX_S: u32 = 0x00FF_FFFF;
 

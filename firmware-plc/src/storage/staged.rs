@@ -15,7 +15,8 @@
 //! No RAM holds the program meanwhile: the PLC has no room for a second 4 KiB payload
 //! beside the program in RAM (`docs/eeprom-image.md`).
 
-use crc::{Crc, Digest, CRC_32_ISCSI};
+use crc::Digest;
+use shared_protocol::link::frame::CRC as C32;
 use shared_protocol::link::message::verify_kind_code;
 use shared_protocol::program::ProgramVerifier;
 use shared_protocol::service::{InvalidReason, WriteResult};
@@ -23,9 +24,6 @@ use shared_protocol::service::{InvalidReason, WriteResult};
 use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::COPY_HEADER_BYTES;
 use super::slot::{CopyHeader, PayloadParser, CRC32};
-
-/// CRC-32C of a payload, as `WriteBegin` and `ReadProgram` carry it.
-static C32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
 
 /// EEPROM address of payload byte `offset` of the copy at `copy_addr`.
 pub fn payload_addr(copy_addr: u16, offset: u16) -> Option<u16> {

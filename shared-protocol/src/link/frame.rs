@@ -13,7 +13,9 @@ use serde::{de::DeserializeOwned, Deserialize, Serialize};
 /// CRC-32C (Castagnoli): Hamming distance 6 up to 5243 data bits, so every frame of this
 /// protocol (< 800 bits) with up to 5 flipped bits is caught, and random garbage passes
 /// with probability 2^-32. CRC-32 (ISO-HDLC) only gives HD 5 at these lengths.
-pub const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
+/// A `static`, not a `const`: one 1 KiB table in an image, whoever uses it (the service
+/// payload's CRC is the same CRC-32C).
+pub static CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
 
 /// Largest frame before COBS: header, message, CRC.
 pub const MAX_RAW_FRAME: usize = 96;
