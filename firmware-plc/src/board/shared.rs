@@ -22,8 +22,8 @@ pub type App = PlcApp<I2cEeprom>;
 /// The shared application, handed to each task that needs it.
 pub type SharedApp = &'static ThreadModeMutex<RefCell<&'static mut App>>;
 
-/// Builds the application in static memory (`.bss`): power-up of the application, which
-/// loads the slot last run from the EEPROM (and starts RUN if it was running).
+/// Builds the application in static memory (`.bss`), then powers it up: it loads the slot
+/// last run from the EEPROM (and starts RUN if it was running).
 ///
 /// The application is about 15 KiB, half the RAM, so it must be built in its static slot,
 /// not on the stack and moved. `build` is kept out of line so that CI's stack step shows
@@ -33,6 +33,11 @@ pub fn install(eeprom: I2cEeprom, link: LinkConfig) -> SharedApp {
     static MEMORY: StaticCell<App> = StaticCell::new();
     static SHARED: StaticCell<ThreadModeMutex<RefCell<&'static mut App>>> = StaticCell::new();
     let app: &'static mut App = build(MEMORY.uninit(), eeprom, link);
+    // Power-up (EEPROM reads, the fault log, the program's load and compile) runs after
+    // `build` has returned, not inside its 7.6 KiB frame: nested there, it overflowed the
+    // stack once the service's state grew the statics (HardFault in `reload_fault_log`).
+    // The real clock times the EEPROM's write cycles (before the watchdog runs).
+    app.power_up_clocked(now(), &mut now);
     SHARED.init(ThreadModeMutex::new(RefCell::new(app)))
 }
 
@@ -42,10 +47,7 @@ fn build(
     eeprom: I2cEeprom,
     link: LinkConfig,
 ) -> &'static mut App {
-    let app = slot.write(PlcApp::new_cold(eeprom, link, lcd::COLS, lcd::ROWS));
-    // The real clock times the EEPROM's write cycles (before the watchdog runs).
-    app.power_up_clocked(now(), &mut now);
-    app
+    slot.write(PlcApp::new_cold(eeprom, link, lcd::COLS, lcd::ROWS))
 }
 
 /// Runs `f` on the application.
