@@ -34,6 +34,15 @@ pub const FLASH_BASE: u32 = 0x0800_0000;
 pub const FLASH_BYTES: usize = 128 * 1024;
 /// SRAM1 + SRAM2 + CCM SRAM, contiguous at 0x2000_0000 on the G431 (32 KiB).
 pub const RAM_BASE: u32 = 0x2000_0000;
+
+/// How deep a flip-link stack has been ([`Soc::stack_high_water`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StackUse {
+    /// The whole stack: from the bottom of RAM to the initial stack pointer.
+    pub size_bytes: u32,
+    /// The deepest it has been.
+    pub used_bytes: u32,
+}
 pub const RAM_BYTES: usize = 32 * 1024;
 /// System memory (bootloader ROM, unique ID, flash size): 28 KiB+ at 0x1FFF_0000, mapped
 /// as a read-only page with the ID values the HAL reads.
@@ -1474,6 +1483,25 @@ impl Soc {
         &self.ram
     }
 
+    /// The stack's high-water mark since power-on, for an image linked with flip-link
+    /// (its initial stack pointer, word 0 of the vector table, is the top of a stack at
+    /// the bottom of RAM, below every static). RAM powers up zeroed here (on silicon it
+    /// holds noise), so the lowest non-zero byte below the initial stack pointer is the
+    /// deepest the stack has been: an image that writes only zeros to its deepest words
+    /// reads a few bytes shallower than it was. `None` when word 0 is not in RAM.
+    pub fn stack_high_water(&self) -> Option<StackUse> {
+        let top = self.mem_word(FLASH_BASE)?;
+        let size = top
+            .checked_sub(RAM_BASE)
+            .filter(|&n| n as usize <= RAM_BYTES)?;
+        let region = self.ram.get(..size as usize)?;
+        let untouched = region.iter().take_while(|&&b| b == 0).count() as u32;
+        Some(StackUse {
+            size_bytes: size,
+            used_bytes: size - untouched,
+        })
+    }
+
     /// Reads a little-endian word of RAM or flash (`None` elsewhere).
     pub fn mem_word(&self, addr: u32) -> Option<u32> {
         let (mem, base): (&[u8], u32) = if addr >= RAM_BASE {
@@ -1665,6 +1693,26 @@ mod tests {
 
     fn soc() -> Soc {
         Soc::new(vec![0xFF; 16], Box::new(BareBoard))
+    }
+
+    #[test]
+    fn stack_high_water_is_the_lowest_written_byte_below_the_initial_sp() {
+        // Vector table word 0: a 0x2800-byte flip-link stack.
+        let mut flash = vec![0xFF; 16];
+        flash[..4].copy_from_slice(&(RAM_BASE + 0x2800).to_le_bytes());
+        let mut s = Soc::new(flash, Box::new(BareBoard));
+        let fresh = s.stack_high_water().unwrap();
+        assert_eq!((fresh.size_bytes, fresh.used_bytes), (0x2800, 0));
+        // A push 0x40 bytes below the top, then a deeper one; a static above the top
+        // does not count.
+        s.ram[0x2800 - 0x40] = 1;
+        s.ram[0x2900] = 7;
+        assert_eq!(s.stack_high_water().unwrap().used_bytes, 0x40);
+        s.ram[0x1000] = 0xAA;
+        s.ram[0x2800 - 0x40] = 0;
+        assert_eq!(s.stack_high_water().unwrap().used_bytes, 0x1800);
+        // Word 0 outside RAM (no flip-link stack): no figure.
+        assert_eq!(soc().stack_high_water(), None);
     }
 
     /// A board with 0.1 V on the ESC1's PGA inputs and 1.0 V on PB1.

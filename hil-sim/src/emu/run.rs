@@ -32,6 +32,9 @@ pub struct EmuReport {
     /// Longest gap between two IWDG feeds, µs, per image (drive, PLC); `None` if the
     /// watchdog was never fed.
     pub longest_feed_gap_us: [Option<u64>; 2],
+    /// How deep each image's stack has been (drive, PLC): flip-link puts it below the
+    /// statics, so an overflow is a HardFault, and this says how close the run came.
+    pub stack: [Option<g431_emu::soc::StackUse>; 2],
     pub final_speed_rpm: f64,
     pub final_f_hz: f64,
 }
@@ -69,6 +72,16 @@ impl EmuReport {
                     us as f64 / 1000.0
                 )),
                 None => s.push_str(&format!("{name} watchdog: never fed\n")),
+            }
+        }
+        for (k, name) in ["drive", "PLC"].iter().enumerate() {
+            if let Some(st) = self.stack[k] {
+                s.push_str(&format!(
+                    "{name} stack: deepest {} of {} B ({} B never used)\n",
+                    st.used_bytes,
+                    st.size_bytes,
+                    st.size_bytes - st.used_bytes
+                ));
             }
         }
         let images: Vec<String> = self
@@ -186,6 +199,10 @@ pub fn run(
         cpu_events: sim.cpu_events(),
         diagnostics,
         longest_feed_gap_us: [gap(sim.drive()), gap(sim.plc())],
+        stack: [
+            sim.drive().soc().stack_high_water(),
+            sim.plc().soc().stack_high_water(),
+        ],
         final_speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
         final_f_hz: sim.status().map_or(0.0, |s| f64::from(s.freq_dhz) / 10.0),
     })

@@ -32,3 +32,26 @@ pub fn emu(program: &str, scenario: &str) -> EmuSim {
 pub fn ns(s: f64) -> u64 {
     (s * 1e9).round() as u64
 }
+
+/// Stack bytes each image must never have used (flip-link: an overflow is a HardFault at
+/// once; this catches a run that came close, before a new frame or a bigger static makes
+/// it a boot loop). The deepest paths: the PLC's power-up under its builder's frame, a
+/// storage job and a service answer in RUN.
+pub const STACK_HEADROOM_BYTES: u32 = 1024;
+
+/// Both images kept [`STACK_HEADROOM_BYTES`] of their stacks unused so far.
+pub fn assert_stack_headroom(sim: &EmuSim) {
+    for m in [sim.drive(), sim.plc()] {
+        let st = m
+            .soc()
+            .stack_high_water()
+            .expect("a flip-link image: the initial stack pointer is in RAM");
+        assert!(
+            st.size_bytes - st.used_bytes >= STACK_HEADROOM_BYTES,
+            "{}: stack used {} of {} B, less than {STACK_HEADROOM_BYTES} B left",
+            m.name,
+            st.used_bytes,
+            st.size_bytes
+        );
+    }
+}

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use hil_sim::emu::images::target_dir;
 use hil_sim::service::pty::Pty;
 
-use crate::common::{emu, ns, MOTOR_PLC, MOTOR_TOML};
+use crate::common::{assert_stack_headroom, emu, ns, MOTOR_PLC, MOTOR_TOML};
 
 /// The release plcctl of this workspace, built if needed.
 fn plcctl() -> &'static PathBuf {
@@ -94,4 +94,5 @@ fn plcctl_status_answers_through_the_emulated_lpuart1() {
     assert!(out.contains("link up"), "{out}");
     assert!(out.contains("slot 1"), "{out}");
     assert!(out.contains("drive RUN"), "{out}");
+    assert_stack_headroom(&sim);
 }

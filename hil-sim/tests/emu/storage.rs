@@ -2,7 +2,7 @@
 
 use g431_emu::cpu::CpuEvent;
 
-use crate::common::{emu, ns};
+use crate::common::{assert_stack_headroom, emu, ns};
 
 /// A 600-line program (lines 150-749), half a slot.
 fn big_program() -> String {
@@ -149,4 +149,5 @@ fn a_large_save_in_run_keeps_the_link_and_the_motor_running() {
     let gap_ms = g431_emu::time::cycles_to_ns(sim.plc().soc().iwdg().longest_gap) as f64 * 1e-6;
     eprintln!("save in RUN: longest PLC watchdog feed gap {gap_ms:.1} ms; log {log:#?}");
     assert!(gap_ms < 50.0, "watchdog feed gap {gap_ms} ms");
+    assert_stack_headroom(&sim);
 }
