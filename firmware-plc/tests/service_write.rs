@@ -197,11 +197,7 @@ fn every_refusal_of_a_write() {
     assert_eq!(events(&rig, EVENT_PROGRAM_WRITTEN), 0);
 
     // In RUN: begin, chunk and commit refused.
-    let req = Request::WriteBegin {
-        slot: 2,
-        len: small.len() as u16,
-        crc: CRC32C.checksum(&small),
-    };
+    let req = write_begin(2, &small);
     assert_eq!(rig.ask_long(req.clone()), Answer::Done);
     rig.keys(&[Key::A]);
     assert_ne!(rig.plc.run_state(), RunState::Stopped);
@@ -218,11 +214,7 @@ fn every_refusal_of_a_write() {
 fn a_repeated_commit_is_executed_once() {
     let mut rig = rig_with_small_in_slot_1();
     let bytes = payload(&assemble(MOTOR).unwrap());
-    let begin = Request::WriteBegin {
-        slot: 2,
-        len: bytes.len() as u16,
-        crc: CRC32C.checksum(&bytes),
-    };
+    let begin = write_begin(2, &bytes);
     assert_eq!(rig.ask_long(begin), Answer::Done);
     for (k, c) in bytes.chunks(CHUNK_BYTES).enumerate() {
         let req = Request::WriteChunk {
@@ -300,11 +292,7 @@ fn a_cut_cable_a_new_begin_run_or_a_keypad_save_leave_the_old_program() {
     let chunks: Vec<&[u8]> = bytes.chunks(CHUNK_BYTES).collect();
     for sent in 0..=chunks.len() {
         let mut rig = rig_with_small_in_slot_1();
-        let begin = Request::WriteBegin {
-            slot: 1,
-            len: bytes.len() as u16,
-            crc: CRC32C.checksum(&bytes),
-        };
+        let begin = write_begin(1, &bytes);
         assert_eq!(rig.ask_long(begin), Answer::Done);
         for (k, c) in chunks.iter().take(sent).enumerate() {
             let req = Request::WriteChunk {
@@ -331,11 +319,7 @@ fn a_cut_cable_a_new_begin_run_or_a_keypad_save_leave_the_old_program() {
 
     // RUN on the keypad in the middle: the rest is refused, the old program stays.
     let mut rig = rig_with_small_in_slot_1();
-    let begin = Request::WriteBegin {
-        slot: 1,
-        len: bytes.len() as u16,
-        crc: CRC32C.checksum(&bytes),
-    };
+    let begin = write_begin(1, &bytes);
     assert_eq!(rig.ask_long(begin.clone()), Answer::Done);
     let first = Request::WriteChunk {
         offset: 0,
@@ -373,11 +357,7 @@ fn a_cut_cable_a_new_begin_run_or_a_keypad_save_leave_the_old_program() {
 fn a_chunk_given_up_half_written_does_not_block_the_reads() {
     let bytes = payload(&assemble(MOTOR).unwrap());
     let mut rig = rig_with_small_in_slot_1();
-    let begin = Request::WriteBegin {
-        slot: 1,
-        len: bytes.len() as u16,
-        crc: CRC32C.checksum(&bytes),
-    };
+    let begin = write_begin(1, &bytes);
     assert_eq!(rig.ask_long(begin), Answer::Done);
     rig.id += 1;
     let id = rig.id;

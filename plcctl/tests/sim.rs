@@ -94,6 +94,25 @@ impl Sim {
             .unwrap()
     }
 
+    /// `plcctl status --json`, which must succeed.
+    fn status(&self) -> serde_json::Value {
+        let o = self.plcctl(&["status", "--json"]);
+        assert_eq!(code(&o), 0);
+        serde_json::from_str(&text(&o)).unwrap()
+    }
+
+    /// Polls `status --json` every 20 ms until `holds` (about 1 s at most, else fails
+    /// naming `what`).
+    fn wait_status(&self, what: &str, holds: impl Fn(&serde_json::Value) -> bool) {
+        for _ in 0..50 {
+            if holds(&self.status()) {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        panic!("{what} never happened");
+    }
+
     fn plcctl(&self, args: &[&str]) -> Output {
         Command::new(PLCCTL)
             .env("XDG_CACHE_HOME", temp("cache"))
@@ -444,22 +463,9 @@ fn run_ack_and_clear_faults_work_with_remote_service_on() {
         "0",
     );
     let hold = sim.hold();
-    let status = |sim: &Sim| -> serde_json::Value {
-        let o = sim.plcctl(&["status", "--json"]);
-        assert_eq!(code(&o), 0);
-        serde_json::from_str(&text(&o)).unwrap()
-    };
-    let mut on = false;
-    for _ in 0..50 {
-        if status(&sim)["status"]["remote"] == true {
-            on = true;
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    assert!(on, "remote service never came on");
+    sim.wait_status("remote service on", |s| s["status"]["remote"] == true);
     assert_eq!(code(&sim.plcctl(&["stop"])), 0);
-    assert_eq!(status(&sim)["status"]["plc"], "Stop");
+    assert_eq!(sim.status()["status"]["plc"], "Stop");
     // In STOP the log may be cleared; in RUN it may not (exit 5, in RUN).
     assert_eq!(code(&sim.plcctl(&["clear-faults"])), 0);
     let o = sim.plcctl(&["faults", "--json"]);
@@ -467,15 +473,7 @@ fn run_ack_and_clear_faults_work_with_remote_service_on() {
     assert_eq!(rows.len(), 1, "{rows:?}");
     assert_eq!(rows[0]["name"], "LOGCLR");
     assert_eq!(code(&sim.plcctl(&["run", "--slot", "1"])), 0);
-    let mut running = false;
-    for _ in 0..50 {
-        if status(&sim)["status"]["plc"] == "Run" {
-            running = true;
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    assert!(running, "RUN never started");
+    sim.wait_status("RUN", |s| s["status"]["plc"] == "Run");
     assert_eq!(code(&sim.plcctl(&["ack"])), 0);
     let o = sim.plcctl(&["clear-faults"]);
     assert_eq!(code(&o), 5);
@@ -503,22 +501,9 @@ fn push_writes_reads_back_and_pull_round_trips() {
         "0",
     );
     let hold = sim.hold();
-    let status = |sim: &Sim| -> serde_json::Value {
-        let o = sim.plcctl(&["status", "--json"]);
-        assert_eq!(code(&o), 0);
-        serde_json::from_str(&text(&o)).unwrap()
-    };
-    let mut on = false;
-    for _ in 0..50 {
-        if status(&sim)["status"]["remote"] == true {
-            on = true;
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    assert!(on, "remote service never came on");
+    sim.wait_status("remote service on", |s| s["status"]["remote"] == true);
     // In RUN: exit 5.
-    assert_ne!(status(&sim)["status"]["plc"], "Stop");
+    assert_ne!(sim.status()["status"]["plc"], "Stop");
     let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2", "--yes"]);
     assert_eq!(code(&o), 5, "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("RUN"));

@@ -127,6 +127,15 @@ impl Rig {
     }
 }
 
+/// The `WriteBegin` that announces `bytes` for `slot`.
+pub fn write_begin(slot: u8, bytes: &[u8]) -> Request {
+    Request::WriteBegin {
+        slot,
+        len: bytes.len() as u16,
+        crc: CRC32C.checksum(bytes),
+    }
+}
+
 pub fn payload(p: &Program) -> Vec<u8> {
     let mut v = Vec::new();
     for_each_payload_byte(p, |b| v.push(b));
@@ -176,12 +185,7 @@ impl Rig {
     /// Writes `bytes` into `slot` as `plcctl push` does: the commit's answer, or the
     /// first refusal on the way.
     pub fn push(&mut self, slot: u8, bytes: &[u8]) -> Answer {
-        let begin = Request::WriteBegin {
-            slot,
-            len: bytes.len() as u16,
-            crc: CRC32C.checksum(bytes),
-        };
-        match self.ask_long(begin) {
+        match self.ask_long(write_begin(slot, bytes)) {
             Answer::Done => {}
             other => return other,
         }
