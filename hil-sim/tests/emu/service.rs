@@ -7,11 +7,12 @@
 
 use std::io::Read;
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
+use std::process::{Command, ExitStatus, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
 use hil_sim::emu::images::target_dir;
+use hil_sim::emu::sim::EmuSim;
 use hil_sim::service::pty::Pty;
 
 use crate::common::{assert_stack_headroom, emu, ns, MOTOR_PLC, MOTOR_TOML};
@@ -34,32 +35,35 @@ fn plcctl() -> &'static PathBuf {
     })
 }
 
-#[test]
-fn plcctl_status_answers_through_the_emulated_lpuart1() {
-    let mut sim = emu(MOTOR_PLC, MOTOR_TOML);
-    // Power-up, the program's download to the drive, RUN.
-    sim.run_until(ns(1.0), |_| {});
+/// Runs the plcctl binary with `args` against the emulated LPUART1 through a real pty,
+/// moving the pty's bytes to and from the image while virtual time never runs ahead of
+/// the wall clock (plcctl's retries are wall-clock times). Returns its exit status,
+/// stdout and stderr.
+fn plcctl_on_the_image(sim: &mut EmuSim, args: &[&str]) -> (ExitStatus, String, String) {
     let mut pty = Pty::open().expect("a pty");
     let mut child = Command::new(plcctl())
         .env(
             "XDG_CACHE_HOME",
             std::env::temp_dir().join("emu-plcctl-cache"),
         )
-        .args(["--port", pty.path().to_str().unwrap(), "status"])
+        .args(["--port", pty.path().to_str().unwrap()])
+        .args(args)
+        .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("plcctl starts");
-    // The pty's bytes to and from the emulated LPUART1, virtual time never ahead of the
-    // wall clock (plcctl's retries are wall-clock times).
     let wall0 = Instant::now();
     let virt0 = sim.now_ns();
-    let deadline = wall0 + Duration::from_secs(60);
+    let deadline = wall0 + Duration::from_secs(120);
     let status = loop {
         if let Some(s) = child.try_wait().unwrap() {
             break s;
         }
-        assert!(Instant::now() < deadline, "plcctl did not finish in 60 s");
+        assert!(
+            Instant::now() < deadline,
+            "plcctl {args:?} did not finish in 120 s"
+        );
         let bytes = pty.read_available();
         sim.service_write(&bytes);
         let end = sim.now_ns() + 500_000;
@@ -82,6 +86,15 @@ fn plcctl_status_answers_through_the_emulated_lpuart1() {
         .unwrap()
         .read_to_string(&mut err)
         .unwrap();
+    (status, out, err)
+}
+
+#[test]
+fn plcctl_status_answers_through_the_emulated_lpuart1() {
+    let mut sim = emu(MOTOR_PLC, MOTOR_TOML);
+    // Power-up, the program's download to the drive, RUN.
+    sim.run_until(ns(1.0), |_| {});
+    let (status, out, err) = plcctl_on_the_image(&mut sim, &["status"]);
     assert!(status.success(), "plcctl status: {status}\n{out}\n{err}");
     assert_eq!(sim.service_lost(), 0, "no host byte lost");
     // The image's own version and identity, the program's slot, RUN with the link up.
@@ -94,5 +107,46 @@ fn plcctl_status_answers_through_the_emulated_lpuart1() {
     assert!(out.contains("link up"), "{out}");
     assert!(out.contains("slot 1"), "{out}");
     assert!(out.contains("drive RUN"), "{out}");
+    assert_stack_headroom(&sim);
+}
+
+/// The real image takes a program over the service port into its EEPROM (the staged
+/// chunks, the commit's page writes through I2C1 between scans) and gives it back byte for
+/// byte: `plcctl stop`, `push lift.plc --slot 2`, `pull 2`, with remote service typed on
+/// the keypad.
+#[test]
+fn plcctl_push_then_pull_round_trips_on_the_image() {
+    const LIFT_PLC: &str = include_str!("../../../shared-protocol/programs/lift.plc");
+    let lift =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared-protocol/programs/lift.plc");
+    // motor.plc in slot 1 and RUN; `*` `7` (remote service) typed at 0.3 s.
+    let scenario = "duration_s = 600.0\n[[event]]\nat_s = 0.3\nkeys = \"*7\"\n";
+    let mut sim = emu(MOTOR_PLC, scenario);
+    sim.run_until(ns(1.0), |_| {});
+    let (st, out, err) = plcctl_on_the_image(&mut sim, &["stop"]);
+    assert!(st.success(), "plcctl stop: {st}\n{out}\n{err}");
+    let (st, out, err) = plcctl_on_the_image(
+        &mut sim,
+        &["push", lift.to_str().unwrap(), "--slot", "2", "--yes"],
+    );
+    assert!(st.success(), "plcctl push: {st}\n{out}\n{err}");
+    let (st, pulled, err) = plcctl_on_the_image(&mut sim, &["pull", "2"]);
+    assert!(st.success(), "plcctl pull: {st}\n{err}");
+    let p = hil_sim::run::parse_program(LIFT_PLC, "lift.plc").expect("lift.plc assembles");
+    let mut disasm = String::new();
+    shared_protocol::program::disassemble(&p, &mut disasm).unwrap();
+    assert_eq!(pulled, disasm, "pull 2 = disasm of lift.plc");
+    // The write is in the image's fault log as event 241, and nothing reset or tripped.
+    let (st, faults, err) = plcctl_on_the_image(&mut sim, &["faults", "--json"]);
+    assert!(st.success(), "plcctl faults: {st}\n{err}");
+    assert!(faults.contains("PGMSVC"), "{faults}");
+    assert!(
+        sim.plc()
+            .events()
+            .iter()
+            .all(|e| matches!(e, g431_emu::cpu::CpuEvent::Reset { at: 0, .. })),
+        "{:?}",
+        sim.plc().events()
+    );
     assert_stack_headroom(&sim);
 }
