@@ -376,7 +376,7 @@ mod tests {
     fn the_motor_profile_is_a_table() {
         let p = Profile::parse(MOTOR, "motor.profile.toml").unwrap();
         assert_eq!(p.kind, "table");
-        assert_eq!(p.subscribed_q(), [0, 1, 2]);
+        assert_eq!(p.subscribed_q(), [0, 2]);
         assert_eq!(p.vars["speed pot"], Operand::A(1));
     }
 

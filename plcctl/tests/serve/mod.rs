@@ -232,7 +232,7 @@ fn serve_api_stream_actions_and_token_against_the_simulator() {
         .map(|c| c.as_str().unwrap())
         .collect();
     assert_eq!(&cols[..5], ["t_s", "f_cmd_hz", "dir", "fault", "u_dc_v"]);
-    // The profile's Q variables are subscribed (motor.profile.toml: Q00-Q02).
+    // The profile's Q variables are subscribed (motor.profile.toml: Q00 and Q02).
     assert!(cols.contains(&"Q02") && !cols.contains(&"Q03"), "{cols:?}");
     assert!(cols.contains(&"lcd3") && cols.contains(&"imx_a"));
     let p = serve.get("/api/profile");
