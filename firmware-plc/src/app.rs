@@ -56,6 +56,7 @@ use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 
 mod service;
 
+pub(crate) use service::checked_slot;
 pub use service::{BuildInfo, Outcome};
 
 /// Where RUN stands.

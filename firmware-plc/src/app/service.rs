@@ -21,7 +21,7 @@ use shared_protocol::units::Micros;
 
 use super::{PlcApp, RunState};
 use crate::editor::Notice;
-use crate::service::SlotReads;
+use crate::service::{SlotReads, SlotRecord};
 use crate::storage::layout::SLOTS;
 use crate::storage::slot::for_each_payload_byte;
 use crate::storage::{Eeprom, Job, StorageError, FAULT_LOG_ENTRIES};
@@ -90,6 +90,23 @@ pub enum Outcome {
     /// The EEPROM reads it needs are under way (see [`SlotReads`]): ask again after the
     /// next [`crate::service::Service::eeprom_step`].
     Later,
+}
+
+/// Slot 1-4's checked record, or what to answer meanwhile: refused `Storage` when the
+/// last read failed, [`Outcome::Later`] while the slot is read (the read is started).
+/// Every request that needs a slot's record asks through this, so all answer alike.
+#[allow(
+    clippy::result_large_err,
+    reason = "the error is the caller's own return value, passed straight on"
+)]
+pub(crate) fn checked_slot(reads: &mut SlotReads, slot: u8) -> Result<SlotRecord, Outcome> {
+    if reads.take_failure() {
+        return Err(Outcome::Answer(Answer::Refused(RefuseReason::Storage)));
+    }
+    reads.summary(slot).ok_or_else(|| {
+        reads.want(slot);
+        Outcome::Later
+    })
 }
 
 /// What an [`Identity`] needs that the application does not know: the board's (or
@@ -311,14 +328,10 @@ impl<E: Eeprom> PlcApp<E> {
 
     /// `ReadProgram` of slot 1-4 through the service's paced reads.
     fn slot_chunk(&self, reads: &mut SlotReads, slot: u8, offset: u16) -> Outcome {
-        if reads.take_failure() {
-            return Outcome::Answer(Answer::Refused(RefuseReason::Storage));
-        }
-        let Some(rec) = reads.summary(slot) else {
-            reads.want(slot);
-            return Outcome::Later;
+        let s = match checked_slot(reads, slot) {
+            Ok(rec) => rec.summary,
+            Err(meanwhile) => return meanwhile,
         };
-        let s = rec.summary;
         if s.state != SlotState::Valid {
             return Outcome::Answer(Answer::Refused(RefuseReason::Slot));
         }
@@ -502,12 +515,9 @@ impl<E: Eeprom> PlcApp<E> {
         if self.editor.modified() {
             return refused(RefuseReason::Unsaved);
         }
-        if reads.take_failure() {
-            return refused(RefuseReason::Storage);
-        }
-        let Some(rec) = reads.summary(slot) else {
-            reads.want(slot);
-            return Outcome::Later;
+        let rec = match checked_slot(reads, slot) {
+            Ok(rec) => rec,
+            Err(meanwhile) => return meanwhile,
         };
         if rec.summary.state != SlotState::Valid {
             return refused(RefuseReason::Slot);

@@ -20,7 +20,7 @@ use shared_protocol::service::{
 };
 
 use super::reads::SlotReads;
-use crate::app::{Outcome, PlcApp, RunState};
+use crate::app::{checked_slot, Outcome, PlcApp, RunState};
 use crate::storage::layout::{copy_addr, SLOTS};
 use crate::storage::staged::payload_addr;
 use crate::storage::{Eeprom, Job, SlotCopy, StorageError};
@@ -106,13 +106,10 @@ impl ProgramWrite {
                 if len > PROGRAM_MAX_BYTES {
                     return refused(RefuseReason::Transfer);
                 }
-                if reads.take_failure() {
-                    return refused(RefuseReason::Storage);
-                }
                 // Which copy a load uses now; the other one takes the chunks.
-                let Some(rec) = reads.summary(slot) else {
-                    reads.want(slot);
-                    return Outcome::Later;
+                let rec = match checked_slot(reads, slot) {
+                    Ok(rec) => rec,
+                    Err(meanwhile) => return meanwhile,
                 };
                 let copy = if rec.summary.state == SlotState::Valid
                     && Some(rec.copy_addr) == copy_addr(slot, 0)
