@@ -84,6 +84,16 @@ impl Sim {
         ])
     }
 
+    /// `motor.plc` whose scenario types `*` `7` (remote service on) at 0.05 s, held open
+    /// (see [`Sim::hold`]) until remote service is seen on.
+    fn with_remote_service(name: &str, duration_s: f64) -> (Sim, std::fs::File) {
+        let toml = format!("duration_s = {duration_s:?}\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n");
+        let sim = Sim::with_scenario(name, &toml, "0");
+        let hold = sim.hold();
+        sim.wait_status("remote service on", |s| s["status"]["remote"] == true);
+        (sim, hold)
+    }
+
     /// Holds the pty open (virtual time follows the wall clock, the run lingers after
     /// its duration while this is open).
     fn hold(&self) -> std::fs::File {
@@ -456,14 +466,7 @@ fn exit_codes_no_device_timeout_and_version_mismatch() {
 
 #[test]
 fn run_ack_and_clear_faults_work_with_remote_service_on() {
-    // The scenario types `*` `7` (remote service on) at 0.05 s.
-    let sim = Sim::with_scenario(
-        "remote.toml",
-        "duration_s = 3.0\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n",
-        "0",
-    );
-    let hold = sim.hold();
-    sim.wait_status("remote service on", |s| s["status"]["remote"] == true);
+    let (sim, hold) = Sim::with_remote_service("remote.toml", 3.0);
     assert_eq!(code(&sim.plcctl(&["stop"])), 0);
     assert_eq!(sim.status()["status"]["plc"], "Stop");
     // In STOP the log may be cleared; in RUN it may not (exit 5, in RUN).
@@ -494,14 +497,8 @@ fn push_writes_reads_back_and_pull_round_trips() {
     drop(hold);
     sim.finish();
 
-    // The scenario types `*` `7` (remote service on) at 0.05 s; motor.plc runs.
-    let sim = Sim::with_scenario(
-        "push.toml",
-        "duration_s = 30.0\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n",
-        "0",
-    );
-    let hold = sim.hold();
-    sim.wait_status("remote service on", |s| s["status"]["remote"] == true);
+    // Remote service on; motor.plc runs.
+    let (sim, hold) = Sim::with_remote_service("push.toml", 30.0);
     // In RUN: exit 5.
     assert_ne!(sim.status()["status"]["plc"], "Stop");
     let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2", "--yes"]);
