@@ -38,6 +38,24 @@ fn temp(name: &str) -> PathBuf {
     d.join(name)
 }
 
+/// What a child announces on the first line of `pipe` after `prefix` (hil-sim its pty,
+/// `serve` its address); the rest of the pipe is drained so that it never fills.
+fn announced(pipe: impl Read + Send + 'static, prefix: &str) -> String {
+    let mut pipe = BufReader::new(pipe);
+    let mut first = String::new();
+    pipe.read_line(&mut first).unwrap();
+    let what = first
+        .trim_end()
+        .strip_prefix(prefix)
+        .unwrap_or_else(|| panic!("first line {first:?}, not {prefix:?}"))
+        .to_string();
+    std::thread::spawn(move || {
+        let mut sink = String::new();
+        let _ = pipe.read_to_string(&mut sink);
+    });
+    what
+}
+
 /// A `hil-sim run --service-pty` and its pty path.
 struct Sim {
     child: Child,
@@ -54,19 +72,7 @@ impl Sim {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        let mut err = BufReader::new(child.stderr.take().unwrap());
-        let mut first = String::new();
-        err.read_line(&mut first).unwrap();
-        let path = first
-            .trim_end()
-            .strip_prefix("service: ")
-            .unwrap_or_else(|| panic!("first stderr line {first:?}"))
-            .to_string();
-        // The rest of stderr must not fill its pipe.
-        std::thread::spawn(move || {
-            let mut sink = String::new();
-            let _ = err.read_to_string(&mut sink);
-        });
+        let path = announced(child.stderr.take().unwrap(), "service: ");
         Sim { child, path }
     }
 

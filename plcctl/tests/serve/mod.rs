@@ -2,12 +2,12 @@
 //! the event stream, the actions and the token, over real HTTP on a free port. Part of
 //! the `sim` test binary (its `Sim` helpers).
 
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use super::{motor, temp, Sim, PLCCTL};
+use super::{announced, motor, temp, Sim, PLCCTL};
 
 mod browser;
 mod cdp;
@@ -30,25 +30,14 @@ impl Serve {
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        let mut out = BufReader::new(child.stdout.take().unwrap());
-        let mut first = String::new();
-        out.read_line(&mut first).unwrap();
-        let base = first
-            .trim_end()
-            .strip_prefix("serving ")
-            .unwrap_or_else(|| panic!("first stdout line {first:?}"))
-            .trim_end_matches('/')
-            .to_string();
+        let served = announced(child.stdout.take().unwrap(), "serving ");
+        let base = served.trim_end_matches('/').to_string();
         assert!(base.starts_with("http://127.0.0.1:"), "{base}");
         assert!(!base.ends_with(":0"), "port 0 picks a free port: {base}");
         let token = extra
             .iter()
             .position(|a| *a == "--token")
             .map(|i| extra[i + 1].to_string());
-        std::thread::spawn(move || {
-            let mut sink = String::new();
-            let _ = out.read_to_string(&mut sink);
-        });
         Serve { child, base, token }
     }
 
