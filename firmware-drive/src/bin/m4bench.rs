@@ -3,8 +3,8 @@
 //! HAL is linked only for its vector table.
 //!
 //! ```text
-//! cargo build --release --target thumbv7em-none-eabihf --bin drive-m4bench -p firmware-drive
-//! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/release/drive-m4bench
+//! cargo build --profile firmware --target thumbv7em-none-eabihf --bin drive-m4bench -p firmware-drive
+//! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/firmware/drive-m4bench
 //! ```
 //! Sections (m4count prints the instructions between `bench_mark(k)` and the next mark):
 //! 1 = 1000 x pwm_period, motor program running (outputs on, OC/UV/brake checks active);

@@ -2,8 +2,8 @@
 //! `/work/shared/tools/README.md` and `docs/vm.md`):
 //!
 //! ```text
-//! cargo build --release --target thumbv7em-none-eabihf --bin m4bench -p firmware-plc
-//! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/release/m4bench
+//! cargo build --profile firmware --target thumbv7em-none-eabihf --bin m4bench -p firmware-plc
+//! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/firmware/m4bench
 //! ```
 //!
 //! Sections (each [`SCANS`] scans of a full 850-line PLC section): 1 = mixed program,

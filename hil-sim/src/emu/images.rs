@@ -1,6 +1,6 @@
-//! Where the firmware images are: the release ELFs of `firmware-drive` and `firmware-plc`
-//! for `thumbv7em-none-eabihf` in the workspace's target directory, exactly what CI builds
-//! and `probe-rs` flashes.
+//! Where the firmware images are: the ELFs of `firmware-drive` and `firmware-plc` built
+//! with the workspace's `firmware` profile for `thumbv7em-none-eabihf`, in the workspace's
+//! target directory: exactly what CI builds and `probe-rs` flashes.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -10,6 +10,11 @@ use anyhow::{bail, Context, Result};
 
 /// The firmware target.
 pub const TARGET: &str = "thumbv7em-none-eabihf";
+
+/// The cargo profile the flashed images are built with (the workspace's `Cargo.toml`:
+/// fat LTO, one codegen unit and the per-crate size choices, none of which host builds
+/// pay for). Cargo puts its output in `target/<TARGET>/<PROFILE>/`.
+pub const PROFILE: &str = "firmware";
 
 /// The two images.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,11 +54,11 @@ pub fn target_dir() -> PathBuf {
     }
 }
 
-/// Path of the release ELF of `fw`.
+/// Path of the flashed ELF of `fw`.
 pub fn release_elf(fw: Firmware) -> PathBuf {
     target_dir()
         .join(TARGET)
-        .join("release")
+        .join(PROFILE)
         .join(fw.crate_name())
 }
 
@@ -61,7 +66,7 @@ pub fn release_elf(fw: Firmware) -> PathBuf {
 /// features differ).
 pub fn build_command(fw: Firmware) -> String {
     format!(
-        "cargo build --release --target {TARGET} -p {} --bin {}",
+        "cargo build --profile {PROFILE} --target {TARGET} -p {} --bin {}",
         fw.crate_name(),
         fw.crate_name()
     )
@@ -98,7 +103,8 @@ pub fn build_both() -> Result<(PathBuf, PathBuf)> {
             .current_dir(workspace_root())
             .args([
                 "build",
-                "--release",
+                "--profile",
+                PROFILE,
                 "--target",
                 TARGET,
                 "-p",
