@@ -12,6 +12,7 @@ use std::collections::BTreeMap;
 
 use crate::names;
 use crate::periph::adc::{Adc12, AdcId, AnalogSource, TriggerSignal};
+use crate::periph::analog_errors::AnalogErrors;
 use crate::periph::comp::{BlankingSource, CompBank, CompConfig, InvertingInput};
 use crate::periph::dac::{Dac, DacId};
 use crate::periph::dma::{Dma, DmaInstance, Transfer};
@@ -145,12 +146,13 @@ pub trait Board: PinReader {
     /// freeze): the power stage follows from `ev.at`.
     fn power_stage(&mut self, _ev: &TimEvent) {}
 
-    /// Whether comparator `config.comp`'s non-inverting input has been above `inm_volts`
-    /// since the last call or is above it now (a crossing between two calls counts, so that
-    /// a short overcurrent between two samples still trips, as the hardware does). The
-    /// default compares the pin's volts now.
-    fn comparator_above(&mut self, config: &CompConfig, inm_volts: f64, at: Cycles) -> bool {
-        self.pin_volts(config.inp, at) > inm_volts
+    /// Whether comparator `config.comp`'s non-inverting input is above `level` now: the level
+    /// it must pass next (INM with the part's input offset and, while the comparator is high,
+    /// its hysteresis below INM: `CompBank::threshold`). A board that knows of a crossing
+    /// between two calls may report it (a short overcurrent between two samples trips the
+    /// hardware). The default compares the pin's volts now.
+    fn comparator_above(&mut self, config: &CompConfig, level: f64, at: Cycles) -> bool {
+        self.pin_volts(config.inp, at) > level
     }
 }
 
@@ -920,6 +922,11 @@ impl Soc {
                 }
                 InvertingInput::Pin(pin) => self.board.pin_volts(pin, t),
             };
+            // The level INP must pass next: INM with the comparator's offset and, while its
+            // output is high, its hysteresis below INM (`CompBank::threshold`).
+            let Some(level) = self.model::<CompBank>(c).and_then(|b| b.threshold(n, inm)) else {
+                continue;
+            };
             // An OPAMP driving the comparator's INP pin (COMP1 INP1 = PB1 = OPAMP3 VOUT)
             // gives its output; any other input is the board's.
             let driven = snap.opamps.iter().any(|c| {
@@ -930,9 +937,9 @@ impl Soc {
                     board: self.board.as_mut(),
                     snap: &snap,
                 };
-                src.pin(cfg.inp, t) > inm
+                src.pin(cfg.inp, t) > level
             } else {
-                self.board.comparator_above(&cfg, inm, t)
+                self.board.comparator_above(&cfg, level, t)
             };
             if let Some(b) = self.model_mut::<CompBank>(c) {
                 b.set_input(n, above, t);
@@ -981,6 +988,24 @@ impl Soc {
         }
         self.refresh(k);
         self.after_event(k, now);
+    }
+
+    /// The part's analog errors (comparator offset and delay, DAC offset, OPAMP offset):
+    /// the datasheet's typical part until a host sets others (hil-sim's `[analog]` keys).
+    pub fn set_analog_errors(&mut self, errors: &AnalogErrors) {
+        let c = self.wired.comp;
+        if let Some(b) = self.model_mut::<CompBank>(c) {
+            b.set_errors(errors);
+        }
+        for k in self.wired.dac {
+            if let Some(d) = self.model_mut::<Dac>(k) {
+                d.set_errors(errors);
+            }
+        }
+        let o = self.wired.opamp;
+        if let Some(b) = self.model_mut::<OpampBank>(o) {
+            b.set_errors(errors);
+        }
     }
 
     /// The level of TIM1's BKIN2 pin (the drive board's hardware STO input, safety.md 6:
@@ -1634,12 +1659,10 @@ impl AnalogAdapter<'_> {
             OpampInput::Dac3(ch) => self.snap.dac3.get(ch).copied().flatten().unwrap_or(0.0),
             OpampInput::NotConnected => 0.0,
         };
-        let vinm0 = match cfg.mode {
-            crate::periph::opamp::OpampMode::PgaVinm0 { vinm0, .. } => {
-                self.board.pin_volts(vinm0, at)
-            }
-            _ => 0.0,
-        };
+        // The VINM0 pin's own volts when the feedback network's foot is on it.
+        let vinm0 = cfg
+            .vinm0_pin()
+            .map_or(0.0, |pin| self.board.pin_volts(pin, at));
         cfg.output_volts(vinp, vinm0).unwrap_or(0.0)
     }
 }
@@ -1757,6 +1780,7 @@ mod tests {
     #[test]
     fn opamp_outputs_reach_the_adc_internally_only_with_opaintoen() {
         let mut bank = OpampBank::new();
+        bank.set_errors(&AnalogErrors::IDEAL);
         pga16(&mut bank, 1, true);
         pga16(&mut bank, 2, true);
         pga16(&mut bank, 3, false);
@@ -1810,6 +1834,76 @@ mod tests {
         };
         assert_eq!(a.volts(AdcId::Adc1, 13, 0), 0.0);
         assert!((a.volts(AdcId::Adc1, 12, 0) - 1.0).abs() < 1e-12);
+    }
+
+    /// Volts on OPAMP1's VINP0 (PA1) and VINM0 (PA3).
+    struct ShuntPins {
+        vinp: f64,
+        vinm0: f64,
+    }
+
+    impl PinReader for ShuntPins {
+        fn external(
+            &mut self,
+            _: u8,
+            _: u8,
+            _: Cycles,
+            _: &dyn Fn(u8, u8) -> Drive,
+        ) -> crate::periph::gpio::External {
+            crate::periph::gpio::External::Floating
+        }
+    }
+
+    impl Board for ShuntPins {
+        fn pin_volts(&mut self, pin: &str, _at: Cycles) -> f64 {
+            match pin {
+                "PA1" => self.vinp,
+                "PA3" => self.vinm0,
+                _ => 0.0,
+            }
+        }
+    }
+
+    /// The ADC converts the amplifier's real output at the sampling instant: the VINM0-biased
+    /// mode takes the VINM0 pin's volts, the grounded one does not, the part's input offset
+    /// is amplified with the gain, the rails clamp.
+    #[test]
+    fn the_adc_converts_the_amplifiers_real_output() {
+        let typ = AnalogErrors::TYPICAL.opamp_offset_v;
+        let mut bank = OpampBank::new();
+        let mut convert = |bank: &OpampBank, vinp: f64, vinm0: f64| {
+            let snap = snapshot(bank);
+            let mut board = ShuntPins { vinp, vinm0 };
+            let mut a = AnalogAdapter {
+                board: &mut board,
+                snap: &snap,
+            };
+            a.volts(AdcId::Adc1, 13, 0)
+        };
+        // PGA x16, VINM0-biased (PGA_GAIN 01011), output to the ADC only.
+        let biased = 1 | (2 << 5) | (0b01011 << 14) | (1 << 8);
+        assert!(bank.write(crate::periph::Write::word(0, biased), 0));
+        let v = convert(&bank, 0.12, 0.1);
+        assert!(
+            (v - (16.0 * (0.12 + typ) - 15.0 * 0.1)).abs() < 1e-12,
+            "{v}"
+        );
+        // The same pins in the grounded mode (PGA_GAIN 00011): another output.
+        assert!(bank.write(
+            crate::periph::Write::word(0, 1 | (2 << 5) | (3 << 14) | (1 << 8)),
+            1
+        ));
+        let g = convert(&bank, 0.12, 0.1);
+        assert!((g - 16.0 * (0.12 + typ)).abs() < 1e-12, "{g}");
+        // Below VSSA and above VDDA the output sits on the rails.
+        assert!(bank.write(crate::periph::Write::word(0, biased), 2));
+        assert_eq!(convert(&bank, 0.0, 0.5), 0.0);
+        assert_eq!(convert(&bank, 1.0, 0.0), 3.3);
+        // A negative offset lowers it by 16 x Vio.
+        bank.set_errors(&AnalogErrors::worst(-1.0));
+        let w = convert(&bank, 0.12, 0.1);
+        let vio = AnalogErrors::worst(-1.0).opamp_offset_v;
+        assert!((w - (16.0 * (0.12 + vio) - 1.5)).abs() < 1e-12, "{w}");
     }
 
     #[test]

@@ -13,14 +13,31 @@
 //!
 //! The comparison itself is the host's business (a continuous-time plant): the model decodes
 //! the configuration into [`CompConfig`] (which signal is INP, what INM is — a DAC channel, a
-//! VREFINT fraction, a pin —, the polarity, the hysteresis in mV, the blanking source), takes
-//! the raw comparison from [`CompBank::set_input`] and the blanking signal from
-//! [`CompBank::set_blanking`], and gives the output after polarity and blanking (RM0440 "VALUE
-//! ... after the polarity selector and blanking"): `EN & ((raw ^ POL) & !blank)`. That output
-//! is VALUE and what goes to TIM1's break, the EXTI lines and the COMPx_OUT pins.
-//! Not modelled: the comparator start-up time and propagation delay (the output follows at
-//! the cycle the host gives), the VREFINT scaler start-up time.
+//! VREFINT fraction, a pin —, the polarity, the hysteresis in mV, the blanking source), gives
+//! the host the level INP must pass next ([`CompBank::threshold`]: INM, the input offset and
+//! the hysteresis applied to the comparator's present state), takes the raw comparison from
+//! [`CompBank::set_input`] and the blanking signal from [`CompBank::set_blanking`], and gives
+//! the output after polarity and blanking (RM0440 "VALUE ... after the polarity selector and
+//! blanking"): `EN & ((raw ^ POL) & !blank)`. That output is VALUE and what goes to TIM1's
+//! break, the EXTI lines and the COMPx_OUT pins.
+//!
+//! Analog effects ([`AnalogErrors`], DS12589 "COMP characteristics"; `docs/models.md`):
+//! * **Hysteresis** (RM0440 COMP "Comparator hysteresis" figure; the HAL's "hysteresis mode
+//!   of the input minus"): it acts on the inverting input and only on the way down. The raw
+//!   output rises when INP passes INM (+ offset) and falls only when INP drops below INM
+//!   (+ offset) minus the hysteresis: the band lies below INM whatever the polarity (the
+//!   polarity selector comes after the comparator). HYST = n gives n x 10 mV (RM0440
+//!   COMPx_CSR, `COMP_HYSTERESIS_10MV` .. `_70MV`).
+//! * **Input offset**: INP must pass INM + offset (signed, the same for every instance).
+//! * **Propagation delay**: a change of the raw comparison reaches the output tD later
+//!   ([`Peripheral::next_event`]); a change back within tD cancels it (the pulse is shorter
+//!   than the comparator's response). Polarity and blanking are logic after the comparator:
+//!   they act at once.
+//!
+//! Not modelled: the comparator start-up time, the VREFINT scaler start-up time and offset;
+//! the raw state at enable is "low" (INP below INM) until the first comparison.
 
+use crate::periph::analog_errors::AnalogErrors;
 use crate::periph::dac::DacId;
 use crate::periph::tim_gp::Reports;
 use crate::periph::{Peripheral, Write};
@@ -89,8 +106,19 @@ pub struct CompConfig {
 #[derive(Debug, Clone, Copy, Default)]
 struct Comp {
     csr: u32,
+    /// The raw comparison (INP above INM) as the output sees it now.
     raw: bool,
+    /// A raw change on its way to the output: (when it arrives, the new level).
+    pending: Option<(Cycles, bool)>,
     blank: bool,
+}
+
+impl Comp {
+    /// The comparator's own state (what its hysteresis follows): the latest decision, even
+    /// if it has not reached the output yet.
+    fn state(&self) -> bool {
+        self.pending.map_or(self.raw, |p| p.1)
+    }
 }
 
 /// An output change for the SoC (to TIM1's break, EXTI, the COMPx_OUT pin).
@@ -109,6 +137,10 @@ pub struct CompBank {
     outputs: [bool; 4],
     edges: Vec<CompEdge>,
     reports: Reports,
+    /// Input offset, volts (kept across resets: a property of the part).
+    offset_v: f64,
+    /// Propagation delay, cycles.
+    delay: Cycles,
 }
 
 impl Default for CompBank {
@@ -177,12 +209,37 @@ fn blanking(comp: usize, code: u32) -> Option<BlankingSource> {
 
 impl CompBank {
     pub fn new() -> Self {
+        let e = AnalogErrors::TYPICAL;
         CompBank {
             comps: [Comp::default(); 4],
             outputs: [false; 4],
             edges: Vec::new(),
             reports: Reports::new("COMP"),
+            offset_v: e.comp_offset_v,
+            delay: e.comp_delay_cycles(),
         }
+    }
+
+    /// Sets the part's input offset and propagation delay (the rest of `errors` is the DACs'
+    /// and OPAMPs').
+    pub fn set_errors(&mut self, errors: &AnalogErrors) {
+        self.offset_v = errors.comp_offset_v;
+        self.delay = errors.comp_delay_cycles();
+    }
+
+    /// The propagation delay in cycles.
+    pub fn delay_cycles(&self) -> Cycles {
+        self.delay
+    }
+
+    /// The level INP must pass for COMPn's next change, given the volts on INM: INM plus the
+    /// input offset while the comparator is low (INP must rise above it); that minus the
+    /// hysteresis while it is high (INP must fall below it). `None` for no such comparator.
+    pub fn threshold(&self, n: usize, inm_volts: f64) -> Option<f64> {
+        let c = self.comps.get(n.checked_sub(1)?)?;
+        let hyst_v = f64::from(10 * ((c.csr >> csr::HYST_SHIFT) & 7)) / 1000.0;
+        let band = if c.state() { hyst_v } else { 0.0 };
+        Some(inm_volts + self.offset_v - band)
     }
 
     /// The configuration of COMPn (n = 1..=4).
@@ -251,13 +308,29 @@ impl CompBank {
         Some(level)
     }
 
-    /// The host's comparison for COMPn (INP above INM, with the hysteresis of
-    /// [`CompConfig::hysteresis_mv`] applied by the host) at `now`. Returns the new output
-    /// when it changed (forward it to TIM1's `set_comparator(n, ..)`).
+    /// The host's comparison for COMPn at `now`: whether INP is above
+    /// [`CompBank::threshold`]. A change reaches the output after the propagation delay
+    /// (at once with no delay: then the new output is returned; forward it to TIM1's
+    /// `set_comparator(n, ..)`; delayed changes come out of [`CompBank::take_edges`]).
     pub fn set_input(&mut self, n: usize, above: bool, now: Cycles) -> Option<bool> {
         let i = n.checked_sub(1)?;
-        self.comps.get_mut(i)?.raw = above;
-        self.refresh(i, now)
+        let delay = self.delay;
+        let c = self.comps.get_mut(i)?;
+        if above == c.state() {
+            return None;
+        }
+        if above == c.raw {
+            // Back before the change reached the output: too short for the comparator.
+            c.pending = None;
+            return None;
+        }
+        if delay == 0 {
+            c.raw = above;
+            c.pending = None;
+            return self.refresh(i, now);
+        }
+        c.pending = Some((now + delay, above));
+        None
     }
 
     /// The blanking signal COMPn's BLANKSEL selects changed (e.g. TIM1's OC5 window).
@@ -327,8 +400,36 @@ impl Peripheral for CompBank {
         true
     }
 
+    fn next_event(&self) -> Option<Cycles> {
+        self.comps
+            .iter()
+            .filter_map(|c| c.pending.map(|p| p.0))
+            .min()
+    }
+
+    fn advance(&mut self, now: Cycles) {
+        // In time order, so that the edges are.
+        let mut due: Vec<(Cycles, usize, bool)> = self
+            .comps
+            .iter()
+            .enumerate()
+            .filter_map(|(i, c)| c.pending.filter(|p| p.0 <= now).map(|p| (p.0, i, p.1)))
+            .collect();
+        due.sort_unstable_by_key(|d| (d.0, d.1));
+        for (at, i, level) in due {
+            if let Some(c) = self.comps.get_mut(i) {
+                c.raw = level;
+                c.pending = None;
+            }
+            self.refresh(i, at);
+        }
+    }
+
     fn reset(&mut self) {
+        let (offset_v, delay) = (self.offset_v, self.delay);
         *self = CompBank::new();
+        self.offset_v = offset_v;
+        self.delay = delay;
     }
 }
 
@@ -391,6 +492,7 @@ mod tests {
     #[test]
     fn value_follows_the_input_polarity_and_blanking() {
         let mut b = CompBank::new();
+        b.set_errors(&AnalogErrors::IDEAL);
         embassy_comp(&mut b, 1, 0b100, 0);
         assert_eq!(b.read(0, 3).unwrap_or(0) & csr::VALUE, 0);
         assert_eq!(b.set_input(1, true, 5), Some(true));
@@ -481,6 +583,7 @@ mod tests {
         use crate::periph::tim_adv::{OffCause, TimAdv, TimEvent};
         let mut tim = TimAdv::new("TIM1");
         let mut comps = CompBank::new();
+        comps.set_errors(&AnalogErrors::IDEAL);
         let mut t: Cycles = 10;
         let w = |tim: &mut TimAdv, off: u32, v: u32, t: &mut Cycles| {
             tim.advance(*t);
@@ -552,5 +655,139 @@ mod tests {
                 at,
                 cause: OffCause::Break
             }));
+    }
+    /// The host's side of the comparison (what the SoC does at each sample).
+    fn sample(b: &mut CompBank, n: usize, inp: f64, inm: f64, t: Cycles) {
+        let thr = b.threshold(n, inm).expect("COMPn");
+        b.set_input(n, inp > thr, t);
+        b.advance(t);
+    }
+
+    /// CSR with EN, INMSEL = DAC3, HYST = `hyst`, polarity `inverted`.
+    fn csr_word(hyst: u32, inverted: bool) -> u32 {
+        csr::EN | (0b100 << 4) | (hyst << 16) | if inverted { csr::POL } else { 0 }
+    }
+
+    /// RM0440's hysteresis figure: the output rises when INP passes INM and falls only when
+    /// INP drops below INM - Vhyst; the band is below INM in both directions of travel.
+    #[test]
+    fn hysteresis_lies_below_inm_and_acts_on_the_way_down() {
+        let mut b = CompBank::new();
+        b.set_errors(&AnalogErrors::IDEAL);
+        assert!(b.write(Write::word(0, csr_word(2, false)), 0));
+        let inm = 1.0;
+        // Rising: high as soon as INP passes INM.
+        sample(&mut b, 1, 0.999, inm, 1);
+        assert!(!b.output(1));
+        sample(&mut b, 1, 1.001, inm, 2);
+        assert!(b.output(1));
+        // Falling: stays high down to INM - 20 mV.
+        sample(&mut b, 1, 0.985, inm, 3);
+        assert!(b.output(1), "inside the band: no change");
+        sample(&mut b, 1, 0.979, inm, 4);
+        assert!(!b.output(1), "below INM - 20 mV");
+        // Rising again: inside the band it stays low; the threshold is INM again.
+        sample(&mut b, 1, 0.995, inm, 5);
+        assert!(!b.output(1));
+        assert_eq!(b.threshold(1, inm), Some(1.0));
+        // Inverted polarity: the same comparator, the output inverted after it. A signal
+        // that must trip when it falls below INM (the ESC1's positive current) trips only
+        // 20 mV further down; it releases when it rises back above INM.
+        let mut b = CompBank::new();
+        b.set_errors(&AnalogErrors::IDEAL);
+        assert!(b.write(Write::word(0, csr_word(2, true)), 0));
+        sample(&mut b, 1, 1.05, inm, 1);
+        assert!(!b.output(1), "INP above INM: inverted output low");
+        sample(&mut b, 1, 0.99, inm, 2);
+        assert!(!b.output(1), "10 mV below INM: no trip yet");
+        sample(&mut b, 1, 0.975, inm, 3);
+        assert!(b.output(1), "25 mV below INM: trip");
+        sample(&mut b, 1, 0.99, inm, 4);
+        assert!(b.output(1), "inside the band: still tripped");
+        sample(&mut b, 1, 1.001, inm, 5);
+        assert!(!b.output(1), "released above INM");
+    }
+
+    #[test]
+    fn hysteresis_levels_of_every_code() {
+        let mut b = CompBank::new();
+        b.set_errors(&AnalogErrors::IDEAL);
+        for hyst in 0..8u32 {
+            assert!(b.write(Write::word(0, csr_word(hyst, false)), 0));
+            sample(&mut b, 1, 2.0, 1.0, 1);
+            assert!(b.output(1));
+            let thr = b.threshold(1, 1.0).expect("COMP1");
+            assert!(
+                (thr - (1.0 - 0.01 * f64::from(hyst))).abs() < 1e-12,
+                "HYST {hyst}: {thr}"
+            );
+            sample(&mut b, 1, 0.0, 1.0, 2);
+            assert!(!b.output(1));
+        }
+    }
+
+    #[test]
+    fn the_input_offset_moves_both_levels_by_its_signed_value() {
+        for offset in [0.005, -0.005] {
+            let mut b = CompBank::new();
+            b.set_errors(&AnalogErrors {
+                comp_offset_v: offset,
+                ..AnalogErrors::IDEAL
+            });
+            assert!(b.write(Write::word(0, csr_word(1, false)), 0));
+            let rise = b.threshold(1, 1.0).expect("COMP1");
+            assert!((rise - (1.0 + offset)).abs() < 1e-12);
+            // Just below and just above the offset level.
+            sample(&mut b, 1, 1.0 + offset - 0.0005, 1.0, 1);
+            assert!(!b.output(1), "offset {offset}");
+            sample(&mut b, 1, 1.0 + offset + 0.0005, 1.0, 2);
+            assert!(b.output(1), "offset {offset}");
+            let fall = b.threshold(1, 1.0).expect("COMP1");
+            assert!((fall - (1.0 + offset - 0.010)).abs() < 1e-12);
+        }
+        // The typical part: INP must pass INM + 2 mV.
+        let b = CompBank::new();
+        assert_eq!(
+            b.threshold(1, 1.0),
+            Some(1.0 + AnalogErrors::TYPICAL.comp_offset_v)
+        );
+    }
+
+    #[test]
+    fn the_output_follows_a_crossing_after_the_propagation_delay() {
+        let mut b = CompBank::new();
+        assert_eq!(b.delay_cycles(), 3, "DS12589 tD 16.7 ns at 170 MHz");
+        assert!(b.write(Write::word(0, csr_word(0, false)), 0));
+        let _ = b.take_edges();
+        assert_eq!(b.set_input(1, true, 100), None, "not yet at the output");
+        assert_eq!(b.next_event(), Some(103));
+        b.advance(102);
+        assert!(!b.output(1));
+        b.advance(103);
+        assert!(b.output(1));
+        assert_eq!(b.next_event(), None);
+        // VALUE reads the delayed output too.
+        assert_ne!(b.read(0, 103).unwrap_or(0) & csr::VALUE, 0);
+        // A dip shorter than the delay never reaches the output.
+        assert_eq!(b.set_input(1, false, 200), None);
+        assert_eq!(b.set_input(1, true, 201), None);
+        assert_eq!(b.next_event(), None);
+        b.advance(210);
+        assert!(b.output(1));
+        assert_eq!(
+            b.take_edges(),
+            vec![CompEdge {
+                comp: 1,
+                at: 103,
+                level: true
+            }]
+        );
+        // Blanking is logic after the comparator: it acts at once.
+        let v = b.read(0, 211).unwrap_or(0);
+        assert!(b.write(Write::word(0, v | (1 << 19)), 211));
+        assert_eq!(b.set_blanking(1, true, 212), Some(false));
+        // The errors survive a reset (they are the part's).
+        b.reset();
+        assert_eq!(b.delay_cycles(), 3);
     }
 }

@@ -13,10 +13,14 @@
 //! three after a trigger when TEN = 1 (RM0440 "DAC conversion"); DACxRDY sets tWAKEUP = 8 µs
 //! after EN (the HAL's LL_DAC_DELAY_STARTUP_VOLTAGE_SETTLING_US, the datasheet maximum). The
 //! output settling (tSETTLING) is not modelled: the output steps when DOR changes.
+//! Output: VREF+ x DOR / 4096 (RM0440 "DAC output voltage") plus the part's offset error
+//! ([`AnalogErrors::dac_offset_v`], DS12589 typical by default, `docs/models.md`), clamped to
+//! 0..VREF+; that is what the comparators' inverting inputs and the OPAMPs' DAC inputs get.
 //! Not modelled (reported): noise/triangle/sawtooth generation, sample-and-hold modes, DMA
 //! underrun.
 
 use crate::names;
+use crate::periph::analog_errors::AnalogErrors;
 use crate::periph::tim_gp::Reports;
 use crate::periph::{DmaRequests, Peripheral, Write};
 use crate::time::{cycles_for, Cycles};
@@ -105,6 +109,8 @@ pub struct Dac {
     dma: [Option<u8>; 2],
     dma_pending: [bool; 2],
     reports: Reports,
+    /// Offset error of the output, volts (kept across resets: a property of the part).
+    offset_v: f64,
 }
 
 const CR_EN: u32 = 1;
@@ -144,7 +150,13 @@ impl Dac {
             ],
             dma_pending: [false; 2],
             reports: Reports::new(name),
+            offset_v: AnalogErrors::TYPICAL.dac_offset_v,
         }
+    }
+
+    /// Sets the part's offset error (the rest of `errors` is the comparators' and OPAMPs').
+    pub fn set_errors(&mut self, errors: &AnalogErrors) {
+        self.offset_v = errors.dac_offset_v;
     }
 
     pub fn id(&self) -> DacId {
@@ -172,7 +184,8 @@ impl Dac {
         self.dor.get(ch).map_or(0, |v| *v as u16)
     }
 
-    /// The channel's output in volts, `None` while it is disabled or not yet ready (tWAKEUP).
+    /// The channel's output in volts, `None` while it is disabled or not yet ready (tWAKEUP):
+    /// VREF+ x DOR / 4096 plus the offset error, within the rails.
     pub fn output_volts(&self, ch: usize) -> Option<f64> {
         if ch > 1 || self.ch_cr(ch) & CR_EN == 0 || !self.ready.get(ch).copied().unwrap_or(false) {
             return None;
@@ -182,7 +195,7 @@ impl Dac {
             // SINFORMAT: two's complement input, MSB inverted.
             code ^= 0x800;
         }
-        Some(f64::from(code) / 4095.0 * VREF_VOLTS)
+        Some((f64::from(code) / 4096.0 * VREF_VOLTS + self.offset_v).clamp(0.0, VREF_VOLTS))
     }
 
     /// A hardware trigger (the signal TSELx = `tsel` selects) at `now`.
@@ -436,7 +449,9 @@ impl Peripheral for Dac {
     }
 
     fn reset(&mut self) {
+        let offset_v = self.offset_v;
         *self = Dac::new(self.id);
+        self.offset_v = offset_v;
     }
 }
 
@@ -503,7 +518,36 @@ mod tests {
         assert_eq!(d.output_volts(0), None, "not ready: no defined output");
         assert_ne!(rd(&mut d, SR, 107 + 1360) & SR_RDY, 0);
         let v = d.output_volts(0).expect("ready");
-        assert!((v - 2662.0 / 4095.0 * 3.3).abs() < 1e-12);
+        let typ = AnalogErrors::TYPICAL.dac_offset_v;
+        assert!((v - (2662.0 / 4096.0 * 3.3 + typ)).abs() < 1e-12);
+    }
+
+    /// The offset error adds to the output, with its sign, and the output stays within the
+    /// rails; it survives a reset.
+    #[test]
+    fn offset_error_moves_the_output_within_the_rails() {
+        for offset in [0.01, -0.01] {
+            let mut d = Dac::new(DacId::Dac3);
+            d.set_errors(&AnalogErrors {
+                dac_offset_v: offset,
+                ..AnalogErrors::IDEAL
+            });
+            wr(&mut d, CR, CR_EN, 0);
+            wr(&mut d, DHR12R1, 2048, 1);
+            d.advance(1 + 1360);
+            let v = d.output_volts(0).expect("ready");
+            assert!((v - (1.65 + offset)).abs() < 1e-12, "{offset}: {v}");
+            wr(&mut d, DHR12R1, if offset < 0.0 { 0 } else { 4095 }, 1400);
+            d.advance(1401);
+            let rail = d.output_volts(0).expect("ready");
+            assert!((0.0..=3.3).contains(&rail), "{rail}");
+            d.reset();
+            wr(&mut d, CR, CR_EN, 1500);
+            wr(&mut d, DHR12R1, 2048, 1501);
+            d.advance(1501 + 1360);
+            let v = d.output_volts(0).expect("ready");
+            assert!((v - (1.65 + offset)).abs() < 1e-12, "after reset: {v}");
+        }
     }
 
     #[test]
@@ -559,7 +603,7 @@ mod tests {
         d.advance(2 + 1360);
         let v = d.output_volts(0).expect("ready");
         assert!(
-            (v - 2048.0 / 4095.0 * 3.3).abs() < 1e-12,
+            (v - (1.65 + AnalogErrors::TYPICAL.dac_offset_v)).abs() < 1e-12,
             "0 signed is mid-scale"
         );
     }

@@ -28,6 +28,7 @@
 use crate::time::Cycles;
 
 pub mod adc;
+pub mod analog_errors;
 pub mod comp;
 pub mod dac;
 pub mod dbgmcu;

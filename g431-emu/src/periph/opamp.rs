@@ -12,13 +12,30 @@
 //! TRIMOFFSETN (CALSEL = 90 %) reading CALOUT 2 ms after each trim.
 //!
 //! Modelled: the registers with LOCK, the decoded configuration ([`OpampConfig`]: inputs,
-//! mode and gain, where the output goes), an ideal-amplifier output helper, and CALOUT: in
-//! calibration mode it reads 1 while the selected trim is below the amplifier's optimum
-//! (default 16, settable), and takes a new value 2 ms (the worst-case settling RM0440 quotes)
-//! after the trim, CALSEL or CALON changes. Not modelled: start-up time, the timer-controlled
-//! input multiplexer (TCMR.TxCM_EN, reported), bandwidth and offset.
+//! mode and gain, where the output goes), the output for the real input volts
+//! ([`OpampConfig::output_volts`]) and CALOUT: in calibration mode it reads 1 while the
+//! selected trim is below the amplifier's optimum (default 16, settable), and takes a new value
+//! 2 ms (the worst-case settling RM0440 quotes) after the trim, CALSEL or CALON changes.
+//!
+//! The output, from RM0440 §25.3 "PGA mode" figures and the PGA_GAIN table (VM_SEL = 10):
+//! * PGA_GAIN 00xxx, non-inverting gain G = 2, 4, .. 64 (xxx = 0..5), the feedback network's
+//!   foot on VSSA: `G (VINP + Vio)`; 10xxx is the same with VINM0 carrying a filter capacitor
+//!   at the network's midpoint (the DC gain is G);
+//! * PGA_GAIN 01xxx, "inverting gain -(G-1) / non-inverting gain G, VINM0 used as input or
+//!   bias" (embassy `pga_biased_int`/`pga_biased_ext`): the network's foot on the VINM0 pin,
+//!   `G (VINP + Vio) - (G-1) VINM0`; 11xxx is the same with a filter capacitor on VINM1;
+//! * follower (VM_SEL = 11): `VINP + Vio`;
+//! * standalone (VM_SEL = 00/01): set by the external loop (no output computed here).
+//!
+//! Vio is the part's input offset voltage ([`AnalogErrors::opamp_offset_v`], DS12589 typical
+//! by default), the output is clamped to the rails 0..VDDA (3.3 V). The inputs are the pins'
+//! real volts (the board's), so a wrong mode gives a wrong output. PGA_GAIN xx110/xx111 are
+//! reserved (reported; taken as x64). Not modelled: start-up time, bandwidth and slew rate,
+//! the output's saturation a few tens of mV inside the rails, the timer-controlled input
+//! multiplexer (TCMR.TxCM_EN, reported).
 
 use crate::periph::adc::AdcId;
+use crate::periph::analog_errors::AnalogErrors;
 use crate::periph::tim_gp::Reports;
 use crate::periph::{Peripheral, Write};
 use crate::time::{cycles_for, Cycles};
@@ -77,7 +94,7 @@ pub enum OpampMode {
 }
 
 /// An OPAMP's configuration, decoded for the host.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OpampConfig {
     /// OPAMPn (1..=3).
     pub opamp: usize,
@@ -94,26 +111,43 @@ pub struct OpampConfig {
     pub adc_channel: (AdcId, u8),
     pub calibrating: bool,
     pub locked: bool,
+    /// The part's input offset voltage (volts), added to VINP.
+    pub offset_v: f64,
 }
 
+/// The rails of the OPAMP's output (VSSA, VDDA on both boards).
+pub const VDDA_VOLTS: f64 = 3.3;
+
 impl OpampConfig {
-    /// The ideal output for the given input volts (VINP, VINM0), clamped to 0..3.3 V; `None`
-    /// when disabled, calibrating, or standalone (its output depends on the external loop).
+    /// The output for the given pin volts (VINP, VINM0) with the part's input offset,
+    /// clamped to the rails; `None` when disabled, calibrating, or standalone (its output
+    /// depends on the external loop).
     pub fn output_volts(&self, vinp: f64, vinm0: f64) -> Option<f64> {
         if !self.enabled || self.calibrating {
             return None;
         }
+        let vp = vinp + self.offset_v;
         let v = match self.mode {
             OpampMode::Standalone { .. } => return None,
-            OpampMode::Follower => vinp,
-            OpampMode::Pga { gain } | OpampMode::PgaFiltered { gain, .. } => f64::from(gain) * vinp,
+            OpampMode::Follower => vp,
+            OpampMode::Pga { gain } | OpampMode::PgaFiltered { gain, .. } => f64::from(gain) * vp,
             OpampMode::PgaVinm0 { gain, .. } => {
-                // Non-inverting gain G on VINP, inverting -(G-1) on VINM0.
+                // The network's foot on VINM0: non-inverting gain G on VINP, inverting
+                // -(G-1) on VINM0.
                 let g = f64::from(gain);
-                g * vinp - (g - 1.0) * vinm0
+                g * vp - (g - 1.0) * vinm0
             }
         };
-        Some(v.clamp(0.0, 3.3))
+        Some(v.clamp(0.0, VDDA_VOLTS))
+    }
+
+    /// The pin on VINM0 whose volts [`OpampConfig::output_volts`] needs (`None`: the
+    /// network's foot is on VSSA or there is no network).
+    pub fn vinm0_pin(&self) -> Option<&'static str> {
+        match self.mode {
+            OpampMode::PgaVinm0 { vinm0, .. } => Some(vinm0),
+            _ => None,
+        }
     }
 }
 
@@ -142,6 +176,8 @@ struct Opamp {
 pub struct OpampBank {
     amps: [Opamp; 3],
     reports: Reports,
+    /// Input offset voltage, volts (kept across resets: a property of the part).
+    offset_v: f64,
 }
 
 impl Default for OpampBank {
@@ -161,7 +197,14 @@ impl OpampBank {
                 pending: None,
             }; 3],
             reports: Reports::new("OPAMP"),
+            offset_v: AnalogErrors::TYPICAL.opamp_offset_v,
         }
+    }
+
+    /// Sets the part's input offset voltage (the rest of `errors` is the comparators' and
+    /// DACs').
+    pub fn set_errors(&mut self, errors: &AnalogErrors) {
+        self.offset_v = errors.opamp_offset_v;
     }
 
     /// The trim values at which OPAMPn's calibration comparator flips (what a real part's
@@ -219,6 +262,7 @@ impl OpampBank {
             adc_channel: ADC_CH[i],
             calibrating: csr & csr::CALON != 0,
             locked: csr & csr::LOCK != 0,
+            offset_v: self.offset_v,
         })
     }
 
@@ -286,6 +330,16 @@ impl Peripheral for OpampBank {
                         a.pending = Some((now + cycles_for(CAL_SETTLE_US, 1_000_000), after));
                     }
                 }
+                let pga = (a.csr >> csr::VM_SHIFT) & 3 == 2;
+                if pga && (a.csr >> csr::GAIN_SHIFT) & 6 == 6 {
+                    self.reports.once(now, "gain-reserved", || {
+                        format!(
+                            "OPAMP{} PGA_GAIN {:#07b} is reserved",
+                            i + 1,
+                            (a.csr >> csr::GAIN_SHIFT) & 0x1f
+                        )
+                    });
+                }
                 if a.csr & csr::FORCE_VP != 0 && a.csr & csr::CALON == 0 {
                     self.reports.once(now, "force-vp", || {
                         "OPAMP FORCE_VP outside calibration is not modelled".into()
@@ -338,7 +392,9 @@ impl Peripheral for OpampBank {
 
     fn reset(&mut self) {
         let optimum = self.amps.map(|a| a.optimum);
+        let offset_v = self.offset_v;
         *self = OpampBank::new();
+        self.offset_v = offset_v;
         for (a, o) in self.amps.iter_mut().zip(optimum) {
             a.optimum = o;
         }
@@ -395,7 +451,10 @@ mod tests {
             vec![(AdcId::Adc1, 13), (AdcId::Adc2, 16), (AdcId::Adc2, 18)]
         );
         assert_eq!(c[2].output_pin, "PB1");
-        assert_eq!(c[0].output_volts(0.1, 0.0), Some(1.6));
+        // 16 x (0.1 V + the typical offset).
+        let typ = AnalogErrors::TYPICAL.opamp_offset_v;
+        let v = c[0].output_volts(0.1, 0.0).expect("enabled");
+        assert!((v - 16.0 * (0.1 + typ)).abs() < 1e-12, "{v}");
         assert_eq!(
             c[0].output_volts(0.5, 0.0),
             Some(3.3),
@@ -406,6 +465,7 @@ mod tests {
     #[test]
     fn other_modes() {
         let mut b = OpampBank::new();
+        b.set_errors(&AnalogErrors::IDEAL);
         wr(&mut b, 0, csr::OPAEN | (3 << 2) | (3 << 5), 0);
         let c = b.config(1).expect("OPAMP1");
         assert_eq!(c.vinp, OpampInput::Dac3(0));
@@ -519,5 +579,87 @@ mod tests {
         wr(&mut b, 0, csr::LOCK | csr::OPAEN, 0);
         wr(&mut b, 0, 0, 1);
         assert_eq!(rd(&mut b, 0, 2), csr::LOCK | csr::OPAEN);
+    }
+    /// Every PGA_GAIN code RM0440 defines, from the pins' volts: the grounded network
+    /// (00xxx, 10xxx) ignores VINM0, the VINM0-biased one (01xxx, 11xxx) subtracts (G-1)
+    /// VINM0, so the two modes give different outputs for the same pins.
+    #[test]
+    fn every_pga_mode_computes_its_output_from_the_pins() {
+        let mut b = OpampBank::new();
+        b.set_errors(&AnalogErrors::IDEAL);
+        let (vinp, vinm0) = (0.12, 0.1);
+        for code in 0..32u32 {
+            if code & 6 == 6 {
+                continue; // reserved
+            }
+            let g = f64::from(2u32 << (code & 7));
+            wr(
+                &mut b,
+                0,
+                csr::OPAEN | (2 << 5) | (code << 14),
+                u64::from(code),
+            );
+            let c = b.config(1).expect("OPAMP1");
+            let v = c.output_volts(vinp, vinm0).expect("PGA");
+            let want = match code >> 3 {
+                0 | 2 => g * vinp,
+                _ => g * vinp - (g - 1.0) * vinm0,
+            };
+            let want = want.clamp(0.0, 3.3);
+            assert!(
+                (v - want).abs() < 1e-12,
+                "PGA_GAIN {code:#07b}: {v} V, want {want} V"
+            );
+            assert_eq!(c.vinm0_pin().is_some(), code & 8 != 0, "{code:#07b}");
+        }
+        // The ESC1's case at gain 16: 0.1 V on VINP and on VINM0 (a shunt at 0 A, both
+        // sides at the bias): 1.6 V grounded, 0.1 V biased.
+        wr(&mut b, 0, csr::OPAEN | (2 << 5) | (0b00011 << 14), 100);
+        let grounded = b.config(1).and_then(|c| c.output_volts(0.1, 0.1));
+        wr(&mut b, 0, csr::OPAEN | (2 << 5) | (0b01011 << 14), 101);
+        let biased = b.config(1).and_then(|c| c.output_volts(0.1, 0.1));
+        assert!((grounded.unwrap_or(0.0) - 1.6).abs() < 1e-12);
+        assert!((biased.unwrap_or(0.0) - 0.1).abs() < 1e-12);
+        assert!(b.take_reports().is_empty());
+        wr(&mut b, 0, csr::OPAEN | (2 << 5) | (0b00110 << 14), 102);
+        assert!(!b.take_reports().is_empty(), "reserved gain reported");
+    }
+
+    /// The input offset is amplified by the noise gain G in every PGA mode, keeps its sign,
+    /// and the output stays within the rails.
+    #[test]
+    fn the_input_offset_is_amplified_with_its_sign() {
+        for offset in [0.002, -0.002] {
+            let mut b = OpampBank::new();
+            b.set_errors(&AnalogErrors {
+                opamp_offset_v: offset,
+                ..AnalogErrors::IDEAL
+            });
+            for (code, vinm0) in [(0b00011u32, 0.0), (0b01011, 1.0)] {
+                wr(&mut b, 0, csr::OPAEN | (2 << 5) | (code << 14), 0);
+                let c = b.config(1).expect("OPAMP1");
+                let v = c.output_volts(1.0, vinm0).expect("PGA");
+                let ideal = 16.0 * 1.0 - 15.0 * vinm0;
+                let ideal = if code == 0b00011 {
+                    ideal.min(3.3)
+                } else {
+                    ideal
+                };
+                if code == 0b01011 {
+                    assert!((v - (ideal + 16.0 * offset)).abs() < 1e-12, "{offset}: {v}");
+                } else {
+                    assert_eq!(v, 3.3, "clamped to VDDA");
+                }
+            }
+            // Follower: VINP + Vio; a negative result clamps at VSSA.
+            wr(&mut b, 0, csr::OPAEN | (3 << 5), 1);
+            let c = b.config(1).expect("OPAMP1");
+            let v = c.output_volts(0.5, 0.0).expect("follower");
+            assert!((v - (0.5 + offset)).abs() < 1e-12);
+            assert!(c.output_volts(0.0, 0.0).expect("follower") >= 0.0);
+            // Kept across a reset.
+            b.reset();
+            assert_eq!(b.config(1).map(|c| c.offset_v), Some(offset));
+        }
     }
 }
