@@ -8,6 +8,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
+use g431_emu::periph::analog_errors::AnalogErrors;
 use shared_protocol::program::DIGITAL_INPUTS;
 
 use crate::plant::lift::{
@@ -40,6 +41,87 @@ pub struct ScenarioFile {
     pub events: Vec<EventKeys>,
     #[serde(default)]
     pub service: ServiceKeys,
+    /// `[analog]`: the emulated MCU's analog errors (`hil-sim emu` only).
+    #[serde(default)]
+    pub analog: AnalogKeys,
+}
+
+/// `[analog]`: the drive MCU's analog errors in `hil-sim emu` (g431-emu `docs/models.md`
+/// "Analog errors"): start from `part`, then each key overrides one figure.
+#[derive(Debug, Clone, Copy, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AnalogKeys {
+    /// The part the figures start from (default `typical`).
+    pub part: Option<AnalogPart>,
+    /// COMP1-4 input offset, volts (INP must pass INM + offset).
+    pub comp_offset_v: Option<f64>,
+    /// COMP1-4 propagation delay, ns.
+    pub comp_delay_ns: Option<f64>,
+    /// DAC1/DAC3 output offset error, volts.
+    pub dac_offset_v: Option<f64>,
+    /// OPAMP1-3 input offset voltage, volts.
+    pub opamp_offset_v: Option<f64>,
+}
+
+/// `[analog] part`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AnalogPart {
+    /// The datasheet's typical figures (the default).
+    Typical,
+    /// No offsets, no comparator delay.
+    Ideal,
+    /// The datasheet's limits, every offset positive, the slowest comparator.
+    WorstHigh,
+    /// The datasheet's limits, every offset negative, the slowest comparator.
+    WorstLow,
+}
+
+/// The largest offset a scenario may set (volts): ten times the datasheet limits.
+const MAX_OFFSET_V: f64 = 0.2;
+/// The longest comparator delay a scenario may set (ns).
+const MAX_COMP_DELAY_NS: f64 = 1.0e6;
+
+impl AnalogKeys {
+    fn errors(&self) -> Result<AnalogErrors> {
+        let mut e = match self.part.unwrap_or(AnalogPart::Typical) {
+            AnalogPart::Typical => AnalogErrors::TYPICAL,
+            AnalogPart::Ideal => AnalogErrors::IDEAL,
+            AnalogPart::WorstHigh => AnalogErrors::worst(1.0),
+            AnalogPart::WorstLow => AnalogErrors::worst(-1.0),
+        };
+        for (name, val, slot) in [
+            (
+                "analog.comp_offset_v",
+                self.comp_offset_v,
+                &mut e.comp_offset_v,
+            ),
+            (
+                "analog.dac_offset_v",
+                self.dac_offset_v,
+                &mut e.dac_offset_v,
+            ),
+            (
+                "analog.opamp_offset_v",
+                self.opamp_offset_v,
+                &mut e.opamp_offset_v,
+            ),
+        ] {
+            if let Some(v) = val {
+                if !v.is_finite() || v.abs() > MAX_OFFSET_V {
+                    bail!("{name} must be within +-{MAX_OFFSET_V} V, got {v}");
+                }
+                *slot = v;
+            }
+        }
+        if let Some(v) = non_negative("analog.comp_delay_ns", self.comp_delay_ns)? {
+            if v > MAX_COMP_DELAY_NS {
+                bail!("analog.comp_delay_ns must be at most {MAX_COMP_DELAY_NS}, got {v}");
+            }
+            e.comp_delay_ns = v;
+        }
+        Ok(e)
+    }
 }
 
 /// `[service]`: the service port's test options (service.md 9).
@@ -361,6 +443,8 @@ pub struct Scenario {
     pub lift: Option<LiftParams>,
     /// `[service] flood = true`.
     pub service_flood: bool,
+    /// `[analog]`: the drive MCU's analog errors in the emulator.
+    pub analog: AnalogErrors,
 }
 
 impl Default for Scenario {
@@ -376,6 +460,7 @@ impl Default for Scenario {
             keys_start_run: false,
             lift: None,
             service_flood: false,
+            analog: AnalogErrors::TYPICAL,
         }
     }
 }
@@ -422,6 +507,7 @@ impl Scenario {
         let mut s = Scenario {
             duration_s: positive("duration_s", f.duration_s)?,
             service_flood: f.service.flood,
+            analog: f.analog.errors()?,
             ..Scenario::default()
         };
         let p = &f.plant;
@@ -689,6 +775,43 @@ impl Scenario {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn analog_errors_default_to_the_typical_part_and_each_key_overrides_one() {
+        assert_eq!(
+            Scenario::parse("").expect("empty").analog,
+            AnalogErrors::TYPICAL
+        );
+        let s = Scenario::parse("[analog]\npart = \"worst_low\"\ncomp_offset_v = 0.004\n")
+            .expect("parses");
+        let w = AnalogErrors::worst(-1.0);
+        assert_eq!(s.analog.comp_offset_v, 0.004);
+        assert_eq!(
+            (
+                s.analog.dac_offset_v,
+                s.analog.opamp_offset_v,
+                s.analog.comp_delay_ns
+            ),
+            (w.dac_offset_v, w.opamp_offset_v, w.comp_delay_ns)
+        );
+        let s =
+            Scenario::parse("[analog]\npart = \"ideal\"\ncomp_delay_ns = 50.0\n").expect("parses");
+        assert_eq!(s.analog.comp_delay_ns, 50.0);
+        assert_eq!(s.analog.dac_offset_v, 0.0);
+        for bad in [
+            "[analog]\ncomp_offset_v = 0.5\n",
+            "[analog]\ncomp_delay_ns = -1.0\n",
+            "[analog]\npart = \"worst\"\n",
+            "[analog]\ncomp_offset_mv = 2.0\n",
+        ] {
+            assert!(Scenario::parse(bad).is_err(), "{bad}");
+        }
+        let err = format!(
+            "{:#}",
+            Scenario::parse("[analog]\ndac_offset_v = 1.0\n").unwrap_err()
+        );
+        assert!(err.contains("analog.dac_offset_v"), "{err}");
+    }
 
     const SPEC_EXAMPLE: &str = r#"
 duration_s = 20.0

@@ -214,6 +214,8 @@ impl EmuSim {
             .with_context(|| format!("drive image {}", drive_elf.display()))?;
         // STO_IN is high (not requested) until a scenario sets it (safety.md 11).
         drive.soc_mut().set_tim1_bkin2(true, 0);
+        // The drive MCU's analog errors (`[analog]`: the datasheet's typical part by default).
+        drive.soc_mut().set_analog_errors(&scenario.analog);
         let io = Rc::new(RefCell::new(PlcIo::default()));
         let mut plc = Mcu::load("plc", plc_elf, Box::new(PlcBoard::new(io.clone())))
             .with_context(|| format!("PLC image {}", plc_elf.display()))?;
