@@ -10,6 +10,7 @@ mod boot;
 mod io;
 mod link;
 mod motor;
+mod oc_levels;
 mod power_stage;
 mod safety;
 mod service;
