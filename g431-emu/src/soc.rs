@@ -1871,7 +1871,7 @@ mod tests {
     fn the_adc_converts_the_amplifiers_real_output() {
         let typ = AnalogErrors::TYPICAL.opamp_offset_v;
         let mut bank = OpampBank::new();
-        let mut convert = |bank: &OpampBank, vinp: f64, vinm0: f64| {
+        let convert = |bank: &OpampBank, vinp: f64, vinm0: f64| {
             let snap = snapshot(bank);
             let mut board = ShuntPins { vinp, vinm0 };
             let mut a = AnalogAdapter {
