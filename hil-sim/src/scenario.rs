@@ -183,8 +183,9 @@ pub struct PlantKeys {
     // Additions (hil-sim docs): the rest of the rig.
     /// `"motor"` (default) or `"rl"`: a star RL load instead of the motor.
     pub load: Option<LoadKind>,
-    /// `"source"` (default: the source's sensors, +-10 A and 0-45 V) or `"esc1"` (the bare
-    /// B-G431B-ESC1's shunts, PGA and divider, and its comparators).
+    /// `"esc1"` (default: the bare B-G431B-ESC1's shunts, PGA and divider, and its
+    /// comparators: the board the default drive image is built for) or `"source"` (the
+    /// source's sensors, +-10 A and 0-45 V, the image's `source-sensors` build).
     pub board: Option<BoardKind>,
     pub load_r_ohm: Option<f64>,
     pub load_l_h: Option<f64>,
@@ -215,6 +216,15 @@ pub enum BoardKind {
 }
 
 impl BoardKind {
+    /// The plant's profile for the emulated drive board `b` (the cores' scaling and
+    /// comparators that `hil-sim run` uses for that board).
+    pub fn of(b: g431_emu::boards::DriveBoardId) -> Self {
+        match b {
+            g431_emu::boards::DriveBoardId::Esc1 => BoardKind::Esc1,
+            g431_emu::boards::DriveBoardId::SourceSensors => BoardKind::Source,
+        }
+    }
+
     pub fn profile(self) -> &'static firmware_drive::comparators::BoardProfile {
         match self {
             BoardKind::Source => &firmware_drive::comparators::SOURCE_SENSORS,

@@ -56,10 +56,7 @@ impl DriveBoardId {
 
     /// The board whose id the marker bytes hold (zero-padded, at most 8 bytes).
     pub fn from_marker(marker: &[u8]) -> Option<Self> {
-        let end = marker
-            .iter()
-            .position(|&b| b == 0)
-            .unwrap_or(marker.len());
+        let end = marker.iter().position(|&b| b == 0).unwrap_or(marker.len());
         let text = marker.get(..end)?;
         Self::ALL
             .into_iter()

@@ -117,7 +117,7 @@ fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current()
     let (drive, _) = crate::common::images();
     let image = g431_emu::elf::Image::load(drive).expect("drive image");
     let board = hil_sim::emu::boards::image_board(&image).expect("profile marker");
-    if board != &B_G431B_ESC1 {
+    if board != g431_emu::boards::DriveBoardId::Esc1 {
         // A `source-sensors` build (not what CI tests or users flash): its pins carry the
         // source's sensors, `both_images_boot_to_idle_and_stop` covers it.
         return;
