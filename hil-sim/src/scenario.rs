@@ -700,6 +700,19 @@ impl Scenario {
 mod tests {
     use super::*;
 
+    #[test]
+    fn the_default_drive_board_is_the_default_images_the_bare_esc1() {
+        let esc1 = &firmware_drive::comparators::B_G431B_ESC1;
+        assert_eq!(Scenario::default().rig.board, esc1);
+        assert_eq!(Scenario::parse("").unwrap().rig.board, esc1);
+        let s = Scenario::parse("[plant]\nboard = \"source\"\n").unwrap();
+        assert_eq!(s.rig.board, &firmware_drive::comparators::SOURCE_SENSORS);
+        assert_eq!(
+            BoardKind::of(g431_emu::boards::DriveBoardId::Esc1).profile(),
+            esc1
+        );
+    }
+
     const SPEC_EXAMPLE: &str = r#"
 duration_s = 20.0
 
