@@ -7,6 +7,8 @@
 //! rc_w0 flags are cleared only by a written 0, a write to a peripheral whose clock is off is
 //! ignored and reported.
 //!
+//! * [`boards`]: the boards around the MCUs (B-G431B-ESC1, NUCLEO-G431RB), from their
+//!   documents: physical quantities in, pin voltages and levels out.
 //! * [`time`]: the one time base (CPU cycles at 170 MHz) and conversions.
 //! * [`periph`]: the [`periph::Peripheral`] contract and one module per register model.
 //! * [`devices`]: what sits on the board's buses (24C256 EEPROM, PCF8574 + HD44780 LCD).
@@ -15,6 +17,7 @@
 //!
 //! How it works, what it models and what it cannot catch: `docs/emulator.md`.
 
+pub mod boards;
 pub mod cpu;
 pub mod devices;
 pub mod elf;

@@ -192,14 +192,17 @@ impl RecordArgs {
         })
     }
 
-    fn csv_writer(&self) -> Result<Option<CsvWriter<BufWriter<File>>>> {
+    /// The CSV file, if asked for, starting with `# board: <drive board>`.
+    fn csv_writer(&self, board: &str) -> Result<Option<CsvWriter<BufWriter<File>>>> {
         let Some(p) = &self.csv else {
             return Ok(None);
         };
         let file = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
-        Ok(Some(CsvWriter::new(BufWriter::new(file)).with_context(
-            || format!("cannot write {}", p.display()),
-        )?))
+        let comment = format!("board: {board}");
+        Ok(Some(
+            CsvWriter::with_comment(BufWriter::new(file), &comment)
+                .with_context(|| format!("cannot write {}", p.display()))?,
+        ))
     }
 
     fn keep_samples(&self) -> hil_sim::decimate::KeepSamples {
@@ -303,7 +306,7 @@ fn cmd_run(a: &RecordArgs, svc: &ServiceArgs) -> Result<()> {
         opts,
     } = a.prepare()?;
     let mut service = svc.attach(&scen, opts.seed)?;
-    let mut writer = a.csv_writer()?;
+    let mut writer = a.csv_writer(scen.rig.board.name)?;
     let mut csv_err = None;
     let tty = std::io::stderr().is_terminal();
     let report = run_with(
@@ -375,7 +378,10 @@ fn cmd_emu(
     for p in [&drive_elf, &plc_elf] {
         g431_emu::elf::Image::load(p)?;
     }
-    let mut writer = a.csv_writer()?;
+    // The emulated drive board is the one the drive image was built for.
+    let board = hil_sim::emu::boards::image_board(&g431_emu::elf::Image::load(&drive_elf)?)
+        .map_or("unknown (no DRIVE_BOARD_PROFILE marker)", |b| b.name());
+    let mut writer = a.csv_writer(board)?;
     let mut csv_err = None;
     let tty = std::io::stderr().is_terminal();
     let mut last_progress = 0.0;

@@ -156,6 +156,15 @@ impl<W: Write> CsvWriter<W> {
         })
     }
 
+    /// A writer whose file starts with `# <comment>` lines (one per line of `comment`)
+    /// before the header row: what the run simulated (e.g. `board: B-G431B-ESC1`).
+    pub fn with_comment(mut w: W, comment: &str) -> io::Result<Self> {
+        for line in comment.lines() {
+            writeln!(w, "# {line}")?;
+        }
+        Self::new(w)
+    }
+
     pub fn write(&mut self, s: &Sample) -> io::Result<()> {
         if !self.header_done {
             let h = if s.lift.is_some() {

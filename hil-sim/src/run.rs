@@ -80,6 +80,8 @@ pub struct RunReport {
     /// The parameter signature (safety.md 8) of a program that uses the safety
     /// functions, as the drive reports it at the end of the run.
     pub signature: Option<u16>,
+    /// The drive board the run simulates (`[plant] board`).
+    pub board: &'static str,
 }
 
 /// The summary's fault lines (`faults: none`, or one line per trip with its time),
@@ -160,6 +162,7 @@ impl RunReport {
             wall,
             if wall > 0.0 { self.sim_s / wall } else { 0.0 }
         ));
+        s.push_str(&format!("drive board: {}\n", self.board));
         s.push_str(&format!(
             "final state: PLC {}, drive {}, f = {:.1} Hz, speed = {:.0} rpm\n",
             if self.plc_running { "RUN" } else { "STOP" },
@@ -305,6 +308,7 @@ pub fn run_with(
     let signature =
         shared_protocol::program::uses_safety(program).then(|| sim.drive().status().sf_signature);
     let report = RunReport {
+        board: sim.plant().params().board.name,
         signature,
         marks,
         drive_states: sim

@@ -265,8 +265,9 @@ pub struct PlantKeys {
     // Additions (hil-sim docs): the rest of the rig.
     /// `"motor"` (default) or `"rl"`: a star RL load instead of the motor.
     pub load: Option<LoadKind>,
-    /// `"source"` (default: the source's sensors, +-10 A and 0-45 V) or `"esc1"` (the bare
-    /// B-G431B-ESC1's shunts, PGA and divider, and its comparators).
+    /// `"esc1"` (default: the bare B-G431B-ESC1's shunts, PGA and divider, and its
+    /// comparators: the board the default drive image is built for) or `"source"` (the
+    /// source's sensors, +-10 A and 0-45 V, the image's `source-sensors` build).
     pub board: Option<BoardKind>,
     pub load_r_ohm: Option<f64>,
     pub load_l_h: Option<f64>,
@@ -297,6 +298,15 @@ pub enum BoardKind {
 }
 
 impl BoardKind {
+    /// The plant's profile for the emulated drive board `b` (the cores' scaling and
+    /// comparators that `hil-sim run` uses for that board).
+    pub fn of(b: g431_emu::boards::DriveBoardId) -> Self {
+        match b {
+            g431_emu::boards::DriveBoardId::Esc1 => BoardKind::Esc1,
+            g431_emu::boards::DriveBoardId::SourceSensors => BoardKind::Source,
+        }
+    }
+
     pub fn profile(self) -> &'static firmware_drive::comparators::BoardProfile {
         match self {
             BoardKind::Source => &firmware_drive::comparators::SOURCE_SENSORS,
@@ -811,6 +821,19 @@ mod tests {
             Scenario::parse("[analog]\ndac_offset_v = 1.0\n").unwrap_err()
         );
         assert!(err.contains("analog.dac_offset_v"), "{err}");
+    }
+
+    #[test]
+    fn the_default_drive_board_is_the_default_images_the_bare_esc1() {
+        let esc1 = &firmware_drive::comparators::B_G431B_ESC1;
+        assert_eq!(Scenario::default().rig.board, esc1);
+        assert_eq!(Scenario::parse("").unwrap().rig.board, esc1);
+        let s = Scenario::parse("[plant]\nboard = \"source\"\n").unwrap();
+        assert_eq!(s.rig.board, &firmware_drive::comparators::SOURCE_SENSORS);
+        assert_eq!(
+            BoardKind::of(g431_emu::boards::DriveBoardId::Esc1).profile(),
+            esc1
+        );
     }
 
     const SPEC_EXAMPLE: &str = r#"

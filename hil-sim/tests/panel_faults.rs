@@ -147,7 +147,13 @@ fn ov_hw_from_a_voltage_spike_and_from_the_supply() {
     ack_refused(&mut app, FaultCode::OvHw, "ACK REFUSED: CAUSE");
     keys(&mut app, "{{{");
     app.advance(500);
-    ack(&mut app, FaultCode::OvHw);
+    // The supply is back at 30 V, but on the bare ESC1 (the default board, issue 36)
+    // nothing discharges the DC link: the board has no brake chopper and its 34.3 V range
+    // hides the 45 V from the drive's `U>` chopper (board review N7, issue 29). The
+    // comparator stays high and the ACK stays refused; on the source's rig the chopper
+    // brought the link down and the ACK was accepted here.
+    assert!(app.status().u_dc_v > 40.0, "{:?}", app.status());
+    ack_refused(&mut app, FaultCode::OvHw, "ACK REFUSED: CAUSE");
 }
 
 /// `H` is OV_HW and `h` OC_HW whichever PWM period they land in (periods differ by 1 ns:

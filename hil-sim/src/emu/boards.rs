@@ -1,35 +1,43 @@
-//! The two boards around the emulated MCUs, wired as the README's pin maps say: what each
-//! pin of the G431 sees (the rig's sensors, inputs, keypad, the I2C bus) and where each
-//! output goes (the power stage, the brake chopper, the PLC's outputs).
+//! The glue between hil-sim's plant and the two emulated boards.
 //!
-//! * [`DriveBoard`]: a B-G431B-ESC1 whose current and DC-link pins carry the voltages of
-//!   the board profile the image was built for ([`image_board`]): the bare ESC1's shunt
-//!   networks in front of the on-chip PGAs, or the source's sensors (±10 A and 0..45 V on
-//!   0..3.3 V); TIM1's outputs drive hil-sim's inverter and motor ([`Rig`]), PB5 is the
-//!   brake chopper's gate.
+//! The boards themselves are `g431_emu::boards` (built from the boards' documents: the
+//! B-G431B-ESC1, the source's sensor carrier, the NUCLEO-G431RB). This module only turns
+//! the plant's state into the physical quantities those models take (phase currents,
+//! DC-link volts, the STO wire) and TIM1's gate state into the inverter's command, and
+//! wires what the rig adds around the boards (the STO wire, the PLC's I/O):
+//!
+//! * [`DriveBoard`]: the drive board of the image's `DRIVE_BOARD_PROFILE` marker
+//!   ([`image_board`]); TIM1's outputs drive hil-sim's inverter and motor ([`Rig`]). On the
+//!   bare ESC1, PB5 enables the BEMF dividers (there is no brake chopper); on the source's
+//!   carrier it is the chopper's gate.
 //! * [`PlcBoard`]: a NUCLEO-G431RB with the PLC's inputs, outputs, analog inputs, the 4x4
 //!   keypad matrix and, on I2C3 (PA8/PB5), the same 24C256 and PCF8574 + HD44780 LCD the
 //!   simulator's panel uses, as device models.
 //!
-//! The pin tables here are the physical wiring; the images configure their side of it.
-//! An image that uses other pins finds nothing there, as on a real board.
+//! The pin tables here are the rig's wiring (the README's pin maps); the images configure
+//! their side of it. An image that uses other pins finds nothing there, as on a real board.
 
 use std::cell::RefCell;
 use std::collections::BTreeSet;
 use std::rc::Rc;
 
+use g431_emu::boards::{
+    b_g431b_esc1 as esc1, source_sensors, DriveBoardId, ExternalWire, NetLevel,
+    PowerStageQuantities, VDDA_VOLTS,
+};
 use g431_emu::periph::comp::CompConfig;
-use g431_emu::periph::gpio::{Drive, External, PinReader};
+use g431_emu::periph::gpio::{Drive, External, PinReader, Pull};
 use g431_emu::periph::tim_adv::{GateState, PinDrive, TimEvent};
 use g431_emu::soc::Board;
 use g431_emu::time::{cycles_to_ns, Cycles};
 
-use firmware_drive::comparators::{BoardProfile, Signal};
-
-use crate::plant::{sensors, Comparators, GateCommand, Leg, Plant};
+use crate::plant::{Comparators, GateCommand, Leg, Plant};
 
 /// ADC reference of both boards.
-pub const VREF: f64 = 3.3;
+pub const VREF: f64 = VDDA_VOLTS;
+
+/// Full scale of the 12-bit ADC, counts (the scenario's `COM` is given in them).
+const ADC_FULL_COUNTS: f64 = 4095.0;
 
 /// `"PA1"` → (0, 1).
 pub fn pin_id(name: &str) -> Option<(u8, u8)> {
@@ -40,6 +48,27 @@ pub fn pin_id(name: &str) -> Option<(u8, u8)> {
     let port = b[1].checked_sub(b'A')?;
     let n: u8 = name.get(2..)?.parse().ok()?;
     Some((port, n))
+}
+
+/// What the bare ESC1's amplifier input pins carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Esc1Sense {
+    /// The board's documented network (`g431_emu::boards::b_g431b_esc1`): both amplifier
+    /// pins of each leg at the network's bias.
+    #[default]
+    Documented,
+    /// The voltages today's drive image assumes (its ESC1 scaling: 0.103 V at 0 A on VINP,
+    /// -1.714 mV/A, VINM0 pins at 0 V): **not the board**. Only for the emulator tests of
+    /// everything else while the image's amplifier mode is wrong for the documented board
+    /// (board review N5, issue 29): with the documented network the image stops at boot.
+    AsImageAssumes,
+}
+
+impl Esc1Sense {
+    /// VINP volts at 0 A that the image assumes: 2048 counts after its PGA x16.
+    const ASSUMED_VINP_ZERO_V: f64 = 2048.0 / ADC_FULL_COUNTS * VDDA_VOLTS / 16.0;
+    /// VINP volts per ampere that the image assumes: -34.03 counts/A after its PGA x16.
+    const ASSUMED_VINP_V_PER_A: f64 = -34.03 / ADC_FULL_COUNTS * VDDA_VOLTS / 16.0;
 }
 
 /// The power stage, the motor and the drive's analog signals, shared between the drive
@@ -55,6 +84,19 @@ pub struct Rig {
     /// Disturbances of the sensed phase currents (switching spikes on a shunt): what the
     /// sense pins carry on top of the plant's current, not the motor's current.
     pub sense_spikes: Vec<SenseSpikeAt>,
+    /// The drive board (from the image's marker).
+    pub board: DriveBoardId,
+    /// What the ESC1's amplifier pins carry (the documented network unless a test says).
+    pub esc1_sense: Esc1Sense,
+    /// The rig's STO wire at [`drive_pins::STO_IN`] (safety.md 6): driven high while STO is
+    /// not requested.
+    pub sto_wire: ExternalWire,
+    /// How the image drives the CAN transceiver's SHDN (PC11), as last seen.
+    pub can_shdn: Drive,
+    /// The ESC1's BEMF dividers are switched on (PB5 high).
+    pub bemf_dividers_on: bool,
+    /// Times the STO wire and the CAN transceiver drove the STO net to opposite levels.
+    pub sto_contentions: u64,
 }
 
 /// A disturbance of one sensed phase current from `from_ns` to `to_ns` (emulated time).
@@ -68,21 +110,25 @@ pub struct SenseSpikeAt {
 }
 
 impl Rig {
-    /// The rig around `plant`. The plant's own comparator model is switched off: in the
-    /// emulator the comparators are the emulated COMP/DAC registers (sampled by the SoC at
-    /// every TIM1 event), and TIM1's break opens the switches.
-    pub fn new(mut plant: Plant) -> Self {
-        let board = plant.comparators().board;
-        plant.set_comparators(Comparators {
-            board,
-            dacs: firmware_drive::comparators::DacValues::default(),
-        });
+    /// The rig around `plant` with the drive board `board`. The plant's own comparator
+    /// model is switched off: in the emulator the comparators are the emulated COMP/DAC
+    /// registers (sampled by the SoC at every TIM1 event), and TIM1's break opens the
+    /// switches.
+    pub fn new(mut plant: Plant, board: DriveBoardId) -> Self {
+        let profile = plant.comparators().board;
+        plant.set_comparators(Comparators::off(profile));
         Rig {
             plant,
             plant_ns: 0,
             aux_counts: 0,
             gate: None,
             sense_spikes: Vec::new(),
+            board,
+            esc1_sense: Esc1Sense::default(),
+            sto_wire: ExternalWire::DrivenHigh,
+            can_shdn: Drive::Released { pull: Pull::None },
+            bemf_dividers_on: false,
+            sto_contentions: 0,
         }
     }
 
@@ -97,6 +143,47 @@ impl Rig {
             }
         }
         i
+    }
+
+    /// What the board senses at `ns`.
+    pub fn quantities(&self, ns: u64) -> PowerStageQuantities {
+        PowerStageQuantities {
+            phase_currents_a: self.sensed_currents(ns),
+            dc_link_v: self.plant.outputs().u_dc_v,
+        }
+    }
+
+    /// Volts on analog pin `pin` at `ns` (0 V for a pin the board leaves unconnected).
+    pub fn pin_volts(&self, pin: &str, ns: u64) -> f64 {
+        let q = self.quantities(ns);
+        let aux = f64::from(self.aux_counts) / ADC_FULL_COUNTS;
+        let v = match self.board {
+            DriveBoardId::Esc1 => match self.esc1_sense {
+                Esc1Sense::AsImageAssumes => {
+                    assumed_esc1_pin_volts(pin, &q).or_else(|| esc1::pin_volts(pin, &q, aux))
+                }
+                Esc1Sense::Documented => esc1::pin_volts(pin, &q, aux),
+            },
+            DriveBoardId::SourceSensors => source_sensors::pin_volts(pin, &q, aux),
+        };
+        v.unwrap_or(0.0)
+    }
+
+    /// The level of the net the STO wire is brought to.
+    pub fn sto_net(&self) -> NetLevel {
+        if drive_pins::STO_IN == esc1::CAN_RX {
+            // Both drive boards keep the ESC1's CAN transceiver on PA11.
+            esc1::can_rx_net(self.can_shdn, Some(self.sto_wire))
+        } else {
+            NetLevel {
+                level: match self.sto_wire {
+                    ExternalWire::DrivenHigh => External::High,
+                    ExternalWire::DrivenLow => External::Low,
+                    ExternalWire::Open => External::Floating,
+                },
+                contention: false,
+            }
+        }
     }
 
     /// Advances the plant to `ns`.
@@ -118,6 +205,20 @@ impl Rig {
             _ => [None; 3],
         }
     }
+}
+
+/// [`Esc1Sense::AsImageAssumes`]: the amplifier pins as the image assumes them.
+fn assumed_esc1_pin_volts(pin: &str, q: &PowerStageQuantities) -> Option<f64> {
+    for (s, &i) in esc1::SHUNTS.iter().zip(q.phase_currents_a.iter()) {
+        if pin == s.vinp {
+            let v = Esc1Sense::ASSUMED_VINP_ZERO_V + Esc1Sense::ASSUMED_VINP_V_PER_A * i;
+            return Some(v.clamp(0.0, VDDA_VOLTS));
+        }
+        if pin == s.vinm0 {
+            return Some(0.0);
+        }
+    }
+    None
 }
 
 /// The inverter command a TIM1 gate state gives: (PWM period in ns, gate command).
@@ -155,61 +256,22 @@ pub fn gate_command(g: &GateState) -> (u64, GateCommand) {
     (period_ns, GateCommand { legs, dead_time_ns })
 }
 
-/// Volts on the sense pin of `signal` for a phase current of `i_a` on a board with the
-/// front end of `profile`: the ADC-scale voltage of the profile's scaling
-/// (`plant::sensors`), divided by the gain of the on-chip amplifier that follows the pin
-/// (the ESC1's PGA x16: about 0.103 V at 0 A, falling 1.71 mV/A).
-pub fn current_volts(profile: &BoardProfile, signal: Signal, i_a: f64) -> f64 {
-    let counts = sensors::current_signal_counts(&profile.scaling, i_a);
-    let adc_volts = counts / f64::from(sensors::ADC_MAX) * VREF;
-    (adc_volts / f64::from(profile.front_end.gain_of(signal))).clamp(0.0, VREF)
+/// The drive board a drive image was built for, from its `DRIVE_BOARD_PROFILE` marker
+/// (ids defined by the board layer, `g431_emu::boards::DriveBoardId`).
+pub fn image_board(image: &g431_emu::elf::Image) -> Option<DriveBoardId> {
+    DriveBoardId::from_marker(image.flash_symbol("DRIVE_BOARD_PROFILE")?)
 }
 
-/// The phase current a sense-pin voltage stands for (inverse of [`current_volts`]).
-pub fn volts_current(profile: &BoardProfile, signal: Signal, v: f64) -> f64 {
-    let sc = &profile.scaling;
-    let adc_volts = v * f64::from(profile.front_end.gain_of(signal));
-    let counts = adc_volts / VREF * f64::from(sensors::ADC_MAX);
-    (counts - f64::from(sc.current_zero_counts)) * 1000.0
-        / f64::from(sc.current_millicounts_per_amp)
-}
-
-/// Volts on the DC-link pin.
-pub fn udc_volts(profile: &BoardProfile, u: f64) -> f64 {
-    (sensors::udc_signal_counts(&profile.scaling, u) / f64::from(sensors::ADC_MAX) * VREF)
-        .clamp(0.0, VREF)
-}
-
-/// The board profile a drive image was built for, from its `DRIVE_BOARD_PROFILE` marker
-/// (`firmware_drive::config::IMAGE_BOARD`): the emulated board must put that profile's
-/// voltages on the pins.
-pub fn image_board(image: &g431_emu::elf::Image) -> Option<&'static BoardProfile> {
-    let marker = image.flash_symbol("DRIVE_BOARD_PROFILE")?;
-    [
-        &firmware_drive::comparators::B_G431B_ESC1,
-        &firmware_drive::comparators::SOURCE_SENSORS,
-    ]
-    .into_iter()
-    .find(|p| p.key_bytes().as_slice() == marker)
-}
-
-/// The drive board: a B-G431B-ESC1 whose sense pins carry the voltages of the rig's board
-/// profile (the plant's `RigParams::board`, which `EmuSim` sets from the image's marker).
+/// The drive board around the emulated drive MCU.
 pub struct DriveBoard {
     rig: Rc<RefCell<Rig>>,
 }
 
-/// Drive pins (README "Drive board").
+/// Drive pins the rig wires (README "Drive board"; the boards' own nets are in
+/// `g431_emu::boards`).
 pub mod drive_pins {
-    pub const CURRENT_A: &str = "PA1";
-    pub const CURRENT_B: &str = "PA7";
-    /// Phase W's shunt (the ESC1's third current sense, COMP4's input).
-    pub const CURRENT_C: &str = "PB0";
-    pub const DC_LINK: &str = "PA0";
-    pub const AUX: &str = "PB12";
-    /// Brake chopper gate (GPIO out, active high).
-    pub const BRAKE: (u8, u8) = (1, 5);
-    /// The hardware STO input (safety.md 6): PA11 = TIM1_BKIN2.
+    /// The rig's STO wire (safety.md 6): brought to PA11 (`STO_IN` in the README's pin
+    /// map), which is TIM1_BKIN2 and, on the ESC1, the CAN transceiver's RX net.
     pub const STO_IN: (u8, u8) = (0, 11);
     /// The link's wires: TX and RX of the drive.
     pub const LINK_TX: &str = "PB6";
@@ -223,15 +285,18 @@ impl DriveBoard {
 }
 
 impl PinReader for DriveBoard {
-    fn external(&mut self, port: u8, pin: u8, _: Cycles, _: &dyn Fn(u8, u8) -> Drive) -> External {
-        // STO_IN (PA11): driven high while not requested; low (or a broken wire, read
-        // low through the image's pull-down) requests STO.
+    fn external(
+        &mut self,
+        port: u8,
+        pin: u8,
+        _: Cycles,
+        drives: &dyn Fn(u8, u8) -> Drive,
+    ) -> External {
         if (port, pin) == drive_pins::STO_IN {
-            return if self.rig.borrow().plant.sto_in_low() {
-                External::Low
-            } else {
-                External::High
-            };
+            let mut rig = self.rig.borrow_mut();
+            let (sp, sn) = esc1::CAN_SHDN;
+            rig.can_shdn = drives(sp, sn);
+            return rig.sto_net().level;
         }
         External::Floating
     }
@@ -239,27 +304,28 @@ impl PinReader for DriveBoard {
 
 impl Board for DriveBoard {
     fn outputs_changed(&mut self, now: Cycles, drives: &dyn Fn(u8, u8) -> Drive) {
-        let (port, pin) = drive_pins::BRAKE;
-        let on = drives(port, pin) == Drive::High;
         let mut rig = self.rig.borrow_mut();
         rig.advance_to(cycles_to_ns(now));
-        rig.plant.set_brake(on);
+        let (sp, sn) = esc1::CAN_SHDN;
+        rig.can_shdn = drives(sp, sn);
+        match rig.board {
+            DriveBoardId::Esc1 => {
+                let (p, n) = esc1::BEMF_ENABLE;
+                rig.bemf_dividers_on = drives(p, n) == Drive::High;
+            }
+            DriveBoardId::SourceSensors => {
+                let (p, n) = source_sensors::BRAKE_GATE;
+                let on = drives(p, n) == Drive::High;
+                rig.plant.set_brake(on);
+            }
+        }
     }
 
     fn pin_volts(&mut self, pin: &str, at: Cycles) -> f64 {
         let mut rig = self.rig.borrow_mut();
-        rig.advance_to(cycles_to_ns(at));
-        let o = rig.plant.outputs();
-        let i = rig.sensed_currents(cycles_to_ns(at));
-        let p = rig.plant.params().board;
-        match pin {
-            drive_pins::CURRENT_A => current_volts(p, Signal::CurrentA, i[0]),
-            drive_pins::CURRENT_B => current_volts(p, Signal::CurrentB, i[1]),
-            drive_pins::CURRENT_C => current_volts(p, Signal::CurrentC, i[2]),
-            drive_pins::DC_LINK => udc_volts(p, o.u_dc_v),
-            drive_pins::AUX => f64::from(rig.aux_counts) / f64::from(sensors::ADC_MAX) * VREF,
-            _ => 0.0,
-        }
+        let ns = cycles_to_ns(at);
+        rig.advance_to(ns);
+        rig.pin_volts(pin, ns)
     }
 
     fn power_stage(&mut self, ev: &TimEvent) {
@@ -286,6 +352,10 @@ impl Board for DriveBoard {
             }
             TimEvent::OutputsOn { at } => {
                 rig.advance_to(cycles_to_ns(at));
+                // The image's TIM1 set MOE again: its break inputs are inactive (TIM1
+                // refuses MOE otherwise), so the plant's latched break follows (review
+                // E4): the record shows what the gates really do.
+                rig.plant.release_break();
                 if let Some(mut g) = rig.gate {
                     g.outputs_enabled = true;
                     g.moe = true;
@@ -316,7 +386,7 @@ pub struct PlcIo {
     pub outputs: u8,
 }
 
-/// PLC pins (README "PLC board", `firmware-plc/src/pins.rs`), as (port, pin) with port
+/// PLC pins (the README's "PLC board" pin map), as (port, pin) with port
 /// 0 = A, 1 = B, 2 = C, 3 = D.
 pub mod plc_pins {
     use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
@@ -440,23 +510,43 @@ impl Board for PlcBoard {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plant::RigParams;
+
+    fn rig(board: DriveBoardId) -> Rig {
+        Rig::new(Plant::new(RigParams::default()), board)
+    }
 
     #[test]
-    fn current_scaling_matches_the_plants_sensor() {
-        use firmware_drive::comparators::{B_G431B_ESC1, SOURCE_SENSORS};
-        for p in [&SOURCE_SENSORS, &B_G431B_ESC1] {
-            let gain = f64::from(p.front_end.gain_of(Signal::CurrentA));
-            for i in [-9.0, -1.234, 0.0, 0.5, 3.0, 9.9] {
-                let v = current_volts(p, Signal::CurrentA, i);
-                // What the ADC converts: the pin, times the amplifier's gain.
-                let counts = (v * gain / VREF * f64::from(sensors::ADC_MAX)).round() as u16;
-                assert_eq!(counts, sensors::current_counts(&p.scaling, i), "{i} A");
-                assert!((volts_current(p, Signal::CurrentA, v) - i).abs() < 1e-9);
-            }
-        }
-        // The bare ESC1 at 0 A: about 0.103 V at the PGA input (review D4).
-        let v = current_volts(&B_G431B_ESC1, Signal::CurrentB, 0.0);
-        assert!((v - 0.1031).abs() < 0.001, "{v} V");
+    fn the_esc1_pins_carry_the_documented_network_unless_a_test_asks() {
+        let mut r = rig(DriveBoardId::Esc1);
+        // At rest both amplifier pins of a leg sit at the network's bias.
+        let (p, m) = esc1::shunt_pins_volts(0.0);
+        assert_eq!(r.pin_volts("PA1", 0), p);
+        assert_eq!(r.pin_volts("PA3", 0), m);
+        assert!(m > 1.0, "VINM0 carries the bias: {m} V");
+        r.esc1_sense = Esc1Sense::AsImageAssumes;
+        assert!((r.pin_volts("PA1", 0) - 0.1031).abs() < 0.001);
+        assert_eq!(r.pin_volts("PA3", 0), 0.0);
+        // The divider is the board's in both cases.
+        let u = r.plant.outputs().u_dc_v;
+        assert_eq!(r.pin_volts("PA0", 0), esc1::dc_link_pin_volts(u));
         assert_eq!(pin_id("PC13"), Some((2, 13)));
+    }
+
+    #[test]
+    fn the_sto_wire_meets_the_can_transceiver_on_pa11() {
+        let mut r = rig(DriveBoardId::Esc1);
+        r.sto_wire = ExternalWire::Open;
+        assert_eq!(
+            r.sto_net().level,
+            External::High,
+            "RXD holds a broken wire high"
+        );
+        r.sto_wire = ExternalWire::DrivenLow;
+        let n = r.sto_net();
+        assert_eq!((n.level, n.contention), (External::Low, true));
+        r.can_shdn = Drive::High;
+        r.sto_wire = ExternalWire::Open;
+        assert_eq!(r.sto_net().level, External::Floating);
     }
 }

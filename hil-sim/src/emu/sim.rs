@@ -25,6 +25,7 @@ use std::path::Path;
 use std::rc::Rc;
 
 use anyhow::{Context, Result};
+use g431_emu::boards::ExternalWire;
 use g431_emu::cpu::{CpuEvent, CpuState};
 use g431_emu::devices::eeprom_24c256::Eeprom24c256;
 use g431_emu::devices::lcd_backpack::LcdBackpack;
@@ -40,7 +41,7 @@ use shared_protocol::program::Program;
 use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
 use crate::mcu::Lcd;
 use crate::plant::Plant;
-use crate::scenario::{Action, Input, Scenario};
+use crate::scenario::{Action, BoardKind, Input, Scenario};
 use crate::sim::{FaultRecord, RunOptions, Sample};
 
 /// Longest slice both MCUs run before the wire hands characters over.
@@ -203,17 +204,16 @@ impl EmuSim {
         let drive_image = g431_emu::elf::Image::load(drive_elf)
             .with_context(|| format!("drive image {}", drive_elf.display()))?;
         let mut scenario = scenario;
-        scenario.rig.board = image_board(&drive_image).with_context(|| {
+        let board = image_board(&drive_image).with_context(|| {
             format!(
                 "drive image {} has no known DRIVE_BOARD_PROFILE marker",
                 drive_elf.display()
             )
         })?;
-        let rig = Rc::new(RefCell::new(Rig::new(Plant::new(scenario.rig))));
+        scenario.rig.board = BoardKind::of(board).profile();
+        let rig = Rc::new(RefCell::new(Rig::new(Plant::new(scenario.rig), board)));
         let mut drive = Mcu::new("drive", drive_image, Box::new(DriveBoard::new(rig.clone())))
             .with_context(|| format!("drive image {}", drive_elf.display()))?;
-        // STO_IN is high (not requested) until a scenario sets it (safety.md 11).
-        drive.soc_mut().set_tim1_bkin2(true, 0);
         // The drive MCU's analog errors (`[analog]`: the datasheet's typical part by default).
         drive.soc_mut().set_analog_errors(&scenario.analog);
         let io = Rc::new(RefCell::new(PlcIo::default()));
@@ -231,7 +231,7 @@ impl EmuSim {
         plc.soc_mut()
             .attach_i2c(2, lcd.clone(), plc_pins::I2C_SCL, plc_pins::I2C_SDA);
         let seed = opts.seed;
-        Ok(EmuSim {
+        let mut sim = EmuSim {
             now_ns: 0,
             drive,
             plc,
@@ -254,7 +254,44 @@ impl EmuSim {
             sample_ns: opts.sample_ns.max(1),
             service: ServiceHost::default(),
             scenario,
-        })
+        };
+        // The STO wire is driven high (not requested) until a scenario sets it
+        // (safety.md 11).
+        sim.set_sto_wire(ExternalWire::DrivenHigh);
+        Ok(sim)
+    }
+
+    /// The rig's STO wire: the level its net settles to (with the board's own driver on
+    /// it, `Rig::sto_net`, and the image's pull on the pin) reaches the plant and TIM1's
+    /// BKIN2. A later change of how the image drives PC11 (the ESC1's CAN_SHDN) reaches
+    /// BKIN2 at the next call; the images do not drive it.
+    pub fn set_sto_wire(&mut self, wire: ExternalWire) {
+        let shdn = {
+            let (p, n) = g431_emu::boards::b_g431b_esc1::CAN_SHDN;
+            self.drive.soc().pin_drive(p, n)
+        };
+        let net = {
+            let mut rig = self.rig.borrow_mut();
+            rig.sto_wire = wire;
+            rig.can_shdn = shdn;
+            let net = rig.sto_net();
+            if net.contention {
+                rig.sto_contentions += 1;
+            }
+            net
+        };
+        let (p, n) = drive_pins::STO_IN;
+        // A floating input without a pull is undefined: taken as high (STO not
+        // requested), the reading that hides nothing from a test of the STO path.
+        let high = self
+            .drive
+            .soc()
+            .gpio(p)
+            .and_then(|g| g.level(n, net.level))
+            .unwrap_or(true);
+        self.rig.borrow_mut().plant.set_sto_input(!high);
+        let now = ns_to_cycles(self.now_ns);
+        self.drive.soc_mut().set_tim1_bkin2(high, now);
     }
 
     pub fn now_ns(&self) -> u64 {
@@ -499,12 +536,12 @@ impl EmuSim {
                     }
                 }
                 Action::Set(Input::Aux, v) => self.rig.borrow_mut().aux_counts = (v << 2).min(4095),
-                Action::Set(Input::StoIn, v) => {
-                    self.rig.borrow_mut().plant.set_sto_input(v == 0);
-                    // The net also drives TIM1_BKIN2 of the real image (PA11).
-                    let now = ns_to_cycles(self.now_ns);
-                    self.drive.soc_mut().set_tim1_bkin2(v != 0, now);
-                }
+                // STO_IN = 0: the STO source pulls the wire to 0 V.
+                Action::Set(Input::StoIn, v) => self.set_sto_wire(if v == 0 {
+                    ExternalWire::DrivenLow
+                } else {
+                    ExternalWire::DrivenHigh
+                }),
                 Action::KeyDown(k) => self.set_key(k, true),
                 Action::KeyUp(k) => self.set_key(k, false),
                 Action::Plant(c) => c.apply(self.rig.borrow_mut().plant.params_mut()),

@@ -221,7 +221,9 @@ impl SimBackend {
     fn with_scenario(eeprom: MemEeprom, scenario: Scenario) -> Self {
         let link = LinkConfig::at_baud(scenario.baud);
         let plc = PlcBoard::new(eeprom, link, Micros(0));
-        let drive = DriveBoard::new(link);
+        // The drive core configured for the rig's board (as `run`): the plant's sensors
+        // and the core's scaling must be the same board's.
+        let drive = DriveBoard::with_config(link, crate::sim::drive_config(&scenario.rig));
         let opts = RunOptions {
             // The RMS current needs a few samples per period of the output (70 Hz at
             // most): 2 kHz.

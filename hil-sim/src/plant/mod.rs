@@ -85,7 +85,8 @@ pub struct RigParams {
     pub hw_defaults: HwDefaults,
     pub pwm_mode: PwmMode,
     /// The drive board: its sensors' scaling and its comparators (scenario `[plant]
-    /// board = "source"` (default) or `"esc1"`).
+    /// board = "esc1"` (default: the board the default drive image is built for) or
+    /// `"source"`).
     pub board: &'static BoardProfile,
 }
 
@@ -103,7 +104,7 @@ impl Default for RigParams {
                 ov_hw_v: 40.0,
             },
             pwm_mode: PwmMode::Averaged,
-            board: &firmware_drive::comparators::SOURCE_SENSORS,
+            board: &firmware_drive::comparators::B_G431B_ESC1,
         }
     }
 }

@@ -111,6 +111,15 @@ impl Comparators {
         }
     }
 
+    /// The board's comparators with no threshold set: they never trip. The emulator's
+    /// plant uses this: there the comparators are the emulated COMP/DAC registers.
+    pub fn off(board: &'static BoardProfile) -> Self {
+        Comparators {
+            board,
+            dacs: DacValues::default(),
+        }
+    }
+
     /// Comparator outputs for phase currents `i_abc` (inverter legs 1-3) and the DC link,
     /// as COMPx_CSR.VALUE reads (index = COMPx - 1).
     pub fn levels(&self, i_abc: [f64; 3], u_dc: f64) -> ComparatorLevels {

@@ -265,7 +265,12 @@ fn dead_time_loses_voltage_in_the_switching_model() {
 
 #[test]
 fn freewheeling_current_dies_out_within_a_few_milliseconds() {
-    let mut plant = Plant::new(RigParams::default());
+    // The source's board: its comparators (3 A on both boards) let the direct start at
+    // 50 Hz through, the ESC1's (3 A rounded down to its 0.47 A step) trip on it.
+    let mut plant = Plant::new(RigParams {
+        board: &firmware_drive::comparators::SOURCE_SENSORS,
+        ..RigParams::default()
+    });
     drive_sine(&mut plant, 50.0, 1.0, 1_000_000, 1_500_000_000, |_, _| {});
     let before = plant.outputs();
     assert!(before.i_abc_a.iter().any(|i| i.abs() > 0.3), "{before:?}");

@@ -6,6 +6,7 @@
 
 mod common;
 
+mod board_findings;
 mod boot;
 mod io;
 mod link;

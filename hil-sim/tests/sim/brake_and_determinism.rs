@@ -9,6 +9,8 @@ fn regen_scenario(brake_resistor_ohm: f64) -> String {
     format!(
         r#"
 [plant]
+# The source's sensors and chopper (regen_brake.toml): the bare ESC1 has neither.
+board = "source"
 inertia_kgm2 = 0.003
 brake_resistor_ohm = {brake_resistor_ohm}
 

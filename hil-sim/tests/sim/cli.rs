@@ -52,12 +52,20 @@ fn run_writes_csv_and_plot_and_prints_a_summary() {
     let stdout = String::from_utf8(out.stdout).unwrap();
     assert!(stdout.contains("simulated 2.000 s"), "{stdout}");
     assert!(stdout.contains("faults: none"), "{stdout}");
+    // The board it simulated: motor.toml asks for the source's rig (the default is the
+    // bare ESC1, issue 36).
+    assert!(
+        stdout.contains("drive board: source sensors on B-G431B-ESC1 pins\n"),
+        "{stdout}"
+    );
     assert!(stdout.contains("|1:   500   2:  9800 |"), "{stdout}");
     // No progress on stderr when it is not a terminal.
     assert!(out.stderr.is_empty());
     let text = std::fs::read_to_string(&csv).unwrap();
-    assert_eq!(text.lines().count(), 1 + 201);
-    assert!(text.starts_with("t_s,f_cmd_hz,dir,m,pwm_on,fault,u_dc_v,"));
+    assert_eq!(text.lines().count(), 2 + 201);
+    assert!(text.starts_with(
+        "# board: source sensors on B-G431B-ESC1 pins\nt_s,f_cmd_hz,dir,m,pwm_on,fault,u_dc_v,"
+    ));
     let png = std::fs::read(&png).unwrap();
     assert_eq!(&png[1..4], b"PNG");
 }

@@ -4,7 +4,11 @@ use super::common::*;
 
 /// pot A01 = 500 (50.0 Hz), A00 = 980 (9800 Hz PWM); START at 0.5 s; REV at 8 s;
 /// START/STOP again at 22 s.
+/// On the source's rig (`motor.toml`): its chopper takes the reversal's energy.
 const SCENARIO: &str = r#"
+[plant]
+board = "source"
+
 [[event]]
 at_s = 0.0
 set = { A00 = 980, A01 = 500 }

@@ -171,12 +171,13 @@ fn the_sources_du_512_alternative_trips_oc_at_the_start() {
 #[test]
 fn a_refused_ack_says_why_and_a_later_one_is_accepted() {
     let p = parse_program(MOTOR_PLC, "motor.plc").unwrap();
+    // On the source's board (on the bare ESC1, U>> = 40 V lies above the 34.3 V range).
     // The supply rises to 45 V at 6 s: the DC-link comparator (OV_HW, 40 V) trips and stays
     // high. *9 at 7 s with the supply still high; supply back at 8 s, *9 at 9 s with the
     // pot still at 50 Hz; pot to 0 at 10 s (the program's 2.333 s lag brings the command
     // below fmn = 5 Hz about 5.4 s later), *9 at 17 s.
     let scen = format!(
-        "[plant]\nload_torque_nm = 0.03\n{START_50HZ}
+        "[plant]\nboard = \"source\"\nload_torque_nm = 0.03\n{START_50HZ}
 [[event]]\nat_s = 6.0\ndc_link_v = 45.0
 [[event]]\nat_s = 7.0\nkeys = \"*9\"
 [[event]]\nat_s = 8.0\ndc_link_v = 30.0
