@@ -49,6 +49,9 @@ pub const RAM_BYTES: usize = 32 * 1024;
 pub const SYSMEM_BASE: u32 = 0x1FFF_0000;
 pub const SYSMEM_BYTES: usize = 0x1_0000;
 
+/// DBGMCU, in the private peripheral bus (RM0440 §47.16).
+const DBGMCU_BASE: u32 = 0xE004_2000;
+
 /// A free-running counter read by a polling loop does not break its "nothing changes"
 /// streak, but caps how far the clock may jump (the loop may be waiting for a time).
 const COUNTER_POLL_JUMP: Cycles = 10 * CYCLES_PER_US;
@@ -286,6 +289,34 @@ fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
     }
 }
 
+/// Maps `s` after the blocks in `slots` and returns its index.
+///
+/// # Panics
+/// If `s` is empty or overlaps a block already mapped: [`Soc::find`] returns the first
+/// match, so a second model at the same addresses would never see the firmware's accesses
+/// while the SoC's wiring (the debug freeze, the interrupt lines) might act on it (review
+/// E13: TIM2-TIM4 were mapped twice and `debug_halt` froze a TIM4 copy nothing programmed).
+fn push_slot(slots: &mut Vec<Slot>, s: Slot) -> usize {
+    assert!(s.len > 0, "{}: an empty register block", s.name);
+    let end = u64::from(s.base) + u64::from(s.len);
+    if let Some(o) = slots
+        .iter()
+        .find(|o| u64::from(o.base) < end && u64::from(s.base) < u64::from(o.base) + u64::from(o.len))
+    {
+        panic!(
+            "{} at {:#010x}..{:#010x} overlaps {} at {:#010x}..{:#010x}",
+            s.name,
+            s.base,
+            end,
+            o.name,
+            o.base,
+            u64::from(o.base) + u64::from(o.len)
+        );
+    }
+    slots.push(s);
+    slots.len() - 1
+}
+
 /// Unique-ID, flash-size and package words in system memory (RM0440 §48).
 fn sysmem_image() -> Vec<u8> {
     let mut m = vec![0xFFu8; SYSMEM_BYTES];
@@ -308,10 +339,7 @@ impl Soc {
     /// A G431 with every modelled peripheral at reset, `flash` loaded, on `board`.
     pub fn new(flash: Vec<u8>, board: Box<dyn Board>) -> Self {
         let mut slots: Vec<Slot> = Vec::new();
-        let mut add = |s: Slot| {
-            slots.push(s);
-            slots.len() - 1
-        };
+        let mut add = |s: Slot| push_slot(&mut slots, s);
         let rcc = add(slot("RCC", Box::new(Rcc::default())));
         add(slot("PWR", Box::new(Pwr::new())));
         add(slot("FLASH", Box::new(Flash::default())));
@@ -329,12 +357,6 @@ impl Soc {
             ][usize::from(k)];
             add(slot(name, Box::new(GpioPort::new(k))))
         });
-        for name in ["TIM2", "TIM3", "TIM4"] {
-            add(slot(
-                name,
-                Box::new(crate::periph::tim_gp::TimGp::new(name)),
-            ));
-        }
         let dbgmcu = {
             let mut s = slot("DBGMCU", Box::new(Dbgmcu::default()));
             s.enable = None;
@@ -585,6 +607,8 @@ impl Soc {
                 out.extend(x.take_reports());
             } else if let Some(x) = m.downcast_mut::<OpampBank>() {
                 out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<Dbgmcu>() {
+                out.extend(x.take_reports());
             } else if let Some(x) = m.downcast_mut::<I2c>() {
                 if let Some(u) = x.unsupported() {
                     out.push(format!("{}: {u}", x.name()));
@@ -605,9 +629,12 @@ impl Soc {
 
     /// Adds a register model at `name`'s base address (helpers' models: TIM1, USART...).
     /// Returns its slot index.
+    ///
+    /// # Panics
+    /// If the block overlaps one already mapped (two models at one address: the second
+    /// would never be reached).
     pub fn add(&mut self, name: &'static str, model: Box<dyn Model>) -> usize {
-        self.slots.push(slot(name, model));
-        let k = self.slots.len() - 1;
+        let k = push_slot(&mut self.slots, slot(name, model));
         self.refresh(k);
         k
     }
@@ -627,8 +654,7 @@ impl Soc {
         s.len = len;
         s.enable = clock_of.and_then(names::rcc_enable);
         s.reset_bit = clock_of.and_then(names::rcc_reset);
-        self.slots.push(s);
-        let k = self.slots.len() - 1;
+        let k = push_slot(&mut self.slots, s);
         self.refresh(k);
         k
     }
@@ -1326,15 +1352,29 @@ impl Soc {
         }
     }
 
+    /// A DBGMCU offset the model does not implement (PPB: the metadata does not name it).
+    fn report_unmodelled_dbgmcu(&mut self, addr: u32, write: bool) {
+        self.report(
+            (addr, write, 2),
+            Diagnostic::Unmodelled {
+                what: format!("DBGMCU+{:#x}", addr - DBGMCU_BASE),
+                write,
+            },
+        );
+    }
+
     fn ppb_read(&mut self, addr: u32) -> u32 {
-        if (0xE004_2000..0xE004_2400).contains(&addr) {
+        if (DBGMCU_BASE..DBGMCU_BASE + 0x400).contains(&addr) {
             let k = self.dbgmcu;
             let now = self.now;
-            return self
+            let v = self
                 .slots
                 .get_mut(k)
-                .and_then(|s| s.model.read(addr - 0xE004_2000, now))
-                .unwrap_or(0);
+                .and_then(|s| s.model.read(addr - DBGMCU_BASE, now));
+            return v.unwrap_or_else(|| {
+                self.report_unmodelled_dbgmcu(addr, false);
+                0
+            });
         }
         let (now, ipsr) = (self.now, self.ipsr);
         match self.scs.read(addr, now, ipsr) {
@@ -1353,17 +1393,20 @@ impl Soc {
     }
 
     fn ppb_write(&mut self, addr: u32, w: Write) {
-        if (0xE004_2000..0xE004_2400).contains(&addr) {
+        if (DBGMCU_BASE..DBGMCU_BASE + 0x400).contains(&addr) {
             let k = self.dbgmcu;
             let now = self.now;
-            if let Some(s) = self.slots.get_mut(k) {
+            let ok = self.slots.get_mut(k).is_some_and(|s| {
                 s.model.write(
                     Write {
-                        offset: addr - 0xE004_2000,
+                        offset: addr - DBGMCU_BASE,
                         ..w
                     },
                     now,
-                );
+                )
+            });
+            if !ok {
+                self.report_unmodelled_dbgmcu(addr, true);
             }
             return;
         }
@@ -1912,6 +1955,39 @@ mod tests {
         s.system_reset(crate::periph::rcc::ResetKind::Watchdog);
         start(&mut s);
         assert_eq!(s.bus_read(TIM1_BDTR, 4) & BKE_MOE, BKE_MOE);
+    }
+
+    #[test]
+    fn every_register_block_is_mapped_once() {
+        let s = soc();
+        for (k, a) in s.slots.iter().enumerate() {
+            for b in s.slots.iter().skip(k + 1) {
+                assert!(
+                    a.base + a.len <= b.base || b.base + b.len <= a.base,
+                    "{} and {} overlap",
+                    a.name,
+                    b.name
+                );
+            }
+        }
+        // Review E13: the TIM4 the debug freeze acts on is the one the bus reaches.
+        let tim4 = s.slot_of("TIM4").expect("TIM4");
+        assert_eq!(s.wired.tim_gp[2], tim4);
+        assert_eq!(s.find(0x4000_0800), Some(tim4));
+    }
+
+    #[test]
+    #[should_panic(expected = "TIM4 at 0x40000800..0x40000be4 overlaps TIM4")]
+    fn a_second_model_at_a_mapped_address_is_refused() {
+        let mut s = soc();
+        s.add("TIM4", Box::new(TimGp::new("TIM4")));
+    }
+
+    #[test]
+    #[should_panic(expected = "overlaps SYSCFG")]
+    fn a_block_inside_another_is_refused() {
+        let mut s = soc();
+        s.add_at("X", 0x4001_0010, 4, None, Box::new(Dbgmcu::default()));
     }
 
     #[test]
