@@ -299,10 +299,9 @@ fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
 fn push_slot(slots: &mut Vec<Slot>, s: Slot) -> usize {
     assert!(s.len > 0, "{}: an empty register block", s.name);
     let end = u64::from(s.base) + u64::from(s.len);
-    if let Some(o) = slots
-        .iter()
-        .find(|o| u64::from(o.base) < end && u64::from(s.base) < u64::from(o.base) + u64::from(o.len))
-    {
+    if let Some(o) = slots.iter().find(|o| {
+        u64::from(o.base) < end && u64::from(s.base) < u64::from(o.base) + u64::from(o.len)
+    }) {
         panic!(
             "{} at {:#010x}..{:#010x} overlaps {} at {:#010x}..{:#010x}",
             s.name,

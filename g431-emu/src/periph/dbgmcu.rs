@@ -123,7 +123,10 @@ mod tests {
         assert!(d.tim1_stop() && d.iwdg_stop());
         d.reset();
         assert!(d.tim1_stop(), "survives a system reset");
-        assert!(d.take_reports().is_empty(), "TIM1 and IWDG freezes are modelled");
+        assert!(
+            d.take_reports().is_empty(),
+            "TIM1 and IWDG freezes are modelled"
+        );
     }
 
     #[test]

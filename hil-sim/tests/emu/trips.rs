@@ -110,7 +110,10 @@ fn a_link_cut_trips_link_within_50_ms() {
         matches!(codes.as_slice(), [(t, 5)] if t.abs_diff(trip) <= ns(0.001)),
         "faults {codes:?}, the image logged LINK at {trip} ns"
     );
-    let after: Vec<_> = samples.iter().filter(|s| s.t_ns >= trip + ns(0.001)).collect();
+    let after: Vec<_> = samples
+        .iter()
+        .filter(|s| s.t_ns >= trip + ns(0.001))
+        .collect();
     assert!(
         !after.is_empty() && after.iter().all(|s| s.fault == 5 && !s.pwm_on),
         "fault column after the trip: {:?}",
