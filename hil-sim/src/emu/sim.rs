@@ -46,7 +46,7 @@ use shared_protocol::program::Program;
 use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
 use crate::mcu::Lcd;
 use crate::plant::Plant;
-use crate::scenario::{Action, Input, Scenario};
+use crate::scenario::{Action, ImageTrouble, Input, Scenario};
 use crate::sim::{FaultRecord, RunOptions, Sample};
 
 /// Longest slice both MCUs run before the wire hands characters over.
@@ -165,6 +165,36 @@ pub struct EmuSim {
     next_sample_ns: u64,
     sample_ns: u64,
     service: ServiceHost,
+    allowed: Vec<Allowance>,
+}
+
+/// A diagnostic a test lets pass ([`EmuSim::allow`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Allowance {
+    /// Matched as a substring of `<image>: <diagnostic>`.
+    pub pattern: String,
+    /// Why it is not a failure: a model limit, or a finding in the image to be fixed.
+    pub reason: String,
+}
+
+/// The [`ImageTrouble`] an image event is, if any (a power-on or pin reset is the host's
+/// doing, not the image's).
+pub fn trouble_of(e: &CpuEvent) -> Option<ImageTrouble> {
+    Some(match e {
+        CpuEvent::HardFault { .. } => ImageTrouble::HardFault,
+        CpuEvent::Lockup { .. } => ImageTrouble::Lockup,
+        CpuEvent::Reset {
+            why: ResetKind::Watchdog,
+            ..
+        } => ImageTrouble::WatchdogReset,
+        CpuEvent::Reset {
+            why: ResetKind::Software,
+            ..
+        } => ImageTrouble::SoftwareReset,
+        CpuEvent::Reset { .. } => return None,
+        CpuEvent::BootRom { .. } => ImageTrouble::BootRom,
+        CpuEvent::Unsupported { .. } => ImageTrouble::Unsupported,
+    })
 }
 
 /// The host end of the PLC's service port.
@@ -260,6 +290,7 @@ impl EmuSim {
             next_sample_ns: 0,
             sample_ns: opts.sample_ns.max(1),
             service: ServiceHost::default(),
+            allowed: Vec::new(),
             scenario,
         })
     }
@@ -601,6 +632,87 @@ impl EmuSim {
         for m in [&self.drive, &self.plc] {
             for e in m.events() {
                 v.push((m.name.clone(), e.clone()));
+            }
+        }
+        v
+    }
+
+    /// Lets the emulator diagnostics containing `pattern` pass [`EmuSim::problems`]: the
+    /// pattern is matched against `<image>: <diagnostic>` (`"plc: input PA2 read while
+    /// floating"`, or a register name such as `"TIM4.CCMR[1]"` for either image). `reason`
+    /// says why it is not a failure; an allowance that matches nothing is a problem too,
+    /// so that a list never outlives what it excuses.
+    ///
+    /// # Panics
+    /// If `reason` is empty.
+    pub fn allow(&mut self, pattern: &str, reason: &str) -> &mut Self {
+        assert!(
+            !pattern.trim().is_empty() && !reason.trim().is_empty(),
+            "allow(\"{pattern}\", ...) needs a pattern and a reason"
+        );
+        self.allowed.push(Allowance {
+            pattern: pattern.to_string(),
+            reason: reason.to_string(),
+        });
+        self
+    }
+
+    /// Both images' emulator diagnostics so far, as `<image>: <diagnostic>`.
+    pub fn diagnostics(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        for m in [&self.drive, &self.plc] {
+            for d in m.diagnostics() {
+                v.push(format!("{}: {d}", m.name));
+            }
+        }
+        v
+    }
+
+    /// The image events that are an [`ImageTrouble`], with the image's name, whether the
+    /// scenario expects them (`[emu] expect`) and a line of text.
+    pub fn image_troubles(&self) -> Vec<(String, ImageTrouble, bool, String)> {
+        let mut v = Vec::new();
+        for (name, e) in self.cpu_events() {
+            if let Some(t) = trouble_of(&e) {
+                let expected = self.scenario.expected_trouble.contains(&t);
+                v.push((name, t, expected, super::run::event_text(&e)));
+            }
+        }
+        v
+    }
+
+    /// Image troubles the scenario does not expect, as lines of text.
+    pub fn unexpected_troubles(&self) -> Vec<String> {
+        self.image_troubles()
+            .into_iter()
+            .filter(|(_, _, expected, _)| !expected)
+            .map(|(name, t, _, text)| {
+                format!(
+                    "{name}: {text} (add \"{}\" to the scenario's [emu] expect if it is on purpose)",
+                    t.key()
+                )
+            })
+            .collect()
+    }
+
+    /// Everything that must fail an emulator test: image troubles the scenario does not
+    /// expect, diagnostics no [`EmuSim::allow`] covers, and allowances that matched nothing.
+    pub fn problems(&self) -> Vec<String> {
+        let diags = self.diagnostics();
+        let mut v = self.unexpected_troubles();
+        for d in &diags {
+            if !self.allowed.iter().any(|a| d.contains(&a.pattern)) {
+                v.push(format!(
+                    "{d} (allow it by name with a reason, `sim.allow(\"{d}\", \"why\")`, only if it is not a defect)"
+                ));
+            }
+        }
+        for a in &self.allowed {
+            if !diags.iter().any(|d| d.contains(&a.pattern)) {
+                v.push(format!(
+                    "allowance \"{}\" ({}) matched no diagnostic: remove it",
+                    a.pattern, a.reason
+                ));
             }
         }
         v

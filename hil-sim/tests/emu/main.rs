@@ -7,6 +7,7 @@
 mod common;
 
 mod boot;
+mod cli;
 mod io;
 mod link;
 mod motor;

@@ -130,7 +130,8 @@ fn a_link_cut_trips_link_within_50_ms() {
 
 #[test]
 fn a_late_watchdog_feed_resets_the_drive_and_the_plc_shows_wdg() {
-    let mut sim = emu(MOTOR_PLC, START_50HZ);
+    let scen = format!("[emu]\nexpect = [\"watchdog_reset\"]\n{START_50HZ}");
+    let mut sim = emu(MOTOR_PLC, &scen);
     sim.run_until(ns(1.5), |_| {});
     // The core stops (as if stuck) for 150 ms: the independent watchdog (100 ms) resets it.
     sim.drive_mut().cpu_mut().halt();
