@@ -50,6 +50,52 @@ pub const RAM_BYTES: usize = 32 * 1024;
 pub const SYSMEM_BASE: u32 = 0x1FFF_0000;
 pub const SYSMEM_BYTES: usize = 0x1_0000;
 
+/// Registers of the RCC and PWR models that are plain storage: their value changes nothing
+/// in the emulator, so the first change of each is reported (review E5: they were
+/// accepted silently). (block, offset, what the silicon would do with it.)
+pub const STORED_ONLY: &[(&str, u32, &str)] = &[
+    (
+        "PWR",
+        0x04,
+        "CR2: PVD level and enable, peripheral voltage monitoring",
+    ),
+    (
+        "PWR",
+        0x08,
+        "CR3: wake-up pins, standby pulls (APC), UCPD dead-battery pulls",
+    ),
+    ("PWR", 0x0C, "CR4: wake-up polarity, VBAT charging"),
+    (
+        "PWR",
+        0x20,
+        "PUCRA..PDCRG: pulls applied in Standby/Shutdown",
+    ),
+    ("RCC", 0x68, "AHB1SMENR: clocks kept in Sleep mode"),
+    ("RCC", 0x6C, "AHB2SMENR"),
+    ("RCC", 0x70, "AHB3SMENR"),
+    ("RCC", 0x78, "APB1SMENR1"),
+    ("RCC", 0x7C, "APB1SMENR2"),
+    ("RCC", 0x80, "APB2SMENR"),
+    ("RCC", 0x90, "BDCR: LSE, RTC clock, backup domain reset"),
+    ("RCC", 0x9C, "CCIPR2: I2C4 and QUADSPI kernel clocks"),
+];
+
+/// Register `offset` of block `name` is plain storage ([`STORED_ONLY`]; PWR's PUCRx/PDCRx
+/// are one entry for 0x20..0x5C).
+fn is_stored_only(name: &str, offset: u32) -> bool {
+    let offset = if name == "PWR" && (0x20..0x60).contains(&offset) {
+        0x20
+    } else {
+        offset
+    };
+    STORED_ONLY
+        .iter()
+        .any(|(b, o, _)| *b == name && *o == offset)
+}
+
+/// DBGMCU, in the private peripheral bus (RM0440 §47.16).
+const DBGMCU_BASE: u32 = 0xE004_2000;
+
 /// A free-running counter read by a polling loop does not break its "nothing changes"
 /// streak, but caps how far the clock may jump (the loop may be waiting for a time).
 const COUNTER_POLL_JUMP: Cycles = 10 * CYCLES_PER_US;
@@ -102,6 +148,9 @@ pub enum Diagnostic {
     StuckPoll { what: String, value: u32 },
     /// An input pin read while nothing drives it and no pull is on.
     FloatingInput { pin: String },
+    /// A register the model only stores was changed (first change only): the silicon would
+    /// act on the new value, the emulator does not ([`STORED_ONLY`]).
+    StoredOnly { what: String, value: u32 },
     /// A model saw the software use something it does not model, or use it in a way the
     /// reference manual forbids.
     Model(String),
@@ -127,6 +176,10 @@ impl std::fmt::Display for Diagnostic {
                 "busy-wait on {what} (reads {value:#010x}) that nothing will ever change"
             ),
             Diagnostic::FloatingInput { pin } => write!(f, "input {pin} read while floating"),
+            Diagnostic::StoredOnly { what, value } => write!(
+                f,
+                "{what} set to {value:#010x}: stored only, its effect is not modelled"
+            ),
             Diagnostic::Model(m) => write!(f, "{m}"),
         }
     }
@@ -288,6 +341,33 @@ fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
     }
 }
 
+/// Maps `s` after the blocks in `slots` and returns its index.
+///
+/// # Panics
+/// If `s` is empty or overlaps a block already mapped: [`Soc::find`] returns the first
+/// match, so a second model at the same addresses would never see the firmware's accesses
+/// while the SoC's wiring (the debug freeze, the interrupt lines) might act on it (review
+/// E13: TIM2-TIM4 were mapped twice and `debug_halt` froze a TIM4 copy nothing programmed).
+fn push_slot(slots: &mut Vec<Slot>, s: Slot) -> usize {
+    assert!(s.len > 0, "{}: an empty register block", s.name);
+    let end = u64::from(s.base) + u64::from(s.len);
+    if let Some(o) = slots.iter().find(|o| {
+        u64::from(o.base) < end && u64::from(s.base) < u64::from(o.base) + u64::from(o.len)
+    }) {
+        panic!(
+            "{} at {:#010x}..{:#010x} overlaps {} at {:#010x}..{:#010x}",
+            s.name,
+            s.base,
+            end,
+            o.name,
+            o.base,
+            u64::from(o.base) + u64::from(o.len)
+        );
+    }
+    slots.push(s);
+    slots.len() - 1
+}
+
 /// Unique-ID, flash-size and package words in system memory (RM0440 §48).
 fn sysmem_image() -> Vec<u8> {
     let mut m = vec![0xFFu8; SYSMEM_BYTES];
@@ -310,10 +390,7 @@ impl Soc {
     /// A G431 with every modelled peripheral at reset, `flash` loaded, on `board`.
     pub fn new(flash: Vec<u8>, board: Box<dyn Board>) -> Self {
         let mut slots: Vec<Slot> = Vec::new();
-        let mut add = |s: Slot| {
-            slots.push(s);
-            slots.len() - 1
-        };
+        let mut add = |s: Slot| push_slot(&mut slots, s);
         let rcc = add(slot("RCC", Box::new(Rcc::default())));
         add(slot("PWR", Box::new(Pwr::new())));
         add(slot("FLASH", Box::new(Flash::default())));
@@ -331,12 +408,6 @@ impl Soc {
             ][usize::from(k)];
             add(slot(name, Box::new(GpioPort::new(k))))
         });
-        for name in ["TIM2", "TIM3", "TIM4"] {
-            add(slot(
-                name,
-                Box::new(crate::periph::tim_gp::TimGp::new(name)),
-            ));
-        }
         let dbgmcu = {
             let mut s = slot("DBGMCU", Box::new(Dbgmcu::default()));
             s.enable = None;
@@ -587,6 +658,8 @@ impl Soc {
                 out.extend(x.take_reports());
             } else if let Some(x) = m.downcast_mut::<OpampBank>() {
                 out.extend(x.take_reports());
+            } else if let Some(x) = m.downcast_mut::<Dbgmcu>() {
+                out.extend(x.take_reports());
             } else if let Some(x) = m.downcast_mut::<I2c>() {
                 if let Some(u) = x.unsupported() {
                     out.push(format!("{}: {u}", x.name()));
@@ -607,9 +680,12 @@ impl Soc {
 
     /// Adds a register model at `name`'s base address (helpers' models: TIM1, USART...).
     /// Returns its slot index.
+    ///
+    /// # Panics
+    /// If the block overlaps one already mapped (two models at one address: the second
+    /// would never be reached).
     pub fn add(&mut self, name: &'static str, model: Box<dyn Model>) -> usize {
-        self.slots.push(slot(name, model));
-        let k = self.slots.len() - 1;
+        let k = push_slot(&mut self.slots, slot(name, model));
         self.refresh(k);
         k
     }
@@ -629,8 +705,7 @@ impl Soc {
         s.len = len;
         s.enable = clock_of.and_then(names::rcc_enable);
         s.reset_bit = clock_of.and_then(names::rcc_reset);
-        self.slots.push(s);
-        let k = self.slots.len() - 1;
+        let k = push_slot(&mut self.slots, s);
         self.refresh(k);
         k
     }
@@ -1244,6 +1319,18 @@ impl Soc {
             bus_levels.push((scl, i.bus().scl()));
             bus_levels.push((sda, i.bus().sda()));
         }
+        // Alternate-function outputs read the level their peripheral drives (RM0440
+        // §9.3.12: the input buffer samples the pin whatever drives it).
+        if let Some(g) = snapshot.get(usize::from(port)) {
+            for n in 0..16u8 {
+                if g.mode(n) != crate::periph::gpio::Mode::Alternate {
+                    continue;
+                }
+                if let Some(level) = self.af_output_level(port, n, g.af(n)) {
+                    bus_levels.push(((port, n), level));
+                }
+            }
+        }
         let mut reader = BusOrBoard {
             bus: &bus_levels,
             board: self.board.as_mut(),
@@ -1262,6 +1349,33 @@ impl Soc {
             }
         }
         Some(v)
+    }
+
+    /// The level a peripheral drives on pin `n` of `port` in alternate function `af`, if
+    /// the function is an output this SoC models: a U(S)ART's TX (idle, high, while UE and
+    /// TE are set: the bits of a character on the line are not modelled) and TIM1's
+    /// CHx/CHxN outputs (their level at this cycle, `None` while the timer releases them).
+    fn af_output_level(&mut self, port: u8, n: u8, af: u8) -> Option<bool> {
+        const UE_TE: u32 = 1 | (1 << 3);
+        let pin = format!("P{}{n}", char::from(b'A' + port));
+        let (periph, signal) = af_signal(&pin, af)?;
+        if signal == "TX" {
+            let k = USARTS.iter().position(|u| u.name() == periph)?;
+            let slot = *self.wired.usart.get(k)?;
+            let now = self.now;
+            let cr1 = self.slots.get_mut(slot)?.model.read(0, now)?;
+            return (cr1 & UE_TE == UE_TE).then_some(true);
+        }
+        if periph == "TIM1" {
+            let ch = signal.strip_prefix("CH")?;
+            let (num, high) = match ch.strip_suffix('N') {
+                Some(num) => (num, false),
+                None => (ch, true),
+            };
+            let ch: usize = num.parse().ok()?;
+            return self.tim1()?.gate().pin(ch.checked_sub(1)?, high, self.now);
+        }
+        None
     }
 
     /// A write of `size` bytes of `value` at `addr` by the CPU or the DMA.
@@ -1302,6 +1416,14 @@ impl Soc {
         }
         let now = self.now;
         self.advance_slot(k, now);
+        let stored_only = self
+            .slots
+            .get(k)
+            .is_some_and(|s| is_stored_only(s.name, aligned - s.base));
+        let before = match self.slots.get_mut(k) {
+            Some(s) if stored_only => s.model.read(aligned - s.base, now),
+            _ => None,
+        };
         let ok = match self.slots.get_mut(k) {
             Some(s) => s.model.write(
                 Write {
@@ -1312,6 +1434,21 @@ impl Soc {
             ),
             None => false,
         };
+        if let Some(before) = before {
+            let after = self
+                .slots
+                .get_mut(k)
+                .and_then(|s| s.model.read(aligned - s.base, now));
+            if after.is_some_and(|a| a != before) {
+                self.report(
+                    (aligned, true, 6),
+                    Diagnostic::StoredOnly {
+                        what: names::describe(aligned),
+                        value: after.unwrap_or(0),
+                    },
+                );
+            }
+        }
         if !ok {
             let what = names::describe(aligned);
             self.report(
@@ -1351,15 +1488,29 @@ impl Soc {
         }
     }
 
+    /// A DBGMCU offset the model does not implement (PPB: the metadata does not name it).
+    fn report_unmodelled_dbgmcu(&mut self, addr: u32, write: bool) {
+        self.report(
+            (addr, write, 2),
+            Diagnostic::Unmodelled {
+                what: format!("DBGMCU+{:#x}", addr - DBGMCU_BASE),
+                write,
+            },
+        );
+    }
+
     fn ppb_read(&mut self, addr: u32) -> u32 {
-        if (0xE004_2000..0xE004_2400).contains(&addr) {
+        if (DBGMCU_BASE..DBGMCU_BASE + 0x400).contains(&addr) {
             let k = self.dbgmcu;
             let now = self.now;
-            return self
+            let v = self
                 .slots
                 .get_mut(k)
-                .and_then(|s| s.model.read(addr - 0xE004_2000, now))
-                .unwrap_or(0);
+                .and_then(|s| s.model.read(addr - DBGMCU_BASE, now));
+            return v.unwrap_or_else(|| {
+                self.report_unmodelled_dbgmcu(addr, false);
+                0
+            });
         }
         let (now, ipsr) = (self.now, self.ipsr);
         match self.scs.read(addr, now, ipsr) {
@@ -1378,17 +1529,20 @@ impl Soc {
     }
 
     fn ppb_write(&mut self, addr: u32, w: Write) {
-        if (0xE004_2000..0xE004_2400).contains(&addr) {
+        if (DBGMCU_BASE..DBGMCU_BASE + 0x400).contains(&addr) {
             let k = self.dbgmcu;
             let now = self.now;
-            if let Some(s) = self.slots.get_mut(k) {
+            let ok = self.slots.get_mut(k).is_some_and(|s| {
                 s.model.write(
                     Write {
-                        offset: addr - 0xE004_2000,
+                        offset: addr - DBGMCU_BASE,
                         ..w
                     },
                     now,
-                );
+                )
+            });
+            if !ok {
+                self.report_unmodelled_dbgmcu(addr, true);
             }
             return;
         }
@@ -1598,7 +1752,19 @@ impl Soc {
     }
 }
 
-/// Pin levels for an IDR read: the I2C bus lines from the bus, the rest from the board.
+/// The (peripheral, signal) that alternate function `af` puts on `pin` ("PA9", 7 →
+/// ("USART1", "TX")), from the metadata's pin table.
+fn af_signal(pin: &str, af: u8) -> Option<(&'static str, &'static str)> {
+    names::chip().peripherals.iter().find_map(|p| {
+        p.pins
+            .iter()
+            .find(|pp| pp.pin == pin && pp.af == Some(af))
+            .map(|pp| (p.name, pp.signal))
+    })
+}
+
+/// Pin levels for an IDR read: the I2C bus lines from the bus, alternate-function outputs
+/// from their peripheral, the rest from the board.
 struct BusOrBoard<'a> {
     bus: &'a [(PinId, bool)],
     board: &'a mut dyn Board,
@@ -2006,6 +2172,105 @@ mod tests {
         s.system_reset(crate::periph::rcc::ResetKind::Watchdog);
         start(&mut s);
         assert_eq!(s.bus_read(TIM1_BDTR, 4) & BKE_MOE, BKE_MOE);
+    }
+
+    #[test]
+    fn every_register_block_is_mapped_once() {
+        let s = soc();
+        for (k, a) in s.slots.iter().enumerate() {
+            for b in s.slots.iter().skip(k + 1) {
+                assert!(
+                    a.base + a.len <= b.base || b.base + b.len <= a.base,
+                    "{} and {} overlap",
+                    a.name,
+                    b.name
+                );
+            }
+        }
+        // Review E13: the TIM4 the debug freeze acts on is the one the bus reaches.
+        let tim4 = s.slot_of("TIM4").expect("TIM4");
+        assert_eq!(s.wired.tim_gp[2], tim4);
+        assert_eq!(s.find(0x4000_0800), Some(tim4));
+    }
+
+    #[test]
+    #[should_panic(expected = "TIM4 at 0x40000800..0x40000be4 overlaps TIM4")]
+    fn a_second_model_at_a_mapped_address_is_refused() {
+        let mut s = soc();
+        s.add("TIM4", Box::new(TimGp::new("TIM4")));
+    }
+
+    #[test]
+    #[should_panic(expected = "overlaps SYSCFG")]
+    fn a_block_inside_another_is_refused() {
+        let mut s = soc();
+        s.add_at("X", 0x4001_0010, 4, None, Box::new(Dbgmcu::default()));
+    }
+
+    #[test]
+    fn a_usart_tx_pin_reads_its_idle_level_and_is_not_a_floating_input() {
+        let mut s = soc();
+        // GPIOAEN, USART1EN; PA9 in AF7 (USART1 TX), PA0 an input without pull.
+        s.bus_write(0x4002_104C, 4, 1);
+        s.bus_write(0x4002_1060, 4, 1 << 14);
+        let moder = s.bus_read(0x4800_0000, 4);
+        s.bus_write(0x4800_0000, 4, (moder & !(3 << 18) & !3) | (2 << 18));
+        s.bus_write(0x4800_0024, 4, 7 << 4);
+        assert_eq!(
+            s.bus_read(0x4800_0010, 4) & (1 << 9),
+            0,
+            "USART off: not driven"
+        );
+        // UE | TE: the transmitter holds the line at its idle level.
+        s.bus_write(0x4001_3800, 4, 1 | (1 << 3));
+        assert_eq!(s.bus_read(0x4800_0010, 4) & (1 << 9), 1 << 9);
+        let floating: Vec<_> = s
+            .diagnostics()
+            .iter()
+            .filter_map(|d| match d {
+                Diagnostic::FloatingInput { pin } => Some(pin.as_str()),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(floating, ["PA0"], "only the input pin");
+    }
+
+    #[test]
+    fn a_change_of_a_stored_only_register_is_reported_once() {
+        let mut s = soc();
+        // PWR is clocked by APB1ENR1.PWREN; CR2 (PVD) is stored, not applied.
+        s.bus_write(0x4002_1058, 4, 1 << 28);
+        s.bus_write(0x4000_7004, 4, 0); // no change: nothing to report
+        assert!(s.diagnostics().is_empty(), "{:?}", s.diagnostics());
+        s.bus_write(0x4000_7004, 4, 1);
+        s.bus_write(0x4000_7004, 4, 3);
+        let what: Vec<String> = s.diagnostics().iter().map(|d| d.to_string()).collect();
+        assert_eq!(
+            what,
+            ["PWR.CR2 set to 0x00000001: stored only, its effect is not modelled"]
+        );
+        // CR1.VOS is modelled (VOSF): not reported.
+        s.bus_write(0x4000_7000, 4, 0x400);
+        assert_eq!(s.diagnostics().len(), 1);
+    }
+
+    #[test]
+    fn dbgmcu_offsets_without_a_register_are_reported() {
+        let mut s = soc();
+        assert_eq!(s.bus_read(DBGMCU_BASE, 4), crate::periph::dbgmcu::IDCODE);
+        s.bus_write(DBGMCU_BASE + 0x10, 4, 1 << 11);
+        assert!(s.dbgmcu().tim1_stop());
+        assert!(s.diagnostics().is_empty(), "{:?}", s.diagnostics());
+        s.bus_read(DBGMCU_BASE + 0x20, 4);
+        s.bus_write(DBGMCU_BASE + 0x24, 4, 1);
+        let what: Vec<String> = s.diagnostics().iter().map(|d| d.to_string()).collect();
+        assert_eq!(
+            what,
+            [
+                "read of unmodelled register DBGMCU+0x20",
+                "write to unmodelled register DBGMCU+0x24"
+            ]
+        );
     }
 
     #[test]

@@ -248,9 +248,14 @@ impl RecordArgs {
     }
 }
 
+/// Exit status of `emu` when an image took a HardFault, locked up, or was reset by its
+/// watchdog or by itself and the scenario does not expect it (`[emu] expect`): the run
+/// itself completed and its outputs are written. Errors (bad input, I/O) exit with 1.
+const EXIT_IMAGE_TROUBLE: u8 = 2;
+
 fn main() -> ExitCode {
     match real_main() {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("hil-sim: {e:#}");
             ExitCode::FAILURE
@@ -258,23 +263,24 @@ fn main() -> ExitCode {
     }
 }
 
-fn real_main() -> Result<()> {
+fn real_main() -> Result<ExitCode> {
+    let done = |r: Result<()>| r.map(|()| ExitCode::SUCCESS);
     match Cli::parse().cmd {
-        Cmd::Run { record, service } => cmd_run(&record, &service),
-        Cmd::Asm { program, output } => cmd_asm(&program, output.as_deref()),
-        Cmd::Disasm { program } => cmd_disasm(&program),
+        Cmd::Run { record, service } => done(cmd_run(&record, &service)),
+        Cmd::Asm { program, output } => done(cmd_asm(&program, output.as_deref())),
+        Cmd::Disasm { program } => done(cmd_disasm(&program)),
         Cmd::Panel {
             program,
             eeprom,
             lift,
             service_pty,
             service_version,
-        } => hil_sim::panel_command(
+        } => done(hil_sim::panel_command(
             program.as_deref(),
             eeprom.as_deref(),
             lift,
             service_pty.then_some(service_version),
-        ),
+        )),
         Cmd::Emu {
             record,
             drive_elf,
@@ -354,12 +360,13 @@ fn cmd_run(a: &RecordArgs, svc: &ServiceArgs) -> Result<()> {
     Ok(())
 }
 
+/// `emu`: [`EXIT_IMAGE_TROUBLE`] when an image did what the scenario does not expect.
 fn cmd_emu(
     a: &RecordArgs,
     drive_elf: Option<&Path>,
     plc_elf: Option<&Path>,
     log: bool,
-) -> Result<()> {
+) -> Result<ExitCode> {
     use hil_sim::emu::images::{existing, Firmware};
     let Prepared {
         prog,
@@ -431,7 +438,14 @@ fn cmd_emu(
         &report.samples,
         &title,
         marks,
-    )
+    )?;
+    if report.unexpected.is_empty() {
+        return Ok(ExitCode::SUCCESS);
+    }
+    for l in &report.unexpected {
+        eprintln!("hil-sim: {l}");
+    }
+    Ok(ExitCode::from(EXIT_IMAGE_TROUBLE))
 }
 
 fn cmd_asm(program: &Path, output: Option<&Path>) -> Result<()> {

@@ -44,6 +44,8 @@ pub struct ScenarioFile {
     /// `[analog]`: the emulated MCU's analog errors (`hil-sim emu` only).
     #[serde(default)]
     pub analog: AnalogKeys,
+    #[serde(default)]
+    pub emu: EmuKeys,
 }
 
 /// `[analog]`: the drive MCU's analog errors in `hil-sim emu` (g431-emu `docs/models.md`
@@ -121,6 +123,51 @@ impl AnalogKeys {
             e.comp_delay_ns = v;
         }
         Ok(e)
+    }
+}
+
+/// `[emu]`: what `hil-sim emu` (the real images in the emulator) must know; `run` ignores
+/// it.
+#[derive(Debug, Clone, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct EmuKeys {
+    /// What the scenario makes an image do on purpose: without it, `emu` exits with
+    /// status 2 when an image takes a HardFault, locks up or is reset by its watchdog or
+    /// by itself (a panic), and an emulator test fails.
+    #[serde(default)]
+    pub expect: Vec<ImageTrouble>,
+}
+
+/// What can go wrong with an image as a whole (`[emu] expect`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ImageTrouble {
+    /// An exception escalated to HardFault.
+    HardFault,
+    /// The core locked up (a fault at HardFault priority).
+    Lockup,
+    /// The independent watchdog reset the MCU.
+    WatchdogReset,
+    /// The image reset itself (AIRCR.SYSRESETREQ: the end of its panic and fault
+    /// handlers).
+    SoftwareReset,
+    /// BOOT0 was high at reset: the ROM bootloader ran instead of the image.
+    BootRom,
+    /// An instruction the emulator cannot execute.
+    Unsupported,
+}
+
+impl ImageTrouble {
+    /// The key as written in `[emu] expect`.
+    pub fn key(self) -> &'static str {
+        match self {
+            ImageTrouble::HardFault => "hard_fault",
+            ImageTrouble::Lockup => "lockup",
+            ImageTrouble::WatchdogReset => "watchdog_reset",
+            ImageTrouble::SoftwareReset => "software_reset",
+            ImageTrouble::BootRom => "boot_rom",
+            ImageTrouble::Unsupported => "unsupported",
+        }
     }
 }
 
@@ -455,6 +502,8 @@ pub struct Scenario {
     pub service_flood: bool,
     /// `[analog]`: the drive MCU's analog errors in the emulator.
     pub analog: AnalogErrors,
+    /// `[emu] expect`: image troubles the scenario provokes on purpose.
+    pub expected_trouble: Vec<ImageTrouble>,
 }
 
 impl Default for Scenario {
@@ -471,6 +520,7 @@ impl Default for Scenario {
             lift: None,
             service_flood: false,
             analog: AnalogErrors::TYPICAL,
+            expected_trouble: Vec::new(),
         }
     }
 }
@@ -518,6 +568,7 @@ impl Scenario {
             duration_s: positive("duration_s", f.duration_s)?,
             service_flood: f.service.flood,
             analog: f.analog.errors()?,
+            expected_trouble: f.emu.expect.clone(),
             ..Scenario::default()
         };
         let p = &f.plant;
@@ -876,6 +927,18 @@ keys = "A"
 at_s = 6.0
 load_torque_nm = 0.05
 "#;
+
+    #[test]
+    fn emu_expect_names_image_troubles() {
+        let s = Scenario::parse("[emu]\nexpect = [\"watchdog_reset\", \"hard_fault\"]").unwrap();
+        assert_eq!(
+            s.expected_trouble,
+            vec![ImageTrouble::WatchdogReset, ImageTrouble::HardFault]
+        );
+        assert!(Scenario::parse("").unwrap().expected_trouble.is_empty());
+        let e = Scenario::parse("[emu]\nexpect = [\"reboot\"]").unwrap_err();
+        assert!(format!("{e:#}").contains("watchdog_reset"), "{e:#}");
+    }
 
     #[test]
     fn the_spec_example_parses() {

@@ -7,9 +7,13 @@
 //! | analog | 0 (Schmitt trigger off) |
 //! | output, push-pull | ODR (the pin drives it; a board driving the opposite level is a conflict) |
 //! | output, open drain | 0 when ODR = 0, else the board's level, else the pull |
-//! | input / alternate | the board's level, else the pull-up (1) / pull-down (0), else floating |
+//! | input | the board's level, else the pull-up (1) / pull-down (0), else floating |
+//! | alternate | the level the peripheral drives (the SoC passes it as the board's level for the outputs it models: USART TX, TIM1 CHx/CHxN, I2C), else as an input |
 //!
 //! A floating input reads 0 here and is reported once by the SoC: real silicon reads noise.
+//! A pin in alternate-function mode is not reported: the software reads it through its
+//! peripheral, and an IDR read of the port only samples it along with the pins it wants
+//! (review E12: the PLC's USART TX pins were reported as floating inputs).
 //! The board's side is asked through [`PinReader`] when IDR is read, so that a keypad matrix
 //! (columns that follow the rows the same MCU drives) is evaluated at the instant of the read.
 
@@ -215,6 +219,7 @@ impl GpioPort {
             match self.level(n, ext) {
                 Some(true) => v |= 1 << n,
                 Some(false) => {}
+                None if self.mode(n) == Mode::Alternate => {}
                 None => self.floating_reads |= 1 << n,
             }
         }
@@ -368,6 +373,22 @@ mod tests {
         p.write(Write::word(0x0C, 0), 0);
         assert_eq!(idr(&mut p, External::Floating) & (1 << 2), 0);
         assert_ne!(p.floating_reads & (1 << 2), 0);
+    }
+
+    #[test]
+    fn an_alternate_function_pin_reads_what_drives_it_and_is_not_reported_floating() {
+        let mut p = GpioPort::new(0);
+        // PA9 in AF7 (USART1 TX), no pull.
+        p.write(Write::word(0x00, (p.moder & !(3 << 18)) | (2 << 18)), 0);
+        p.write(Write::word(0x24, 7 << 4), 0);
+        assert_eq!(p.drive(9), Drive::Alternate { af: 7 });
+        // The SoC passes the peripheral's level as the pin's.
+        assert_eq!(idr(&mut p, External::High) & (1 << 9), 1 << 9);
+        assert_eq!(idr(&mut p, External::Low) & (1 << 9), 0);
+        // Nothing drives it: 0, but no floating input report for an AF pin (PA13-15 too).
+        p.floating_reads = 0;
+        assert_eq!(idr(&mut p, External::Floating) & (1 << 9), 0);
+        assert_eq!(p.floating_reads, 0);
     }
 
     #[test]

@@ -27,6 +27,9 @@ pub struct EmuReport {
     pub log: Vec<(String, LogLine)>,
     /// Resets, HardFaults, lockups of either image.
     pub cpu_events: Vec<(String, CpuEvent)>,
+    /// The HardFaults, lockups, watchdog and self resets the scenario does not expect
+    /// (`[emu] expect`): `hil-sim emu` then exits with status 2.
+    pub unexpected: Vec<String>,
     /// What the emulator found (unmodelled registers, stuck polls, model reports).
     pub diagnostics: Vec<(String, String)>,
     /// Longest gap between two IWDG feeds, µs, per image (drive, PLC); `None` if the
@@ -97,6 +100,12 @@ impl EmuReport {
             for l in images {
                 s.push_str(&l);
                 s.push('\n');
+            }
+        }
+        if !self.unexpected.is_empty() {
+            s.push_str("not expected by the scenario:\n");
+            for l in &self.unexpected {
+                s.push_str(&format!("  {l}\n"));
             }
         }
         if !self.diagnostics.is_empty() {
@@ -184,6 +193,7 @@ pub fn run(
             diagnostics.push((m.name.clone(), d.to_string()));
         }
     }
+    let unexpected = sim.unexpected_troubles();
     let gap = |m: &g431_emu::mcu::Mcu| {
         let w = m.soc().iwdg();
         (w.feeds > 1).then(|| cycles_to_ns(w.longest_gap) / 1000)
@@ -197,6 +207,7 @@ pub fn run(
         wall: start.elapsed(),
         log,
         cpu_events: sim.cpu_events(),
+        unexpected,
         diagnostics,
         longest_feed_gap_us: [gap(sim.drive()), gap(sim.plc())],
         stack: [

@@ -9,10 +9,14 @@
 //! at the slice's end, exactly on time. The drive runs first in each slice; the plant is
 //! advanced inside it, at every TIM1 event and ADC sample.
 //!
-//! What the record cannot read from registers it reads where a user would: the drive's
-//! state, frequency, direction and fault come from the status frames on the wire (the same
-//! decoder as the PLC's), Q00-Q07 are the values the PLC sent in its Q writes, the LCD
-//! fields are read off the LCD, and `m` is derived from the three leg duties.
+//! The record observes each image directly, never through the other one: the drive's
+//! outputs are its TIM1 (the gate state the board follows), its fault is what the drive
+//! image itself logs (`drive: fault Link` latches code 5, leaving the `Fault` state clears
+//! it) and its resets, faults and lockups; its frequency, direction and safety status are
+//! decoded from the status frames at its own TX pin (so they stop changing when the image
+//! stops sending, e.g. after a link timeout, while the fault column goes on). Q00-Q07 are
+//! the values the PLC sent in its Q writes, the LCD fields are read off the LCD, and `m` is
+//! derived from the three leg duties.
 //!
 //! The PLC's service port (LPUART1, PA2/PA3) has a host end ([`EmuSim::service_write`],
 //! [`EmuSim::service_read`]): the host's bytes go onto PA3 back to back at the line rate
@@ -31,9 +35,11 @@ use g431_emu::devices::eeprom_24c256::Eeprom24c256;
 use g431_emu::devices::lcd_backpack::LcdBackpack;
 use g431_emu::mcu::Mcu;
 use g431_emu::periph::gpio::Mode;
+use g431_emu::periph::rcc::ResetKind;
 use g431_emu::periph::usart::{RxByte, UsartInstance};
 use g431_emu::soc::{Soc, USARTS};
 use g431_emu::time::{cycles_to_ns, ns_to_cycles};
+use shared_protocol::fault::FaultCode;
 use shared_protocol::link::message::{DriveMsg, DriveStatus, PlcMsg};
 use shared_protocol::link::FrameReader;
 use shared_protocol::program::Program;
@@ -41,7 +47,7 @@ use shared_protocol::program::Program;
 use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
 use crate::mcu::Lcd;
 use crate::plant::Plant;
-use crate::scenario::{Action, BoardKind, Input, Scenario};
+use crate::scenario::{Action, BoardKind, ImageTrouble, Input, Scenario};
 use crate::sim::{FaultRecord, RunOptions, Sample};
 
 /// Longest slice both MCUs run before the wire hands characters over.
@@ -155,9 +161,41 @@ pub struct EmuSim {
     q: [i16; 8],
     faults: Vec<FaultRecord>,
     last_fault: u8,
+    /// The drive's fault latch as its own log and resets tell it.
+    drive_latch: DriveLatch,
     next_sample_ns: u64,
     sample_ns: u64,
     service: ServiceHost,
+    allowed: Vec<Allowance>,
+}
+
+/// A diagnostic a test lets pass ([`EmuSim::allow`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Allowance {
+    /// Matched as a substring of `<image>: <diagnostic>`.
+    pub pattern: String,
+    /// Why it is not a failure: a model limit, or a finding in the image to be fixed.
+    pub reason: String,
+}
+
+/// The [`ImageTrouble`] an image event is, if any (a power-on or pin reset is the host's
+/// doing, not the image's).
+pub fn trouble_of(e: &CpuEvent) -> Option<ImageTrouble> {
+    Some(match e {
+        CpuEvent::HardFault { .. } => ImageTrouble::HardFault,
+        CpuEvent::Lockup { .. } => ImageTrouble::Lockup,
+        CpuEvent::Reset {
+            why: ResetKind::Watchdog,
+            ..
+        } => ImageTrouble::WatchdogReset,
+        CpuEvent::Reset {
+            why: ResetKind::Software,
+            ..
+        } => ImageTrouble::SoftwareReset,
+        CpuEvent::Reset { .. } => return None,
+        CpuEvent::BootRom { .. } => ImageTrouble::BootRom,
+        CpuEvent::Unsupported { .. } => ImageTrouble::Unsupported,
+    })
 }
 
 /// The host end of the PLC's service port.
@@ -250,9 +288,11 @@ impl EmuSim {
             q: [0; 8],
             faults: Vec::new(),
             last_fault: 0,
+            drive_latch: DriveLatch::default(),
             next_sample_ns: 0,
             sample_ns: opts.sample_ns.max(1),
             service: ServiceHost::default(),
+            allowed: Vec::new(),
             scenario,
         };
         // The STO wire is driven high (not requested) until a scenario sets it
@@ -564,17 +604,22 @@ impl EmuSim {
         None
     }
 
+    /// The drive's fault as the image itself has it now (see the module's docs).
+    fn drive_fault(&self) -> u8 {
+        self.image_fault().unwrap_or(self.drive_latch.code)
+    }
+
     fn track_faults(&mut self) {
-        let f = self
-            .image_fault()
-            .unwrap_or_else(|| self.status.and_then(|s| s.fault).map_or(0, |f| f.code()));
-        if f != 0 && f != self.last_fault {
-            self.faults.push(FaultRecord {
-                t_ns: self.now_ns,
-                code: f,
-            });
+        let image = self.image_fault();
+        let mut changes = self.drive_latch.update(&self.drive);
+        changes.push((self.now_ns, self.drive_latch.code));
+        for (t_ns, code) in changes {
+            let f = image.unwrap_or(code);
+            if f != 0 && f != self.last_fault {
+                self.faults.push(FaultRecord { t_ns, code: f });
+            }
+            self.last_fault = f;
         }
-        self.last_fault = f;
     }
 
     /// One row of the record.
@@ -591,9 +636,7 @@ impl EmuSim {
             dir: if st.reverse { -1 } else { 1 },
             m,
             pwm_on: duties.iter().any(Option::is_some) && !o.hw_break,
-            fault: self
-                .image_fault()
-                .unwrap_or(st.fault.map_or(0, |f| f.code())),
+            fault: self.drive_fault(),
             u_dc_v: o.u_dc_v,
             i_abc_a: o.i_abc_a,
             speed_rpm: o.speed_rad_s * 60.0 / (2.0 * std::f64::consts::PI),
@@ -633,10 +676,148 @@ impl EmuSim {
         v
     }
 
+    /// Lets the emulator diagnostics containing `pattern` pass [`EmuSim::problems`]: the
+    /// pattern is matched against `<image>: <diagnostic>` (`"plc: input PA2 read while
+    /// floating"`, or a register name such as `"TIM4.CCMR[1]"` for either image). `reason`
+    /// says why it is not a failure; an allowance that matches nothing is a problem too,
+    /// so that a list never outlives what it excuses.
+    ///
+    /// # Panics
+    /// If `reason` is empty.
+    pub fn allow(&mut self, pattern: &str, reason: &str) -> &mut Self {
+        assert!(
+            !pattern.trim().is_empty() && !reason.trim().is_empty(),
+            "allow(\"{pattern}\", ...) needs a pattern and a reason"
+        );
+        self.allowed.push(Allowance {
+            pattern: pattern.to_string(),
+            reason: reason.to_string(),
+        });
+        self
+    }
+
+    /// Both images' emulator diagnostics so far, as `<image>: <diagnostic>`.
+    pub fn diagnostics(&self) -> Vec<String> {
+        let mut v = Vec::new();
+        for m in [&self.drive, &self.plc] {
+            for d in m.diagnostics() {
+                v.push(format!("{}: {d}", m.name));
+            }
+        }
+        v
+    }
+
+    /// The image events that are an [`ImageTrouble`], with the image's name, whether the
+    /// scenario expects them (`[emu] expect`) and a line of text.
+    pub fn image_troubles(&self) -> Vec<(String, ImageTrouble, bool, String)> {
+        let mut v = Vec::new();
+        for (name, e) in self.cpu_events() {
+            if let Some(t) = trouble_of(&e) {
+                let expected = self.scenario.expected_trouble.contains(&t);
+                v.push((name, t, expected, super::run::event_text(&e)));
+            }
+        }
+        v
+    }
+
+    /// Image troubles the scenario does not expect, as lines of text.
+    pub fn unexpected_troubles(&self) -> Vec<String> {
+        self.image_troubles()
+            .into_iter()
+            .filter(|(_, _, expected, _)| !expected)
+            .map(|(name, t, _, text)| {
+                format!(
+                    "{name}: {text} (add \"{}\" to the scenario's [emu] expect if it is on purpose)",
+                    t.key()
+                )
+            })
+            .collect()
+    }
+
+    /// Everything that must fail an emulator test: image troubles the scenario does not
+    /// expect, diagnostics no [`EmuSim::allow`] covers, and allowances that matched nothing.
+    pub fn problems(&self) -> Vec<String> {
+        let diags = self.diagnostics();
+        let mut v = self.unexpected_troubles();
+        for d in &diags {
+            if !self.allowed.iter().any(|a| d.contains(&a.pattern)) {
+                v.push(format!(
+                    "{d} (allow it by name with a reason, `sim.allow(\"{d}\", \"why\")`, only if it is not a defect)"
+                ));
+            }
+        }
+        for a in &self.allowed {
+            if !diags.iter().any(|d| d.contains(&a.pattern)) {
+                v.push(format!(
+                    "allowance \"{}\" ({}) matched no diagnostic: remove it",
+                    a.pattern, a.reason
+                ));
+            }
+        }
+        v
+    }
+
     /// Simulated time in ns of cycle `c`.
     pub fn ns(c: u64) -> u64 {
         cycles_to_ns(c)
     }
+}
+
+/// The drive's fault latch, read from the drive image's own defmt log and resets (the
+/// lines `firmware-drive/src/board/control.rs` writes for the core's events).
+#[derive(Debug, Default)]
+struct DriveLatch {
+    /// The latched code (0: none; [`image_fault::WATCHDOG`] after a watchdog reset until
+    /// the restarted image reports its own fault).
+    code: u8,
+    log_seen: usize,
+    events_seen: usize,
+}
+
+impl DriveLatch {
+    /// Reads what the image logged and did since the last call; returns the latch's
+    /// changes in time order as (ns, code).
+    fn update(&mut self, drive: &Mcu) -> Vec<(u64, u8)> {
+        // (cycle, order, new code): resets before log lines of the same cycle.
+        let mut steps: Vec<(u64, u8, u8)> = Vec::new();
+        for e in drive.events().get(self.events_seen..).unwrap_or(&[]) {
+            if let CpuEvent::Reset { at, why } = e {
+                let code = match why {
+                    ResetKind::Watchdog => image_fault::WATCHDOG,
+                    _ => 0,
+                };
+                steps.push((*at, 0, code));
+            }
+        }
+        self.events_seen = drive.events().len();
+        for l in drive.log_since(self.log_seen) {
+            if let Some(code) = logged_fault(&l.message) {
+                steps.push((l.at, 1, code));
+            } else if l.message.starts_with("drive: State { from: Fault,") {
+                steps.push((l.at, 1, 0));
+            }
+        }
+        self.log_seen = drive.log().len();
+        steps.sort_by_key(|&(at, order, _)| (at, order));
+        let mut changes = Vec::new();
+        for (at, _, code) in steps {
+            if code != self.code {
+                self.code = code;
+                changes.push((cycles_to_ns(at), code));
+            }
+        }
+        changes
+    }
+}
+
+/// The fault code of a `drive: fault <Name>` log line (the core's `FaultCode` as defmt
+/// prints it).
+pub fn logged_fault(message: &str) -> Option<u8> {
+    let name = message.strip_prefix("drive: fault ")?.trim();
+    (1..=u8::MAX).find_map(|c| {
+        let f = FaultCode::try_from(c).ok()?;
+        (format!("{f:?}") == name).then_some(c)
+    })
 }
 
 /// Moves the PLC's transmitted characters to the drive, decoding them for the record.
@@ -765,6 +946,15 @@ mod tests {
             .map(|k: f64| Some(0.5 + 0.5 * m * (th + k * std::f64::consts::PI / 3.0).sin()));
         assert!((modulation_index(&duties) - m).abs() < 1e-9);
         assert_eq!(modulation_index(&[None, Some(0.5), Some(0.5)]), 0.0);
+    }
+
+    #[test]
+    fn faults_are_read_off_the_drive_log() {
+        assert_eq!(logged_fault("drive: fault Link"), Some(5));
+        assert_eq!(logged_fault("drive: fault OcHw"), Some(2));
+        assert_eq!(logged_fault("drive: fault Sla"), Some(16));
+        assert_eq!(logged_fault("drive: fault Nonsense"), None);
+        assert_eq!(logged_fault("link: fault Link"), None);
     }
 
     #[test]

@@ -22,12 +22,111 @@ pub fn images() -> &'static (PathBuf, PathBuf) {
 }
 
 /// Both images with `program` in the PLC's EEPROM under `scenario`, on the boards as
-/// documented (`g431_emu::boards`).
-pub fn emu_on_documented_boards(program: &str, scenario: &str) -> EmuSim {
+/// documented (`g431_emu::boards`), checked when the test ends ([`Checked`]).
+pub fn emu_on_documented_boards(program: &str, scenario: &str) -> Checked {
     let (drive, plc) = images();
     let p = parse_program(program, "test.plc").expect("program assembles");
     let s = Scenario::parse(scenario).expect("scenario parses");
-    EmuSim::new(drive, plc, &p, s, RunOptions::default()).expect("images load")
+    let mut sim = EmuSim::new(drive, plc, &p, s, RunOptions::default()).expect("images load");
+    for (pattern, reason) in ALLOWED_IN_EVERY_TEST {
+        sim.allow(pattern, reason);
+    }
+    Checked { sim: Some(sim) }
+}
+
+/// Diagnostics every run of today's images produces, with why each is not a failure of
+/// the test (a model limit) or which finding it is (a defect of the image, to be fixed
+/// there; the allowance goes when the fix lands).
+pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
+    (
+        "ADC1: injected trigger during an injected sequence (ignored)",
+        "finding (issue 36): about 0.6 ms after each start the drive's ADC1 sees a TIM1 TRGO2 \
+         edge while its 3-channel injected sequence is still converting; RM0440 ignores the \
+         trigger (`injected trigger during an injected sequence (ignored)`): one sample set \
+         is lost during start-up. Reported once per start",
+    ),
+    (
+        "drive: PWR.CR2 set to 0x0000000b",
+        "model gap (issue 36 deliverable 3, E3, being modelled in pwr.rs): the drive turns \
+         the PVD on (PVDE, PLS = 5) as a system break source of TIM1; PWR only stores it. \
+         Remove this when pwr.rs acts on CR2 (and takes it out of soc::STORED_ONLY)",
+    ),
+    (
+        "PWR.CR3 set to 0x0000c000",
+        "model limit: embassy's clock init sets UCPD1_DBDIS, which removes the USB-C \
+         dead-battery pull-downs of PB4/PB6 (RM0440 PWR_CR3); the model never had them, so \
+         from this write on it matches the silicon (before it, during the first \
+         microseconds of init, it is kinder: no image reads PB4/PB6 then)",
+    ),
+    (
+        "RCC.BDCR set to 0x00010000",
+        "model limit: embassy's low-speed clock init pulses BDRST (backup domain reset); \
+         the backup domain (LSE, RTC, TAMP registers) is not modelled and neither image \
+         uses it",
+    ),
+    ("plc: input PA6 read while floating", KEYPAD_ROW_RELEASED),
+    ("plc: input PA7 read while floating", KEYPAD_ROW_RELEASED),
+    ("plc: input PB6 read while floating", KEYPAD_ROW_RELEASED),
+    ("plc: input PB7 read while floating", KEYPAD_ROW_RELEASED),
+];
+
+/// Why the PLC's keypad rows read as floating: not a defect.
+const KEYPAD_ROW_RELEASED: &str = "keypad rows R0-R3 (PA6, PA7, PB6, PB7) are open-drain \
+    outputs released between scans; with no key down nothing on the NUCLEO drives them \
+    (firmware-plc/src/pins.rs): a read of GPIOA/GPIOB IDR for the port's other inputs \
+    samples them along, and the image ignores those bits";
+
+/// An [`EmuSim`] that fails the test when it is dropped (at the end of a test that passed
+/// so far) if [`EmuSim::problems`] lists anything: an emulator diagnostic the test did
+/// not allow by name with a reason (`sim.allow(pattern, reason)`), an allowance that
+/// matched nothing, or a HardFault, lockup, watchdog or self reset of an image that the
+/// scenario does not expect (`[emu] expect`). Every test gets it through [`emu`], so a
+/// new test cannot forget the check.
+pub struct Checked {
+    sim: Option<EmuSim>,
+}
+
+impl Checked {
+    /// Runs the check now and gives the simulation up (for a test that needs it by value).
+    pub fn finish(mut self) -> EmuSim {
+        let sim = self.sim.take().expect("not finished twice");
+        check(&sim);
+        sim
+    }
+}
+
+fn check(sim: &EmuSim) {
+    let problems = sim.problems();
+    assert!(
+        problems.is_empty(),
+        "the emulator found problems the test does not allow:\n  {}",
+        problems.join("\n  ")
+    );
+}
+
+impl std::ops::Deref for Checked {
+    type Target = EmuSim;
+    fn deref(&self) -> &EmuSim {
+        self.sim.as_ref().expect("not finished")
+    }
+}
+
+impl std::ops::DerefMut for Checked {
+    fn deref_mut(&mut self) -> &mut EmuSim {
+        self.sim.as_mut().expect("not finished")
+    }
+}
+
+impl Drop for Checked {
+    fn drop(&mut self) {
+        // A test that already failed keeps its own message.
+        if std::thread::panicking() {
+            return;
+        }
+        if let Some(sim) = self.sim.take() {
+            check(&sim);
+        }
+    }
 }
 
 /// [`emu_on_documented_boards`], except that the bare ESC1's amplifier pins carry what
@@ -35,7 +134,7 @@ pub fn emu_on_documented_boards(program: &str, scenario: &str) -> EmuSim {
 /// with the documented network the image stops at boot (board review N5, shown by
 /// `board_findings::n5_*`), and every other test of the image would show only that. When
 /// issue 29 fixes the amplifier mode, this becomes [`emu_on_documented_boards`].
-pub fn emu(program: &str, scenario: &str) -> EmuSim {
+pub fn emu(program: &str, scenario: &str) -> Checked {
     let sim = emu_on_documented_boards(program, scenario);
     sim.rig_mut().esc1_sense = Esc1Sense::AsImageAssumes;
     sim

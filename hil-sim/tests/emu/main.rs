@@ -8,6 +8,7 @@ mod common;
 
 mod board_findings;
 mod boot;
+mod cli;
 mod io;
 mod link;
 mod motor;

@@ -97,7 +97,8 @@ fn staircase(phase: usize, sign: f64) -> Outcome {
         let moe = sim.drive().soc().tim1().expect("TIM1").gate().moe;
         if !moe || !faults_logged(&sim).is_empty() {
             // Let the image report what it saw.
-            sim.run_until(sim.now_ns() + ns(0.005), |_| {});
+            let report_until = sim.now_ns() + ns(0.005);
+            sim.run_until(report_until, |_| {});
             let logged = faults_logged(&sim);
             return Outcome::Trip {
                 amps,

@@ -87,7 +87,8 @@ fn a_comparator_break_latches_the_outputs_off_with_oc_hw() {
 fn a_link_cut_trips_link_within_50_ms() {
     let scen = format!("[link]\ncut_at_s = 2.0\n{START_50HZ}");
     let mut sim = emu(MOTOR_PLC, &scen);
-    sim.run_until(ns(2.2), |_| {});
+    let mut samples = Vec::new();
+    sim.run_until(ns(2.2), |s| samples.push(s.clone()));
     // The drive logs its fault; the outputs are off.
     let trip = sim
         .drive()
@@ -102,6 +103,23 @@ fn a_link_cut_trips_link_within_50_ms() {
     );
     let g = sim.drive().soc().tim1().expect("TIM1").gate();
     assert!(!g.outputs_enabled);
+    // Issue 36: the record observes the drive image itself, not the PLC's view of it
+    // (which the cut froze): the LINK trip is in the faults and the `fault` column from
+    // the moment the image latched it, as in `hil-sim run`.
+    let codes: Vec<(u64, u8)> = sim.faults().iter().map(|f| (f.t_ns, f.code)).collect();
+    assert!(
+        matches!(codes.as_slice(), [(t, 5)] if t.abs_diff(trip) <= ns(0.001)),
+        "faults {codes:?}, the image logged LINK at {trip} ns"
+    );
+    let after: Vec<_> = samples
+        .iter()
+        .filter(|s| s.t_ns >= trip + ns(0.001))
+        .collect();
+    assert!(
+        !after.is_empty() && after.iter().all(|s| s.fault == 5 && !s.pwm_on),
+        "fault column after the trip: {:?}",
+        after.iter().map(|s| s.fault).collect::<Vec<_>>()
+    );
     // The PLC shows the lost link within 100 ms.
     let lcd = sim.lcd();
     assert!(
@@ -113,7 +131,8 @@ fn a_link_cut_trips_link_within_50_ms() {
 
 #[test]
 fn a_late_watchdog_feed_resets_the_drive_and_the_plc_shows_wdg() {
-    let mut sim = emu(MOTOR_PLC, START_50HZ);
+    let scen = format!("[emu]\nexpect = [\"watchdog_reset\"]\n{START_50HZ}");
+    let mut sim = emu(MOTOR_PLC, &scen);
     sim.run_until(ns(1.5), |_| {});
     // The core stops (as if stuck) for 150 ms: the independent watchdog (100 ms) resets it.
     sim.drive_mut().cpu_mut().halt();
@@ -213,4 +232,37 @@ fn a_spike_inside_the_blanking_window_does_not_trip_outside_it_trips_oc_hw() {
     sim.run_until(cycles_to_ns(valley) + ns(0.05), |_| {});
     let codes: Vec<u8> = sim.faults().iter().map(|f| f.code).collect();
     assert_eq!(codes, vec![2], "faults {:?}", sim.faults());
+}
+
+/// Issue 36: `hil-sim emu`'s summary lists the drive's LINK trip after a link cut, read
+/// from the drive image, as `hil-sim run` does (`2.045 s  5 LINK` there).
+#[test]
+fn the_emu_summary_shows_the_link_trip_after_a_cut() {
+    let (drive, plc) = crate::common::images();
+    let program = hil_sim::run::parse_program(MOTOR_PLC, "motor.plc").expect("assembles");
+    let scen = format!("[link]\ncut_at_s = 2.0\n{START_50HZ}");
+    let scenario = hil_sim::scenario::Scenario::parse(&scen).expect("parses");
+    let report = hil_sim::emu::run::run(
+        drive,
+        plc,
+        &program,
+        scenario,
+        2.2,
+        hil_sim::sim::RunOptions::default(),
+        hil_sim::decimate::KeepSamples::for_plot(false),
+        |_| {},
+        |_, _| {},
+    )
+    .expect("runs");
+    let summary = report.summary();
+    let line = summary
+        .lines()
+        .find(|l| l.contains("5 LINK"))
+        .unwrap_or_else(|| panic!("no LINK trip in the summary:\n{summary}"));
+    let t: f64 = line
+        .split_whitespace()
+        .next()
+        .and_then(|t| t.parse().ok())
+        .expect("a time");
+    assert!(t > 2.0 && t <= 2.052, "{line}");
 }
