@@ -74,6 +74,11 @@ pub fn assert_stack_headroom(sim: &EmuSim) {
             .soc()
             .stack_high_water()
             .expect("a flip-link image: the initial stack pointer is in RAM");
+        // The suite's figure (`--nocapture`): the deepest of these lines per image.
+        eprintln!(
+            "stack high-water {}: {} of {} B",
+            m.name, st.used_bytes, st.size_bytes
+        );
         assert!(
             st.size_bytes - st.used_bytes >= STACK_HEADROOM_BYTES,
             "{}: stack used {} of {} B, less than {STACK_HEADROOM_BYTES} B left",
