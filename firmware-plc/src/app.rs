@@ -109,8 +109,6 @@ pub struct Alerts {
 /// The PLC application.
 pub struct PlcApp<E: Eeprom> {
     /// The safety functions' requests and their times (safety.md 10, `S:<name> DEC`).
-    /// The first field: at the end, the board's builder stopped writing the application
-    /// in place (a 15 KiB stack frame, a stack overflow at boot: CI's stack step).
     safety: SafetyTimes,
     /// In RUN, the drive has reported an accepted drive section since RUN started: its
     /// report of none afterwards means it restarted ([`PlcApp::watch_drive_restart`]).

@@ -365,8 +365,15 @@ impl Mnemonic {
 /// An operand: an area letter with a two-digit index, or a named operand.
 ///
 /// `K` operands are labels only; the value is the line's constant.
+///
+/// The tag's values are spread (`Sft = 100`, order unchanged) only for the layout of
+/// [`Program`]: with fewer free tag values here than in [`Mnemonic`] (1..=67), an empty
+/// line (`None`) is stored as mnemonic byte 0, so that an empty program is zero bytes
+/// (see [`Program::default`]). Nothing stores or sends this tag (the line format is
+/// `program::encode`'s).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[repr(u8)]
 pub enum Operand {
     /// Digital input D00-D15 (bit; [`DIGITAL_INPUTS`]).
     D(u8),
@@ -415,7 +422,7 @@ pub enum Operand {
     /// `SDC`: a ramp function is in its delay or ramp phase (bit, read-only).
     Sdc,
     /// `SFT`: the safety stopwatch, 0.1 s (int, read-only).
-    Sft,
+    Sft = 100,
 }
 
 /// One program line's instruction.
@@ -436,11 +443,20 @@ pub struct Program {
 }
 
 impl Default for Program {
+    /// No line. Zero bytes (an empty line is a zero mnemonic byte, see [`Operand`]), made
+    /// from a constant: the compiler writes it with one `memset` straight where it goes
+    /// (the PLC image builds its application in its static slot, never in a 6 KB
+    /// temporary on the stack; CI's stack step fails on a frame over 2 KiB), where a
+    /// `[None; LINES]` expression is a loop into a temporary and then a copy.
     fn default() -> Self {
-        Program {
-            lines: [None; LINES],
-        }
+        Self::EMPTY
     }
+}
+
+impl Program {
+    const EMPTY: Program = Program {
+        lines: [None; LINES],
+    };
 }
 
 impl core::fmt::Debug for Program {
