@@ -29,6 +29,9 @@ use crate::periph::{DmaRequests, IrqLines, Peripheral, Write};
 use crate::scs::Scs;
 use crate::time::{Cycles, CYCLES_PER_US};
 
+mod faults;
+pub use faults::SystemBreakSources;
+
 /// Flash: 128 KiB at 0x0800_0000.
 pub const FLASH_BASE: u32 = 0x0800_0000;
 pub const FLASH_BYTES: usize = 128 * 1024;
@@ -268,6 +271,8 @@ pub struct Soc {
     i2c_pins: [Option<BusPins>; 3],
     /// A DMA service is running (its register accesses must not start another).
     in_dma: bool,
+    /// The timers' system break and its sources (`faults`).
+    sys_faults: faults::SystemFaults,
 }
 
 fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
@@ -366,6 +371,7 @@ impl Soc {
             wired: Slots::default(),
             i2c_pins: [None; 3],
             in_dma: false,
+            sys_faults: faults::SystemFaults::default(),
         };
         soc.add_wired_models();
         soc.flash.resize(FLASH_BYTES, 0xFF);
@@ -564,7 +570,7 @@ impl Soc {
 
     /// Collects what the models reported since the last call.
     pub fn collect_reports(&mut self) {
-        let mut out: Vec<String> = Vec::new();
+        let mut out: Vec<String> = self.silicon_reports();
         for s in self.slots.iter_mut() {
             let m = s.model.as_any_mut();
             if let Some(x) = m.downcast_mut::<Usart>() {
@@ -797,6 +803,9 @@ impl Soc {
         if self.dma_related(k) {
             self.service_dma();
         }
+        if self.is_system_fault_slot(k) {
+            self.update_system_break();
+        }
     }
 
     /// Brings slot `k` to `t`; the ADC gets the board's analog values through an adapter.
@@ -967,20 +976,10 @@ impl Soc {
     }
 
     /// The core locked up (or recovered by reset): with SYSCFG_CFGR2.CLL the LOCKUP signal
-    /// is a system break of TIM1 (RM0440 Table 271).
+    /// is a system break of TIM1 and TIM8 (RM0440 Table 271; the other sources: `faults`).
     pub fn lockup(&mut self, locked: bool) {
-        use crate::periph::syscfg::cfgr2;
-        if self.syscfg().cfgr2() & cfgr2::CLL == 0 {
-            return;
-        }
-        let now = self.now;
-        let k = self.wired.tim1;
-        self.advance_slot(k, now);
-        if let Some(tim) = self.model_mut::<TimAdv>(k) {
-            tim.set_system_break(locked, now);
-        }
-        self.refresh(k);
-        self.after_event(k, now);
+        self.sys_faults.locked_up = locked;
+        self.update_system_break();
     }
 
     /// The level of TIM1's BKIN2 pin (the drive board's hardware STO input, safety.md 6:
@@ -1080,10 +1079,13 @@ impl Soc {
         }
         // The reset ends LOCKUP and clears SYSCFG_CFGR2's enables: the timers' system break
         // input falls (the comparator and BKIN inputs are the outside world's and stay).
-        let (k, now) = (self.wired.tim1, self.now);
-        if let Some(tim) = self.model_mut::<TimAdv>(k) {
-            tim.set_system_break(false, now);
+        let now = self.now;
+        for k in [self.wired.tim1, self.wired.tim8] {
+            if let Some(tim) = self.model_mut::<TimAdv>(k) {
+                tim.set_system_break(false, now);
+            }
         }
+        self.sys_faults = faults::SystemFaults::default();
         for k in 0..self.slots.len() {
             self.refresh(k);
         }
