@@ -29,6 +29,7 @@ use crate::periph::{DmaRequests, IrqLines, Peripheral, Write};
 use crate::scs::Scs;
 use crate::time::{Cycles, CYCLES_PER_US};
 
+mod clocks;
 mod faults;
 pub use faults::SystemBreakSources;
 
@@ -806,6 +807,7 @@ impl Soc {
         if self.is_system_fault_slot(k) {
             self.update_system_break();
         }
+        self.clock_tree_changed(k, t);
     }
 
     /// Brings slot `k` to `t`; the ADC gets the board's analog values through an adapter.

@@ -16,6 +16,9 @@ use crate::plant::lift::{
 };
 use crate::plant::{Load, PwmMode, RigParams};
 
+pub mod silicon;
+use silicon::{EventSiliconKeys, McuSide, SiliconEvent, SiliconKeys, SiliconParams};
+
 /// Duration when neither `--duration` nor the scenario gives one.
 pub const DEFAULT_DURATION_S: f64 = 10.0;
 /// How long `press` holds an input when the event has no `hold_s`.
@@ -40,6 +43,9 @@ pub struct ScenarioFile {
     pub events: Vec<EventKeys>,
     #[serde(default)]
     pub service: ServiceKeys,
+    /// `[silicon]`: tolerances of the emulated MCUs (`hil-sim emu` only).
+    #[serde(default)]
+    pub silicon: SiliconKeys,
 }
 
 /// `[service]`: the service port's test options (service.md 9).
@@ -258,6 +264,22 @@ pub struct EventKeys {
     pub door_block: Option<bool>,
     /// `"L"`, `"R"` or `"none"`.
     pub vane_fail: Option<String>,
+    // Faults of the silicon (`hil-sim emu` only; `silicon`).
+    /// Which MCU the silicon keys act on: `"drive"` (default) or `"plc"`.
+    pub mcu: Option<String>,
+    /// The MCU's supply voltage from now on, V (its PVD watches it).
+    pub vdd_v: Option<f64>,
+    /// An SRAM parity error is detected now.
+    pub sram_parity_error: Option<bool>,
+    /// A flash double ECC error is detected now.
+    pub flash_ecc_error: Option<bool>,
+    /// `"nack"`, `"stretch"`, `"arbitration_loss"` or `"bus_error"` on the PLC's I2C bus, in
+    /// the next write to `i2c_address`.
+    pub i2c_fault: Option<String>,
+    /// The device the I2C fault hits (default 0x50, the EEPROM).
+    pub i2c_address: Option<u8>,
+    /// How long the device holds SCL low (`i2c_fault = "stretch"`), ms.
+    pub i2c_stretch_ms: Option<f64>,
 }
 
 /// An input the scenario can set.
@@ -333,6 +355,8 @@ pub enum Action {
     KeyUp(char),
     Plant(PlantChange),
     Lift(LiftEvent),
+    /// A fault of one MCU's silicon (`hil-sim emu` only).
+    Silicon(McuSide, SiliconEvent),
 }
 
 /// A scheduled action in virtual time.
@@ -361,6 +385,8 @@ pub struct Scenario {
     pub lift: Option<LiftParams>,
     /// `[service] flood = true`.
     pub service_flood: bool,
+    /// `[silicon]`.
+    pub silicon: SiliconParams,
 }
 
 impl Default for Scenario {
@@ -376,6 +402,7 @@ impl Default for Scenario {
             keys_start_run: false,
             lift: None,
             service_flood: false,
+            silicon: SiliconParams::default(),
         }
     }
 }
@@ -512,6 +539,7 @@ impl Scenario {
         if let Some(l) = &f.lift {
             s.lift = Some(l.params()?);
         }
+        s.silicon = f.silicon.params()?;
         for (n, e) in f.events.iter().enumerate() {
             s.add_event(e)
                 .with_context(|| format!("event {} (at_s = {})", n + 1, e.at_s))?;
@@ -600,8 +628,24 @@ impl Scenario {
             self.push(e.at_s, Action::Plant(c));
             any = true;
         }
+        let silicon = EventSiliconKeys {
+            mcu: e.mcu.as_deref(),
+            vdd_v: e.vdd_v,
+            sram_parity_error: e.sram_parity_error,
+            flash_ecc_error: e.flash_ecc_error,
+            i2c_fault: e.i2c_fault.as_deref(),
+            i2c_address: e.i2c_address,
+            i2c_stretch_ms: e.i2c_stretch_ms,
+        };
+        for (side, ev) in silicon.events()? {
+            self.push(e.at_s, Action::Silicon(side, ev));
+            any = true;
+        }
         if !any {
-            bail!("the event does nothing (give set, press, keys or a plant parameter)");
+            bail!(
+                "the event does nothing (give set, press, keys, a plant parameter or a silicon \
+                 fault)"
+            );
         }
         Ok(())
     }

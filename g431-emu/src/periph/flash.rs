@@ -40,6 +40,32 @@ pub mod eccr {
     pub const ECCD: u32 = 1 << 31;
 }
 
+/// The voltage range the core runs in (PWR_CR1.VOS, PWR_CR5.R1MODE).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum VoltageRange {
+    /// Range 1 boost mode (R1MODE = 0): up to 170 MHz.
+    Range1Boost,
+    /// Range 1 normal mode: up to 150 MHz.
+    Range1Normal,
+    /// Range 2: up to 26 MHz.
+    Range2,
+}
+
+/// The fewest flash wait states (ACR.LATENCY) for HCLK at `hz` in `range`, or `None` when
+/// the range does not allow that frequency at all (RM0440 §3.3.3 "Read access latency",
+/// Table "Number of wait states according to CPU clock (HCLK) frequency").
+pub fn min_latency(hz: u64, range: VoltageRange) -> Option<u32> {
+    let mhz_per_ws: &[u64] = match range {
+        VoltageRange::Range1Boost => &[34, 68, 102, 136, 170],
+        VoltageRange::Range1Normal => &[30, 60, 90, 120, 150],
+        VoltageRange::Range2 => &[12, 24, 26],
+    };
+    mhz_per_ws
+        .iter()
+        .position(|max| hz <= max * 1_000_000)
+        .map(|ws| ws as u32)
+}
+
 /// Which ECC error a read found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum EccError {
@@ -165,6 +191,21 @@ mod tests {
     #[test]
     fn factory_option_bytes_take_boot0_from_the_pin() {
         assert_eq!(Flash::default().optr() & OPTR_NSWBOOT0, OPTR_NSWBOOT0);
+    }
+
+    #[test]
+    fn wait_states_per_range() {
+        use VoltageRange::*;
+        assert_eq!(min_latency(170_000_000, Range1Boost), Some(4));
+        assert_eq!(min_latency(16_000_000, Range1Boost), Some(0));
+        assert_eq!(
+            min_latency(170_000_000, Range1Normal),
+            None,
+            "150 MHz at most"
+        );
+        assert_eq!(min_latency(150_000_000, Range1Normal), Some(4));
+        assert_eq!(min_latency(16_000_000, Range2), Some(1));
+        assert_eq!(min_latency(30_000_000, Range2), None);
     }
 
     #[test]

@@ -134,6 +134,19 @@ impl Pwr {
     pub fn boost(&self) -> bool {
         self.cr5 & (1 << 8) == 0
     }
+
+    /// The voltage range in effect (CR1.VOS: 01 range 1, 10 range 2; R1MODE in range 1).
+    /// While VOSF is set after a change the regulator is still settling: the lower of the
+    /// two ranges is the one to trust, which the SoC's check does not model (reported
+    /// separately if an image switches the clock while VOSF is set).
+    pub fn range(&self) -> crate::periph::flash::VoltageRange {
+        use crate::periph::flash::VoltageRange;
+        match (self.cr[0] >> 9) & 3 {
+            2 => VoltageRange::Range2,
+            _ if self.boost() => VoltageRange::Range1Boost,
+            _ => VoltageRange::Range1Normal,
+        }
+    }
 }
 
 impl Peripheral for Pwr {

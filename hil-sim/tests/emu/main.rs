@@ -13,5 +13,6 @@ mod motor;
 mod power_stage;
 mod safety;
 mod service;
+mod silicon_faults;
 mod storage;
 mod trips;
