@@ -5,9 +5,9 @@
 //! lock bits are set-only until a system reset.
 //!
 //! SRAM parity (RM0440 "Memory and bus architecture", embedded SRAM: "Parity check"; the
-//! same wording across the STM32 families with SRAM parity, and SYSCFG_CFGR2.SPF): with the check enabled by the option bit FLASH_OPTR.SRAM_PE = 0, a
-//! parity error on a read sets CFGR2.SPF (cleared by writing 1) and raises the NMI; with SPL
-//! it is also a system break. Errors are injected by the host through the SoC
+//! same wording across the STM32 families with SRAM parity, and SYSCFG_CFGR2.SPF): with the
+//! check enabled by the option bit FLASH_OPTR.SRAM_PE = 0, a parity error on a read sets
+//! CFGR2.SPF (cleared by writing 1) and raises the NMI; with SPL it is also a system break. Errors are injected by the host through the SoC
 //! ([`Syscfg::set_parity_error`]), which checks the option bit and raises the NMI. The break
 //! signal is held while SPF is set (RM0440 does not give its length; the longer choice).
 

@@ -20,8 +20,8 @@
 //!   BKE. While it is active MOE is cleared at once and writing MOE = 1 is refused; BIF is
 //!   set by the break input (BKIN, comparators) and SBIF by the system break, each only by
 //!   its own source, and neither can be cleared while its source is active (RM0440 register
-//!   "TIMx status register (TIMx_SR)" and §29.3.18; see `eval_breaks`); AOE sets MOE again at the next update event once the break
-//!   is gone. Break 2 likewise with AF2/BK2E/BK2P/BK2F and B2IF. EGR.BG/B2G generate a
+//!   "TIMx status register (TIMx_SR)" and §29.3.18; see `eval_breaks`); AOE sets MOE again
+//!   at the next update event once the break is gone. Break 2 likewise with AF2/BK2E/BK2P/BK2F and B2IF. EGR.BG/B2G generate a
 //!   break event from software;
 //! * LOCK levels (BDTR.LOCK, write-once);
 //! * the debug freeze (DBGMCU DBG_TIM1_STOP while the core is halted): the counter stops and
@@ -772,10 +772,10 @@ impl TimAdv {
             // BIF follows the break input (BKIN and the comparators, after the filter) and
             // SBIF the system break input, each on its own (RM0440 TIMx_SR: BIF "set by
             // hardware as soon as the break input goes active", SBIF "as soon as the system
-            // break input goes active"; "the break status flag (SBIF, BIF and
-            // B2IF bits in the TIMx_SR register) is set", §29.3.18). A system break alone leaves BIF
-            // at 0: the reading that does not hide an interrupt handler blind to SBIF
-            // (review N4, E3), see docs/models.md "TIM1 system break".
+            // break input goes active"; "the break status flag (SBIF, BIF and B2IF bits in
+            // the TIMx_SR register) is set", §29.3.18). A system break alone leaves BIF at 0:
+            // the reading that does not hide an interrupt handler blind to SBIF (review N4,
+            // E3), see docs/models.md "TIM1/TIM8".
             if self.brk.out {
                 if self.sr & sr::BIF == 0 {
                     self.push(TimEvent::Break {

@@ -149,7 +149,8 @@ impl EventSiliconKeys<'_> {
                     ("stretch", _) => bail!("i2c_fault = \"stretch\" needs i2c_stretch_ms > 0"),
                     (_, Some(_)) => bail!("i2c_stretch_ms goes with i2c_fault = \"stretch\""),
                     (f, None) => bail!(
-                        "i2c_fault = {f:?}: \"nack\", \"stretch\", \"arbitration_loss\" or \"bus_error\""
+                        "i2c_fault = {f:?}: \"nack\", \"stretch\", \"arbitration_loss\" or \
+                         \"bus_error\""
                     ),
                 };
                 let address = self.i2c_address.unwrap_or(EEPROM_I2C_ADDRESS);
