@@ -30,6 +30,10 @@ use crate::periph::{DmaRequests, IrqLines, Peripheral, Write};
 use crate::scs::Scs;
 use crate::time::{Cycles, CYCLES_PER_US};
 
+mod clocks;
+mod faults;
+pub use faults::SystemBreakSources;
+
 /// Flash: 128 KiB at 0x0800_0000.
 pub const FLASH_BASE: u32 = 0x0800_0000;
 pub const FLASH_BYTES: usize = 128 * 1024;
@@ -54,11 +58,6 @@ pub const SYSMEM_BYTES: usize = 0x1_0000;
 /// in the emulator, so the first change of each is reported (review E5: they were
 /// accepted silently). (block, offset, what the silicon would do with it.)
 pub const STORED_ONLY: &[(&str, u32, &str)] = &[
-    (
-        "PWR",
-        0x04,
-        "CR2: PVD level and enable, peripheral voltage monitoring",
-    ),
     (
         "PWR",
         0x08,
@@ -323,6 +322,8 @@ pub struct Soc {
     i2c_pins: [Option<BusPins>; 3],
     /// A DMA service is running (its register accesses must not start another).
     in_dma: bool,
+    /// The timers' system break and its sources (`faults`).
+    sys_faults: faults::SystemFaults,
 }
 
 fn slot(name: &'static str, model: Box<dyn Model>) -> Slot {
@@ -439,6 +440,7 @@ impl Soc {
             wired: Slots::default(),
             i2c_pins: [None; 3],
             in_dma: false,
+            sys_faults: faults::SystemFaults::default(),
         };
         soc.add_wired_models();
         soc.flash.resize(FLASH_BYTES, 0xFF);
@@ -637,7 +639,7 @@ impl Soc {
 
     /// Collects what the models reported since the last call.
     pub fn collect_reports(&mut self) {
-        let mut out: Vec<String> = Vec::new();
+        let mut out: Vec<String> = self.silicon_reports();
         for s in self.slots.iter_mut() {
             let m = s.model.as_any_mut();
             if let Some(x) = m.downcast_mut::<Usart>() {
@@ -874,6 +876,10 @@ impl Soc {
         if self.dma_related(k) {
             self.service_dma();
         }
+        if self.is_system_fault_slot(k) {
+            self.update_system_break();
+        }
+        self.clock_tree_changed(k, t);
     }
 
     /// Brings slot `k` to `t`; the ADC gets the board's analog values through an adapter.
@@ -1049,20 +1055,10 @@ impl Soc {
     }
 
     /// The core locked up (or recovered by reset): with SYSCFG_CFGR2.CLL the LOCKUP signal
-    /// is a system break of TIM1 (RM0440 Table 271).
+    /// is a system break of TIM1 and TIM8 (RM0440 Table 271; the other sources: `faults`).
     pub fn lockup(&mut self, locked: bool) {
-        use crate::periph::syscfg::cfgr2;
-        if self.syscfg().cfgr2() & cfgr2::CLL == 0 {
-            return;
-        }
-        let now = self.now;
-        let k = self.wired.tim1;
-        self.advance_slot(k, now);
-        if let Some(tim) = self.model_mut::<TimAdv>(k) {
-            tim.set_system_break(locked, now);
-        }
-        self.refresh(k);
-        self.after_event(k, now);
+        self.sys_faults.locked_up = locked;
+        self.update_system_break();
     }
 
     /// The part's analog errors (comparator offset and delay, DAC offset, OPAMP offset):
@@ -1180,10 +1176,13 @@ impl Soc {
         }
         // The reset ends LOCKUP and clears SYSCFG_CFGR2's enables: the timers' system break
         // input falls (the comparator and BKIN inputs are the outside world's and stay).
-        let (k, now) = (self.wired.tim1, self.now);
-        if let Some(tim) = self.model_mut::<TimAdv>(k) {
-            tim.set_system_break(false, now);
+        let now = self.now;
+        for k in [self.wired.tim1, self.wired.tim8] {
+            if let Some(tim) = self.model_mut::<TimAdv>(k) {
+                tim.set_system_break(false, now);
+            }
         }
+        self.sys_faults = faults::SystemFaults::default();
         for k in 0..self.slots.len() {
             self.refresh(k);
         }
@@ -2238,16 +2237,16 @@ mod tests {
     #[test]
     fn a_change_of_a_stored_only_register_is_reported_once() {
         let mut s = soc();
-        // PWR is clocked by APB1ENR1.PWREN; CR2 (PVD) is stored, not applied.
+        // PWR is clocked by APB1ENR1.PWREN; CR4 (wake-up polarity) is stored, not applied.
         s.bus_write(0x4002_1058, 4, 1 << 28);
-        s.bus_write(0x4000_7004, 4, 0); // no change: nothing to report
+        s.bus_write(0x4000_700C, 4, 0); // no change: nothing to report
         assert!(s.diagnostics().is_empty(), "{:?}", s.diagnostics());
-        s.bus_write(0x4000_7004, 4, 1);
-        s.bus_write(0x4000_7004, 4, 3);
+        s.bus_write(0x4000_700C, 4, 1);
+        s.bus_write(0x4000_700C, 4, 3);
         let what: Vec<String> = s.diagnostics().iter().map(|d| d.to_string()).collect();
         assert_eq!(
             what,
-            ["PWR.CR2 set to 0x00000001: stored only, its effect is not modelled"]
+            ["PWR.CR4 set to 0x00000001: stored only, its effect is not modelled"]
         );
         // CR1.VOS is modelled (VOSF): not reported.
         s.bus_write(0x4000_7000, 4, 0x400);

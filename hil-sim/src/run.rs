@@ -129,6 +129,7 @@ pub fn action_label(a: &Action) -> String {
             LiftEvent::DoorBlock(b) => format!("door block {b}"),
             LiftEvent::VaneFail(v) => format!("vane fail {v:?}"),
         },
+        Action::Silicon(side, ev) => format!("{side:?} {ev:?}"),
     }
 }
 

@@ -17,6 +17,9 @@ use crate::plant::lift::{
 };
 use crate::plant::{Load, PwmMode, RigParams};
 
+pub mod silicon;
+use silicon::{EventSiliconKeys, McuSide, SiliconEvent, SiliconKeys, SiliconParams};
+
 /// Duration when neither `--duration` nor the scenario gives one.
 pub const DEFAULT_DURATION_S: f64 = 10.0;
 /// How long `press` holds an input when the event has no `hold_s`.
@@ -46,6 +49,9 @@ pub struct ScenarioFile {
     pub analog: AnalogKeys,
     #[serde(default)]
     pub emu: EmuKeys,
+    /// `[silicon]`: tolerances of the emulated MCUs (`hil-sim emu` only).
+    #[serde(default)]
+    pub silicon: SiliconKeys,
 }
 
 /// `[analog]`: the drive MCU's analog errors in `hil-sim emu` (g431-emu `docs/models.md`
@@ -397,6 +403,22 @@ pub struct EventKeys {
     pub door_block: Option<bool>,
     /// `"L"`, `"R"` or `"none"`.
     pub vane_fail: Option<String>,
+    // Faults of the silicon (`hil-sim emu` only; `silicon`).
+    /// Which MCU the silicon keys act on: `"drive"` (default) or `"plc"`.
+    pub mcu: Option<String>,
+    /// The MCU's supply voltage from now on, V (its PVD watches it).
+    pub vdd_v: Option<f64>,
+    /// An SRAM parity error is detected now.
+    pub sram_parity_error: Option<bool>,
+    /// A flash double ECC error is detected now.
+    pub flash_ecc_error: Option<bool>,
+    /// `"nack"`, `"stretch"`, `"arbitration_loss"` or `"bus_error"` on the PLC's I2C bus, in
+    /// the next write to `i2c_address`.
+    pub i2c_fault: Option<String>,
+    /// The device the I2C fault hits (default 0x50, the EEPROM).
+    pub i2c_address: Option<u8>,
+    /// How long the device holds SCL low (`i2c_fault = "stretch"`), ms.
+    pub i2c_stretch_ms: Option<f64>,
 }
 
 /// An input the scenario can set.
@@ -472,6 +494,8 @@ pub enum Action {
     KeyUp(char),
     Plant(PlantChange),
     Lift(LiftEvent),
+    /// A fault of one MCU's silicon (`hil-sim emu` only).
+    Silicon(McuSide, SiliconEvent),
 }
 
 /// A scheduled action in virtual time.
@@ -504,6 +528,8 @@ pub struct Scenario {
     pub analog: AnalogErrors,
     /// `[emu] expect`: image troubles the scenario provokes on purpose.
     pub expected_trouble: Vec<ImageTrouble>,
+    /// `[silicon]`.
+    pub silicon: SiliconParams,
 }
 
 impl Default for Scenario {
@@ -521,6 +547,7 @@ impl Default for Scenario {
             service_flood: false,
             analog: AnalogErrors::TYPICAL,
             expected_trouble: Vec::new(),
+            silicon: SiliconParams::default(),
         }
     }
 }
@@ -659,6 +686,7 @@ impl Scenario {
         if let Some(l) = &f.lift {
             s.lift = Some(l.params()?);
         }
+        s.silicon = f.silicon.params()?;
         for (n, e) in f.events.iter().enumerate() {
             s.add_event(e)
                 .with_context(|| format!("event {} (at_s = {})", n + 1, e.at_s))?;
@@ -747,8 +775,24 @@ impl Scenario {
             self.push(e.at_s, Action::Plant(c));
             any = true;
         }
+        let silicon = EventSiliconKeys {
+            mcu: e.mcu.as_deref(),
+            vdd_v: e.vdd_v,
+            sram_parity_error: e.sram_parity_error,
+            flash_ecc_error: e.flash_ecc_error,
+            i2c_fault: e.i2c_fault.as_deref(),
+            i2c_address: e.i2c_address,
+            i2c_stretch_ms: e.i2c_stretch_ms,
+        };
+        for (side, ev) in silicon.events()? {
+            self.push(e.at_s, Action::Silicon(side, ev));
+            any = true;
+        }
         if !any {
-            bail!("the event does nothing (give set, press, keys or a plant parameter)");
+            bail!(
+                "the event does nothing (give set, press, keys, a plant parameter or a silicon \
+                 fault)"
+            );
         }
         Ok(())
     }

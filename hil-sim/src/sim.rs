@@ -140,6 +140,16 @@ impl Simulation {
     /// The default boards with `program` in the PLC's EEPROM (slot 1, RUN at power-up
     /// unless the scenario types the RUN key).
     pub fn new(program: &Program, scenario: Scenario, opts: RunOptions) -> Result<Self> {
+        if scenario
+            .actions
+            .iter()
+            .any(|a| matches!(a.action, Action::Silicon(..)))
+        {
+            anyhow::bail!(
+                "faults of the silicon (vdd_v, sram_parity_error, flash_ecc_error, i2c_fault) \
+                 need the emulated MCUs: `hil-sim emu`"
+            );
+        }
         let image = program_image(
             program,
             &ImageOptions {
@@ -623,6 +633,8 @@ impl Simulation {
             Action::KeyUp(k) => self.plc.key(k, false, now),
             Action::Plant(c) => c.apply(self.plant.params_mut()),
             Action::Lift(e) => self.lift_event(e),
+            // Refused in `new`: the silicon is the emulator's.
+            Action::Silicon(..) => {}
         }
     }
 

@@ -32,8 +32,11 @@
 //!
 //! Re-enabling a channel without reprogramming CNDTR, CPAR or CMAR ("suspend and resume")
 //! is "not supported by the DMA hardware" (RM0440 "Channel state and disabling a channel"):
-//! the model resumes where the channel stopped and reports it, because embassy's
-//! `RingBufferedUartRx` does exactly this after every RX error (`request_pause` + `start`).
+//! what the silicon then does is undefined, so the model reports it and **stops the
+//! channel**: EN reads 1 but no request is served until the channel is disabled and CNDTR,
+//! CPAR or CMAR is written again (review E9, N13). embassy's `RingBufferedUartRx` does
+//! exactly this after every RX error (`dma_bdma.rs` `request_pause` + `start`, which only
+//! sets EN).
 //!
 //! Not modelled: transfer timing (a transfer takes no time), bus contention, the
 //! peripheral-to-peripheral or memory-to-memory bandwidth.
@@ -121,6 +124,8 @@ struct Channel {
     mem_cur: u32,
     /// CNDTR, CPAR or CMAR written since the channel was last enabled.
     reprogrammed: bool,
+    /// Re-enabled without reprogramming (undefined in RM0440): serves no request.
+    stalled: bool,
     /// Configuration bits a write tried to change while it cleared EN (they were read-only
     /// at that moment); reported if the channel is enabled again without CCR having been
     /// rewritten while disabled.
@@ -219,7 +224,7 @@ impl Dma {
     pub fn next_transfer(&self, mux: &Dmamux, requests: &DmaRequests) -> Option<Transfer> {
         let mut best: Option<(usize, u32)> = None;
         for (i, c) in self.ch.iter().enumerate() {
-            if !c.enabled() || c.cndtr == 0 {
+            if !c.enabled() || c.cndtr == 0 || c.stalled {
                 continue;
             }
             let requested = c.ccr & CCR_MEM2MEM != 0
@@ -357,11 +362,13 @@ impl Dma {
             if c.reprogrammed {
                 c.peri_cur = c.cpar;
                 c.mem_cur = c.cmar;
+                c.stalled = false;
             } else if c.cndtr != 0 {
+                c.stalled = true;
                 msgs.push(format!(
                     "{name}: channel re-enabled without reprogramming CNDTR/CPAR/CMAR \
-                     (RM0440: suspend/resume not supported by the hardware); modelled as \
-                     resuming where it stopped"
+                     (RM0440: suspend/resume not supported by the hardware, undefined); the \
+                     model stops the channel until it is reprogrammed"
                 ));
             }
             c.reprogrammed = false;
@@ -1357,7 +1364,7 @@ mod tests {
     }
 
     #[test]
-    fn rx_error_stops_dma_and_the_next_read_resumes_it() {
+    fn rx_error_stops_dma_and_the_restart_without_reprogramming_stays_stopped() {
         let mut b = Bench::new();
         b.uart_new(1476);
         let ring = RAM + 0x400;
@@ -1389,19 +1396,25 @@ mod tests {
         b.run_until(t0 + 4 * FRAME);
         assert_eq!(b.rx_ndtr.len(), 1);
         // The next read: flags clean, DMAR clear, so start_uart re-enables the channel
-        // without reprogramming it (reported), and the waiting words are transferred.
+        // without reprogramming it: undefined in RM0440, reported, and the channel stops.
         b.start_dma_or_check_errors()
             .unwrap_or_else(|e| panic!("error flag {e:#x}"));
         let reports = b.dma.take_reports();
         assert_eq!(reports.len(), 1, "{reports:?}");
         assert!(reports[0].contains("DMA1.CCR2") && reports[0].contains("suspend/resume"));
-        assert_eq!(reader.read(&mut b, ring), Ok(b"yz".to_vec()));
-        // More bytes continue in sequence.
+        assert_ne!(b.r(b.d(ch_off(RX_CH, 0))) & CCR_EN, 0, "EN reads 1");
+        assert_eq!(reader.read(&mut b, ring), Ok(Vec::new()), "nothing moves");
         b.usart
             .push_rx(t0 + 10 * FRAME, RxByte::clean(u16::from(b'!')));
         b.run_until(t0 + 10 * FRAME);
-        assert_eq!(reader.read(&mut b, ring), Ok(b"!".to_vec()));
-        assert_eq!(&b.ram[0x400..0x404], b"xyz!");
+        assert_eq!(reader.read(&mut b, ring), Ok(Vec::new()));
+        assert_eq!(b.rx_ndtr.len(), 1, "no transfer after the restart");
+        // Reprogrammed with EN = 0 (CNDTR written), the channel serves requests again.
+        b.ch_request_pause(RX_CH);
+        b.w(b.d(ch_off(RX_CH, 1)), 8);
+        b.m(b.d(ch_off(RX_CH, 0)), |v| v | CCR_EN);
+        b.run_until(t0 + 11 * FRAME);
+        assert!(b.rx_ndtr.len() > 1, "transfers again once reprogrammed");
     }
 
     #[test]
@@ -1424,9 +1437,13 @@ mod tests {
         assert_eq!(b.check_idle_and_errors(), Ok(false));
         b.start_dma_or_check_errors()
             .unwrap_or_else(|e| panic!("error flag {e:#x}"));
-        assert_eq!(b.rx_ndtr.len(), 9, "the nine stored words were transferred");
-        // Nine words into a ring of eight: the ninth wrapped onto the first.
-        assert_eq!(&b.ram[0x400..0x408], &[9, 2, 3, 4, 5, 6, 7, 8]);
-        assert_eq!(b.r(b.d(ch_off(RX_CH, 1))), 7);
+        // The restart only sets EN (no reprogramming): the channel stays stopped and the
+        // stored words stay in the USART.
+        assert!(b.rx_ndtr.is_empty(), "{:?}", b.rx_ndtr);
+        assert!(b
+            .dma
+            .take_reports()
+            .iter()
+            .any(|r| r.contains("suspend/resume")));
     }
 }

@@ -51,21 +51,31 @@
 //! the devices and make START/STOP conditions, so a 9-pulse + STOP recovery works as on the
 //! board.
 //!
+//! # Injected faults (review E10)
+//! [`I2c::inject_fault`] arms a NACK, a clock stretch by the device, an arbitration loss or
+//! a bus error (misplaced STOP) for one device address; it hits the last byte of the next
+//! write chunk without RELOAD to that device, where embassy's blocking master waits for TC
+//! or TXIS (module `faults`). The SCL-low timeout detector (TIMEOUTR.TIMOUTEN with
+//! TIDLE = 0) acts on an injected stretch: TIMEOUT at tTIMEOUT.
+//!
 //! # Not modelled (reported or documented)
 //! Slave mode (OAR1/OAR2 are plain registers; ADDR never sets), SMBus (PEC: PECR reads are
-//! reported as unmodelled; ALERT; the TIMEOUT detector: TIMEOUTR is a plain register), 10-bit
-//! addressing (a START with ADD10=1 gets no ACK and is reported by [`I2c::unsupported`]),
-//! clock stretching by devices, BERR (misplaced START/STOP during a master transfer), GPIO
-//! activity while the master itself is transferring, wake-up from Stop.
+//! reported as unmodelled; ALERT; the bus-idle timeout TIDLE = 1 and the cumulative TEXTEN
+//! timeout), 10-bit addressing (a START with ADD10=1 gets no ACK and is reported by
+//! [`I2c::unsupported`]), clock stretching by devices other than an injected one, BERR other
+//! than an injected one, GPIO activity while the master itself is transferring, wake-up
+//! from Stop.
 
 use crate::names;
 use crate::periph::{DmaRequests, IrqLines, Peripheral, Write};
 use crate::time::{ns_to_cycles, Cycles};
 
 mod bus;
+mod faults;
 
 use bus::Abandon;
 pub use bus::{BusCondition, I2cBus, I2cDevice, SharedDevice};
+pub use faults::I2cFault;
 
 // Register offsets (RM0440 "I2C register map").
 const CR1: u32 = 0x00;
@@ -213,6 +223,8 @@ pub struct I2cStats {
     pub short_pe_resets: u64,
     pub bytes_written: u64,
     pub bytes_read: u64,
+    /// Injected faults that fired ([`I2c::inject_fault`]).
+    pub injected_faults: u64,
 }
 
 /// Which I2C: names its interrupts (`I2Cx_EV`, `I2Cx_ER`) and DMA requests.
@@ -257,6 +269,10 @@ pub struct I2c {
     pe_cleared_at: Option<Cycles>,
     stats: I2cStats,
     unsupported: Option<&'static str>,
+    /// A fault waiting for its byte (`faults`).
+    armed: Option<faults::Armed>,
+    /// The SCL-low timeout detector fires here (during an injected stretch).
+    timeout_at: Option<Cycles>,
 }
 
 impl I2c {
@@ -295,6 +311,8 @@ impl I2c {
             pe_cleared_at: None,
             stats: I2cStats::default(),
             unsupported: None,
+            armed: None,
+            timeout_at: None,
         }
     }
 
@@ -396,6 +414,13 @@ impl I2c {
     }
 
     fn due(&self) -> Option<Cycles> {
+        match (self.phase_due(), self.timeout_at) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    fn phase_due(&self) -> Option<Cycles> {
         let t = self.scl_period();
         match self.phase {
             Phase::Start { at } | Phase::Stop { at } | Phase::RxAck { at, .. } => Some(at + t),
@@ -434,14 +459,31 @@ impl I2c {
                 at,
                 byte,
                 ack: None,
-            } => {
-                let ack = self.bus.write(byte, t);
-                self.phase = Phase::Tx {
-                    at,
-                    byte,
-                    ack: Some(ack),
-                };
-            }
+            } => match self.take_fault().map(|f| self.apply_fault(f, byte, t)) {
+                None => {
+                    let ack = self.bus.write(byte, t);
+                    self.phase = Phase::Tx {
+                        at,
+                        byte,
+                        ack: Some(ack),
+                    };
+                }
+                Some(faults::Hit::Ack(ack)) => {
+                    self.phase = Phase::Tx {
+                        at,
+                        byte,
+                        ack: Some(ack),
+                    };
+                }
+                Some(faults::Hit::Stretched { ack, cycles }) => {
+                    self.phase = Phase::Tx {
+                        at: at + cycles,
+                        byte,
+                        ack: Some(ack),
+                    };
+                }
+                Some(faults::Hit::Abort { flag }) => self.abort_transfer(flag, t),
+            },
             Phase::Tx { ack: Some(ack), .. } => {
                 self.stats.bytes_written += 1;
                 if ack {
@@ -740,6 +782,7 @@ impl I2c {
     /// RM0440 "Software reset" (PE=0).
     fn software_reset(&mut self, now: Cycles) {
         self.abandon(now);
+        self.timeout_at = None;
         self.cr2 &= !(CR2_START | CR2_STOP | CR2_NACK);
         self.isr = TXE;
         self.pe_cleared_at = Some(now);
@@ -918,7 +961,11 @@ impl Peripheral for I2c {
             if t > now {
                 break;
             }
-            self.step(t);
+            if self.timeout_at == Some(t) {
+                self.timeout_detected(t);
+            } else {
+                self.step(t);
+            }
         }
         self.now = self.now.max(now);
     }
@@ -957,6 +1004,7 @@ impl Peripheral for I2c {
         // The pins go to their reset state (analog): the devices stay where they were.
         let now = self.now;
         self.abandon(now);
+        self.timeout_at = None;
         self.cr1 = 0;
         self.cr2 = 0;
         self.oar1 = 0;

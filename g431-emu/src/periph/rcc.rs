@@ -2,9 +2,17 @@
 //! datasheet's start-up times, SWS following SW, the clock-enable and reset registers (the
 //! SoC gates and resets the other models with them), and the reset flags in CSR.
 //!
-//! The clock tree itself is not modelled: the images must configure 170 MHz and every model
-//! assumes it (see `crate::time`). [`Rcc::sysclk_is_pll`] lets the SoC report an image that
+//! The clock tree is computed, not run: every model still counts time at 170 MHz (see
+//! `crate::time`), but the RCC knows the frequencies the configuration gives
+//! ([`Rcc::sysclk_hz`], [`Rcc::hclk_hz`], [`Rcc::adc12_kernel_hz`]) and records each change
+//! of HCLK ([`Rcc::take_clock_changes`]) for the SoC to check against the flash latency and
+//! the voltage range (review E7). [`Rcc::sysclk_is_pll`] lets the SoC report an image that
 //! runs the PLL-dependent peripherals without switching to the PLL.
+//!
+//! A system-clock switch completes only once its source is ready (RM0440 §7.4.3 RCC_CFGR.SW:
+//! the switch happens when the selected clock is ready; SWS shows it): SW = PLL with the PLL
+//! not locked leaves SWS where it was until PLLRDY, and a source that never becomes ready
+//! (PLL off, or HSE: no crystal on either board) is reported.
 
 use crate::periph::usart::UsartInstance;
 use crate::periph::{Peripheral, Write};
@@ -73,6 +81,23 @@ pub struct Rcc {
     sws_at: Option<Cycles>,
     /// Reset bits newly set by a write, for the SoC to reset those models.
     resets_asserted: Vec<(u32, u32)>,
+    /// HCLK changes since the SoC last looked.
+    clock_changes: Vec<ClockChange>,
+    /// Diagnostics for the SoC.
+    reports: Vec<String>,
+}
+
+/// One change of HCLK (a system-clock switch or an AHB prescaler write).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ClockChange {
+    pub at: Cycles,
+    /// HCLK before and after, Hz (`None`: a source the model cannot know, HSE).
+    pub from_hz: Option<u64>,
+    pub to_hz: Option<u64>,
+    /// SYSCLK switched (SWS changed); otherwise HPRE changed.
+    pub switch: bool,
+    /// The AHB prescaler divides (HPRE != /1) at the moment of the change.
+    pub hpre_divides: bool,
 }
 
 /// A tiny fixed queue without allocation in the hot path.
@@ -88,6 +113,13 @@ mod heapless_settle {
             self.0.retain(|o| !(o.reg == s.reg && o.bit == s.bit));
             self.0.push(s);
         }
+        /// When `bit` of `reg` becomes 1, if that is pending.
+        pub fn ready_at(&self, reg: u32, bit: u32) -> Option<super::Cycles> {
+            self.0
+                .iter()
+                .find(|s| s.reg == reg && s.bit == bit && s.value)
+                .map(|s| s.at)
+        }
         pub fn cancel(&mut self, reg: u32, bit: u32) {
             self.0.retain(|o| !(o.reg == reg && o.bit == bit));
         }
@@ -102,6 +134,17 @@ mod heapless_settle {
         pub fn clear(&mut self) {
             self.0.clear();
         }
+    }
+}
+
+/// The AHB prescaler's division (RM0440 RCC_CFGR.HPRE, bits 7:4: 0xxx = 1, 1000 = 2 ...
+/// 1011 = 16, 1100 = 64 ... 1111 = 512).
+fn hpre_div(cfgr: u32) -> u64 {
+    let h = (cfgr >> 4) & 0xF;
+    match h {
+        0..=7 => 1,
+        8..=11 => 2 << (h - 8),
+        _ => 64 << (h - 12),
     }
 }
 
@@ -143,9 +186,95 @@ impl Rcc {
             settle: heapless_settle::Queue::default(),
             sws_at: None,
             resets_asserted: Vec::new(),
+            clock_changes: Vec::new(),
+            reports: Vec::new(),
         };
         r.reset_to(why);
         r
+    }
+
+    /// SYSCLK in Hz as SWS selects it now (`None`: HSE, whose frequency no board gives).
+    pub fn sysclk_hz(&self) -> Option<u64> {
+        self.source_hz((self.cfgr >> 2) & 3)
+    }
+
+    /// HCLK in Hz: SYSCLK through the AHB prescaler (RM0440 RCC_CFGR.HPRE).
+    pub fn hclk_hz(&self) -> Option<u64> {
+        Some(self.sysclk_hz()? / hpre_div(self.cfgr))
+    }
+
+    /// The frequency of system-clock source `sw` (RM0440 RCC_CFGR.SW: 01 HSI16, 10 HSE,
+    /// 11 PLL "R" output).
+    fn source_hz(&self, sw: u32) -> Option<u64> {
+        match sw {
+            1 => Some(16_000_000),
+            3 => {
+                let p = self.pllcfgr;
+                let vco = self.pll_vco_hz()?;
+                // PLLR (bits 26:25): /2, /4, /6, /8.
+                let r = 2 * (u64::from((p >> 25) & 3) + 1);
+                Some(vco / r)
+            }
+            _ => None,
+        }
+    }
+
+    /// The PLL's VCO (RM0440 RCC_PLLCFGR: PLLSRC, PLLM, PLLN), Hz.
+    fn pll_vco_hz(&self) -> Option<u64> {
+        let p = self.pllcfgr;
+        let input = match p & 3 {
+            2 => 16_000_000u64,
+            _ => return None,
+        };
+        let m = u64::from((p >> 4) & 0xF) + 1;
+        let n = u64::from((p >> 8) & 0x7F);
+        Some(input / m * n)
+    }
+
+    /// The ADC1/ADC2 kernel clock RCC_CCIPR.ADC12SEL selects (RM0440 §7.4.26: 00 none, 01
+    /// PLL "P", 10 SYSCLK), Hz; `None` with no clock, or with the PLL "P" output off.
+    pub fn adc12_kernel_hz(&self) -> Option<u64> {
+        let ccipr = self.regs.get((CCIPR / 4) as usize).copied().unwrap_or(0);
+        match (ccipr >> 28) & 3 {
+            1 => {
+                let p = self.pllcfgr;
+                if p & (1 << 16) == 0 || self.cr & (1 << 25) == 0 {
+                    return None;
+                }
+                // PLLPDIV (bits 31:27) if not 0, else PLLP (bit 17): /7 or /17.
+                let pdiv = u64::from(p >> 27);
+                let div = if pdiv >= 2 {
+                    pdiv
+                } else if p & (1 << 17) != 0 {
+                    17
+                } else {
+                    7
+                };
+                Some(self.pll_vco_hz()? / div)
+            }
+            2 => self.sysclk_hz(),
+            _ => None,
+        }
+    }
+
+    /// HCLK changes since the last call.
+    pub fn take_clock_changes(&mut self) -> Vec<ClockChange> {
+        std::mem::take(&mut self.clock_changes)
+    }
+
+    /// Diagnostics since the last call.
+    pub fn take_reports(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.reports)
+    }
+
+    /// The ready flag of system-clock source `sw` (bit of CR), if it has one.
+    fn ready_bit(sw: u32) -> Option<u32> {
+        match sw {
+            1 => Some(10),
+            2 => Some(17),
+            3 => Some(25),
+            _ => None,
+        }
     }
 
     fn reset_to(&mut self, why: ResetKind) {
@@ -174,6 +303,7 @@ impl Rcc {
         self.settle.clear();
         self.sws_at = None;
         self.resets_asserted.clear();
+        self.clock_changes.clear();
     }
 
     /// A system reset of kind `why` (the RCC itself resets with everything else).
@@ -306,10 +436,20 @@ impl Peripheral for Rcc {
             ICSCR => self.icscr = (self.icscr & 0xFF) | (w.merge(self.icscr) & 0x7F00_0000),
             CFGR => {
                 let old = self.cfgr;
+                let hclk_before = self.hclk_hz();
                 // SWS (bits 3:2) is read-only.
                 self.cfgr = (w.merge(old) & !0xC) | (old & 0xC);
                 if (self.cfgr & 3) != ((old >> 2) & 3) {
                     self.sws_at = Some(now + SWITCH);
+                }
+                if hpre_div(old) != hpre_div(self.cfgr) {
+                    self.clock_changes.push(ClockChange {
+                        at: now,
+                        from_hz: hclk_before,
+                        to_hz: self.hclk_hz(),
+                        switch: false,
+                        hpre_divides: hpre_div(self.cfgr) != 1,
+                    });
                 }
             }
             PLLCFGR => self.pllcfgr = w.merge(self.pllcfgr),
@@ -373,10 +513,29 @@ impl Peripheral for Rcc {
                 *reg &= !(1 << s.bit);
             }
         }
-        if self.sws_at.is_some_and(|t| t <= now) {
+        if let Some(t) = self.sws_at.filter(|t| *t <= now) {
             self.sws_at = None;
             let sw = self.cfgr & 3;
-            self.cfgr = (self.cfgr & !0xC) | (sw << 2);
+            let ready = Rcc::ready_bit(sw).is_some_and(|b| self.cr & (1 << b) != 0);
+            if ready {
+                let before = self.hclk_hz();
+                self.cfgr = (self.cfgr & !0xC) | (sw << 2);
+                self.clock_changes.push(ClockChange {
+                    at: t,
+                    from_hz: before,
+                    to_hz: self.hclk_hz(),
+                    switch: true,
+                    hpre_divides: hpre_div(self.cfgr) != 1,
+                });
+            } else if let Some(at) = Rcc::ready_bit(sw).and_then(|b| self.settle.ready_at(CR, b)) {
+                // The source becomes ready later: the switch waits for it.
+                self.sws_at = Some(at.max(t) + SWITCH);
+            } else {
+                self.reports.push(format!(
+                    "RCC_CFGR.SW = {sw:#04b} selects a source that is off or never ready: \
+                     the system clock does not switch (SWS stays)"
+                ));
+            }
         }
     }
 
@@ -388,6 +547,62 @@ impl Peripheral for Rcc {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// embassy's 170 MHz: HSI16 / 4 x 85 / 2 (PLLSRC = HSI16, PLLM = 3, PLLN = 85, PLLREN).
+    const PLL_170: u32 = 2 | (3 << 4) | (85 << 8) | (1 << 24);
+
+    #[test]
+    fn sysclk_follows_the_pll_only_once_it_is_locked() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        assert_eq!(r.hclk_hz(), Some(16_000_000));
+        r.write(Write::word(PLLCFGR, PLL_170), 0);
+        r.write(Write::word(CR, (1 << 8) | (1 << 24)), 0);
+        // SW = PLL at once, before the lock: SWS waits for PLLRDY.
+        r.write(Write::word(CFGR, 3), 10);
+        r.advance(10 + SWITCH);
+        assert_eq!((r.read(CFGR, 0).unwrap_or(0) >> 2) & 3, 1, "still HSI16");
+        r.advance(PLL_LOCK + SWITCH);
+        assert_eq!((r.read(CFGR, 0).unwrap_or(0) >> 2) & 3, 3);
+        assert_eq!(r.sysclk_hz(), Some(170_000_000));
+        let ch = r.take_clock_changes();
+        assert_eq!(ch.len(), 1);
+        assert!(ch[0].switch && ch[0].to_hz == Some(170_000_000) && !ch[0].hpre_divides);
+        assert!(r.take_reports().is_empty());
+    }
+
+    #[test]
+    fn a_switch_to_a_pll_that_is_off_never_happens_and_is_reported() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        r.write(Write::word(PLLCFGR, PLL_170), 0);
+        r.write(Write::word(CFGR, 3), 0);
+        r.advance(1_000_000);
+        assert_eq!((r.read(CFGR, 0).unwrap_or(0) >> 2) & 3, 1);
+        assert_eq!(r.take_reports().len(), 1);
+        assert!(r.take_clock_changes().is_empty());
+    }
+
+    #[test]
+    fn hpre_and_the_adc_kernel_clock() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        // HPRE = 1000: /2.
+        r.write(Write::word(CFGR, (0b1000 << 4) | 1), 0);
+        assert_eq!(r.hclk_hz(), Some(8_000_000));
+        let ch = r.take_clock_changes();
+        assert_eq!(ch.len(), 1);
+        assert!(!ch[0].switch && ch[0].hpre_divides);
+        assert_eq!(ch[0].from_hz, Some(16_000_000));
+        // ADC12SEL: reset 00 = no clock; 10 = SYSCLK; 01 = PLL P with PLLPEN.
+        assert_eq!(r.adc12_kernel_hz(), None);
+        r.write(Write::word(CCIPR, 0b10 << 28), 0);
+        assert_eq!(r.adc12_kernel_hz(), Some(16_000_000));
+        r.write(Write::word(CCIPR, 0b01 << 28), 0);
+        r.write(Write::word(PLLCFGR, PLL_170 | (1 << 16)), 0);
+        assert_eq!(r.adc12_kernel_hz(), None, "PLL not running");
+        r.write(Write::word(CR, (1 << 8) | (1 << 24)), 0);
+        r.advance(PLL_LOCK);
+        // VCO 340 MHz / 7 (PLLP = 0, PLLPDIV = 0).
+        assert_eq!(r.adc12_kernel_hz(), Some(340_000_000 / 7));
+    }
 
     fn settle(r: &mut Rcc, now: Cycles) {
         r.advance(now);
@@ -440,9 +655,13 @@ mod tests {
     #[test]
     fn sws_follows_sw() {
         let mut r = Rcc::new(ResetKind::PowerOn);
-        r.write(Write::word(CFGR, 0x3), 100);
-        assert_eq!(r.read(CFGR, 100).unwrap_or(0) & 0xC, 0x4, "still HSI");
-        settle(&mut r, 100 + SWITCH);
+        // A locked PLL first: SWS follows SW only to a ready source.
+        r.write(Write::word(CR, 0x500 | (1 << 24)), 0);
+        settle(&mut r, PLL_LOCK);
+        let t = PLL_LOCK;
+        r.write(Write::word(CFGR, 0x3), t + 100);
+        assert_eq!(r.read(CFGR, t + 100).unwrap_or(0) & 0xC, 0x4, "still HSI");
+        settle(&mut r, t + 100 + SWITCH);
         assert_eq!(r.read(CFGR, 0).unwrap_or(0) & 0xC, 0xC);
         assert!(r.sysclk_is_pll());
     }

@@ -3,6 +3,13 @@
 //! reads [`Syscfg::exti_port`]) and CFGR2, whose lock bits route LOCKUP (CLL), SRAM parity
 //! (SPL), PVD (PVDL) and flash ECC (ECCL) to the timers' system break (RM0440 Table 271). The
 //! lock bits are set-only until a system reset.
+//!
+//! SRAM parity (RM0440 "Memory and bus architecture", embedded SRAM: "Parity check"; the
+//! same wording across the STM32 families with SRAM parity, and SYSCFG_CFGR2.SPF): with the
+//! check enabled by the option bit FLASH_OPTR.SRAM_PE = 0, a parity error on a read sets
+//! CFGR2.SPF (cleared by writing 1) and raises the NMI; with SPL it is also a system break. Errors are injected by the host through the SoC
+//! ([`Syscfg::set_parity_error`]), which checks the option bit and raises the NMI. The break
+//! signal is held while SPF is set (RM0440 does not give its length; the longer choice).
 
 use crate::periph::{Peripheral, Write};
 use crate::time::Cycles;
@@ -17,6 +24,8 @@ pub mod cfgr2 {
     pub const PVDL: u32 = 1 << 2;
     /// Flash double-ECC error to the break.
     pub const ECCL: u32 = 1 << 3;
+    /// SRAM parity error flag (rc_w1).
+    pub const SPF: u32 = 1 << 8;
 }
 
 /// SYSCFG.
@@ -34,6 +43,17 @@ impl Syscfg {
     /// CFGR2 (lock bits).
     pub fn cfgr2(&self) -> u32 {
         self.cfgr2
+    }
+
+    /// An SRAM parity error was detected: SPF set (the SoC checks that parity checking is
+    /// on, raises the NMI and re-evaluates the system break).
+    pub fn set_parity_error(&mut self) {
+        self.cfgr2 |= cfgr2::SPF;
+    }
+
+    /// CFGR2.SPF.
+    pub fn parity_error(&self) -> bool {
+        self.cfgr2 & cfgr2::SPF != 0
     }
 
     /// Port (0 = A) selected for EXTI line `line` (0..16).
@@ -69,7 +89,7 @@ impl Peripheral for Syscfg {
             // Lock bits: set-only. SPF (bit 8, parity error flag) is rc_w1.
             0x1C => {
                 let v = w.value & w.mask;
-                self.cfgr2 = (self.cfgr2 | (v & 0xF)) & !(v & (1 << 8));
+                self.cfgr2 = (self.cfgr2 | (v & 0xF)) & !(v & cfgr2::SPF);
             }
             0x20 => self.swpr = w.merge(self.swpr),
             0x24 => {}
@@ -95,6 +115,20 @@ mod tests {
         assert_eq!(s.cfgr2() & 0xF, cfgr2::CLL | cfgr2::PVDL);
         s.reset();
         assert_eq!(s.cfgr2(), 0);
+    }
+
+    #[test]
+    fn spf_is_set_by_a_parity_error_and_cleared_by_writing_1() {
+        let mut s = Syscfg::default();
+        s.write(Write::word(0x1C, cfgr2::SPL), 0);
+        s.set_parity_error();
+        assert!(s.parity_error());
+        assert_eq!(s.read(0x1C, 0), Some(cfgr2::SPL | cfgr2::SPF));
+        s.write(Write::word(0x1C, 0), 0);
+        assert!(s.parity_error(), "writing 0 leaves SPF");
+        s.write(Write::word(0x1C, cfgr2::SPF), 0);
+        assert!(!s.parity_error());
+        assert_eq!(s.cfgr2(), cfgr2::SPL, "the lock bit stays");
     }
 
     #[test]

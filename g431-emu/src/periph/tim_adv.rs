@@ -17,10 +17,12 @@
 //!   `(BKINE & (BKIN ^ BKINP)) | OR(BKCMPxE & (COMPx ^ BKCMPxP))` taken with polarity BKP,
 //!   digitally filtered by BKF, ORed with the system break (`tim_sys_brk`: LOCKUP, PVD, SRAM
 //!   parity, flash ECC as enabled in SYSCFG_CFGR2, which the SoC evaluates), and enabled by
-//!   BKE. While it is active MOE is cleared at once, BIF (and SBIF) are set and cannot be
-//!   cleared, and writing MOE = 1 is refused; AOE sets MOE again at the next update event
-//!   once the break is gone. Break 2 likewise with AF2/BK2E/BK2P/BK2F and B2IF. EGR.BG/B2G
-//!   generate a break event from software;
+//!   BKE. While it is active MOE is cleared at once and writing MOE = 1 is refused; BIF is
+//!   set by the break input (BKIN, comparators) and SBIF by the system break, each only by
+//!   its own source, and neither can be cleared while its source is active (RM0440 register
+//!   "TIMx status register (TIMx_SR)" and §29.3.18; see `eval_breaks`); AOE sets MOE again
+//!   at the next update event once the break is gone. Break 2 likewise with AF2/BK2E/BK2P/BK2F and B2IF. EGR.BG/B2G generate a
+//!   break event from software;
 //! * LOCK levels (BDTR.LOCK, write-once);
 //! * the debug freeze (DBGMCU DBG_TIM1_STOP while the core is halted): the counter stops and
 //!   the outputs are disabled "as if MOE was reset" until the core runs again;
@@ -767,13 +769,22 @@ impl TimAdv {
         self.active1 = bke && (self.brk.out || self.sys_brk);
         self.active2 = bk2e && self.brk2.out;
         if self.active1 {
-            if self.sr & sr::BIF == 0 {
-                self.push(TimEvent::Break {
-                    at: now,
-                    input: BreakInput::Brk,
-                });
+            // BIF follows the break input (BKIN and the comparators, after the filter) and
+            // SBIF the system break input, each on its own (RM0440 TIMx_SR: BIF "set by
+            // hardware as soon as the break input goes active", SBIF "as soon as the system
+            // break input goes active"; "the break status flag (SBIF, BIF and B2IF bits in
+            // the TIMx_SR register) is set", §29.3.18). A system break alone leaves BIF at 0:
+            // the reading that does not hide an interrupt handler blind to SBIF (review N4,
+            // E3), see docs/models.md "TIM1/TIM8".
+            if self.brk.out {
+                if self.sr & sr::BIF == 0 {
+                    self.push(TimEvent::Break {
+                        at: now,
+                        input: BreakInput::Brk,
+                    });
+                }
+                self.sr |= sr::BIF;
             }
-            self.sr |= sr::BIF;
             if self.sys_brk {
                 if self.sr & sr::SBIF == 0 {
                     self.push(TimEvent::Break {
@@ -1312,7 +1323,7 @@ impl Peripheral for TimAdv {
             0x10 => {
                 let mut n = w.clear_w0(self.sr) & sr::MASK;
                 // A break flag cannot be cleared while its break input is active.
-                if self.active1 {
+                if self.active1 && self.brk.out {
                     n |= sr::BIF;
                 }
                 if self.active2 {
@@ -1924,11 +1935,47 @@ mod tests {
         let t = b.t;
         b.tim.set_system_break(true, t);
         let srv = b.tim.read(SR, t).unwrap_or(0);
-        assert_eq!(srv & (sr::BIF | sr::SBIF), sr::BIF | sr::SBIF);
+        assert_eq!(
+            srv & (sr::BIF | sr::SBIF),
+            sr::SBIF,
+            "a system break alone sets SBIF, not BIF"
+        );
         assert!(b.events().contains(&TimEvent::OutputsOff {
             at: t,
             cause: OffCause::SystemBreak
         }));
+    }
+
+    /// SBIF alone raises the break interrupt (BIE), cannot be cleared while the system
+    /// break is active, and clears once it is gone (RM0440 TIMx_SR.SBIF).
+    #[test]
+    fn sbif_alone_raises_the_break_interrupt_and_clears_only_after_the_source() {
+        let mut b = Bus::new();
+        let cen = drive_init(&mut b, 0, 4250, 0x95);
+        b.at(cen + 50);
+        arm_break(&mut b);
+        b.modify(BDTR, |v| v | MOE);
+        let t = b.t;
+        b.tim.set_system_break(true, t);
+        assert!(
+            b.irq("TIM1_BRK_TIM15"),
+            "SBIF with BIE raises the break interrupt"
+        );
+        b.t += 10;
+        // Clearing BIF (what a handler blind to SBIF does) leaves the line high.
+        b.wr(SR, !sr::BIF);
+        b.wr(SR, !sr::SBIF);
+        assert_ne!(
+            b.rd(SR) & sr::SBIF,
+            0,
+            "SBIF holds while the source is active"
+        );
+        let t = b.t;
+        b.tim.set_system_break(false, t);
+        b.t += 1;
+        b.wr(SR, !sr::SBIF);
+        assert_eq!(b.rd(SR) & (sr::SBIF | sr::BIF), 0);
+        assert!(!b.irq("TIM1_BRK_TIM15"));
     }
 
     #[test]

@@ -5,9 +5,11 @@
 //! * [`images`]: where the ELFs are (and building them for the tests).
 //! * [`boards`]: what each pin of the two MCUs is wired to.
 //! * [`sim`]: the co-simulation.
+//! * [`silicon`]: the scenario's faults of the silicon applied to the MCUs.
 //! * [`run`]: one whole `emu` run as the CLI does it.
 
 pub mod boards;
 pub mod images;
 pub mod run;
+pub mod silicon;
 pub mod sim;

@@ -48,6 +48,7 @@ use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBo
 use crate::mcu::Lcd;
 use crate::plant::Plant;
 use crate::scenario::{Action, BoardKind, ImageTrouble, Input, Scenario};
+use crate::scenario::silicon::McuSide;
 use crate::sim::{FaultRecord, RunOptions, Sample};
 
 /// Longest slice both MCUs run before the wire hands characters over.
@@ -257,6 +258,8 @@ impl EmuSim {
         let io = Rc::new(RefCell::new(PlcIo::default()));
         let mut plc = Mcu::load("plc", plc_elf, Box::new(PlcBoard::new(io.clone())))
             .with_context(|| format!("PLC image {}", plc_elf.display()))?;
+        super::silicon::configure(&mut drive, scenario.silicon.drive_lsi_hz);
+        super::silicon::configure(&mut plc, scenario.silicon.plc_lsi_hz);
         let eeprom = Rc::new(RefCell::new(Eeprom24c256::default()));
         eeprom
             .borrow_mut()
@@ -587,6 +590,13 @@ impl EmuSim {
                 Action::Plant(c) => c.apply(self.rig.borrow_mut().plant.params_mut()),
                 // Refused in `new`: the lift is the host simulation's.
                 Action::Lift(_) => {}
+                Action::Silicon(side, ev) => {
+                    let mcu = match side {
+                        McuSide::Drive => &mut self.drive,
+                        McuSide::Plc => &mut self.plc,
+                    };
+                    super::silicon::apply(mcu, ev);
+                }
             }
         }
     }

@@ -46,10 +46,12 @@ pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
          is lost during start-up. Reported once per start",
     ),
     (
-        "drive: PWR.CR2 set to 0x0000000b",
-        "model gap (issue 36 deliverable 3, E3, being modelled in pwr.rs): the drive turns \
-         the PVD on (PVDE, PLS = 5) as a system break source of TIM1; PWR only stores it. \
-         Remove this when pwr.rs acts on CR2 (and takes it out of soc::STORED_ONLY)",
+        "HCLK 170.0 MHz is above what Range1Normal allows",
+        "finding (issue 29): both images run 170 MHz with the regulator in range 1 normal \
+         mode (limit 150 MHz, RM0440 6.1.5): embassy-stm32 0.6 clears R1MODE through \
+         stm32-metapac 21, which places it at bit 0 of PWR_CR5, while ST's CMSIS header and \
+         the stm32-rs SVD place it at bit 8 (reset value 0x100), so boost mode is never \
+         entered (`silicon_faults::both_images_run_170_mhz_in_boost_mode_with_4_wait_states`)",
     ),
     (
         "PWR.CR3 set to 0x0000c000",

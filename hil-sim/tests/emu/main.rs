@@ -16,5 +16,6 @@ mod oc_levels;
 mod power_stage;
 mod safety;
 mod service;
+mod silicon_faults;
 mod storage;
 mod trips;

@@ -759,3 +759,134 @@ fn reset_during_a_page_write_then_recovery_endings() {
     );
     assert!(i2c.bus().sda() && !i2c.sda_held_low());
 }
+
+// ---------------------------------------------------------------------------------------
+// Injected faults (review E10)
+
+/// The PLC image's bus: embassy with the 20 ms transaction timeout (`i2c_bus.rs`).
+fn plc_driver(i2c: &mut I2c) -> Embassy<'_> {
+    let mut e = Embassy::new(i2c, 0);
+    e.timeout = 20 * 170_000;
+    e.init(TIMINGR_100K);
+    e
+}
+
+/// A 30 ms stretch at the end of `blocking_write_read`'s write phase: embassy times out in
+/// `wait_tc` and returns without STOP. When the device lets go the master completes the
+/// chunk and holds the bus (TC, BUSY): every later `blocking_write` waits for BUSY and
+/// times out too (review N12), until the peripheral is reset and a STOP is sent.
+#[test]
+fn a_stretch_in_the_write_phase_times_out_and_leaves_the_bus_busy() {
+    let (mut i2c, eeprom, lcd) = board();
+    eeprom.borrow_mut().load(&vec![0x42u8; 32 * 1024]).unwrap();
+    i2c.inject_fault(I2cFault::stretch_ms(30.0), 0x50);
+    let mut e = plc_driver(&mut i2c);
+    let mut buf = [0u8; 4];
+    assert_eq!(
+        e.blocking_write_read(0x50, &[0x01, 0x00], &mut buf),
+        Err(Error::Timeout)
+    );
+    assert!(!e.i2c.fault_armed());
+    e.wait(20 * 170_000);
+    let isr = e.rd(ISR);
+    assert_ne!(isr & BUSY, 0, "the master still owns the bus: {isr:#x}");
+    assert_ne!(
+        isr & TC,
+        0,
+        "the chunk completed after the stretch: {isr:#x}"
+    );
+    assert_eq!(e.blocking_write(0x27, &[0x08]), Err(Error::Timeout));
+    assert_eq!(lcd.borrow().writes(), 0, "nothing reached the LCD");
+    // A driver that recovers: STOP, then the next transfer works.
+    e.wr(CR2, CR2_STOP);
+    e.wait(3 * e.i2c.scl_period());
+    assert_eq!(e.rd(ISR) & BUSY, 0);
+    e.wr(ICR, STOPF);
+    assert_eq!(e.blocking_write(0x27, &[0x08]), Ok(()));
+    assert_eq!(e.i2c.stats().injected_faults, 1);
+}
+
+/// A stretch shorter than the timeout only delays the transfer.
+#[test]
+fn a_short_stretch_only_delays_the_transfer() {
+    let (mut i2c, eeprom, _) = board();
+    eeprom.borrow_mut().load(&vec![0x42u8; 32 * 1024]).unwrap();
+    i2c.inject_fault(I2cFault::stretch_ms(5.0), 0x50);
+    let mut e = plc_driver(&mut i2c);
+    let t0 = e.now;
+    let mut buf = [0u8; 4];
+    assert_eq!(e.blocking_write_read(0x50, &[0x01, 0x00], &mut buf), Ok(()));
+    assert_eq!(buf, [0x42; 4]);
+    assert!(e.now - t0 > 5 * 170_000, "the stretch took its time");
+}
+
+/// A NACK of the last address byte: NACKF, automatic STOP, `Error::Nack`; the bus is free.
+#[test]
+fn an_injected_nack_ends_with_stop_and_leaves_the_bus_free() {
+    let (mut i2c, eeprom, lcd) = board();
+    eeprom.borrow_mut().load(&vec![0x42u8; 32 * 1024]).unwrap();
+    i2c.inject_fault(I2cFault::Nack, 0x50);
+    let mut e = plc_driver(&mut i2c);
+    let mut buf = [0u8; 2];
+    assert_eq!(
+        e.blocking_write_read(0x50, &[0x00, 0x10], &mut buf),
+        Err(Error::Nack)
+    );
+    assert_eq!(e.rd(ISR) & BUSY, 0);
+    assert_eq!(e.blocking_write(0x27, &[0x08]), Ok(()));
+    assert_eq!(lcd.borrow().writes(), 1);
+    assert_eq!(e.i2c.stats().nacks, 1);
+}
+
+/// Arbitration loss and bus error: ARLO / BERR, embassy resets the peripheral (PE toggle),
+/// and the next transfer works.
+#[test]
+fn arbitration_loss_and_bus_error_are_flagged_and_recoverable() {
+    for (fault, err, flag) in [
+        (I2cFault::ArbitrationLoss, Error::Arbitration, ARLO),
+        (I2cFault::BusError, Error::Bus, BERR),
+    ] {
+        let (mut i2c, eeprom, lcd) = board();
+        eeprom.borrow_mut().load(&vec![0x42u8; 32 * 1024]).unwrap();
+        enabled(&mut i2c);
+        i2c.inject_fault(fault, 0x27);
+        // Register level: the flag and the end of the transfer.
+        let t = i2c.scl_period();
+        wr(&mut i2c, CR2, cr2(0x27, false, 1, false, false), 0);
+        wr(&mut i2c, TXDR, 0x08, 10);
+        let isr = rd(&mut i2c, ISR, 30 * t);
+        assert_eq!(isr & (flag | BUSY | TC), flag, "{fault:?}: {isr:#x}");
+        assert_eq!(rd(&mut i2c, CR2, 30 * t) & CR2_START, 0);
+        wr(&mut i2c, ICR, flag, 30 * t);
+        // Through embassy: the error, then a working transfer.
+        i2c.inject_fault(fault, 0x27);
+        let mut e = Embassy::new(&mut i2c, 40 * t);
+        e.timeout = 20 * 170_000;
+        assert_eq!(e.blocking_write(0x27, &[0x08]), Err(err), "{fault:?}");
+        assert_eq!(e.blocking_write(0x27, &[0x0C]), Ok(()), "{fault:?}");
+        assert_eq!(lcd.borrow().writes(), 1, "{fault:?}");
+    }
+}
+
+/// TIMEOUTR.TIMOUTEN (TIDLE = 0): a stretch longer than tTIMEOUT sets TIMEOUT at
+/// tTIMEOUT, and the master stops once SCL is released.
+#[test]
+fn scl_low_timeout_detector_flags_a_long_stretch() {
+    let (mut i2c, _, lcd) = board();
+    enabled(&mut i2c);
+    // TIMEOUTA = 0x61: (0x61 + 1) x 2048 cycles = 200 704 cycles (1.18 ms).
+    wr(&mut i2c, TIMEOUTR, (1 << 15) | 0x61, 0);
+    let t_timeout = (0x61 + 1) * 2048;
+    i2c.inject_fault(I2cFault::stretch_ms(5.0), 0x27);
+    let t = i2c.scl_period();
+    wr(&mut i2c, CR2, cr2(0x27, false, 1, false, false), 1);
+    wr(&mut i2c, TXDR, 0x08, 2);
+    // The eighth bit of the data byte ends at START + address + 8 bits.
+    let eighth = 1 + t + 9 * t + 8 * t;
+    assert_eq!(rd(&mut i2c, ISR, eighth + t_timeout - 10) & TIMEOUT, 0);
+    assert_ne!(rd(&mut i2c, ISR, eighth + t_timeout + 10) & TIMEOUT, 0);
+    // After the stretch: STOP instead of TC.
+    let isr = rd(&mut i2c, ISR, eighth + 850_000 + 5 * t);
+    assert_eq!(isr & (TC | BUSY | STOPF), STOPF, "{isr:#x}");
+    assert_eq!(lcd.borrow().writes(), 1);
+}
