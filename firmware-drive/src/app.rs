@@ -95,17 +95,36 @@ pub struct DriveApp {
 }
 
 impl DriveApp {
+    // Inlined: `new_in` needs the parts, not a finished value (see there).
+    #[inline(always)]
     pub fn new(core: DriveConfig, reset_cause: ResetCause, link: LinkConfig) -> Self {
-        let core = DriveCore::new(core, reset_cause);
+        // One struct expression with every part built in its field's place: a part built
+        // in a local first and then moved passes through the stack (`new_in`).
         DriveApp {
-            programmed: core.pwm_timing(),
-            core,
+            programmed: DriveCore::boot_timing(&core),
+            core: DriveCore::new(core, reset_cause),
             link: DriveLink::new(link),
             unreported: heapless::Deque::new(),
             events: heapless::Deque::new(),
             breaks: BreakMonitor::default(),
             load_pending: false,
         }
+    }
+
+    /// [`DriveApp::new`] built in `slot` (the board's static) rather than on the caller's
+    /// stack. With `new` and the parts' constructors inlined (struct expressions, nothing
+    /// updated after construction), the compiler writes each part straight into `slot`
+    /// (the zeroed arrays as `memset`s); built as a value and moved, the application
+    /// (~6 KiB) passed through the stack and made the drive's start-up task's stack frame
+    /// 8.5 KiB. `.ci/run`'s `stack` step checks the frames (`docs/size.md`).
+    #[inline(never)]
+    pub fn new_in(
+        slot: &mut core::mem::MaybeUninit<DriveApp>,
+        core: DriveConfig,
+        reset_cause: ResetCause,
+        link: LinkConfig,
+    ) -> &mut DriveApp {
+        slot.write(DriveApp::new(core, reset_cause, link))
     }
 
     pub fn core(&self) -> &DriveCore {

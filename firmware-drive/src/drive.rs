@@ -29,7 +29,7 @@ use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
 use crate::sine::{phase_of_decidegrees, SINE_Q15};
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
-use crate::vm::{DriveVm, VmWarning};
+use crate::vm::{DriveVm, Settings, VmWarning};
 use shared_protocol::program::safety_settings;
 use shared_protocol::safety::FUNCTION_MASK;
 
@@ -235,12 +235,34 @@ pub struct DriveCore {
     f_out: i16,
 }
 
+/// The comparator thresholds from the settings (`OC`/`OV` when set, else the board's
+/// defaults), clamped to the hardware limits.
+fn hw_thresholds(s: &Settings, cfg: &DriveConfig) -> HwThresholds {
+    let pick = |set: u16, default: u16, max: u16| {
+        let v = if set > 0 { set } else { default };
+        v.clamp(1, max) as i16
+    };
+    HwThresholds {
+        oc_hw: CentiAmps(pick(
+            s.oc_hw_centiamps,
+            cfg.oc_hw_default_centiamps,
+            I_MAX_HW_LIMIT,
+        )),
+        ov_hw: Volts(pick(s.ov_hw_volts, cfg.ov_hw_default_volts, U_MAX_HW_LIMIT)),
+    }
+}
+
 impl DriveCore {
     pub fn new(cfg: DriveConfig, reset_cause: ResetCause) -> Self {
-        let vm = DriveVm::new(cfg.default_pwm_hz);
-        let s = vm.settings();
-        let key = (s.pwf_hz, s.prescaler);
-        let mut core = DriveCore {
+        // Every part is built in its field's place (no local copy of the VM, no update after
+        // construction): `DriveApp::new_in` builds the application in a static, not on the
+        // stack.
+        let settings = Settings::new(cfg.default_pwm_hz);
+        let key = (settings.pwf_hz, settings.prescaler);
+        let front_end = FrontEnd::new(cfg.board.scaling);
+        let hw = hw_thresholds(&settings, &cfg);
+        let dacs = dac_values(cfg.board, hw, &front_end);
+        DriveCore {
             timing: Self::timing_for(&cfg, key),
             timing_key: key,
             cfg,
@@ -248,7 +270,7 @@ impl DriveCore {
             state: DriveState::Boot,
             fault: None,
             program: None,
-            vm,
+            vm: DriveVm::new(cfg.default_pwm_hz),
             run_requested: false,
             reversal: Reversal::default(),
             limits: Limits::default(),
@@ -261,23 +283,25 @@ impl DriveCore {
             last: AdcSample::default(),
             peak: PeakTracker::default(),
             hw_break_active: [false; 2],
-            front_end: FrontEnd::new(cfg.board.scaling),
+            front_end,
             zero_cal: ZeroCalibration::default(),
             events: Deque::new(),
             events_lost: 0,
-            hw: HwThresholds {
-                oc_hw: CentiAmps(0),
-                ov_hw: Volts(0),
-            },
-            dacs: DacValues::default(),
+            hw,
+            dacs,
             safety_requested: 0,
             sto_in_low: false,
             safety: Monitor::default(),
             signature: shared_protocol::safety::SafetySettings::default().signature(),
             f_out: 0,
-        };
-        core.update_hw_thresholds();
-        core
+        }
+    }
+
+    /// The timing a new core starts with ([`DriveCore::pwm_timing`] of
+    /// `DriveCore::new(cfg, _)`): the default `PWF`/`PRx`.
+    pub fn boot_timing(cfg: &DriveConfig) -> PwmTiming {
+        let s = Settings::new(cfg.default_pwm_hz);
+        Self::timing_for(cfg, (s.pwf_hz, s.prescaler))
     }
 
     fn timing_for(cfg: &DriveConfig, (pwf, pre): (u16, u16)) -> PwmTiming {
@@ -320,23 +344,7 @@ impl DriveCore {
     }
 
     fn compute_hw_thresholds(&self) -> HwThresholds {
-        let s = self.vm.settings();
-        let pick = |set: u16, default: u16, max: u16| {
-            let v = if set > 0 { set } else { default };
-            v.clamp(1, max) as i16
-        };
-        HwThresholds {
-            oc_hw: CentiAmps(pick(
-                s.oc_hw_centiamps,
-                self.cfg.oc_hw_default_centiamps,
-                I_MAX_HW_LIMIT,
-            )),
-            ov_hw: Volts(pick(
-                s.ov_hw_volts,
-                self.cfg.ov_hw_default_volts,
-                U_MAX_HW_LIMIT,
-            )),
-        }
+        hw_thresholds(self.vm.settings(), &self.cfg)
     }
 
     /// What the board writes to the comparators' threshold DACs (12-bit), from
