@@ -124,14 +124,18 @@ impl PwmCommand {
     /// CNT < CCR, and the counter touches ARR once per period, so CCR = ARR would leave a
     /// one-count low pulse at the peak (RM0440: only CCR > ARR holds the output at 1).
     /// A 100 % duty is therefore written as ARR + 1 (ARR is at most 65534, so it fits).
+    #[inline(always)]
     pub fn ccr(&self) -> [u16; 3] {
-        self.duty.map(|d| {
+        let ccr = |d: u16| {
             if d >= self.period_counts {
                 self.period_counts.saturating_add(1)
             } else {
                 d
             }
-        })
+        };
+        // Written out, not `map` (a call at opt-level "s"; the PWM interrupt runs this).
+        let [d0, d1, d2] = self.duty;
+        [ccr(d0), ccr(d1), ccr(d2)]
     }
 }
 
@@ -623,20 +627,18 @@ impl DriveCore {
         if !on {
             return off(self.brake);
         }
-        let mut duty = self.modulator.step(period_counts);
+        let [d0, d1, d2] = self.modulator.step(period_counts);
         if !sine_on {
             // Direct legs only: the sine waits at angle 0 for f >= fmn.
             self.modulator.reset_phase();
         }
-        for (d, leg_on) in duty.iter_mut().zip(self.legs_on) {
-            if !leg_on {
-                *d = 0;
-            }
-        }
+        // Written out, not a loop over the legs (the drive's crate is built for size).
+        let [on0, on1, on2] = self.legs_on;
+        let leg = |d: u16, leg_on: bool| if leg_on { d } else { 0 };
         PwmCommand {
             enable: true,
             leg_enable: self.legs_on,
-            duty,
+            duty: [leg(d0, on0), leg(d1, on1), leg(d2, on2)],
             period_counts,
             brake: self.brake,
         }
