@@ -88,6 +88,8 @@ pub struct DriveApp {
     events: heapless::Deque<AppEvent, APP_EVENTS>,
     /// The timing TIM1 is programmed with (the last one a [`PeriodAction`] carried).
     programmed: PwmTiming,
+    /// The core's [`DriveCore::timing_changes`] when `programmed` last matched its timing.
+    programmed_changes: u32,
     breaks: BreakMonitor,
     /// The link accepted a section that the core has not loaded yet (the next `poll_tx`
     /// or `on_rx` does).
@@ -102,6 +104,7 @@ impl DriveApp {
         // in a local first and then moved passes through the stack (`new_in`).
         DriveApp {
             programmed: DriveCore::boot_timing(&core),
+            programmed_changes: 0,
             core: DriveCore::new(core, reset_cause),
             link: DriveLink::new(link),
             unreported: heapless::Deque::new(),
@@ -233,11 +236,26 @@ impl DriveApp {
     #[inline(always)]
     pub fn pwm_period(&mut self, adc: &AdcSample) -> PeriodAction {
         let cmd: PwmCommand = self.core.pwm_period(adc);
+        if self.core.timing_changes() == self.programmed_changes {
+            // TIM1 has the core's timing: `from_command` with the same timing twice, whose
+            // field-by-field compare (~30 instructions every period) the compiler drops.
+            PeriodAction::from_command(&cmd, &self.programmed, &self.programmed)
+        } else {
+            self.retime(&cmd)
+        }
+    }
+
+    /// [`DriveApp::pwm_period`] after the core recomputed its timing: compared with what
+    /// TIM1 has, and programmed if it differs.
+    #[inline(never)]
+    fn retime(&mut self, cmd: &PwmCommand) -> PeriodAction {
         let wanted = self.core.pwm_timing();
-        let action = PeriodAction::from_command(&cmd, &self.programmed, &wanted);
+        let action = PeriodAction::from_command(cmd, &self.programmed, &wanted);
         if action.timing.is_some() {
             self.programmed = wanted;
         }
+        // `programmed` equals the core's timing now, either way.
+        self.programmed_changes = self.core.timing_changes();
         action
     }
 

@@ -204,6 +204,9 @@ pub struct DriveCore {
     reversal: Reversal,
     limits: Limits,
     timing: PwmTiming,
+    /// How many times `timing` was recomputed (wrapping): the application compares the
+    /// whole timing only when this moved ([`DriveCore::timing_changes`]).
+    timing_changes: u32,
     timing_key: (u16, u16),
     modulator: Modulator,
     /// Set by the tick: RUN and at least one leg switching (a direct leg, or a sine leg
@@ -268,6 +271,7 @@ impl DriveCore {
         let dacs = dac_values(cfg.board, hw, &front_end);
         DriveCore {
             timing: Self::timing_for(&cfg, key),
+            timing_changes: 0,
             timing_key: key,
             cfg,
             reset_cause,
@@ -369,6 +373,12 @@ impl DriveCore {
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
     pub fn pwm_timing(&self) -> PwmTiming {
         self.timing
+    }
+
+    /// Counts the recomputations of [`DriveCore::pwm_timing`] (wrapping; 0 for a new core):
+    /// while it stays, the timing is the one seen at that count.
+    pub fn timing_changes(&self) -> u32 {
+        self.timing_changes
     }
 
     /// Verify and take a new drive section. Rejected: no program, PWM off, fault `PROG`
@@ -796,6 +806,7 @@ impl DriveCore {
         if key != self.timing_key {
             self.timing_key = key;
             self.timing = Self::timing_for(&self.cfg, key);
+            self.timing_changes = self.timing_changes.wrapping_add(1);
         }
     }
 
