@@ -88,6 +88,8 @@ pub struct DriveApp {
     events: heapless::Deque<AppEvent, APP_EVENTS>,
     /// The timing TIM1 is programmed with (the last one a [`PeriodAction`] carried).
     programmed: PwmTiming,
+    /// The core's [`DriveCore::timing_changes`] when `programmed` last matched its timing.
+    programmed_changes: u32,
     breaks: BreakMonitor,
     /// The link accepted a section that the core has not loaded yet (the next `poll_tx`
     /// or `on_rx` does).
@@ -95,17 +97,37 @@ pub struct DriveApp {
 }
 
 impl DriveApp {
+    // Inlined: `new_in` needs the parts, not a finished value (see there).
+    #[inline(always)]
     pub fn new(core: DriveConfig, reset_cause: ResetCause, link: LinkConfig) -> Self {
-        let core = DriveCore::new(core, reset_cause);
+        // One struct expression with every part built in its field's place: a part built
+        // in a local first and then moved passes through the stack (`new_in`).
         DriveApp {
-            programmed: core.pwm_timing(),
-            core,
+            programmed: DriveCore::boot_timing(&core),
+            programmed_changes: 0,
+            core: DriveCore::new(core, reset_cause),
             link: DriveLink::new(link),
             unreported: heapless::Deque::new(),
             events: heapless::Deque::new(),
             breaks: BreakMonitor::default(),
             load_pending: false,
         }
+    }
+
+    /// [`DriveApp::new`] built in `slot` (the board's static) rather than on the caller's
+    /// stack. With `new` and the parts' constructors inlined (struct expressions, nothing
+    /// updated after construction), the compiler writes each part straight into `slot`
+    /// (the zeroed arrays as `memset`s); built as a value and moved, the application
+    /// (~6 KiB) passed through the stack and made the drive's start-up task's stack frame
+    /// 8.5 KiB. `.ci/run`'s `stack` step checks the frames (`docs/size.md`).
+    #[inline(never)]
+    pub fn new_in(
+        slot: &mut core::mem::MaybeUninit<DriveApp>,
+        core: DriveConfig,
+        reset_cause: ResetCause,
+        link: LinkConfig,
+    ) -> &mut DriveApp {
+        slot.write(DriveApp::new(core, reset_cause, link))
     }
 
     pub fn core(&self) -> &DriveCore {
@@ -214,11 +236,26 @@ impl DriveApp {
     #[inline(always)]
     pub fn pwm_period(&mut self, adc: &AdcSample) -> PeriodAction {
         let cmd: PwmCommand = self.core.pwm_period(adc);
+        if self.core.timing_changes() == self.programmed_changes {
+            // TIM1 has the core's timing: `from_command` with the same timing twice, whose
+            // field-by-field compare (~30 instructions every period) the compiler drops.
+            PeriodAction::from_command(&cmd, &self.programmed, &self.programmed)
+        } else {
+            self.retime(&cmd)
+        }
+    }
+
+    /// [`DriveApp::pwm_period`] after the core recomputed its timing: compared with what
+    /// TIM1 has, and programmed if it differs.
+    #[inline(never)]
+    fn retime(&mut self, cmd: &PwmCommand) -> PeriodAction {
         let wanted = self.core.pwm_timing();
-        let action = PeriodAction::from_command(&cmd, &self.programmed, &wanted);
+        let action = PeriodAction::from_command(cmd, &self.programmed, &wanted);
         if action.timing.is_some() {
             self.programmed = wanted;
         }
+        // `programmed` equals the core's timing now, either way.
+        self.programmed_changes = self.core.timing_changes();
         action
     }
 

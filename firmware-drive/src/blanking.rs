@@ -48,12 +48,12 @@ pub fn counts_of_ns(ns: u32, timer_clock_hz: u32, psc: u16) -> u32 {
 pub fn ccr5(ccr: [u16; 3], legs: [bool; 3], t: &PwmTiming) -> u16 {
     // The last edge: the largest compare of a leg that switches (0 < CCR <= ARR); 0 when
     // none does.
-    let mut last = 0u16;
-    for (c, on) in ccr.into_iter().zip(legs) {
-        if on && c <= t.arr && c > last {
-            last = c;
-        }
-    }
+    // Written out, not a loop over the legs: the drive's crate is built for size, and the
+    // PWM interrupt runs this every period (`docs/size.md`).
+    let edge = |c: u16, on: bool| if on && c <= t.arr { c } else { 0 };
+    let [c0, c1, c2] = ccr;
+    let [on0, on1, on2] = legs;
+    let last = edge(c0, on0).max(edge(c1, on1)).max(edge(c2, on2));
     if last == 0 {
         return 0;
     }

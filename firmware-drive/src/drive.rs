@@ -29,7 +29,7 @@ use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
 use crate::sine::{phase_of_decidegrees, SINE_Q15};
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
-use crate::vm::{DriveVm, VmWarning};
+use crate::vm::{DriveVm, Settings, VmWarning};
 use shared_protocol::program::safety_settings;
 use shared_protocol::safety::FUNCTION_MASK;
 
@@ -124,14 +124,18 @@ impl PwmCommand {
     /// CNT < CCR, and the counter touches ARR once per period, so CCR = ARR would leave a
     /// one-count low pulse at the peak (RM0440: only CCR > ARR holds the output at 1).
     /// A 100 % duty is therefore written as ARR + 1 (ARR is at most 65534, so it fits).
+    #[inline(always)]
     pub fn ccr(&self) -> [u16; 3] {
-        self.duty.map(|d| {
+        let ccr = |d: u16| {
             if d >= self.period_counts {
                 self.period_counts.saturating_add(1)
             } else {
                 d
             }
-        })
+        };
+        // Written out, not `map` (a call at opt-level "s"; the PWM interrupt runs this).
+        let [d0, d1, d2] = self.duty;
+        [ccr(d0), ccr(d1), ccr(d2)]
     }
 }
 
@@ -200,6 +204,9 @@ pub struct DriveCore {
     reversal: Reversal,
     limits: Limits,
     timing: PwmTiming,
+    /// How many times `timing` was recomputed (wrapping): the application compares the
+    /// whole timing only when this moved ([`DriveCore::timing_changes`]).
+    timing_changes: u32,
     timing_key: (u16, u16),
     modulator: Modulator,
     /// Set by the tick: RUN and at least one leg switching (a direct leg, or a sine leg
@@ -235,20 +242,43 @@ pub struct DriveCore {
     f_out: i16,
 }
 
+/// The comparator thresholds from the settings (`OC`/`OV` when set, else the board's
+/// defaults), clamped to the hardware limits.
+fn hw_thresholds(s: &Settings, cfg: &DriveConfig) -> HwThresholds {
+    let pick = |set: u16, default: u16, max: u16| {
+        let v = if set > 0 { set } else { default };
+        v.clamp(1, max) as i16
+    };
+    HwThresholds {
+        oc_hw: CentiAmps(pick(
+            s.oc_hw_centiamps,
+            cfg.oc_hw_default_centiamps,
+            I_MAX_HW_LIMIT,
+        )),
+        ov_hw: Volts(pick(s.ov_hw_volts, cfg.ov_hw_default_volts, U_MAX_HW_LIMIT)),
+    }
+}
+
 impl DriveCore {
     pub fn new(cfg: DriveConfig, reset_cause: ResetCause) -> Self {
-        let vm = DriveVm::new(cfg.default_pwm_hz);
-        let s = vm.settings();
-        let key = (s.pwf_hz, s.prescaler);
-        let mut core = DriveCore {
+        // Every part is built in its field's place (no local copy of the VM, no update after
+        // construction): `DriveApp::new_in` builds the application in a static, not on the
+        // stack.
+        let settings = Settings::new(cfg.default_pwm_hz);
+        let key = (settings.pwf_hz, settings.prescaler);
+        let front_end = FrontEnd::new(cfg.board.scaling);
+        let hw = hw_thresholds(&settings, &cfg);
+        let dacs = dac_values(cfg.board, hw, &front_end);
+        DriveCore {
             timing: Self::timing_for(&cfg, key),
+            timing_changes: 0,
             timing_key: key,
             cfg,
             reset_cause,
             state: DriveState::Boot,
             fault: None,
             program: None,
-            vm,
+            vm: DriveVm::new(cfg.default_pwm_hz),
             run_requested: false,
             reversal: Reversal::default(),
             limits: Limits::default(),
@@ -261,23 +291,25 @@ impl DriveCore {
             last: AdcSample::default(),
             peak: PeakTracker::default(),
             hw_break_active: [false; 2],
-            front_end: FrontEnd::new(cfg.board.scaling),
+            front_end,
             zero_cal: ZeroCalibration::default(),
             events: Deque::new(),
             events_lost: 0,
-            hw: HwThresholds {
-                oc_hw: CentiAmps(0),
-                ov_hw: Volts(0),
-            },
-            dacs: DacValues::default(),
+            hw,
+            dacs,
             safety_requested: 0,
             sto_in_low: false,
             safety: Monitor::default(),
             signature: shared_protocol::safety::SafetySettings::default().signature(),
             f_out: 0,
-        };
-        core.update_hw_thresholds();
-        core
+        }
+    }
+
+    /// The timing a new core starts with ([`DriveCore::pwm_timing`] of
+    /// `DriveCore::new(cfg, _)`): the default `PWF`/`PRx`.
+    pub fn boot_timing(cfg: &DriveConfig) -> PwmTiming {
+        let s = Settings::new(cfg.default_pwm_hz);
+        Self::timing_for(cfg, (s.pwf_hz, s.prescaler))
     }
 
     fn timing_for(cfg: &DriveConfig, (pwf, pre): (u16, u16)) -> PwmTiming {
@@ -320,23 +352,7 @@ impl DriveCore {
     }
 
     fn compute_hw_thresholds(&self) -> HwThresholds {
-        let s = self.vm.settings();
-        let pick = |set: u16, default: u16, max: u16| {
-            let v = if set > 0 { set } else { default };
-            v.clamp(1, max) as i16
-        };
-        HwThresholds {
-            oc_hw: CentiAmps(pick(
-                s.oc_hw_centiamps,
-                self.cfg.oc_hw_default_centiamps,
-                I_MAX_HW_LIMIT,
-            )),
-            ov_hw: Volts(pick(
-                s.ov_hw_volts,
-                self.cfg.ov_hw_default_volts,
-                U_MAX_HW_LIMIT,
-            )),
-        }
+        hw_thresholds(self.vm.settings(), &self.cfg)
     }
 
     /// What the board writes to the comparators' threshold DACs (12-bit), from
@@ -357,6 +373,12 @@ impl DriveCore {
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
     pub fn pwm_timing(&self) -> PwmTiming {
         self.timing
+    }
+
+    /// Counts the recomputations of [`DriveCore::pwm_timing`] (wrapping; 0 for a new core):
+    /// while it stays, the timing is the one seen at that count.
+    pub fn timing_changes(&self) -> u32 {
+        self.timing_changes
     }
 
     /// Verify and take a new drive section. Rejected: no program, PWM off, fault `PROG`
@@ -615,20 +637,18 @@ impl DriveCore {
         if !on {
             return off(self.brake);
         }
-        let mut duty = self.modulator.step(period_counts);
+        let [d0, d1, d2] = self.modulator.step(period_counts);
         if !sine_on {
             // Direct legs only: the sine waits at angle 0 for f >= fmn.
             self.modulator.reset_phase();
         }
-        for (d, leg_on) in duty.iter_mut().zip(self.legs_on) {
-            if !leg_on {
-                *d = 0;
-            }
-        }
+        // Written out, not a loop over the legs (the drive's crate is built for size).
+        let [on0, on1, on2] = self.legs_on;
+        let leg = |d: u16, leg_on: bool| if leg_on { d } else { 0 };
         PwmCommand {
             enable: true,
             leg_enable: self.legs_on,
-            duty,
+            duty: [leg(d0, on0), leg(d1, on1), leg(d2, on2)],
             period_counts,
             brake: self.brake,
         }
@@ -786,6 +806,7 @@ impl DriveCore {
         if key != self.timing_key {
             self.timing_key = key;
             self.timing = Self::timing_for(&self.cfg, key);
+            self.timing_changes = self.timing_changes.wrapping_add(1);
         }
     }
 

@@ -111,26 +111,31 @@ impl Modulator {
         // Half the period times m, Q16 counts: the sine's amplitude in counts.
         let half_amp_q16 = (u64::from(n) * u64::from(p.m_q16.min(M_LIMIT_Q16))) >> 1;
         let angle = (self.theta >> 32) as u32;
-        let mut v = p
-            .phi
-            .map(|phi| (half_amp_q16 as i64 * i64::from(sin_q15(angle.wrapping_add(phi)))) >> 15);
-        let all_sine = p.legs.iter().all(|l| *l == LegMode::Sine);
+        let phase =
+            |phi: u32| (half_amp_q16 as i64 * i64::from(sin_q15(angle.wrapping_add(phi)))) >> 15;
+        // The three phases written out, not `map`, iterators or loops: at opt-level "s"
+        // `array::map` stays a call (89 instructions of the 457 per period), a loop zeroes
+        // its array first, and iterators are not unrolled (`docs/size.md`).
+        let [phi0, phi1, phi2] = p.phi;
+        let [mut v0, mut v1, mut v2] = [phase(phi0), phase(phi1), phase(phi2)];
+        let [l0, l1, l2] = p.legs;
+        let all_sine = l0 == LegMode::Sine && l1 == LegMode::Sine && l2 == LegMode::Sine;
         if self.min_max_injection && all_sine {
-            let [a, b, c] = v;
-            let offset = -((a.max(b).max(c) + a.min(b).min(c)) >> 1);
-            for x in v.iter_mut() {
-                *x += offset;
-            }
+            let offset = -((v0.max(v1).max(v2) + v0.min(v1).min(v2)) >> 1);
+            v0 += offset;
+            v1 += offset;
+            v2 += offset;
         }
-        let mut duty = [0u16; 3];
-        for ((d, leg), vk) in duty.iter_mut().zip(p.legs.iter()).zip(v.iter()) {
-            let counts = match *leg {
+        let min_pulse = self.min_pulse_counts;
+        let duty_of = |leg: LegMode, vk: i64| {
+            let counts = match leg {
                 LegMode::Unused => 0,
                 LegMode::Direct { permille } => (nn * i64::from(permille.min(1000)) + 500) / 1000,
                 LegMode::Sine => ((nn << 15) + vk + 0x8000) >> 16,
             };
-            *d = dead_time_safe(counts.clamp(0, nn) as u16, n, self.min_pulse_counts);
-        }
+            dead_time_safe(counts.clamp(0, nn) as u16, n, min_pulse)
+        };
+        let mut duty = [duty_of(l0, v0), duty_of(l1, v1), duty_of(l2, v2)];
         if p.swap_1_2 {
             duty.swap(0, 1);
         }

@@ -72,7 +72,8 @@ impl PeriodAction {
         let max = wanted.arr.saturating_add(1);
         let enable = cmd.enable && timing.is_none();
         let legs = if enable { cmd.leg_enable } else { [false; 3] };
-        let ccr = cmd.ccr().map(|c| c.min(max));
+        let [c0, c1, c2] = cmd.ccr();
+        let ccr = [c0.min(max), c1.min(max), c2.min(max)];
         PeriodAction {
             enable,
             legs,

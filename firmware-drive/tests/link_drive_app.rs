@@ -268,3 +268,52 @@ fn a_plc_of_another_version_never_brings_the_outputs_on() {
     assert!(!r.drive.pwm_period(&adc).enable);
     assert_ne!(r.drive.core().state(), DriveState::Run);
 }
+
+/// SPIN with the switching frequency from Q01 (`PWF`, Hz).
+const SPIN_PWF: &str = "
+000 fmn K00 0050
+001 LD  Q00
+002 LD  Q00
+003 LD  K01 0000
+004 SN1
+005 LD  K02 1200
+006 SN2
+007 LD  K03 2400
+008 SN3
+009 PWF Q01
+";
+
+/// A new `PWF` reaches TIM1: once the core recomputes its timing, the application's next
+/// period carries it (`DriveApp::pwm_timing` follows the core), and the periods after it
+/// switch again with no timing to program. The application compares the timings only when
+/// the core's `timing_changes` count moved (the PWM interrupt's fast path).
+#[test]
+fn a_new_pwf_is_programmed_once_and_then_switches() {
+    let mut r = connected();
+    let before = r.drive.pwm_timing();
+    let changes = r.drive.core().timing_changes();
+    assert_eq!(r.download(SPIN_PWF, None), DownloadResult::Accepted);
+    r.plc.write_q(0, 100).unwrap();
+    r.plc.write_q(1, 12_000).unwrap();
+    r.plc.run().unwrap();
+    r.run_for(20_000);
+    assert_eq!(r.drive.core().state(), DriveState::Run);
+    assert_ne!(
+        r.drive.core().timing_changes(),
+        changes,
+        "PWF recomputed the timing"
+    );
+    assert_ne!(
+        r.drive.core().pwm_timing(),
+        before,
+        "12 kHz is not the default"
+    );
+    assert_eq!(r.drive.pwm_timing(), r.drive.core().pwm_timing());
+    let adc = AdcSample {
+        u_dc: 2800,
+        ..AdcSample::default()
+    };
+    let action = r.drive.pwm_period(&adc);
+    assert!(action.timing.is_none(), "programmed once, not every period");
+    assert!(action.enable, "switching at the new frequency");
+}

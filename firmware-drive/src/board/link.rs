@@ -19,7 +19,7 @@ struct Shared;
 impl SharedEndpoint for Shared {
     type Endpoint<'a> = DriveApp;
     fn with<R>(&self, f: impl for<'a> FnOnce(&mut DriveApp) -> R) -> Option<R> {
-        shared::with(|s| f(&mut s.app))
+        shared::with(|s| f(s.app))
     }
 }
 

@@ -32,7 +32,6 @@ use board_common::clocks;
 use embassy_executor::Spawner;
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::interrupt::{self, InterruptExt};
-use firmware_drive::app::DriveApp;
 use firmware_drive::config::DriveConfig;
 use shared_protocol::link::LinkConfig;
 use static_cell::StaticCell;
@@ -62,7 +61,7 @@ pub async fn start(spawner: Spawner) {
         fault::fatal("TIM1 clock differs from the core's");
     }
     let link_cfg = LinkConfig::default();
-    let app = DriveApp::new(cfg, cause, link_cfg);
+    let app = shared::app_in_place(cfg, cause, link_cfg);
     let timing = app.pwm_timing();
     let min_dead_counts =
         power_stage::min_dead_time_counts(cfg.timer_clock_hz, cfg.min_dead_time_ns);

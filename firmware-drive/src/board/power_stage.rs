@@ -282,10 +282,13 @@ impl PowerPort for Tim1Port<'_> {
 
     #[inline(always)]
     fn set_compares(&mut self, ccr: [u16; 3]) {
+        // Written out per channel, as below: a loop stays a loop at opt-level "s", with the
+        // register array's index check in it (every PWM period: docs/size.md).
         let t = pac::TIM1;
-        for (ch, c) in ccr.into_iter().enumerate() {
-            t.ccr(ch).write(|w| w.set_ccr(c));
-        }
+        let [c1, c2, c3] = ccr;
+        t.ccr(0).write(|w| w.set_ccr(c1));
+        t.ccr(1).write(|w| w.set_ccr(c2));
+        t.ccr(2).write(|w| w.set_ccr(c3));
     }
 
     /// CCR5 alone (GC5C1-3 written 0: OC5 is not grouped with the outputs).
@@ -298,11 +301,14 @@ impl PowerPort for Tim1Port<'_> {
     /// with OSSR = 1 they sit at their inactive (low) level, so both switches are open.
     #[inline(always)]
     fn set_legs(&mut self, on: [bool; 3]) {
+        let [on1, on2, on3] = on;
         pac::TIM1.ccer().modify(|w| {
-            for (ch, o) in (0..3).zip(on) {
-                w.set_cce(ch, o);
-                w.set_ccne(ch, o);
-            }
+            w.set_cce(0, on1);
+            w.set_ccne(0, on1);
+            w.set_cce(1, on2);
+            w.set_ccne(1, on2);
+            w.set_cce(2, on3);
+            w.set_ccne(2, on3);
         });
     }
 

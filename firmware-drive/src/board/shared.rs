@@ -12,13 +12,15 @@ use embassy_stm32::gpio::Output;
 use embassy_sync::blocking_mutex::CriticalSectionMutex;
 use embassy_time::Instant;
 use firmware_drive::app::DriveApp;
+use firmware_drive::config::{DriveConfig, ResetCause};
+use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
 use static_cell::StaticCell;
 
 /// What the interrupt and the tasks share.
 pub struct Shared {
-    /// The drive application (core + link endpoint).
-    pub app: DriveApp,
+    /// The drive application (core + link endpoint), in its own static ([`app_in_place`]).
+    pub app: &'static mut DriveApp,
     /// Brake chopper gate, written by the PWM interrupt.
     pub brake: Output<'static>,
     /// Fewest dead-time counts the power stage accepts.
@@ -33,6 +35,18 @@ static SHARED: CriticalSectionMutex<RefCell<Option<&'static mut Shared>>> =
 /// The application's clock: microseconds since boot.
 pub fn now() -> Micros {
     Micros(Instant::now().as_micros())
+}
+
+/// The application, built in its static ([`DriveApp::new_in`]): it is ~6 KiB, and built on the stack
+/// and then moved into [`Shared`] it made the start-up task's stack frame 8.5 KiB
+/// (`docs/size.md`). Called once, at start-up.
+pub fn app_in_place(
+    cfg: DriveConfig,
+    cause: ResetCause,
+    link: LinkConfig,
+) -> &'static mut DriveApp {
+    static APP: StaticCell<DriveApp> = StaticCell::new();
+    DriveApp::new_in(APP.uninit(), cfg, cause, link)
 }
 
 /// Installs the shared state (once, before TIM1's interrupt is unmasked).
