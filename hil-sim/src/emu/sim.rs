@@ -47,8 +47,8 @@ use shared_protocol::program::Program;
 use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
 use crate::mcu::Lcd;
 use crate::plant::Plant;
-use crate::scenario::{Action, BoardKind, ImageTrouble, Input, Scenario};
 use crate::scenario::silicon::McuSide;
+use crate::scenario::{Action, BoardKind, ImageTrouble, Input, Scenario};
 use crate::sim::{FaultRecord, RunOptions, Sample};
 
 /// Longest slice both MCUs run before the wire hands characters over.
