@@ -8,6 +8,7 @@
 //! ignored and reported.
 //!
 //! * [`time`]: the one time base (CPU cycles at 170 MHz) and conversions.
+//! * [`cycles`]: the approximate Cortex-M4 cycle model virtual time advances by.
 //! * [`periph`]: the [`periph::Peripheral`] contract and one module per register model.
 //! * [`devices`]: what sits on the board's buses (24C256 EEPROM, PCF8574 + HD44780 LCD).
 //! * [`names`]: register, field and interrupt names from the STM32 metadata, so that an
@@ -16,6 +17,7 @@
 //! How it works, what it models and what it cannot catch: `docs/emulator.md`.
 
 pub mod cpu;
+pub mod cycles;
 pub mod devices;
 pub mod elf;
 pub mod log;
