@@ -131,6 +131,9 @@ impl Stretch {
 pub struct TimingReport {
     /// Longest with PRIMASK set (CPSID i .. CPSIE i, or MSR PRIMASK).
     pub primask: Stretch,
+    /// The longest PRIMASK stretch per instruction that started it: each inlined critical
+    /// section has its own CPSID, so this separates them (`examples/where.rs` names a PC).
+    pub primask_by_site: BTreeMap<u32, Stretch>,
     /// Longest with BASEPRI non-zero.
     pub basepri: Stretch,
     /// Per exception number (16 + IRQ), the longest run from the handler's first instruction
@@ -213,7 +216,13 @@ fn track_mask(uc: &Unicorn<'_, Soc>, masks: &RefCell<MaskTracker>, pc: u32, op: 
         m.primask_since = Some(here);
     } else if !new_primask && primask {
         if let Some(open) = m.primask_since.take() {
-            m.report.primask.keep_longer(close(open));
+            let closed = close(open);
+            m.report.primask.keep_longer(closed);
+            m.report
+                .primask_by_site
+                .entry(open.pc)
+                .or_default()
+                .keep_longer(closed);
         }
     }
     if new_basepri != 0 && basepri == 0 {

@@ -683,6 +683,9 @@ pub struct CycleModel {
     pub timing: Timing,
     /// Instructions executed since power-on.
     pub instructions: u64,
+    /// A FLASH_ACR the model applies instead of the image's (what-if figures, e.g. the
+    /// same image with the prefetch on); `None`: the image's own.
+    pub acr_override: Option<u32>,
 }
 
 impl CycleModel {
@@ -693,6 +696,7 @@ impl CycleModel {
             costs: Vec::new(),
             timing: Timing::default(),
             instructions: 0,
+            acr_override: None,
         }
     }
 

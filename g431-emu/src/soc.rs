@@ -1459,9 +1459,12 @@ impl Soc {
             .block(addr, size, acr, &self.flash, &self.ram, RAM_BASE)
     }
 
-    /// FLASH_ACR as the image programmed it.
+    /// FLASH_ACR as the cycle model applies it: the image's, unless a what-if overrides it.
     pub fn flash_acr(&self) -> u32 {
-        self.model::<Flash>(self.flash_slot).map_or(0, |f| f.acr())
+        match self.cycles.acr_override {
+            Some(acr) => acr,
+            None => self.model::<Flash>(self.flash_slot).map_or(0, |f| f.acr()),
+        }
     }
 
     /// RAM as a slice (for the DMA, RTT and tests).

@@ -14,4 +14,5 @@ mod power_stage;
 mod safety;
 mod service;
 mod storage;
+mod timing;
 mod trips;
