@@ -8,9 +8,9 @@
 //! block hook adds each translated block's cycles (its instructions' TRM costs, the refill
 //! when it was branched to, the flash wait states FLASH_ACR leaves) to [`Soc::now`], the
 //! MMIO hooks add the bus cycles of each peripheral access, exception entry, return and
-//! tail-chaining add the TRM's latencies; the block hook stops the CPU at the first block
-//! boundary at or after the SoC's deadline (the next peripheral event), where the run loop processes the
-//! event and takes interrupts. A polling loop on an unchanging register makes the SoC jump
+//! tail-chaining add the TRM's latencies. The block hook stops the CPU at the first block
+//! boundary at or after the SoC's deadline (the next peripheral event), where the run loop
+//! processes the event and takes interrupts. A polling loop on an unchanging register makes the SoC jump
 //! the clock to the next event (see `soc`), and WFE/WFI skip idle time the same way.
 //!
 //! What Unicorn 2.1.5 does that this relies on (checked in its QEMU sources):
@@ -393,6 +393,7 @@ impl Cpu {
                     // WFI: Unicorn halts after it; the run loop then sleeps.
                     h.wfi.set(true);
                 } else if op == 0xB672 {
+                    // CPSID i: a masked stretch starts.
                     track_mask(uc, &h.masks, addr as u32, op, op2);
                 } else {
                     track_mask(uc, &h.masks, addr as u32, op, op2);
