@@ -4,10 +4,13 @@
 //! WFE/WFI with the event register and SEV, fault escalation to HardFault, lockup, system
 //! reset, and a debugger that can halt the core.
 //!
-//! Virtual time: one instruction is one cycle. A block hook adds each translated block's
-//! instruction count to [`Soc::now`] and stops the CPU at the first block boundary at or
-//! after the SoC's deadline (the next peripheral event), where the run loop processes the
-//! event and takes interrupts. A polling loop on an unchanging register makes the SoC jump
+//! Virtual time: CPU cycles from the approximate Cortex-M4 cycle model (`cycles.rs`). A
+//! block hook adds each translated block's cycles (its instructions' TRM costs, the refill
+//! when it was branched to, the flash wait states FLASH_ACR leaves) to [`Soc::now`], the
+//! MMIO hooks add the bus cycles of each peripheral access, exception entry, return and
+//! tail-chaining add the TRM's latencies. The block hook stops the CPU at the first block
+//! boundary at or after the SoC's deadline (the next peripheral event), where the run loop
+//! processes the event and takes interrupts. A polling loop on an unchanging register makes the SoC jump
 //! the clock to the next event (see `soc`), and WFE/WFI skip idle time the same way.
 //!
 //! What Unicorn 2.1.5 does that this relies on (checked in its QEMU sources):
@@ -21,13 +24,15 @@
 //! * Writing IPSR/CONTROL through the register API does not rebuild the cached CPU flags;
 //!   writing APSR_NZCV does, so every entry and return ends with that write.
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
+use std::collections::BTreeMap;
 use std::rc::Rc;
 
 use unicorn_engine::unicorn_const::{Arch, HookType, MemType, Mode, Prot};
 pub use unicorn_engine::RegisterARM;
 use unicorn_engine::{ArmCpuModel, Unicorn};
 
+use crate::cycles::{periph_access_cycles, FlashTiming};
 use crate::periph::rcc::ResetKind;
 use crate::scs::{exc, fault};
 use crate::soc::{
@@ -92,6 +97,141 @@ struct HookState {
     intr: Cell<Option<u32>>,
     wfi: Cell<bool>,
     unmapped: Cell<Option<(u32, bool)>>,
+    /// Masked stretches, kept by the hooks on CPSID/CPSIE/MSR.
+    masks: RefCell<MaskTracker>,
+}
+
+/// A stretch of execution: how long, and where it started.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stretch {
+    /// Cycles from its start to its end (block granularity: see [`TimingReport`]).
+    pub cycles: Cycles,
+    /// Instructions executed in it.
+    pub instructions: u64,
+    /// The instruction that started it (CPSID, MSR, or a handler's first instruction).
+    pub pc: u32,
+    /// The cycle it started.
+    pub at: Cycles,
+}
+
+impl Stretch {
+    fn keep_longer(&mut self, other: Stretch) {
+        if other.cycles > self.cycles {
+            *self = other;
+        }
+    }
+}
+
+/// The longest stretches the core spent with interrupts masked and in each handler, in
+/// cycles of the cycle model and in instructions: the emulator's view of what the
+/// `dwt-cycles` image measures with DWT CYCCNT. Starts and ends are taken at the end of
+/// the block holding the CPSID/CPSIE/MSR (virtual time advances a whole block at a time),
+/// so a stretch is exact to within the cycles of those two blocks.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct TimingReport {
+    /// Longest with PRIMASK set (CPSID i .. CPSIE i, or MSR PRIMASK).
+    pub primask: Stretch,
+    /// The longest PRIMASK stretch per instruction that started it: each inlined critical
+    /// section has its own CPSID, so this separates them (`examples/where.rs` names a PC).
+    pub primask_by_site: BTreeMap<u32, Stretch>,
+    /// Longest with BASEPRI non-zero.
+    pub basepri: Stretch,
+    /// Per exception number (16 + IRQ), the longest run from the handler's first instruction
+    /// to its exception return, without the entry and return latencies, including any
+    /// handler that preempted it.
+    pub handlers: BTreeMap<u16, Stretch>,
+}
+
+impl TimingReport {
+    /// The longest run of interrupt `name` (`"TIM1_UP_TIM16"`).
+    pub fn irq(&self, name: &str) -> Option<Stretch> {
+        let irq = crate::names::irq(name)?;
+        self.handlers.get(&(exc::IRQ0 + irq)).copied()
+    }
+}
+
+/// Open masked stretches and the longest closed ones.
+#[derive(Debug, Default)]
+struct MaskTracker {
+    primask_since: Option<Stretch>,
+    basepri_since: Option<Stretch>,
+    report: TimingReport,
+}
+
+/// A core register by number (R0-R12, SP, LR, PC).
+fn core_reg(n: u32) -> RegisterARM {
+    [
+        RegisterARM::R0,
+        RegisterARM::R1,
+        RegisterARM::R2,
+        RegisterARM::R3,
+        RegisterARM::R4,
+        RegisterARM::R5,
+        RegisterARM::R6,
+        RegisterARM::R7,
+        RegisterARM::R8,
+        RegisterARM::R9,
+        RegisterARM::R10,
+        RegisterARM::R11,
+        RegisterARM::R12,
+        RegisterARM::SP,
+        RegisterARM::LR,
+        RegisterARM::PC,
+    ][(n & 0xF) as usize]
+}
+
+/// Updates the masked stretches for the mask instruction `op` (first halfword) / `op2` at
+/// `pc`, about to execute with the current PRIMASK/BASEPRI in `uc`.
+fn track_mask(uc: &Unicorn<'_, Soc>, masks: &RefCell<MaskTracker>, pc: u32, op: u16, op2: u16) {
+    let primask = uc.reg_read(RegisterARM::PRIMASK).unwrap_or(0) & 1 != 0;
+    let basepri = uc.reg_read(RegisterARM::BASEPRI).unwrap_or(0) as u8;
+    let (new_primask, new_basepri) = match op {
+        0xB672 => (true, basepri),
+        0xB662 => (false, basepri),
+        _ if op & 0xFFF0 == 0xF380 => {
+            let v = uc.reg_read(core_reg(u32::from(op & 0xF))).unwrap_or(0) as u32;
+            match op2 & 0xFF {
+                0x10 => (v & 1 != 0, basepri),
+                0x11 => (primask, v as u8),
+                0x12 if v as u8 != 0 && (basepri == 0 || (v as u8) < basepri) => (primask, v as u8),
+                _ => (primask, basepri),
+            }
+        }
+        _ => (primask, basepri),
+    };
+    let s = uc.get_data();
+    let here = Stretch {
+        cycles: 0,
+        instructions: s.cycles.instructions,
+        pc,
+        at: s.now,
+    };
+    let close = |open: Stretch| Stretch {
+        cycles: here.at.saturating_sub(open.at),
+        instructions: here.instructions.saturating_sub(open.instructions),
+        ..open
+    };
+    let mut m = masks.borrow_mut();
+    if new_primask && !primask {
+        m.primask_since = Some(here);
+    } else if !new_primask && primask {
+        if let Some(open) = m.primask_since.take() {
+            let closed = close(open);
+            m.report.primask.keep_longer(closed);
+            m.report
+                .primask_by_site
+                .entry(open.pc)
+                .or_default()
+                .keep_longer(closed);
+        }
+    }
+    if new_basepri != 0 && basepri == 0 {
+        m.basepri_since = Some(here);
+    } else if new_basepri == 0 && basepri != 0 {
+        if let Some(open) = m.basepri_since.take() {
+            m.report.basepri.keep_longer(close(open));
+        }
+    }
 }
 
 /// A Cortex-M4F with its SoC.
@@ -107,6 +247,11 @@ pub struct Cpu {
     vectors: u32,
     /// Exception entries, by exception number (16 + IRQ for interrupts).
     entries: Vec<u64>,
+    /// Handlers running (exception number, when and at which instruction count their
+    /// first instruction ran), innermost last.
+    handler_stack: Vec<(u16, Cycles, u64)>,
+    /// Cycles of the last exception return, not yet charged: a tail-chain replaces them.
+    returning: Option<Cycles>,
 }
 
 fn rd(uc: &Unicorn<'static, Soc>, r: RegisterARM) -> u32 {
@@ -154,7 +299,7 @@ const XPSR_ALIGN: u32 = 1 << 9;
 /// PC of a locked-up core.
 const LOCKUP_PC: u32 = 0xEFFF_FFFE;
 
-/// Halfword sites in `flash` that may be SEV, WFI, CPSIE or an MSR to a mask register.
+/// Halfword sites in `flash` that may be SEV, WFI, CPSIE/CPSID i or an MSR to a mask register.
 fn scan_sites(flash: &[u8]) -> Vec<u32> {
     let hw = |i: usize| -> u16 {
         flash
@@ -166,7 +311,7 @@ fn scan_sites(flash: &[u8]) -> Vec<u32> {
     while i + 1 < flash.len() {
         let h = hw(i);
         let is_sev = h == 0xBF40 || h == 0xBF30;
-        let is_cpsie = h == 0xB662 || h == 0xB661;
+        let is_cpsie = h == 0xB662 || h == 0xB661 || h == 0xB672;
         let is_msr = h & 0xFFF0 == 0xF380 && {
             let h2 = hw(i + 2);
             h2 & 0xFF00 == 0x8800 && (0x10..=0x14).contains(&(h2 & 0xFF))
@@ -238,15 +383,20 @@ impl Cpu {
         for &site in &sites {
             let h = hooks.clone();
             uc.add_code_hook(u64::from(site), u64::from(site), move |uc, addr, _| {
-                let mut b = [0u8; 2];
+                let mut b = [0u8; 4];
                 let _ = uc.mem_read(addr, &mut b);
-                let op = u16::from_le_bytes(b);
+                let op = u16::from_le_bytes([b[0], b[1]]);
+                let op2 = u16::from_le_bytes([b[2], b[3]]);
                 if op == 0xBF40 {
                     h.event.set(true);
                 } else if op == 0xBF30 {
                     // WFI: Unicorn halts after it; the run loop then sleeps.
                     h.wfi.set(true);
+                } else if op == 0xB672 {
+                    // CPSID i: a masked stretch starts.
+                    track_mask(uc, &h.masks, addr as u32, op, op2);
                 } else {
+                    track_mask(uc, &h.masks, addr as u32, op, op2);
                     // Unmasking: check for a pending interrupt once this block is done.
                     let s = uc.get_data_mut();
                     if s.scs.highest_pending().is_some() {
@@ -265,6 +415,8 @@ impl Cpu {
             sev_sites: sites,
             vectors: FLASH_BASE,
             entries: vec![0; 16 + crate::scs::IRQ_COUNT as usize],
+            handler_stack: Vec::new(),
+            returning: None,
         };
         cpu.reset(ResetKind::PowerOn);
         Ok(cpu)
@@ -279,7 +431,7 @@ impl Cpu {
                 let _ = uc.emu_stop();
                 return;
             }
-            let n = s.block_instructions(addr as u32, size);
+            let n = s.block_cycles(addr as u32, size);
             s.now += n;
             s.block = addr as u32;
         })
@@ -289,13 +441,17 @@ impl Cpu {
             0x2000_0000,
             Some(|uc: &mut Unicorn<'_, Soc>, off: u64, size: usize| {
                 let s = uc.get_data_mut();
-                let v = s.bus_read(0x4000_0000 + off as u32, size);
+                let addr = 0x4000_0000 + off as u32;
+                let v = s.bus_read(addr, size);
+                s.now += periph_access_cycles(addr, false);
                 u64::from(v)
             }),
             Some(
                 |uc: &mut Unicorn<'_, Soc>, off: u64, size: usize, value: u64| {
-                    uc.get_data_mut()
-                        .bus_write(0x4000_0000 + off as u32, size, value as u32);
+                    let s = uc.get_data_mut();
+                    let addr = 0x4000_0000 + off as u32;
+                    s.bus_write(addr, size, value as u32);
+                    s.now += periph_access_cycles(addr, true);
                     after_write(uc);
                 },
             ),
@@ -466,6 +622,13 @@ impl Cpu {
         self.pc = pc & !1;
         self.vectors = FLASH_BASE;
         self.hooks.event.set(false);
+        self.handler_stack.clear();
+        self.returning = None;
+        {
+            let mut m = self.hooks.masks.borrow_mut();
+            m.primask_since = None;
+            m.basepri_since = None;
+        }
         self.state = CpuState::Running;
         if self.boot0_high() {
             self.state = CpuState::BootRom;
@@ -594,7 +757,31 @@ impl Cpu {
         if let Some(c) = self.entries.get_mut(usize::from(n)) {
             *c += 1;
         }
+        // A pending return's unstacking is skipped when the next handler tail-chains.
+        let tail_chain = self.returning.take().is_some();
+        let vtor = self.soc().scs.vtor();
+        let base = if vtor == 0 { self.vectors } else { vtor };
+        let s = self.soc_mut();
+        let flash = FlashTiming::from_acr(s.flash_acr());
+        let c = s
+            .cycles
+            .timing
+            .entry(tail_chain, fpca, base + 4 * u32::from(n), flash);
+        s.now += c;
+        let (now, instructions) = (s.now, s.cycles.instructions);
+        self.handler_stack.push((n, now, instructions));
         true
+    }
+
+    /// The longest masked stretches and handler runs since power-on or the last
+    /// [`Cpu::clear_timing_report`].
+    pub fn timing_report(&self) -> TimingReport {
+        self.hooks.masks.borrow().report.clone()
+    }
+
+    /// Starts a new measurement window for [`Cpu::timing_report`] (e.g. after the boot).
+    pub fn clear_timing_report(&mut self) {
+        self.hooks.masks.borrow_mut().report = TimingReport::default();
     }
 
     /// How many times exception `n` (16 + IRQ for an interrupt) was entered.
@@ -610,6 +797,27 @@ impl Cpu {
     /// Exception return (B1.5.8) for the EXC_RETURN value `magic`.
     fn exit(&mut self, magic: u32) {
         let n = self.soc().ipsr;
+        if let Some(k) = self.handler_stack.iter().rposition(|&(m, _, _)| m == n) {
+            let (_, at, instructions) = self.handler_stack.remove(k);
+            self.handler_stack.truncate(k);
+            let s = self.soc();
+            let run = Stretch {
+                cycles: s.now.saturating_sub(at),
+                instructions: s.cycles.instructions.saturating_sub(instructions),
+                pc: self.vector(n) & !1,
+                at,
+            };
+            self.hooks
+                .masks
+                .borrow_mut()
+                .report
+                .handlers
+                .entry(n)
+                .or_default()
+                .keep_longer(run);
+        }
+        let extended_return = magic & 0x10 == 0;
+        self.returning = Some(self.soc_mut().cycles.timing.exit(extended_return));
         let to_thread = magic & 0x8 != 0;
         let from_psp = magic & 0x4 != 0;
         let extended = magic & 0x10 == 0;
@@ -771,6 +979,9 @@ impl Cpu {
 
     /// Executes instructions until the next event, `until`, or a stop.
     fn step(&mut self, until: Cycles) {
+        if let Some(c) = self.returning.take() {
+            self.soc_mut().now += c;
+        }
         {
             let s = self.soc_mut();
             s.deadline = s.next_event().unwrap_or(Cycles::MAX).min(until);

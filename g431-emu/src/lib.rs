@@ -10,6 +10,7 @@
 //! * [`boards`]: the boards around the MCUs (B-G431B-ESC1, NUCLEO-G431RB), from their
 //!   documents: physical quantities in, pin voltages and levels out.
 //! * [`time`]: the one time base (CPU cycles at 170 MHz) and conversions.
+//! * [`cycles`]: the approximate Cortex-M4 cycle model virtual time advances by.
 //! * [`periph`]: the [`periph::Peripheral`] contract and one module per register model.
 //! * [`devices`]: what sits on the board's buses (24C256 EEPROM, PCF8574 + HD44780 LCD).
 //! * [`names`]: register, field and interrupt names from the STM32 metadata, so that an
@@ -19,6 +20,7 @@
 
 pub mod boards;
 pub mod cpu;
+pub mod cycles;
 pub mod devices;
 pub mod elf;
 pub mod log;

@@ -309,8 +309,10 @@ pub struct Soc {
     diagnostics: Vec<Diagnostic>,
     seen: BTreeMap<(u32, bool, u8), ()>,
     poll: Poll,
-    /// Instruction count of each decoded block start in flash (halfword index → count).
-    block_counts: Vec<u16>,
+    /// The cycle model: each flash block's cost decoded once, the fetch buffer and caches.
+    pub cycles: crate::cycles::CycleModel,
+    /// The FLASH slot (its ACR sets the wait states and caches the cycle model applies).
+    flash_slot: usize,
     /// SysTick has been brought up to this cycle.
     systick_checked: Cycles,
     /// Start address of the block the CPU is executing (set by the CPU's block hook).
@@ -394,7 +396,7 @@ impl Soc {
         let mut add = |s: Slot| push_slot(&mut slots, s);
         let rcc = add(slot("RCC", Box::new(Rcc::default())));
         add(slot("PWR", Box::new(Pwr::new())));
-        add(slot("FLASH", Box::new(Flash::default())));
+        let flash_slot = add(slot("FLASH", Box::new(Flash::default())));
         let iwdg = add(slot("IWDG", Box::new(Iwdg::new())));
         let syscfg = {
             let mut s = slot("SYSCFG", Box::new(Syscfg::default()));
@@ -434,7 +436,8 @@ impl Soc {
             diagnostics: Vec::new(),
             seen: BTreeMap::new(),
             poll: Poll::default(),
-            block_counts: vec![0; FLASH_BYTES / 2],
+            cycles: crate::cycles::CycleModel::new(FLASH_BYTES),
+            flash_slot: 0,
             systick_checked: 0,
             block: 0,
             wired: Slots::default(),
@@ -442,6 +445,7 @@ impl Soc {
             in_dma: false,
             sys_faults: faults::SystemFaults::default(),
         };
+        soc.flash_slot = flash_slot;
         soc.add_wired_models();
         soc.flash.resize(FLASH_BYTES, 0xFF);
         soc.sort_slots();
@@ -1192,6 +1196,7 @@ impl Soc {
         self.ipsr = 0;
         self.poll = Poll::default();
         self.stop = StopRequest::default();
+        self.cycles.reset();
     }
 
     fn find(&self, addr: u32) -> Option<usize> {
@@ -1623,37 +1628,21 @@ impl Soc {
         }
     }
 
-    /// Instruction count of the block of `size` bytes starting at `addr` (Thumb-2: a
-    /// halfword 0b11101/0b11110/0b11111 in its top bits starts a 32-bit instruction).
+    /// Cycles of the block of `size` bytes starting at `addr` that the CPU is about to run
+    /// (the cycle model of `cycles.rs`, with the flash interface as FLASH_ACR sets it now).
     #[inline]
-    pub fn block_instructions(&mut self, addr: u32, size: u32) -> u64 {
-        let idx = addr.wrapping_sub(FLASH_BASE) as usize / 2;
-        if let Some(&n) = self.block_counts.get(idx) {
-            if n != 0 {
-                return u64::from(n);
-            }
+    pub fn block_cycles(&mut self, addr: u32, size: u32) -> u64 {
+        let acr = self.flash_acr();
+        self.cycles
+            .block(addr, size, acr, &self.flash, &self.ram, RAM_BASE)
+    }
+
+    /// FLASH_ACR as the cycle model applies it: the image's, unless a what-if overrides it.
+    pub fn flash_acr(&self) -> u32 {
+        match self.cycles.acr_override {
+            Some(acr) => acr,
+            None => self.model::<Flash>(self.flash_slot).map_or(0, |f| f.acr()),
         }
-        let bytes: &[u8] = if (FLASH_BASE..FLASH_BASE + FLASH_BYTES as u32).contains(&addr) {
-            let o = (addr - FLASH_BASE) as usize;
-            self.flash.get(o..o + size as usize).unwrap_or(&[])
-        } else if (RAM_BASE..RAM_BASE + RAM_BYTES as u32).contains(&addr) {
-            let o = (addr - RAM_BASE) as usize;
-            self.ram.get(o..o + size as usize).unwrap_or(&[])
-        } else {
-            &[]
-        };
-        let mut i = 0;
-        let mut n: u16 = 0;
-        while i + 1 < bytes.len() {
-            let hw = u16::from_le_bytes([bytes[i], bytes[i + 1]]);
-            i += if hw >> 11 >= 0b11101 { 4 } else { 2 };
-            n += 1;
-        }
-        let n = n.max(1);
-        if let Some(slot) = self.block_counts.get_mut(idx) {
-            *slot = n;
-        }
-        u64::from(n)
     }
 
     /// RAM as a slice (for the DMA, RTT and tests).
@@ -2273,12 +2262,17 @@ mod tests {
     }
 
     #[test]
-    fn thumb_block_lengths() {
+    fn thumb_blocks_cost_cycles_with_the_programmed_wait_states() {
         let mut s = Soc::new(
             // movs r0,#1 (16) ; ldr.w r1,[r2] (32) ; bx lr (16)
             vec![0x01, 0x20, 0xD2, 0xF8, 0x00, 0x10, 0x70, 0x47],
             Box::new(BareBoard),
         );
-        assert_eq!(s.block_instructions(FLASH_BASE, 8), 3);
+        // At reset LATENCY = 0: 1 + 2 + 1 and the refill of a branch target.
+        assert_eq!(s.block_cycles(FLASH_BASE, 8), 5);
+        assert_eq!(s.cycles.instructions, 3);
+        // 4 wait states, caches off: the one 64-bit line costs 4 more.
+        s.bus_write(0x4002_2000, 4, 4);
+        assert_eq!(s.block_cycles(FLASH_BASE, 8), 9);
     }
 }

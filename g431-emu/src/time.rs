@@ -1,7 +1,8 @@
 //! Time: every model counts CPU cycles at [`HCLK_HZ`].
 //!
-//! One instruction is one cycle (the emulator's virtual time is "instructions executed"), and
-//! every bus and kernel clock the images configure is derived from the same 170 MHz, so a
+//! The CPU's side of time is the approximate Cortex-M4 cycle model of `cycles.rs` (TRM
+//! cycles per instruction, flash wait states as FLASH_ACR sets them, exception latencies),
+//! and every bus and kernel clock the images configure is derived from the same 170 MHz, so a
 //! peripheral's timing (baud rate, timer tick, I2C bit time) is a whole or rational number of
 //! cycles. The clock tree itself is not modelled: see `docs/emulator.md`.
 

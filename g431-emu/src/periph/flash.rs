@@ -136,6 +136,11 @@ impl Flash {
         self.acr & 0xF
     }
 
+    /// ACR as programmed (the cycle model reads LATENCY, PRFTEN, ICEN, DCEN).
+    pub fn acr(&self) -> u32 {
+        self.acr
+    }
+
     /// The option bytes as loaded.
     pub fn optr(&self) -> u32 {
         self.optr

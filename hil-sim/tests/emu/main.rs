@@ -18,4 +18,5 @@ mod safety;
 mod service;
 mod silicon_faults;
 mod storage;
+mod timing;
 mod trips;
