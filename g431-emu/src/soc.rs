@@ -2237,9 +2237,15 @@ mod tests {
             what,
             ["PWR.CR4 set to 0x00000001: stored only, its effect is not modelled"]
         );
-        // CR1.VOS is modelled (VOSF): not reported.
+        // CR1.VOS is modelled (VOSF): not a stored-only report.
         s.bus_write(0x4000_7000, 4, 0x400);
-        assert_eq!(s.diagnostics().len(), 1);
+        let stored: Vec<String> = s
+            .diagnostics()
+            .iter()
+            .map(|d| d.to_string())
+            .filter(|d| d.contains("stored only"))
+            .collect();
+        assert_eq!(stored.len(), 1, "{:?}", s.diagnostics());
     }
 
     #[test]

@@ -142,6 +142,11 @@ pub struct EmuKeys {
     /// by itself (a panic), and an emulator test fails.
     #[serde(default)]
     pub expect: Vec<ImageTrouble>,
+    /// What the bare ESC1's amplifier input pins carry: `documented` (the default: the
+    /// board's network) or `as_image_assumes` (what today's drive image assumes, not the
+    /// board: for runs of everything else while issue 29 fixes the amplifier mode, N5).
+    #[serde(default)]
+    pub esc1_amplifier_inputs: crate::emu::boards::Esc1Sense,
 }
 
 /// What can go wrong with an image as a whole (`[emu] expect`).
@@ -528,6 +533,8 @@ pub struct Scenario {
     pub analog: AnalogErrors,
     /// `[emu] expect`: image troubles the scenario provokes on purpose.
     pub expected_trouble: Vec<ImageTrouble>,
+    /// `[emu] esc1_amplifier_inputs`.
+    pub esc1_amplifier_inputs: crate::emu::boards::Esc1Sense,
     /// `[silicon]`.
     pub silicon: SiliconParams,
 }
@@ -547,6 +554,7 @@ impl Default for Scenario {
             service_flood: false,
             analog: AnalogErrors::TYPICAL,
             expected_trouble: Vec::new(),
+            esc1_amplifier_inputs: crate::emu::boards::Esc1Sense::Documented,
             silicon: SiliconParams::default(),
         }
     }
@@ -596,6 +604,7 @@ impl Scenario {
             service_flood: f.service.flood,
             analog: f.analog.errors()?,
             expected_trouble: f.emu.expect.clone(),
+            esc1_amplifier_inputs: f.emu.esc1_amplifier_inputs,
             ..Scenario::default()
         };
         let p = &f.plant;

@@ -50,8 +50,10 @@ pub fn pin_id(name: &str) -> Option<(u8, u8)> {
     Some((port, n))
 }
 
-/// What the bare ESC1's amplifier input pins carry.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// What the bare ESC1's amplifier input pins carry (scenario key
+/// `[emu] esc1_amplifier_inputs`, `hil-sim/docs/cli.md`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum Esc1Sense {
     /// The board's documented network (`g431_emu::boards::b_g431b_esc1`): both amplifier
     /// pins of each leg at the network's bias.

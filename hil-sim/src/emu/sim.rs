@@ -251,6 +251,7 @@ impl EmuSim {
         })?;
         scenario.rig.board = BoardKind::of(board).profile();
         let rig = Rc::new(RefCell::new(Rig::new(Plant::new(scenario.rig), board)));
+        rig.borrow_mut().esc1_sense = scenario.esc1_amplifier_inputs;
         let mut drive = Mcu::new("drive", drive_image, Box::new(DriveBoard::new(rig.clone())))
             .with_context(|| format!("drive image {}", drive_elf.display()))?;
         // The drive MCU's analog errors (`[analog]`: the datasheet's typical part by default).

@@ -240,7 +240,10 @@ fn a_spike_inside_the_blanking_window_does_not_trip_outside_it_trips_oc_hw() {
 fn the_emu_summary_shows_the_link_trip_after_a_cut() {
     let (drive, plc) = crate::common::images();
     let program = hil_sim::run::parse_program(MOTOR_PLC, "motor.plc").expect("assembles");
-    let scen = format!("[link]\ncut_at_s = 2.0\n{START_50HZ}");
+    // The image's own amplifier assumptions: on the documented ESC1 it stops at boot (N5).
+    let scen = format!(
+        "[emu]\nesc1_amplifier_inputs = \"as_image_assumes\"\n[link]\ncut_at_s = 2.0\n{START_50HZ}"
+    );
     let scenario = hil_sim::scenario::Scenario::parse(&scen).expect("parses");
     let report = hil_sim::emu::run::run(
         drive,
