@@ -92,7 +92,7 @@ impl Client {
     }
 
     /// Sends `req` and returns its answer: resent with the same id after 300 ms (5 s for
-    /// EEPROM writes), 3 attempts, then exit 3. `Refused` is returned as an answer (the
+    /// EEPROM writes; both times [`timeout_scale`]), 3 attempts, then exit 3. `Refused` is returned as an answer (the
     /// caller decides); [`Client::ask`] turns it into exit 5.
     pub fn request(&mut self, req: Request) -> Result<Answer> {
         let id = self.next_id();
@@ -100,7 +100,8 @@ impl Client {
             EEPROM_RETRY_MS
         } else {
             RETRY_MS
-        });
+        })
+        .saturating_mul(timeout_scale());
         let mut frame = [0u8; MAX_WIRE_FRAME];
         let n = encode(id, &req, &mut frame)
             .map_err(|e| Fail::Usage(anyhow::anyhow!("cannot encode {req:?}: {e:?}")))?;
@@ -176,4 +177,15 @@ fn request_name(r: &Request) -> String {
 /// An answer of the wrong kind (a PLC that does not follow the protocol).
 pub fn unexpected(what: &str, a: &Answer) -> Fail {
     Fail::Usage(anyhow::anyhow!("unexpected answer to {what}: {a:?}"))
+}
+
+/// `PLCCTL_TIMEOUT_SCALE` (a whole number, 1 to 100; default 1): multiplies the retry times,
+/// for a PLC that runs slower than real time (the emulator's tests of the real image,
+/// `hil-sim/tests/emu/service.rs`). Anything else is ignored.
+pub fn timeout_scale() -> u32 {
+    std::env::var("PLCCTL_TIMEOUT_SCALE")
+        .ok()
+        .and_then(|v| v.trim().parse::<u32>().ok())
+        .filter(|k| (1..=100).contains(k))
+        .unwrap_or(1)
 }

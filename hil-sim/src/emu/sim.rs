@@ -745,6 +745,11 @@ impl EmuSim {
             .collect()
     }
 
+    /// The scenario provokes `t` on purpose (`[emu] expect`).
+    pub fn expects(&self, t: ImageTrouble) -> bool {
+        self.scenario.expected_trouble.contains(&t)
+    }
+
     /// Everything that must fail an emulator test: image troubles the scenario does not
     /// expect, diagnostics no [`EmuSim::allow`] covers, and allowances that matched nothing.
     pub fn problems(&self) -> Vec<String> {

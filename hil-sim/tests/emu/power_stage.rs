@@ -111,11 +111,6 @@ fn a_hard_fault_turns_the_outputs_off_and_resets_at_once() {
         MOTOR_PLC,
         &format!("[emu]\nexpect = [\"hard_fault\", \"software_reset\"]\n{START_50HZ}"),
     );
-    sim.allow(
-        "drive: USART1: character started before the receiver was enabled",
-        "the drive restarts while the PLC keeps sending: a character is on the line when the \
-         restarted image enables its receiver",
-    );
     sim.run_until(ns(1.5), |_| {});
     assert!(outputs_enabled(&sim));
     // A jump into unmapped memory: a bus fault, escalated to HardFault.

@@ -46,6 +46,10 @@ fn plcctl_on_the_image(sim: &mut EmuSim, args: &[&str]) -> (ExitStatus, String, 
             "XDG_CACHE_HOME",
             std::env::temp_dir().join("emu-plcctl-cache"),
         )
+        // The image in the emulator answers later in wall-clock time than plcctl's 300 ms
+        // retry since virtual time counts modelled cycles (g431-emu docs/emulator.md);
+        // plcctl's retries are wall-clock times (issue 32).
+        .env("PLCCTL_TIMEOUT_SCALE", "10")
         .args(["--port", pty.path().to_str().unwrap()])
         .args(args)
         .stdin(Stdio::null())
