@@ -13,30 +13,10 @@ use g431_emu::boards::ExternalWire;
 use hil_sim::emu::sim::EmuSim;
 use hil_sim::sim::Sample;
 
-use crate::common::{emu, emu_on_documented_boards, ns, MOTOR_PLC};
-
-/// The motor program at 50 Hz from 0.3 s.
-const RUN_50HZ: &str = r#"
-[[event]]
-at_s = 0.0
-set = { A00 = 980, A01 = 500 }
-
-[[event]]
-at_s = 0.3
-press = "D00"
-"#;
+use crate::common::{emu, emu_on_documented_boards, ns, outputs_enabled, MOTOR_PLC, START_50HZ};
 
 /// The ESC1's code 9: STO (drive.md fault table).
 const STO_CODE: u8 = 9;
-
-fn outputs_enabled(sim: &EmuSim) -> bool {
-    sim.drive()
-        .soc()
-        .tim1()
-        .expect("TIM1")
-        .gate()
-        .outputs_enabled
-}
 
 fn codes(sim: &EmuSim) -> Vec<u8> {
     sim.faults().iter().map(|f| f.code).collect()
@@ -48,7 +28,7 @@ fn codes(sim: &EmuSim) -> Vec<u8> {
 fn sto_pulse_latches(width_ns: u64) -> Result<(), String> {
     let pulse_end_s = 1.5 + width_ns as f64 * 1e-9;
     let scen = format!(
-        "{RUN_50HZ}\n[[event]]\nat_s = 1.5\nset = {{ STO_IN = 0 }}\n\n[[event]]\nat_s = {pulse_end_s}\nset = {{ STO_IN = 1 }}\n"
+        "{START_50HZ}\n[[event]]\nat_s = 1.5\nset = {{ STO_IN = 0 }}\n\n[[event]]\nat_s = {pulse_end_s}\nset = {{ STO_IN = 1 }}\n"
     );
     let mut sim = emu(MOTOR_PLC, &scen);
     sim.run_until(ns(1.5) - 1_000, |_| {});
@@ -85,7 +65,7 @@ fn sto_pulse_latches(width_ns: u64) -> Result<(), String> {
 #[test]
 fn the_plants_break_latch_follows_the_images_moe() {
     let scen = format!(
-        "{RUN_50HZ}\n[[event]]\nat_s = 1.5\nset = {{ STO_IN = 0 }}\n\n[[event]]\nat_s = 1.5003\nset = {{ STO_IN = 1 }}\n"
+        "{START_50HZ}\n[[event]]\nat_s = 1.5\nset = {{ STO_IN = 0 }}\n\n[[event]]\nat_s = 1.5003\nset = {{ STO_IN = 1 }}\n"
     );
     let mut sim = emu(MOTOR_PLC, &scen);
     sim.run_until(ns(1.5) + 100_000, |_| {});
@@ -128,7 +108,7 @@ fn n2_sto_pulses_of_5us_300us_and_2ms_latch_code_9_and_the_outputs_off() {
 #[test]
 #[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N1, STO_IN is on PA11, the CAN transceiver's RX output, which holds a broken STO wire high"]
 fn n1_a_broken_sto_wire_requests_sto() {
-    let mut sim = emu(MOTOR_PLC, RUN_50HZ);
+    let mut sim = emu(MOTOR_PLC, START_50HZ);
     sim.run_until(ns(1.5), |_| {});
     assert!(outputs_enabled(&sim), "running before the wire breaks");
     sim.set_sto_wire(ExternalWire::Open);
@@ -152,7 +132,7 @@ fn n1_a_broken_sto_wire_requests_sto() {
 #[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N5, the shunt amplifiers are in the grounded-input PGA mode, which rails on the ESC1's biased network: the boot zero check fails"]
 fn n5_the_image_measures_current_on_the_documented_amplifier_network() {
     use g431_emu::periph::adc::AdcId;
-    let mut sim = emu_on_documented_boards(MOTOR_PLC, RUN_50HZ);
+    let mut sim = emu_on_documented_boards(MOTOR_PLC, START_50HZ);
     sim.run_until(ns(0.25), |_| {});
     let adc = sim.drive().soc().adc12().expect("ADC model");
     let zeros = [adc.jdr(AdcId::Adc1, 1), adc.jdr(AdcId::Adc2, 1)];
@@ -199,7 +179,7 @@ fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     let program = MOTOR_PLC.replace("015 U<  K10 0025", "015 U<  K10 0015");
     assert_ne!(program, MOTOR_PLC, "the example sets U< on line 015");
     let scen = format!(
-        "[plant]\ndc_link_v = 20.0\ninertia_kgm2 = 0.003\n{RUN_50HZ}\n[[event]]\nat_s = 7.0\npress = \"D00\"\n"
+        "[plant]\ndc_link_v = 20.0\ninertia_kgm2 = 0.003\n{START_50HZ}\n[[event]]\nat_s = 7.0\npress = \"D00\"\n"
     );
     let mut sim = emu(&program, &scen);
     let mut peak = (0.0f64, 0u64);

@@ -180,3 +180,25 @@ pub fn assert_stack_headroom(sim: &EmuSim) {
         );
     }
 }
+
+/// The motor program at 50 Hz (pot A01 = 500), switching at 9.8 kHz (A00 = 980), started by
+/// D00 at 0.3 s.
+pub const START_50HZ: &str = r#"
+[[event]]
+at_s = 0.0
+set = { A00 = 980, A01 = 500 }
+
+[[event]]
+at_s = 0.3
+press = "D00"
+"#;
+
+/// TIM1's outputs are on (MOE and the channels' enables): what the gates do.
+pub fn outputs_enabled(sim: &EmuSim) -> bool {
+    sim.drive()
+        .soc()
+        .tim1()
+        .expect("TIM1")
+        .gate()
+        .outputs_enabled
+}

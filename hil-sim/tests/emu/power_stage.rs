@@ -7,32 +7,12 @@ use g431_emu::cpu::RegisterARM;
 use g431_emu::periph::rcc::ResetKind;
 use g431_emu::time::cycles_to_ns;
 
-use crate::common::{emu, ns, MOTOR_PLC};
-
-/// The motor program at 50 Hz (pot A01 = 500), switching at 9.8 kHz (A00 = 980).
-const START_50HZ: &str = r#"
-[[event]]
-at_s = 0.0
-set = { A00 = 980, A01 = 500 }
-
-[[event]]
-at_s = 0.3
-press = "D00"
-"#;
+use crate::common::{emu, ns, outputs_enabled, MOTOR_PLC, START_50HZ};
 
 /// Largest phase current of the rig now.
 fn i_max(sim: &hil_sim::emu::sim::EmuSim) -> f64 {
     let o = sim.rig().plant.outputs();
     o.i_abc_a.iter().fold(0.0f64, |m, i| m.max(i.abs()))
-}
-
-fn outputs_enabled(sim: &hil_sim::emu::sim::EmuSim) -> bool {
-    sim.drive()
-        .soc()
-        .tim1()
-        .expect("TIM1")
-        .gate()
-        .outputs_enabled
 }
 
 #[test]

@@ -8,7 +8,7 @@ use g431_emu::periph::flash::{Flash, OPTR_FACTORY, OPTR_SRAM_PE};
 use g431_emu::periph::rcc::ResetKind;
 use hil_sim::emu::sim::EmuSim;
 
-use crate::common::{emu, ns, MOTOR_PLC};
+use crate::common::{emu, ns, outputs_enabled, MOTOR_PLC, START_50HZ};
 
 /// The motor program at 50 Hz (pot A01 = 500), switching at 9.8 kHz (A00 = 980), and the
 /// silicon event `fault` at 1.5 s.
@@ -26,15 +26,6 @@ press = "D00"
 {fault}
 "#
     )
-}
-
-fn outputs_enabled(sim: &EmuSim) -> bool {
-    sim.drive()
-        .soc()
-        .tim1()
-        .expect("TIM1")
-        .gate()
-        .outputs_enabled
 }
 
 /// Resets of the drive after power-up.

@@ -9,17 +9,7 @@ use firmware_drive::measure::FrontEnd;
 use hil_sim::plant::sensors;
 use shared_protocol::units::{CentiAmps, Volts};
 
-use crate::common::{emu, ns, MOTOR_PLC};
-
-const START_50HZ: &str = r#"
-[[event]]
-at_s = 0.0
-set = { A00 = 980, A01 = 500 }
-
-[[event]]
-at_s = 0.3
-press = "D00"
-"#;
+use crate::common::{emu, ns, MOTOR_PLC, START_50HZ};
 
 /// The motor program with the hardware comparators' level `I>>` at 1.2 A, below the
 /// software limit `I>` (2 A): the DAC values come from the downloaded section.
