@@ -8,7 +8,7 @@ use g431_emu::periph::flash::{Flash, OPTR_FACTORY, OPTR_SRAM_PE};
 use g431_emu::periph::rcc::ResetKind;
 use hil_sim::emu::sim::EmuSim;
 
-use crate::common::{emu, ns, outputs_enabled, MOTOR_PLC, START_50HZ};
+use crate::common::{emu, ns, outputs_enabled, MOTOR_PLC};
 
 /// The motor program at 50 Hz (pot A01 = 500), switching at 9.8 kHz (A00 = 980), and the
 /// silicon event `fault` at 1.5 s.
