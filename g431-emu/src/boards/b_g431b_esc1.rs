@@ -1,18 +1,18 @@
 //! The bare B-G431B-ESC1 (STM32G431CBU6, L6387ED gate drivers, STL180N6F7 MOSFETs).
 //!
-//! Sources, cited at each constant as [tag]:
-//! * [UM2516]: ST UM2516, "Electronic speed controller Discovery kit for drones with
+//! Sources, cited at each constant as \[tag\]:
+//! * \[UM2516\]: ST UM2516, "Electronic speed controller Discovery kit for drones with
 //!   STM32G431CB", its pin assignment table (net names per MCU pin) and schematic
 //!   (MB1419). The pin table was read through a transcription (a GitHub README quoting
 //!   "Pin table from UM2516"); the schematic's resistor values were not reachable.
-//! * [NuttX]: Apache NuttX `boards/arm/stm32/b-g431b-esc1/src/stm32_foc.c`
+//! * \[NuttX\]: Apache NuttX `boards/arm/stm32/b-g431b-esc1/src/stm32_foc.c`
 //!   (board parameters comment, OPAMP set-up), `b-g431b-esc1.h` (LED, button).
-//! * [duino]: stm32duino `variants/STM32G4xx/G431C(6-8-B)U_G441CBU/variant_B_G431B_ESC1.h`
+//! * \[duino\]: stm32duino `variants/STM32G4xx/G431C(6-8-B)U_G441CBU/variant_B_G431B_ESC1.h`
 //!   (net alias per pin).
-//! * [SimpleFOC]: SimpleFOC's ESC1 examples, `LowsideCurrentSense(0.003f, -64.0f/7.0f,
+//! * \[SimpleFOC\]: SimpleFOC's ESC1 examples, `LowsideCurrentSense(0.003f, -64.0f/7.0f,
 //!   A_OP1_OUT, A_OP2_OUT, A_OP3_OUT)`, and its `_configureOPAMP` (PGA x16,
 //!   `OPAMP_PGA_CONNECT_INVERTINGINPUT_IO0_BIAS`).
-//! * [TCAN33x]: TI SLLSEQ7 (TCAN330/332/334/337), pin functions: RXD "LOW for dominant and
+//! * \[TCAN33x\]: TI SLLSEQ7 (TCAN330/332/334/337), pin functions: RXD "LOW for dominant and
 //!   HIGH for recessive bus states, tri-state"; SHDN "drive high for shutdown mode.
 //!   Internal pull-down".
 //!
@@ -25,27 +25,27 @@
 use super::{ExternalWire, NetLevel, PowerStageQuantities, VDDA_VOLTS};
 use crate::periph::gpio::{Drive, External};
 
-/// Low-side shunt of each leg, ohm: 3 mOhm [NuttX] ("Current shunt resistance = 0.003"),
-/// [SimpleFOC] (`0.003f`).
+/// Low-side shunt of each leg, ohm: 3 mOhm \[NuttX\] ("Current shunt resistance = 0.003"),
+/// \[SimpleFOC\] (`0.003f`).
 pub const SHUNT_OHMS: f64 = 0.003;
 
 /// The gain the ports program in the on-chip amplifiers: PGA x16 with the inverting input
-/// on VINM0 as bias (PGA_GAIN 0b01011) [NuttX] ("PGA mode, non-inverting configuration
-/// with external bias on VINM0", `0b01011`), [SimpleFOC] (`OPAMP_PGA_GAIN_16_OR_MINUS_15`,
+/// on VINM0 as bias (PGA_GAIN 0b01011) \[NuttX\] ("PGA mode, non-inverting configuration
+/// with external bias on VINM0", `0b01011`), \[SimpleFOC\] (`OPAMP_PGA_GAIN_16_OR_MINUS_15`,
 /// `..._IO0_BIAS`).
 pub const PORTS_PGA_GAIN: f64 = 16.0;
 
 /// Shunt volts to amplifier output volts with the ports' configuration, V/V: -64/7
-/// [SimpleFOC] (`-64.0f/7.0f`), [NuttX] ("Current sense gain = -9.14 (inverted current)").
+/// \[SimpleFOC\] (`-64.0f/7.0f`), \[NuttX\] ("Current sense gain = -9.14 (inverted current)").
 /// Negative: a current out of the leg into the motor flows up through the shunt while the
 /// low switch conducts, so the shunt's leg side goes below ground.
 pub const EQUIVALENT_GAIN: f64 = -64.0 / 7.0;
 
 /// Fraction of a shunt end's voltage that reaches its amplifier pin: 4/7, i.e.
 /// |[`EQUIVALENT_GAIN`]| / [`PORTS_PGA_GAIN`]. The network's resistor values are in
-/// [UM2516]'s schematic, which we could not read: the network is reconstructed from what
-/// the documents do say. Each shunt end goes to an amplifier pin ([duino] `CURRx_H` on
-/// VINP, `CURRx_L` on VINM0; [NuttX] "Current U+ PA1, Current U- PA3") through a divider
+/// \[UM2516\]'s schematic, which we could not read: the network is reconstructed from what
+/// the documents do say. Each shunt end goes to an amplifier pin (\[duino\] `CURRx_H` on
+/// VINP, `CURRx_L` on VINM0; \[NuttX\] "Current U+ PA1, Current U- PA3") through a divider
 /// whose other end is the 3V3 rail (the bias the VINM0-biased PGA mode needs), and the
 /// ports' gain of 64/7 with the PGA's 16 leaves 4/7 for the divider.
 pub const DIVIDER_SIGNAL_FRACTION: f64 = 4.0 / 7.0;
@@ -69,7 +69,7 @@ pub struct ShuntSense {
     pub output: &'static str,
 }
 
-/// Legs U, V, W [UM2516] pin table, [duino], [NuttX] OPAMP pins.
+/// Legs U, V, W \[UM2516\] pin table, \[duino\], \[NuttX\] OPAMP pins.
 pub const SHUNTS: [ShuntSense; 3] = [
     ShuntSense {
         vinp: "PA1",
@@ -91,33 +91,33 @@ pub const SHUNTS: [ShuntSense; 3] = [
     },
 ];
 
-/// DC-link divider, V/V: 0.0962 [NuttX] ("Vbus sense gain = 0.0962"), on PA0 (`VBUS`,
-/// [UM2516], [duino]). Full scale 3.3 V / 0.0962 = 34.3 V.
+/// DC-link divider, V/V: 0.0962 \[NuttX\] ("Vbus sense gain = 0.0962"), on PA0 (`VBUS`,
+/// \[UM2516\], \[duino\]). Full scale 3.3 V / 0.0962 = 34.3 V.
 pub const DC_LINK_DIVIDER: f64 = 0.0962;
 pub const DC_LINK_PIN: &str = "PA0";
 
-/// Highest DC-link voltage the board is specified for, V: 25 V [NuttX] ("Vbus max = 25V
+/// Highest DC-link voltage the board is specified for, V: 25 V \[NuttX\] ("Vbus max = 25V
 /// (6S LiPo battery pack)"), the only figure among the documents we reached (the MOSFETs
 /// are 60 V parts, the bulk capacitors' rating is in the unread schematic): the
 /// conservative one.
 pub const DC_LINK_MAX_VOLTS: f64 = 25.0;
 
-/// The potentiometer's wiper, PB12 (`POTENTIOMETER` [UM2516], [duino]; ADC1_IN11 [NuttX]).
+/// The potentiometer's wiper, PB12 (`POTENTIOMETER` \[UM2516\], \[duino\]; ADC1_IN11 \[NuttX\]).
 /// Its ends are not in the documents we reached; taken as 0 V..VDDA.
 pub const POT_PIN: &str = "PB12";
 
-/// The user LED, PC6 (`STATUS` [UM2516], `LED_BUILTIN` [duino], LD2 [NuttX]): an output
+/// The user LED, PC6 (`STATUS` \[UM2516\], `LED_BUILTIN` \[duino\], LD2 \[NuttX\]): an output
 /// load only.
 pub const LED: (u8, u8) = (2, 6);
 
-/// PB5: `GPIO_BEMF` [UM2516], [duino]: it switches the BEMF dividers of the three phases
+/// PB5: `GPIO_BEMF` \[UM2516\], \[duino\]: it switches the BEMF dividers of the three phases
 /// (to PA4, PC4, PB11: `BEMF1..3`). It drives nothing else on the board; in particular
 /// there is no brake chopper on the ESC1.
 pub const BEMF_ENABLE: (u8, u8) = (1, 5);
 
-/// PA11: `CAN_RX` [UM2516], [duino]: the CAN transceiver's RXD output.
+/// PA11: `CAN_RX` \[UM2516\], \[duino\]: the CAN transceiver's RXD output.
 pub const CAN_RX: (u8, u8) = (0, 11);
-/// PC11: `CAN_SHDN` [UM2516], [duino]: the transceiver's shutdown input.
+/// PC11: `CAN_SHDN` \[UM2516\], \[duino\]: the transceiver's shutdown input.
 pub const CAN_SHDN: (u8, u8) = (2, 11);
 
 /// Volts on the amplifier pins of leg `leg` (VINP, VINM0) for its current `i_a` (out of
@@ -157,7 +157,7 @@ pub fn pin_volts(pin: &str, q: &PowerStageQuantities, pot: f64) -> Option<f64> {
 }
 
 /// The CAN transceiver's mode from how the MCU drives its SHDN input: high = shutdown;
-/// released or low = normal (SHDN's internal pull-down [TCAN33x]).
+/// released or low = normal (SHDN's internal pull-down \[TCAN33x\]).
 pub fn transceiver_shut_down(shdn: Drive) -> bool {
     match shdn {
         Drive::High => true,
@@ -166,7 +166,7 @@ pub fn transceiver_shut_down(shdn: Drive) -> bool {
 }
 
 /// What the transceiver's RXD drives onto PA11: HIGH in normal mode on an idle bus (no
-/// other node: recessive), tri-state in shutdown [TCAN33x]. Which TCAN33x variant (or
+/// other node: recessive), tri-state in shutdown \[TCAN33x\]. Which TCAN33x variant (or
 /// other transceiver) the ESC1 carries is in the unread schematic; the net name `CAN_SHDN`
 /// and the 8-pin family with a SHDN input fit this one, and an RXD that drives the pin in
 /// normal mode is the case that hides an external signal on PA11 (the conservative one).

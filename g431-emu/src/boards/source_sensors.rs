@@ -1,21 +1,21 @@
 //! The source's sensors on a carrier around the B-G431B-ESC1's pins: the drive image's
 //! `source-sensors` build.
 //!
-//! Its document is the project's contract: [drive.md] `shared/spec/drive.md`
+//! Its document is the project's contract: \[drive.md\] `shared/spec/drive.md`
 //! "Measurements" ("Phase currents a and b: sensors with +-10 A full scale ... DC-link
 //! voltage: 0..45 V full scale", the source hardware's scaling) and "brake chopper"
-//! (`U>`), [hardware.md] ("the source's sensor scaling stays available as a second board
+//! (`U>`), \[hardware.md\] ("the source's sensor scaling stays available as a second board
 //! profile"), and the README's drive pin map (which ESC1 pins the carrier uses). The
 //! ESC1's own parts the carrier does not replace (the CAN transceiver on PA11, the LED)
 //! are those of [`super::b_g431b_esc1`].
 
 use super::{PowerStageQuantities, VDDA_VOLTS};
 
-/// Full scale of a phase-current sensor, A: +-10 A [drive.md] on 0..VDDA, 0 A at mid-scale
+/// Full scale of a phase-current sensor, A: +-10 A \[drive.md\] on 0..VDDA, 0 A at mid-scale
 /// (a bipolar sensor on a unipolar ADC input).
 pub const CURRENT_FULL_SCALE_A: f64 = 10.0;
 
-/// Full scale of the DC-link sensor, V: 45 V [drive.md] on 0..VDDA.
+/// Full scale of the DC-link sensor, V: 45 V \[drive.md\] on 0..VDDA.
 pub const DC_LINK_FULL_SCALE_V: f64 = 45.0;
 
 /// The sensor outputs on the ESC1's amplifier input pins (legs U, V, W), the DC link on
@@ -26,7 +26,7 @@ pub const DC_LINK_PIN: &str = "PA0";
 pub const AUX_PIN: &str = "PB12";
 
 /// The brake chopper's gate, PB5, active high (README pin map; the source's chopper,
-/// [drive.md] "the brake chopper (`U>`)"): on this carrier PB5 drives a chopper, not the
+/// \[drive.md\] "the brake chopper (`U>`)"): on this carrier PB5 drives a chopper, not the
 /// ESC1's BEMF dividers.
 pub const BRAKE_GATE: (u8, u8) = (1, 5);
 

@@ -3,12 +3,12 @@
 //! (boost) and CR3.UCPD1_DBDIS; the images never enter low-power modes.
 //!
 //! The programmable voltage detector (RM0440 §6.2.2 "Programmable voltage detector (PVD)"):
-//! CR2.PVDE enables it, CR2.PLS[2:0] picks the threshold, and SR2.PVDO reads 1 while VDD is
+//! CR2.PVDE enables it, CR2.PLS\[2:0\] picks the threshold, and SR2.PVDO reads 1 while VDD is
 //! below it. The supply is the host's ([`Pwr::set_vdd_mv`], 3.3 V by default); the
 //! thresholds and their hysteresis are [`PVD_FALLING_MV`]/[`PVD_RISING_MV`]. PVDO is what
 //! SYSCFG_CFGR2.PVDL routes to the timers' system break (the SoC reads [`Pwr::pvdo`]); with
 //! PVDL set, PVDE and PLS are locked until a system reset (RM0440 SYSCFG_CFGR2.PVDL: "enable
-//! and lock the PVD connection ... as well as the PVDE and PLS[2:0] in the PWR_CR2
+//! and lock the PVD connection ... as well as the PVDE and PLS\[2:0\] in the PWR_CR2
 //! register"): the SoC calls [`Pwr::lock_pvd`]. PLS = 111 (PVD_IN pin) compares the pin
 //! with VREFINT; it is not modelled and reported. The PVD's EXTI line 16 is not wired (no
 //! image uses it).
