@@ -372,7 +372,7 @@ fn memory_footprint() {
     // The drive's static RAM budget is 16 KiB, the PLC's 24 KiB (CI checks the images).
     // The PLC application holds the PLC section compiled at RUN (issue 21: 6.8 KiB for
     // 850 lines with their timer start times, 3 KiB more than the interpreter's state;
-    // firmware-plc/docs/vm.md, "RAM").
+    // plc-vm/docs/vm.md, "RAM").
     assert!(size_of::<DriveApp>() < 8 * 1024);
     // 17.5 KiB since the safety functions (issue 16: the status's safety fields, the
     // `S:` items' request times); the image's static RAM is what CI budgets.

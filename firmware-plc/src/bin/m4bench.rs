@@ -1,5 +1,5 @@
 //! Cortex-M4 instruction count of the PLC scan, without a board (see
-//! `/work/shared/tools/README.md` and `docs/vm.md`):
+//! `/work/shared/tools/README.md` and `plc-vm/docs/vm.md`):
 //!
 //! ```text
 //! cargo build --profile firmware --target thumbv7em-none-eabihf --bin m4bench -p firmware-plc
@@ -222,5 +222,5 @@ mod target {
 
 #[cfg(not(target_os = "none"))]
 fn main() {
-    eprintln!("m4bench runs on the target: see docs/vm.md");
+    eprintln!("m4bench runs on the target: see plc-vm/docs/vm.md");
 }

@@ -21,7 +21,7 @@
 //! application only for the duration of a call.
 //!
 //! Full description: `shared-protocol/docs/service.md`; the costs per byte and per frame
-//! are in `docs/vm.md`.
+//! are in `docs/service-cost.md`.
 //!
 //! [`PlcLink`]: shared_protocol::link::PlcLink
 

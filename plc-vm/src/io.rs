@@ -80,7 +80,7 @@ impl core::fmt::Display for Warning {
     }
 }
 
-/// Everything one scan produces. [`crate::vm::PlcVm::scan`] overwrites all of it.
+/// Everything one scan produces. [`crate::PlcVm::scan`] overwrites all of it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct ScanOutputs {
@@ -89,7 +89,7 @@ pub struct ScanOutputs {
     /// The `LCD` fields filled by this scan, in execution order; `None` = no `LCD` reached it.
     pub lcd: [Option<i16>; LCD_FIELDS],
     /// Bit n set = Qn was written by `WR`/`WRC` in this scan (even with an unchanged
-    /// value); the value to send is [`crate::vm::PlcVm::q`]`(n)`, the newest write wins.
+    /// value); the value to send is [`crate::PlcVm::q`]`(n)`, the newest write wins.
     pub q_dirty: u64,
     /// Direction request for the drive (`true` = reverse): on the first scan that executes
     /// a `REV` after RUN starts, then only when it differs from the last one reported.

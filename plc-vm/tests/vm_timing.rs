@@ -2,7 +2,7 @@
 //! from the scan that first saw the input, they never end early and end at most one scan
 //! late, whatever the scan periods, presets, input patterns and clock wrap.
 
-use firmware_plc::vm::{PlcVm, ScanInputs, ScanOutputs};
+use plc_vm::{PlcVm, ScanInputs, ScanOutputs};
 use proptest::prelude::*;
 use shared_protocol::program::assemble;
 use shared_protocol::units::Millis;

@@ -1,7 +1,7 @@
 //! The VM never panics: on any program (valid or not), any inputs and any times; and on
 //! verified programs its outputs only report what the program can produce.
 
-use firmware_plc::vm::{DriveView, PlcVm, ScanInputs, ScanOutputs, Warning};
+use plc_vm::{DriveView, PlcVm, ScanInputs, ScanOutputs, Warning};
 use proptest::prelude::*;
 use shared_protocol::program::testing::any_instruction;
 use shared_protocol::program::{
@@ -121,7 +121,7 @@ fn named_outputs(prog: &Program) -> u8 {
         .skip(usize::from(PLC_FIRST_LINE))
         .flatten()
         .fold(0, |m, i| match i.operand {
-            Some(Operand::O(n)) if n < firmware_plc::vm::OUTPUTS => m | 1 << n,
+            Some(Operand::O(n)) if n < plc_vm::OUTPUTS => m | 1 << n,
             _ => m,
         })
 }

@@ -12,6 +12,23 @@
 //! interpreting the stored lines (docs/vm.md, "Speed"). The direct interpreter is kept,
 //! in test builds only, as the oracle of a differential test (`reference.rs`,
 //! `differential.rs`).
+//!
+//! A crate of its own (re-exported as `firmware_plc::vm`) because the image builds it for
+//! speed and the rest of the PLC core for size: with one opt-level for both, the scan's
+//! loop stops inlining its operations at the size setting (`docs/size.md` of the
+//! workspace, "PLC image: VM crate and screen text").
+#![cfg_attr(not(test), no_std)]
+// The VM touches no registers.
+#![forbid(unsafe_code)]
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::indexing_slicing,
+        clippy::panic
+    )
+)]
 
 mod arith;
 mod cells;

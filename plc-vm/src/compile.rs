@@ -468,7 +468,7 @@ impl Lowering {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::vm::sample::{mixed_program, timer_program};
+    use crate::sample::{mixed_program, timer_program};
     use Mnemonic as M;
     use Operand as X;
 
@@ -502,7 +502,7 @@ mod tests {
         ]);
         assert_eq!(
             ops(&p),
-            vec![Op::Push(crate::vm::cells::bit_cell(X::D(7)).unwrap())]
+            vec![Op::Push(crate::cells::bit_cell(X::D(7)).unwrap())]
         );
     }
 
@@ -554,7 +554,7 @@ mod tests {
 
     #[test]
     fn a_bit_load_and_a_logic_op_become_one_op() {
-        let b = |n| crate::vm::cells::bit_cell(X::B(n)).unwrap();
+        let b = |n| crate::cells::bit_cell(X::B(n)).unwrap();
         let p = program(&[
             (150, M::Ld, Some(X::B(0)), 0),
             (151, M::Ld, Some(X::B(1)), 0),

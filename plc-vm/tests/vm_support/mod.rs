@@ -2,7 +2,7 @@
 //! and drives a [`PlcVm`] scan by scan with explicit times.
 #![allow(dead_code)]
 
-use firmware_plc::vm::{PlcVm, ScanInputs, ScanOutputs};
+use plc_vm::{PlcVm, ScanInputs, ScanOutputs};
 use shared_protocol::program::{assemble, verify, Program};
 use shared_protocol::units::Millis;
 

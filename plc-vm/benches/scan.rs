@@ -1,5 +1,5 @@
 //! Host benchmark of the PLC scan: ns per scan and per executed instruction for full
-//! 850-line programs. `cargo bench -p firmware-plc --bench scan`
+//! 850-line programs. `cargo bench -p plc-vm --bench scan`
 //!
 //! The target figure (the 1 ms budget on the 170 MHz Cortex-M4) comes from
 //! `src/bin/m4bench.rs` + `m4count.py`; this one tracks regressions on the host.
@@ -7,8 +7,8 @@
 use std::hint::black_box;
 use std::time::Instant;
 
-use firmware_plc::vm::sample::{mixed_program, plc_instructions, timer_program};
-use firmware_plc::vm::{PlcVm, ScanInputs, ScanOutputs};
+use plc_vm::sample::{mixed_program, plc_instructions, timer_program};
+use plc_vm::{PlcVm, ScanInputs, ScanOutputs};
 use shared_protocol::program::{assemble, Program};
 use shared_protocol::units::Millis;
 

@@ -267,9 +267,6 @@ fn div_by_zero_q_warns_with_line_and_goes_on() {
     r.inputs.analog[0] = 100;
     let out = r.step(10);
     assert_eq!(out.lcd[0], Some(0));
-    assert_eq!(
-        out.warning,
-        Some(firmware_plc::vm::Warning::Div0 { line: 151 })
-    );
+    assert_eq!(out.warning, Some(plc_vm::Warning::Div0 { line: 151 }));
     assert!(out.output(0));
 }
