@@ -788,3 +788,227 @@ fn the_status_row_rotates_one_item_per_requested_safety_function() {
     assert!(r.contains(&"S:SS1 NOK".to_string()), "{r:?}");
     assert!(r.contains(&"S:SOS NOK".to_string()), "{r:?}");
 }
+
+/// Every status-row message with numbers in it, on 20 and 16 columns: the text the LCD
+/// gets, character for character (the messages are built without `core::fmt`).
+#[test]
+fn messages_with_numbers_are_exact() {
+    use crate::storage::StorageError;
+    use shared_protocol::program::ShortText;
+    use shared_protocol::safety::{SafetyFunction, SafetySetting};
+    let cases: [(Notice, &str, &str); 11] = [
+        (
+            Notice::Saved { slot: 3 },
+            "SAVED IN SLOT 3",
+            "SAVED IN SLOT 3",
+        ),
+        (
+            Notice::Written { slot: 4 },
+            "SLOT 4 WRITTEN (SVC)",
+            "S4 WRITTEN (SVC)",
+        ),
+        (
+            Notice::SaveFailed {
+                slot: 1,
+                error: StorageError::Damaged(1),
+            },
+            "SAVE S1 FAILED DAMAG",
+            "SAVE S1 FAILED D",
+        ),
+        (
+            Notice::LoadFailed {
+                slot: 2,
+                error: StorageError::Empty(2),
+            },
+            "S2 EMPTY",
+            "S2 EMPTY",
+        ),
+        (
+            Notice::Loaded(LoadReport {
+                slot: 4,
+                used: SlotCopy::A,
+                generation: 9,
+                other: OtherCopy::Same,
+            }),
+            "LOADED SLOT 4",
+            "LOADED SLOT 4",
+        ),
+        (
+            Notice::RunRefused {
+                line: Some(7),
+                reason: ShortText::Needs(SafetyFunction::Ss2, SafetySetting::Ts2),
+            },
+            "007:SS2 needs ts2",
+            "007:SS2 needs ts",
+        ),
+        (
+            Notice::RunRefused {
+                line: Some(999),
+                reason: ShortText::Twice(Mnemonic::Fss),
+            },
+            "999:fss twice",
+            "999:fss twice",
+        ),
+        (
+            Notice::RunRefused {
+                line: None,
+                reason: ShortText::NeedsSine(SafetyFunction::Sos),
+            },
+            "NO RUN:SOS needs sin",
+            "NO RUN:SOS needs",
+        ),
+        (
+            Notice::NotRated { signature: 0x3A7F },
+            "NOT RATED SIG 3A7F",
+            "NOT RATED 3A7F",
+        ),
+        (
+            Notice::NotRated { signature: 0x000B },
+            "NOT RATED SIG 000B",
+            "NOT RATED 000B",
+        ),
+        (Notice::Text("SIG MISMATCH"), "SIG MISMATCH", "SIG MISMATCH"),
+    ];
+    for (notice, wide, narrow) in cases {
+        let mut ed = Editor::new(20, 4);
+        ed.notify(notice);
+        assert_eq!(ed.message(), Some(wide), "{notice:?}");
+        let mut ed = Editor::new(16, 2);
+        ed.notify(notice);
+        assert_eq!(ed.message(), Some(narrow), "{notice:?}");
+    }
+    // A verifier error found by `*` `5`, and the signature of a program using safety.
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[151] = Some(ins(Mnemonic::Wr, Some(Operand::Pw1), 0));
+    press(&mut ed, &mut p, false, "*5");
+    assert_eq!(ed.message(), Some("151:wrong operand"));
+}
+
+/// The run page's numbers at their edges (frequency, the LCD fields), both widths.
+#[test]
+fn run_page_numbers_are_exact() {
+    let p = Program::default();
+    let rows = |cols: u8, rows: u8, run: RunView<'_>| -> Vec<String> {
+        let mut ed = Editor::new(cols, rows);
+        ed.show_page(Page::Run);
+        let s = draw(&ed, &p, run, &[], 0);
+        (0..rows).map(|r| s.row(r).to_string()).collect()
+    };
+    let base = RunView {
+        running: true,
+        link_up: true,
+        drive_state: DriveState::Run,
+        remote: true,
+        ..RunView::default()
+    };
+    let zero = RunView {
+        freq_dhz: 0,
+        lcd: [Some(0), Some(-5), Some(32767), Some(9)],
+        ..base
+    };
+    assert_eq!(
+        rows(20, 4, zero)[..3],
+        [
+            "RUN *RUN     0.0Hz F",
+            "1:     0   2:    -5 ",
+            "3: 32767   4:     9 "
+        ]
+    );
+    assert_eq!(
+        rows(16, 2, zero)[..2],
+        ["RUN RUN    0.0*F", "1=0     2=-5    "]
+    );
+    let edge = RunView {
+        running: false,
+        drive_state: DriveState::Fault,
+        freq_dhz: -32768,
+        reverse: true,
+        lcd: [Some(-32768), None, Some(1000), Some(-1)],
+        remote: false,
+        ..base
+    };
+    assert_eq!(
+        rows(20, 4, edge)[..3],
+        [
+            "STOP FAULT 3276.8Hz ",
+            "1:-32768   2:     - ",
+            "3:  1000   4:    -1 "
+        ]
+    );
+    assert_eq!(
+        rows(16, 2, edge)[..2],
+        ["STOPFAULT3276.8 ", "1=-327682=-     "]
+    );
+    let small = RunView {
+        freq_dhz: 7,
+        ..base
+    };
+    assert_eq!(rows(20, 4, small)[0], "RUN *RUN     0.7Hz F");
+    assert_eq!(rows(16, 3, small)[0], "RUN RUN    0.7*F");
+}
+
+/// The listing's numbers and the `#` prompt: line numbers, operands, constants.
+#[test]
+fn listing_numbers_and_goto_prompt_are_exact() {
+    use shared_protocol::safety::SafetyFunction;
+    let mut ed = Editor::new(20, 4);
+    let mut p = Program::default();
+    p.lines[0] = Some(ins(Mnemonic::Ld, Some(Operand::K(9)), 0));
+    p.lines[1] = Some(ins(Mnemonic::Ld, Some(Operand::K(0)), 9999));
+    p.lines[2] = Some(ins(Mnemonic::Ld, Some(Operand::K(1)), 65535));
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(0), ">000 LD   K09 0000  ");
+    assert_eq!(s.row(1), " 001 LD   K00 9999  ");
+    assert_eq!(s.row(2), " 002 LD   K01 65535 ");
+    p.lines[997] = Some(ins(Mnemonic::Wr, Some(Operand::Q(63)), 0));
+    p.lines[998] = Some(ins(Mnemonic::Ld, Some(Operand::Com), 0));
+    p.lines[999] = Some(ins(
+        Mnemonic::Sfr,
+        Some(Operand::Sf(SafetyFunction::Ss1)),
+        0,
+    ));
+    press(&mut ed, &mut p, false, "#997");
+    let s = draw(&ed, &p, RunView::default(), &[], 0);
+    assert_eq!(s.row(0), ">997 WR   Q63       ");
+    assert_eq!(s.row(1), " 998 LD   COM       ");
+    assert_eq!(s.row(2), " 999 SFR  SS1       ");
+    press(&mut ed, &mut p, false, "#");
+    assert_eq!(
+        draw(&ed, &p, RunView::default(), &[], 0).row(3),
+        "GOTO LINE ___       "
+    );
+    press(&mut ed, &mut p, false, "4");
+    assert_eq!(
+        draw(&ed, &p, RunView::default(), &[], 0).row(3),
+        "GOTO LINE 4__       "
+    );
+    press(&mut ed, &mut p, false, "2");
+    assert_eq!(
+        draw(&ed, &p, RunView::default(), &[], 0).row(3),
+        "GOTO LINE 42_       "
+    );
+}
+
+/// The fault log's numbers at their edges.
+#[test]
+fn fault_log_numbers_are_exact() {
+    let log: Vec<FaultEntry> = (0..12)
+        .map(|k| FaultEntry {
+            code: if k == 0 { 255 } else { 4 },
+            power_cycle: 65535,
+            uptime_s: 1_000_000 + k,
+        })
+        .collect();
+    let mut ed = Editor::new(20, 4);
+    let p = Program::default();
+    ed.show_page(Page::FaultLog);
+    let s = draw(&ed, &p, RunView::default(), &log, 0);
+    assert_eq!(s.row(0).trim_end(), "LOG 01/12 F255 ?");
+    assert_eq!(s.row(2).trim_end(), "PWR 65535 UP 277:46:");
+    let mut narrow = Editor::new(16, 2);
+    narrow.show_page(Page::FaultLog);
+    let s = draw(&narrow, &p, RunView::default(), &log, 2000);
+    assert_eq!(s.row(0), "01/12 F255 ?    ");
+    assert_eq!(s.row(1), "PWR 65535 UP 277");
+}
