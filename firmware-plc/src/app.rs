@@ -46,6 +46,7 @@ use shared_protocol::program::{
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
 
 use crate::debounce::{Debouncer, KeyMatrix};
+use crate::editor::text::Text;
 use crate::editor::{
     Editor, Key, Notice, Page, Request, RunView, SafetyView, Screen, View, Warning,
 };
@@ -916,7 +917,11 @@ impl<E: Eeprom> PlcApp<E> {
             },
         });
         let drive = self.drive_status();
-        let drive_text = drive.and_then(|s| s.warning).map(|w| w.short());
+        let drive_text = drive.and_then(|s| s.warning).map(|w| {
+            let mut t = Text::new();
+            t.drive_warning(w);
+            t
+        });
         let drive_warning = drive_text.as_ref().map(|t| Warning {
             text: t.as_str(),
             line: None,

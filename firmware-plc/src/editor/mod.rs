@@ -27,17 +27,19 @@ mod choice;
 mod key;
 mod pages;
 mod screen;
+pub(crate) mod text;
 
 pub use key::Key;
 pub use screen::{Screen, MAX_COLS, MAX_ROWS};
 
 use crate::storage::{FaultEntry, LoadReport, OtherCopy, ProgramUse, StorageError, SLOTS};
-use core::fmt::Write;
+use pages::Line;
 use shared_protocol::link::DriveState;
 use shared_protocol::program::{
     safety_settings, uses_safety, verify, Instruction, Program, Section, ShortText, LINES,
     PLC_FIRST_LINE,
 };
+use text::Text;
 
 /// What the application must do after a key.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -382,11 +384,9 @@ impl Editor {
         u16::from(self.rows.saturating_sub(1).max(1))
     }
 
-    fn set_message(&mut self, args: core::fmt::Arguments<'_>) {
+    fn set_message(&mut self, text: &str) {
         let mut s = Message::new();
-        let mut long: heapless::String<64> = heapless::String::new();
-        let _ = long.write_fmt(args);
-        for ch in long.chars().take(usize::from(self.cols)) {
+        for ch in text.chars().take(usize::from(self.cols)) {
             let _ = s.push(ch);
         }
         self.message = Some(s);
@@ -400,14 +400,25 @@ impl Editor {
             Notice::Saved { slot } => {
                 self.slot = Some(slot);
                 self.modified = false;
-                self.set_message(format_args!("SAVED IN SLOT {slot}"));
+                self.set_message(Line::new().str("SAVED IN SLOT ").dec(slot.into()));
             }
             Notice::Written { slot } if narrow => {
-                self.set_message(format_args!("S{slot} WRITTEN (SVC)"));
+                self.set_message(Line::new().char('S').dec(slot.into()).str(" WRITTEN (SVC)"));
             }
-            Notice::Written { slot } => self.set_message(format_args!("SLOT {slot} WRITTEN (SVC)")),
+            Notice::Written { slot } => self.set_message(
+                Line::new()
+                    .str("SLOT ")
+                    .dec(slot.into())
+                    .str(" WRITTEN (SVC)"),
+            ),
             Notice::SaveFailed { slot, error } => {
-                self.set_message(format_args!("SAVE S{slot} FAILED {}", storage_short(error)));
+                self.set_message(
+                    Line::new()
+                        .str("SAVE S")
+                        .dec(slot.into())
+                        .str(" FAILED ")
+                        .str(storage_short(error)),
+                );
             }
             Notice::Loaded(r) => {
                 self.slot = Some(r.slot);
@@ -416,39 +427,45 @@ impl Editor {
                 self.top = 0;
                 self.field = Field::Mnemonic;
                 match r.other {
-                    OtherCopy::Bad(_) if narrow => self.set_message(format_args!(
-                        "S{} {} BAD,USED {}",
-                        r.slot,
-                        r.used.other().letter(),
-                        r.used.letter()
-                    )),
-                    OtherCopy::Bad(_) => self.set_message(format_args!(
-                        "S{}:COPY {} BAD,USED {}",
-                        r.slot,
-                        r.used.other().letter(),
-                        r.used.letter()
-                    )),
-                    _ => self.set_message(format_args!("LOADED SLOT {}", r.slot)),
+                    OtherCopy::Bad(_) => self.set_message(
+                        Line::new()
+                            .char('S')
+                            .dec(r.slot.into())
+                            .str(if narrow { " " } else { ":COPY " })
+                            .char(r.used.other().letter())
+                            .str(" BAD,USED ")
+                            .char(r.used.letter()),
+                    ),
+                    _ => self.set_message(Line::new().str("LOADED SLOT ").dec(r.slot.into())),
                 }
             }
             Notice::LoadFailed { slot, error } => {
-                self.set_message(format_args!("S{slot} {}", storage_short(error)));
+                self.set_message(
+                    Line::new()
+                        .char('S')
+                        .dec(slot.into())
+                        .char(' ')
+                        .str(storage_short(error)),
+                );
             }
             Notice::RunRefused { line, reason } => match line {
                 Some(l) => {
                     self.goto_line(l);
-                    self.set_message(format_args!("{l:03}:{reason}"));
+                    self.set_message(Line::new().dec0(l.into(), 3).char(':').short_text(reason));
                 }
-                None => self.set_message(format_args!("NO RUN:{reason}")),
+                None => self.set_message(Line::new().str("NO RUN:").short_text(reason)),
             },
-            Notice::Text(t) => self.set_message(format_args!("{t}")),
+            Notice::Text(t) => self.set_message(t),
             // 16 columns: the signature must stay readable.
-            Notice::NotRated { signature } if self.cols < 18 => {
-                self.set_message(format_args!("NOT RATED {signature:04X}"))
-            }
-            Notice::NotRated { signature } => {
-                self.set_message(format_args!("NOT RATED SIG {signature:04X}"))
-            }
+            Notice::NotRated { signature } => self.set_message(
+                Line::new()
+                    .str(if self.cols < 18 {
+                        "NOT RATED "
+                    } else {
+                        "NOT RATED SIG "
+                    })
+                    .hex4(signature),
+            ),
         }
     }
 
@@ -499,7 +516,7 @@ impl Editor {
                 if key == Key::Hash {
                     self.discard(then, program, running)
                 } else {
-                    self.set_message(format_args!("CANCELLED"));
+                    self.set_message("CANCELLED");
                     None
                 }
             }
@@ -536,7 +553,7 @@ impl Editor {
                 self.slot = None;
                 self.modified = false;
                 self.goto_line(0);
-                self.set_message(format_args!("NEW PROGRAM"));
+                self.set_message("NEW PROGRAM");
                 Some(Request::New)
             }
         }
@@ -595,14 +612,19 @@ impl Editor {
             return Some(Request::Stop);
         }
         if self.program_use == Some(ProgramUse::Writes) {
-            self.set_message(format_args!("EEPROM BUSY"));
+            self.set_message("EEPROM BUSY");
             return None;
         }
         match verify(program) {
             Ok(()) => Some(Request::Run { slot: self.slot() }),
             Err(e) => {
                 self.goto_line(e.line);
-                self.set_message(format_args!("{:03}:{}", e.line, e.kind.short()));
+                self.set_message(
+                    Line::new()
+                        .dec0(e.line.into(), 3)
+                        .char(':')
+                        .short_text(e.kind.short()),
+                );
                 None
             }
         }
@@ -611,7 +633,7 @@ impl Editor {
     /// Edits and loads: refused in RUN, and while a storage job holds the program.
     fn refuse_while_running(&mut self, running: bool) -> bool {
         if running {
-            self.set_message(format_args!("STOP FIRST (A)"));
+            self.set_message("STOP FIRST (A)");
             return true;
         }
         self.refuse_while_storage_busy()
@@ -619,7 +641,7 @@ impl Editor {
 
     fn refuse_while_storage_busy(&mut self) -> bool {
         if self.program_use.is_some() {
-            self.set_message(format_args!("EEPROM BUSY"));
+            self.set_message("EEPROM BUSY");
             return true;
         }
         false
@@ -633,7 +655,7 @@ impl Editor {
         running: bool,
     ) -> Option<Request> {
         let Key::Digit(d) = key else {
-            self.set_message(format_args!("CANCELLED"));
+            self.set_message("CANCELLED");
             return None;
         };
         match p {
@@ -655,7 +677,7 @@ impl Editor {
                 Some(Request::ClearFaultLog)
             }
             Prefix::Line if self.page == Page::FaultLog => {
-                self.set_message(format_args!("CANCELLED"));
+                self.set_message("CANCELLED");
                 None
             }
             Prefix::Line => {
@@ -663,7 +685,7 @@ impl Editor {
                 None
             }
             _ => {
-                self.set_message(format_args!("CANCELLED"));
+                self.set_message("CANCELLED");
                 None
             }
         }
@@ -675,19 +697,25 @@ impl Editor {
             5 => match verify(program) {
                 // safety.md 8: the signature of a program using the safety functions.
                 // On a 16-column LCD the signature comes first.
-                Ok(()) if uses_safety(program) => self.set_message(format_args!(
-                    "{}SIG {:04X}",
-                    if self.cols >= 19 {
-                        "PROGRAM OK "
-                    } else {
-                        "OK "
-                    },
-                    safety_settings(program.lines.iter()).signature()
-                )),
-                Ok(()) => self.set_message(format_args!("PROGRAM OK")),
+                Ok(()) if uses_safety(program) => self.set_message(
+                    Line::new()
+                        .str(if self.cols >= 19 {
+                            "PROGRAM OK "
+                        } else {
+                            "OK "
+                        })
+                        .str("SIG ")
+                        .hex4(safety_settings(program.lines.iter()).signature()),
+                ),
+                Ok(()) => self.set_message("PROGRAM OK"),
                 Err(e) => {
                     self.goto_line(e.line);
-                    self.set_message(format_args!("{:03}:{}", e.line, e.kind.short()));
+                    self.set_message(
+                        Line::new()
+                            .dec0(e.line.into(), 3)
+                            .char(':')
+                            .short_text(e.kind.short()),
+                    );
                 }
             },
             1 | 3 | 0 if self.refuse_while_running(running) => {}
@@ -701,7 +729,7 @@ impl Editor {
                 }
                 self.field = Field::Mnemonic;
             }
-            _ => self.set_message(format_args!("CANCELLED")),
+            _ => self.set_message("CANCELLED"),
         }
     }
 
@@ -718,7 +746,7 @@ impl Editor {
         let at = usize::from(self.line);
         let end = self.section_end();
         if program.lines.get(end).is_some_and(|l| l.is_some()) {
-            self.set_message(format_args!("SECTION FULL"));
+            self.set_message("SECTION FULL");
             return;
         }
         if let Some(s) = program.lines.get_mut(at..=end) {
@@ -764,7 +792,7 @@ impl Editor {
             }
             _ => {
                 self.mode = Mode::Browse;
-                self.set_message(format_args!("CANCELLED"));
+                self.set_message("CANCELLED");
             }
         }
     }
@@ -786,7 +814,7 @@ impl Editor {
                     .find(|&n| program.lines.get(n).is_some_and(|l| l.is_some()));
                 match next {
                     Some(n) => self.goto_line(n as u16),
-                    None => self.set_message(format_args!("PROGRAM EMPTY")),
+                    None => self.set_message("PROGRAM EMPTY"),
                 }
             }
             4 => {
@@ -850,7 +878,7 @@ impl Editor {
                 if !field_available(program.get(self.line), self.field) {
                     self.field = Field::Mnemonic;
                 }
-                self.set_message(format_args!("CANCELLED"));
+                self.set_message("CANCELLED");
                 return None;
             }
             Key::Digit(d) => d,
@@ -943,17 +971,13 @@ impl Editor {
             if wide && line == self.line {
                 out.put(row, 0, ">");
             }
-            out.put_fmt(row, cols.number, format_args!("{line:03}"));
+            out.put(row, cols.number, Text::new().dec0(line.into(), 3));
             if let Some(i) = instr {
                 out.put(row, cols.mnemonic, i.mnemonic.text());
                 if let Some(op) = i.operand {
-                    out.put(
-                        row,
-                        cols.operand,
-                        &shared_protocol::program::operand_text(&op),
-                    );
+                    out.put(row, cols.operand, Text::new().operand(&op));
                     if op.is_k() {
-                        out.put_fmt(row, cols.constant, format_args!("{:04}", i.constant));
+                        out.put(row, cols.constant, Text::new().dec0(i.constant.into(), 4));
                     }
                 }
             }

@@ -1,12 +1,12 @@
 //! Drawing: listing columns, the status row, the run page and the fault log page.
 
+use super::text::Text;
 use super::{Editor, Field, Mode, Page, Prefix, Screen, View, MAX_COLS};
-use core::fmt::Write;
 use shared_protocol::link::{fault_name, fault_text};
 use shared_protocol::safety::{SafetyFunction, FUNCTION_MASK};
 
 /// One row of text, long enough for any row before clipping.
-pub(super) type Line = heapless::String<64>;
+pub(super) type Line = Text;
 
 /// How long each status-row item stays before the next one rotates in.
 const ROTATE_MS: u32 = 2000;
@@ -53,39 +53,29 @@ impl ListingCols {
     }
 }
 
-fn push(s: &mut Line, args: core::fmt::Arguments<'_>) {
-    // Overlong text is clipped at the display edge anyway.
-    let _ = s.write_fmt(args);
-}
-
 /// Tenths as `12.3` (sign dropped: the direction is shown separately).
-struct Tenths(i16);
-
-impl core::fmt::Display for Tenths {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        let v = self.0.unsigned_abs();
-        let mut s: heapless::String<8> = heapless::String::new();
-        write!(s, "{}.{}", v / 10, v % 10)?;
-        f.pad(&s)
-    }
+fn tenths(v: i16) -> Text {
+    let v = u32::from(v.unsigned_abs());
+    let mut t = Text::new();
+    t.dec(v / 10).char('.').dec(v % 10);
+    t
 }
 
 /// A field value, or `-` when no `LCD` instruction filled it.
-struct FieldValue(Option<i16>);
-
-impl core::fmt::Display for FieldValue {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        let mut s: heapless::String<8> = heapless::String::new();
-        match self.0 {
-            Some(v) => write!(s, "{v}")?,
-            None => s.push('-').map_err(|_| core::fmt::Error)?,
-        }
-        f.pad(&s)
-    }
+fn field_value(v: Option<i16>) -> Text {
+    let mut t = Text::new();
+    match v {
+        Some(v) => t.int(i32::from(v)),
+        None => t.char('-'),
+    };
+    t
 }
 
 fn fault_line(code: u8, s: &mut Line) {
-    push(s, format_args!("F{} {}", code, fault_text(code)));
+    s.char('F')
+        .dec(u32::from(code))
+        .char(' ')
+        .str(fault_text(code));
 }
 
 fn warning_line(w: Option<super::Warning<'_>>, s: &mut Line) -> bool {
@@ -93,9 +83,9 @@ fn warning_line(w: Option<super::Warning<'_>>, s: &mut Line) -> bool {
         return false;
     };
     match w.line {
-        Some(l) => push(s, format_args!("W:{} @ {:03}", w.text, l)),
-        None => push(s, format_args!("W:{}", w.text)),
-    }
+        Some(l) => s.str("W:").str(w.text).str(" @ ").dec0(u32::from(l), 3),
+        None => s.str("W:").str(w.text),
+    };
     true
 }
 
@@ -135,15 +125,21 @@ fn safety_line(view: &View<'_>, bit: u8, s: &mut Line) {
     };
     let name = f.name();
     if f == SafetyFunction::Sto {
-        push(s, format_args!("S:STO ON"));
+        s.str("S:STO ON");
     } else if sv.status & f.mask() != 0 {
-        push(s, format_args!("S:{name} OK"));
+        s.str("S:").str(name).str(" OK");
     } else if view.run.fault.is_some() {
-        push(s, format_args!("S:{name} NOK"));
+        s.str("S:").str(name).str(" NOK");
     } else {
         let since = sv.since_ms.get(usize::from(bit)).copied().unwrap_or(0);
         let ds = (view.now_ms.wrapping_sub(since) / 100).min(99_999);
-        push(s, format_args!("S:{name} DEC {}.{}s", ds / 10, ds % 10));
+        s.str("S:")
+            .str(name)
+            .str(" DEC ")
+            .dec(ds / 10)
+            .char('.')
+            .dec(ds % 10)
+            .char('s');
     }
 }
 
@@ -157,7 +153,7 @@ fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
         ed.message_drawn_at.set(Some((drawn, standing)));
         let new_alert = key != standing;
         if !any_alert(view) || (now.wrapping_sub(drawn) < MESSAGE_MS && !new_alert) {
-            push(s, format_args!("{m}"));
+            s.str(m);
             return true;
         }
     }
@@ -178,15 +174,12 @@ fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
         Mode::ConfirmDiscard { .. } if narrow => "DISCARD? #=YES",
         Mode::ConfirmDiscard { .. } => "DISCARD EDITS? #=YES",
         Mode::Goto { value, digits } => {
-            push(s, format_args!("GOTO LINE "));
+            s.str("GOTO LINE ");
             if digits > 0 {
-                push(
-                    s,
-                    format_args!("{:0width$}", value, width = usize::from(digits)),
-                );
+                s.dec0(u32::from(value), usize::from(digits));
             }
             for _ in digits..3 {
-                push(s, format_args!("_"));
+                s.char('_');
             }
             return true;
         }
@@ -199,7 +192,7 @@ fn prompt(ed: &Editor, view: &View<'_>, s: &mut Line) -> bool {
             Field::Constant => "2/8 DIGIT 4/6 5OK",
         },
     };
-    push(s, format_args!("{text}"));
+    s.str(text);
     true
 }
 
@@ -216,7 +209,7 @@ fn main_hint(ed: &Editor, view: &View<'_>, s: &mut Line) {
         (true, true) => "*9 ACK A STOP",
         (false, true) => "*9 ACK A RUN",
     };
-    push(s, format_args!("{text}"));
+    s.str(text);
 }
 
 /// The help hints of a page, most important first.
@@ -247,7 +240,7 @@ fn hint(ed: &Editor, view: &View<'_>, n: usize, s: &mut Line) -> usize {
         1 => second,
         k => page.get(k - 2).copied().unwrap_or(first),
     };
-    push(s, format_args!("{text}"));
+    s.str(text);
     count
 }
 
@@ -313,45 +306,48 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
     // (16 columns: before the direction).
     let mark = if r.remote { '*' } else { ' ' };
     if !r.link_up {
-        push(s, format_args!("{plc:<4}{mark}LINK LOST"));
+        s.left(plc, 4).char(mark).str("LINK LOST");
         return;
     }
     let dir = if r.reverse { 'R' } else { 'F' };
+    let freq = tenths(r.freq_dhz);
     if narrow {
-        push(
-            s,
-            format_args!(
-                "{plc:<4}{:<5}{:>5}{mark}{dir}",
-                r.drive_state.name(),
-                Tenths(r.freq_dhz)
-            ),
-        );
+        s.left(plc, 4)
+            .left(r.drive_state.name(), 5)
+            .right(&freq, 5)
+            .char(mark)
+            .char(dir);
     } else {
-        push(
-            s,
-            format_args!(
-                "{plc:<4}{mark}{:<5} {:>5}Hz {dir}",
-                r.drive_state.name(),
-                Tenths(r.freq_dhz)
-            ),
-        );
+        s.left(plc, 4)
+            .char(mark)
+            .left(r.drive_state.name(), 5)
+            .char(' ')
+            .right(&freq, 5)
+            .str("Hz ")
+            .char(dir);
     }
 }
 
 fn fields_row(view: &View<'_>, first: usize, narrow: bool, s: &mut Line) {
     let a = view.run.lcd.get(first).copied().flatten();
     let b = view.run.lcd.get(first + 1).copied().flatten();
-    let (na, nb) = (first + 1, first + 2);
+    let (na, nb) = (first as u32 + 1, first as u32 + 2);
+    let (a, b) = (field_value(a), field_value(b));
     if narrow {
-        push(
-            s,
-            format_args!("{na}={:<6}{nb}={:<6}", FieldValue(a), FieldValue(b)),
-        );
+        s.dec(na)
+            .char('=')
+            .left(&a, 6)
+            .dec(nb)
+            .char('=')
+            .left(&b, 6);
     } else {
-        push(
-            s,
-            format_args!("{na}:{:>6}   {nb}:{:>6}", FieldValue(a), FieldValue(b)),
-        );
+        s.dec(na)
+            .char(':')
+            .right(&a, 6)
+            .str("   ")
+            .dec(nb)
+            .char(':')
+            .right(&b, 6);
     }
 }
 
@@ -429,43 +425,30 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     let mut text = Line::new();
     let mut time = Line::new();
     match entry {
-        None => push(&mut head, format_args!("FAULT LOG EMPTY")),
+        None => {
+            head.str("FAULT LOG EMPTY");
+        }
         Some(e) => {
-            if narrow {
-                push(
-                    &mut head,
-                    format_args!(
-                        "{:02}/{:02} F{} {}",
-                        index + 1,
-                        n,
-                        e.code,
-                        fault_name(e.code)
-                    ),
-                );
-            } else {
-                push(
-                    &mut head,
-                    format_args!(
-                        "LOG {:02}/{:02} F{} {}",
-                        index + 1,
-                        n,
-                        e.code,
-                        fault_name(e.code)
-                    ),
-                );
+            if !narrow {
+                head.str("LOG ");
             }
-            push(&mut text, format_args!("{}", fault_text(e.code)));
+            head.dec0(index as u32 + 1, 2)
+                .char('/')
+                .dec0(n as u32, 2)
+                .str(" F")
+                .dec(u32::from(e.code))
+                .char(' ')
+                .str(fault_name(e.code));
+            text.str(fault_text(e.code));
             let t = e.uptime_s;
-            push(
-                &mut time,
-                format_args!(
-                    "PWR {} UP {}:{:02}:{:02}",
-                    e.power_cycle,
-                    t / 3600,
-                    (t / 60) % 60,
-                    t % 60
-                ),
-            );
+            time.str("PWR ")
+                .dec(u32::from(e.power_cycle))
+                .str(" UP ")
+                .dec(t / 3600)
+                .char(':')
+                .dec0((t / 60) % 60, 2)
+                .char(':')
+                .dec0(t % 60, 2);
         }
     }
     pad_row(out, 0, &head);

@@ -1,6 +1,6 @@
 //! A character LCD's content: what the HD44780 driver copies to the display.
 
-use core::fmt::Write;
+use core::fmt::Write as _;
 
 /// Widest supported display.
 pub const MAX_COLS: usize = 20;
@@ -72,14 +72,6 @@ impl Screen {
                 *cell = b;
             }
         }
-    }
-
-    /// Write formatted text at (`row`, `col`), clipped like [`Screen::put`].
-    pub fn put_fmt(&mut self, row: u8, col: u8, args: core::fmt::Arguments<'_>) {
-        let mut s: heapless::String<64> = heapless::String::new();
-        // Text longer than the buffer is cut, like text wider than the display.
-        let _ = s.write_fmt(args);
-        self.put(row, col, &s);
     }
 
     /// One row's text, exactly `cols` characters (empty for rows outside).
