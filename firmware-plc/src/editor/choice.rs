@@ -47,7 +47,9 @@ pub fn with_mnemonic(m: Mnemonic, section: Section, old: Option<&Instruction>) -
 /// `i` with its constant forced into the range of its (mnemonic, operand).
 fn with_operand(mut i: Instruction, section: Section) -> Instruction {
     i.constant = match constant_range(i.mnemonic, section, i.operand) {
-        Some(r) => i.constant.clamp(*r.start(), *r.end()),
+        // Not `clamp`: it panics (its message formats both bounds with `core::fmt`) on an
+        // empty range; this never panics and gives the same value on every real range.
+        Some(r) => i.constant.max(*r.start()).min(*r.end()),
         None => 0,
     };
     i
