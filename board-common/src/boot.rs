@@ -12,15 +12,20 @@ use crate::{banner, clocks, reset_cause};
 /// priorities there cost nothing.
 pub const BACKGROUND: Priority = Priority::P2;
 
-/// Reads the reset cause, starts embassy at 170 MHz with the DMA interrupts (the G4's DMA1/DMA2 are embassy's `bdma`) at
-/// [`BACKGROUND`], lowers the time driver's TIM4 to [`BACKGROUND`] (embassy-stm32 0.6
+/// Reads the reset cause, starts embassy on HSI16 with the DMA interrupts (the G4's
+/// DMA1/DMA2 are embassy's `bdma`) at [`BACKGROUND`], enters range 1 boost mode
+/// ([`clocks::enter_boost_mode`]), raises the clock to 170 MHz ([`clocks::raise`]), turns
+/// the flash prefetch on ([`clocks::enable_prefetch`]), lowers the time driver's TIM4 to [`BACKGROUND`] (embassy-stm32 0.6
 /// enables it at P0 and has no setting for it), prints the boot line and, with
 /// `dwt-cycles`, starts the cycle counter.
 pub fn init(image: &str, version: &str) -> (Peripherals, ResetCause) {
     let cause = reset_cause::take();
-    let mut config = clocks::config();
+    let mut config = embassy_stm32::Config::default();
     config.bdma_interrupt_priority = BACKGROUND;
-    let p = embassy_stm32::init(config);
+    let mut p = embassy_stm32::init(config);
+    clocks::enter_boost_mode();
+    clocks::raise(&mut p.RCC);
+    clocks::enable_prefetch();
     interrupt::TIM4.set_priority(BACKGROUND);
     banner::boot(image, version, cause);
     #[cfg(feature = "dwt-cycles")]

@@ -3,17 +3,31 @@
 //!
 //! Review D15: the IWDG keeps counting while the core is halted, so about 100 ms after a
 //! breakpoint (or the `bkpt` after a panic) the MCU resets, every breakpoint reboots the
-//! board and probe-rs can lose the backtrace. In **debug builds** (`debug_assertions`) the
-//! IWDG is frozen while halted; release builds keep it running, as a field unit must
-//! (a release image with a probe attached still resets after a halt of 100 ms). The
+//! board and probe-rs can lose the backtrace. So the IWDG is frozen while halted whenever a
+//! debugger is attached (DHCSR.C_DEBUGEN, which only a probe sets), in every build: a
+//! release image under a probe stops like a debug build. Without a probe the core can never
+//! halt, so the freeze changes nothing on a field unit, whose watchdog runs as before.
+//! [`freeze_watchdog_when_halted`] runs when the watchdog starts and at every supervision
+//! check, so a probe attached later (probe-rs `attach`) is seen within 20 ms. While the PLC
+//! is halted its outputs keep their levels (bench rule: `firmware-plc/docs/board.md`); the
 //! drive's TIM1 freeze (D1) is the drive board's own (`power_stage`), in every build.
 
 use embassy_stm32::pac;
 
-/// Freezes the IWDG while the core is halted, in debug builds only. Call before the
-/// watchdog starts.
+/// DHCSR (ARMv7-M "Debug Halting Control and Status Register").
+const DHCSR: *const u32 = 0xE000_EDF0 as *const u32;
+
+/// A debugger is attached (DHCSR.C_DEBUGEN, bit 0: set by the probe only).
+fn debugger_attached() -> bool {
+    // SAFETY: DHCSR is a core debug register, always mapped and readable.
+    let dhcsr = unsafe { core::ptr::read_volatile(DHCSR) };
+    dhcsr & 1 != 0
+}
+
+/// Freezes the IWDG while the core is halted (DBGMCU_APB1FZR1.DBG_IWDG_STOP, RM0440
+/// §47.16) if a debugger is attached. Call when the watchdog starts and periodically.
 pub fn freeze_watchdog_when_halted() {
-    if cfg!(debug_assertions) {
+    if debugger_attached() {
         pac::DBGMCU.apb1lfzr().modify(|w| w.set_iwdg(true));
     }
 }
@@ -23,11 +37,7 @@ pub fn freeze_watchdog_when_halted() {
 /// resets the MCU at once. The reset cause then reads as a software reset. It does not
 /// wait for the watchdog, which may not have been started yet (a panic during start-up).
 pub fn halt() -> ! {
-    // C_DEBUGEN: a debugger is attached.
-    const DHCSR: *const u32 = 0xE000_EDF0 as *const u32;
-    // SAFETY: DHCSR is a core debug register, always mapped and readable.
-    let debugger = unsafe { core::ptr::read_volatile(DHCSR) } & 1 != 0;
-    if debugger {
+    if debugger_attached() {
         cortex_m::asm::bkpt();
     }
     cortex_m::peripheral::SCB::sys_reset()

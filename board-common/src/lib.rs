@@ -4,7 +4,8 @@
 //! feeding rule and the reset-cause decoding (`shared_protocol::supervision`), the log
 //! rate limiter (`shared_protocol::rate_limit`).
 //!
-//! * `clocks`: the 170 MHz configuration both boards run at.
+//! * `clocks`: the 170 MHz configuration both boards run at, boost mode and the flash
+//!   prefetch.
 //! * `reset_cause`: RCC_CSR read and cleared before embassy starts.
 //! * `boot`: the boot sequence (reset cause, embassy at 170 MHz, interrupt priorities
 //!   below the drive's TIM1, boot line).

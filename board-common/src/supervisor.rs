@@ -37,8 +37,8 @@ pub fn alive(task: u32) {
 }
 
 /// Feeds the IWDG for as long as every task in `required` keeps reporting, and blinks the
-/// heartbeat LED while it does. In debug builds the IWDG is frozen while the core is
-/// halted ([`crate::debug`]).
+/// heartbeat LED while it does. With a debugger attached the IWDG is frozen while the core
+/// is halted ([`crate::debug`]; checked at every period, so a probe attached later counts).
 #[embassy_executor::task]
 pub async fn run(iwdg: Peri<'static, IWDG>, led: Peri<'static, AnyPin>, required: u32) {
     let mut led = Output::new(led, Level::Low, Speed::Low);
@@ -49,6 +49,7 @@ pub async fn run(iwdg: Peri<'static, IWDG>, led: Peri<'static, AnyPin>, required
     let mut supervisor = Supervisor::new(required, LED_TOGGLE_CHECKS);
     loop {
         ticker.next().await;
+        crate::debug::freeze_watchdog_when_halted();
         let v = supervisor.check(ALIVE.swap(0, Ordering::Relaxed));
         if v.feed {
             wdg.pet();

@@ -94,6 +94,7 @@ pub async fn start(spawner: Spawner) {
     power_stage::arm_break(&hw_protection::break_comparators(cfg.board));
     power_stage::arm_sto_input();
     power_stage::route_system_faults_to_break();
+    power_stage::record_bdtr();
     pwm_isr::enable();
     defmt::info!(
         "TIM1: PSC {} ARR {} DTG {=u8:#x} ({} counts), {} mHz",

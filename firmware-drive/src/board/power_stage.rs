@@ -8,11 +8,11 @@
 //! embassy-stm32 0.6's `ComplementaryPwm` rounds the centre-aligned period itself and takes
 //! the dead time as raw ticks; it is used only to claim the pins and clock the timer.
 
-use core::sync::atomic::{AtomicBool, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use embassy_stm32::gpio::{Level, Output};
 use embassy_stm32::gpio::{OutputType, Pull, Speed};
 use embassy_stm32::pac;
-use embassy_stm32::pac::timer::regs::SrAdv;
+use embassy_stm32::pac::timer::regs::{BdtrAdv, SrAdv};
 use embassy_stm32::pac::timer::vals::{Bkp, Cms, Mms2, Ocm, Ossi, Ossr};
 use embassy_stm32::peripherals::TIM1;
 use embassy_stm32::time::Hertz;
@@ -59,9 +59,10 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
         Hertz(u32::from(firmware_drive::vm::PWF_MIN_HZ)),
         CountingMode::CenterAlignedDownInterrupts,
     );
-    // `ComplementaryPwm::new` sets MOE; take it back before anything else.
-    outputs_off();
+    // `ComplementaryPwm::new` sets MOE; take it back before anything else (start-up: the
+    // configuration is not recorded yet, so this one clear is a read-modify-write).
     let t = pac::TIM1;
+    t.bdtr().modify(|w| w.set_moe(false));
     t.cr1().modify(|w| w.set_cen(false));
     // Review D1: a halted core (breakpoint, probe-rs halt) stops TIM1's counter, and a
     // stopped advanced timer disables its outputs as if MOE were cleared (RM0440 "Debug
@@ -126,6 +127,7 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
     });
     // One update per PWM period, at the valley (counter = 0).
     t.rcr().write(|w| w.set_rep(1));
+    record_bdtr();
     apply_timing(&timing, min_dead_counts);
     for ch in 0..3 {
         t.ccr(ch).write(|w| w.set_ccr(0));
@@ -225,8 +227,8 @@ pub fn route_system_faults_to_break() {
 /// they take effect together at the next update), after checking that the dead time the
 /// DTG code really gives is at least the power stage's minimum. A violation is a bug in
 /// the timing computation: the power stage goes off and the firmware stops (`fault`).
-/// Called only with MOE = 0 ([`PowerPort::set_timing`]'s contract), so the
-/// read-modify-write of BDTR cannot set MOE again (review D9).
+/// Called only with MOE = 0 ([`PowerPort::set_timing`]'s contract): BDTR is written whole
+/// with MOE = 0 and the new DTG (review D9).
 fn apply_timing(timing: &PwmTiming, min_dead_counts: u32) {
     let realised = u32::from(decode_dtg(timing.dtg));
     if realised < min_dead_counts || realised != u32::from(timing.dead_time_counts) {
@@ -236,10 +238,31 @@ fn apply_timing(timing: &PwmTiming, min_dead_counts: u32) {
     t.psc().write_value(timing.psc);
     t.arr().write(|w| w.set_arr(timing.arr));
     t.ccr(3).write(|w| w.set_ccr(timing.arr.saturating_sub(1)));
-    t.bdtr().modify(|w| {
-        w.set_moe(false);
-        w.set_dtg(timing.dtg);
-    });
+    let mut v = bdtr_config();
+    v.set_dtg(timing.dtg);
+    BDTR_CONFIG.store(v.0, Ordering::Relaxed);
+    t.bdtr().write_value(v);
+}
+
+/// TIM1_BDTR as the start-up configured it, with MOE = 0 (review D9). After start-up BDTR
+/// is never read: every write is this word whole, with MOE set ([`Tim1Port::outputs_on`])
+/// or not, and a new DTG ([`apply_timing`]) is written into it. A read-modify-write
+/// straddling a break pulse would write back the MOE = 1 it read after the break cleared
+/// it (RM0440: software can set MOE again once the break input is inactive).
+static BDTR_CONFIG: AtomicU32 = AtomicU32::new(0);
+
+fn bdtr_config() -> BdtrAdv {
+    BdtrAdv(BDTR_CONFIG.load(Ordering::Relaxed))
+}
+
+/// Records BDTR as the start-up code left it (MOE cleared). Start-up only: called before
+/// the first timing write and, by the board, once every break is armed and before the PWM
+/// interrupt runs ([`super::pwm_isr::enable`]), so that any start-up change of BDTR is in
+/// the word the run writes.
+pub fn record_bdtr() {
+    let mut v = pac::TIM1.bdtr().read();
+    v.set_moe(false);
+    BDTR_CONFIG.store(v.0, Ordering::Relaxed);
 }
 
 /// The break flags of both break inputs (BIF, B2IF).
@@ -312,10 +335,13 @@ impl PowerPort for Tim1Port<'_> {
         });
     }
 
-    /// The hardware ignores it while the break input is active (RM0440 29.3.18).
+    /// The hardware ignores it while the break input is active (RM0440 29.3.18). BDTR
+    /// written whole (review D9).
     #[inline(always)]
     fn outputs_on(&mut self) {
-        pac::TIM1.bdtr().modify(|w| w.set_moe(true));
+        let mut v = bdtr_config();
+        v.set_moe(true);
+        pac::TIM1.bdtr().write_value(v);
     }
 
     #[inline(always)]
@@ -324,10 +350,12 @@ impl PowerPort for Tim1Port<'_> {
     }
 }
 
-/// MOE off: all six outputs to their inactive level after the dead time.
+/// MOE off: all six outputs to their inactive level after the dead time. BDTR written
+/// whole with the recorded configuration (review D9); before start-up recorded it (a panic
+/// during start-up) that word is 0, which is MOE off as well.
 #[inline(always)]
 pub fn outputs_off() {
-    pac::TIM1.bdtr().modify(|w| w.set_moe(false));
+    pac::TIM1.bdtr().write_value(bdtr_config());
 }
 
 /// Whether the update flag is set; clears it (and only it).

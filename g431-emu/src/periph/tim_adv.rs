@@ -457,6 +457,9 @@ pub struct TimAdv {
     ccer_pre: u32,
     ccer: u32,
     bdtr: u32,
+    /// Reads of BDTR by the bus since reset (review D9: a read-modify-write of BDTR can
+    /// write a MOE back that a break cleared in between; the drive writes it whole).
+    bdtr_reads: u64,
     dtr2: u32,
     /// DTG/DTGF as transferred at the last update (used with DTPE).
     dtg_shadow: u8,
@@ -520,6 +523,7 @@ impl TimAdv {
             ccer_pre: 0,
             ccer: 0,
             bdtr: 0,
+            bdtr_reads: 0,
             dtr2: 0,
             dtg_shadow: 0,
             dtgf_shadow: 0,
@@ -641,6 +645,16 @@ impl TimAdv {
     /// The gate state at `now` (after `advance(now)`).
     pub fn gate(&self) -> GateState {
         self.gate
+    }
+
+    /// BDTR as it stands (not a bus read: not counted in [`TimAdv::bdtr_reads`]).
+    pub fn bdtr(&self) -> u32 {
+        self.bdtr
+    }
+
+    /// How often the bus read BDTR since reset (review D9).
+    pub fn bdtr_reads(&self) -> u64 {
+        self.bdtr_reads
     }
 
     /// OCxREF of channel `ch` (0 = CH1 .. 5 = CH6) at `now`.
@@ -1258,7 +1272,10 @@ impl Peripheral for TimAdv {
             0x38 => ccr(1),
             0x3c => ccr(2),
             0x40 => ccr(3),
-            0x44 => self.bdtr,
+            0x44 => {
+                self.bdtr_reads += 1;
+                self.bdtr
+            }
             0x48 => ccr(4) | self.gc5 << 29,
             0x4c => ccr(5),
             0x50 => self.ccmr[2],
@@ -1276,6 +1293,8 @@ impl Peripheral for TimAdv {
     fn write(&mut self, w: Write, now: Cycles) -> bool {
         let old = match w.offset {
             0x10 | 0x14 => 0,
+            // Not through `read`: that counts the bus's reads of BDTR (`bdtr_reads`).
+            0x44 => self.bdtr,
             o => match self.read(o, now) {
                 Some(v) => v,
                 None => return false,

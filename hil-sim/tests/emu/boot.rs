@@ -156,3 +156,36 @@ fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current()
     assert_eq!(sim.status().map(|s| s.state), Some(DriveState::Idle));
     assert!(sim.faults().is_empty(), "{:?}", sim.faults());
 }
+
+/// Review D15: with a probe attached from power-up (DHCSR.C_DEBUGEN), a breakpoint that
+/// holds both release images halted for 300 ms, three times the IWDG's 100 ms timeout,
+/// resets neither: the image froze its IWDG for the halt (DBGMCU_APB1FZR1.DBG_IWDG_STOP).
+/// Without a probe the core cannot halt, and the watchdog runs as before (every other
+/// test's "no watchdog reset").
+#[test]
+fn under_a_probe_a_halt_longer_than_the_watchdog_timeout_resets_neither_image() {
+    let mut sim = emu(MOTOR_PLC, STAY_STOPPED);
+    sim.drive_mut().cpu_mut().set_debugger(true);
+    sim.plc_mut().cpu_mut().set_debugger(true);
+    sim.run_until(ns(0.5), |_| {});
+    sim.drive_mut().cpu_mut().halt();
+    sim.plc_mut().cpu_mut().halt();
+    sim.run_until(ns(0.8), |_| {});
+    sim.drive_mut().cpu_mut().resume();
+    sim.plc_mut().cpu_mut().resume();
+    sim.run_until(ns(1.2), |_| {});
+    for (m, name) in [(sim.drive(), "drive"), (sim.plc(), "PLC")] {
+        let resets: Vec<_> = m
+            .events()
+            .iter()
+            .filter(|e| matches!(e, CpuEvent::Reset { at, .. } if *at > 0))
+            .collect();
+        assert!(
+            resets.is_empty(),
+            "{name}: reset during or after a 300 ms halt under a probe (IWDG frozen: {}): \
+             {resets:?}",
+            m.soc().dbgmcu().iwdg_stop()
+        );
+        assert!(m.soc().dbgmcu().iwdg_stop(), "{name}: DBG_IWDG_STOP");
+    }
+}

@@ -46,12 +46,13 @@ pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
          is lost during start-up. Reported once per start",
     ),
     (
-        "HCLK 170.0 MHz is above what Range1Normal allows",
-        "finding (issue 29): both images run 170 MHz with the regulator in range 1 normal \
-         mode (limit 150 MHz, RM0440 6.1.5): embassy-stm32 0.6 clears R1MODE through \
-         stm32-metapac 21, which places it at bit 0 of PWR_CR5, while ST's CMSIS header and \
-         the stm32-rs SVD place it at bit 8 (reset value 0x100), so boost mode is never \
-         entered (`silicon_faults::both_images_run_170_mhz_in_boost_mode_with_4_wait_states`)",
+        "HCLK jumps from 16 to 170 MHz in boost mode with the AHB prescaler at /1",
+        "finding N9 (board-review-2, issue 29): embassy-stm32 0.6's G4 clock set-up \
+         (`rcc/g4.rs`) writes SW = PLL and HPRE = /1 in one CFGR write, where RM0440 6.1.5 \
+         (and ST's HAL_RCC_ClockConfig above 80 MHz) keeps HPRE = /2 across the switch and \
+         for 1 us after it; the images cannot interpose in that write without a change to \
+         embassy (firmware-drive/docs/board.md, N9). Reported since boost mode is entered \
+         (E7)",
     ),
     (
         "PWR.CR3 set to 0x0000c000",

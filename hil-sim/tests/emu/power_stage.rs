@@ -212,3 +212,34 @@ fn a_switching_frequency_change_in_run_pauses_the_outputs_for_one_period() {
     assert!(g.outputs_enabled);
     assert!(sim.faults().is_empty(), "{:?}", sim.faults());
 }
+
+/// Review D9 on the real image: once the drive runs, TIM1_BDTR is never read, so never
+/// read-modify-written. A read-modify-write that straddles a break pulse writes back the
+/// MOE = 1 it read after the break cleared it (the g431-emu TIM1 test
+/// `bdtr_read_modify_write_across_a_break_pulse_re_sets_moe`); the image writes the
+/// register whole from the configuration it recorded at start-up. The breaks stay armed
+/// through the run (BKE, BK2E), so the whole writes carry the configuration.
+#[test]
+fn while_the_motor_runs_tim1_bdtr_is_written_whole_never_read() {
+    let mut sim = emu(MOTOR_PLC, START_50HZ);
+    sim.run_until(ns(1.0), |_| {});
+    let reads_before = sim.drive().soc().tim1().expect("TIM1").bdtr_reads();
+    let entries_before = sim.drive().cpu().irq_entries("TIM1_UP_TIM16");
+    sim.run_until(ns(1.5), |_| {});
+    assert!(outputs_enabled(&sim), "the motor runs");
+    let t = sim.drive().soc().tim1().expect("TIM1");
+    let reads = t.bdtr_reads() - reads_before;
+    let periods = sim.drive().cpu().irq_entries("TIM1_UP_TIM16") - entries_before;
+    assert!(periods > 1_000, "{periods} PWM periods");
+    assert_eq!(
+        reads, 0,
+        "BDTR read {reads} times in {periods} PWM periods of running: read-modify-written"
+    );
+    // RM0440 TIMx_BDTR: BKE bit 12, BK2E bit 24, MOE bit 15.
+    let bdtr = t.bdtr();
+    assert_eq!(
+        bdtr & (1 << 12 | 1 << 24 | 1 << 15),
+        1 << 12 | 1 << 24 | 1 << 15,
+        "BDTR {bdtr:#010x}: both breaks armed, MOE on"
+    );
+}
