@@ -26,7 +26,7 @@ use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
 use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
-use crate::sine::{phase_of_decidegrees, SINE_Q15};
+use crate::sine::phase_of_decidegrees;
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
 use crate::vm::{DriveVm, Settings, VmWarning};
@@ -773,9 +773,7 @@ impl DriveCore {
     }
 
     fn finish_boot(&mut self) {
-        let table_ok = SINE_Q15.first() == Some(&0)
-            && SINE_Q15.get(256) == Some(&32767)
-            && SINE_Q15.get(768) == Some(&-32767);
+        let table_ok = crate::sine::table_ok();
         let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2;
         let offsets_ok = match self.zero_cal.result() {
             Ok(Some(zero)) => {
