@@ -80,32 +80,42 @@ pub struct DriveStatus {
     #[serde(with = "crate::fault::wire_option")]
     pub fault: Option<FaultCode>,
     /// Output frequency being generated, 0.1 Hz.
+    #[serde(serialize_with = "one_copy::i16")]
     pub freq_dhz: i16,
     /// Applied direction.
     pub reverse: bool,
     /// DC-link voltage, 0.1 V.
+    #[serde(serialize_with = "one_copy::i16")]
     pub udc_dv: i16,
     /// Largest |phase current| since the previous status, 0.01 A.
+    #[serde(serialize_with = "one_copy::i16")]
     pub imax_ca: i16,
     /// Auxiliary ADC channel (`COM`), 10-bit counts.
+    #[serde(serialize_with = "one_copy::u16")]
     pub com: u16,
     /// Hardware overcurrent threshold in effect (`I>>`, or the board's default), 0.01 A:
     /// the PLC's `IHW`.
+    #[serde(serialize_with = "one_copy::i16")]
     pub oc_hw_ca: i16,
     /// Hardware overvoltage threshold in effect (`U>>`, or the board's default), V: the
     /// PLC's `UHW`.
+    #[serde(serialize_with = "one_copy::i16")]
     pub ov_hw_v: i16,
     /// The drive's run-time warning while it lasts (none: `None`).
     pub warning: Option<DriveWarning>,
     /// Requested safety functions: the PLC's mask, plus bit 0 while `STO_IN` is low.
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_requested: u16,
     /// Safety status bits (bit n = function n requested and in its safe state).
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_status: u16,
     /// A ramp function is in its delay or ramp phase (`SDC`).
     pub sf_sdc: bool,
     /// The safety stopwatch (`SFT`), 0.1 s.
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_elapsed_ds: u16,
     /// The parameter signature of the drive section the drive accepted (safety.md 8).
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_signature: u16,
     /// The hardware `STO_IN` input is low (STO requested).
     pub sto_in_low: bool,
@@ -126,6 +136,23 @@ impl DriveStatus {
             self.sf_sdc,
             self.sto_in_low,
         )
+    }
+}
+
+/// The status's integer fields serialised through one function per type, not each field's
+/// varint code inlined into `DriveMsg::serialize` (the drive image's flash, `docs/size.md`).
+/// The wire bytes are postcard's as derived (`status_fields_keep_the_wire_bytes`).
+mod one_copy {
+    use serde::Serializer;
+
+    #[inline(never)]
+    pub fn u16<S: Serializer>(v: &u16, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u16(*v)
+    }
+
+    #[inline(never)]
+    pub fn i16<S: Serializer>(v: &i16, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_i16(*v)
     }
 }
 
@@ -375,6 +402,73 @@ mod tests {
             let n = postcard::to_slice(&new, &mut typed).unwrap().len();
             assert_eq!(typed[..n], *postcard::to_slice(&old, &mut untyped).unwrap());
             assert_eq!(postcard::from_bytes::<DriveMsg>(&typed[..n]), Ok(new));
+        }
+    }
+
+    /// Every integer field at the edges of postcard's varint lengths: the same bytes as
+    /// the plain derive, and back.
+    #[test]
+    fn status_fields_keep_the_wire_bytes() {
+        let mut typed = [0u8; 64];
+        let mut untyped = [0u8; 64];
+        let edges_u = [0u16, 1, 127, 128, 16_383, 16_384, u16::MAX];
+        let edges_i = [
+            0i16,
+            -1,
+            1,
+            -64,
+            63,
+            64,
+            -65,
+            8191,
+            -8192,
+            i16::MIN,
+            i16::MAX,
+        ];
+        for k in 0..edges_u.len() * edges_i.len() {
+            let u = |n: usize| edges_u[(k + n) % edges_u.len()];
+            let i = |n: usize| edges_i[(k + n) % edges_i.len()];
+            let s = DriveStatus {
+                state: DriveState::Run,
+                fault: None,
+                freq_dhz: i(0),
+                reverse: k % 2 == 0,
+                udc_dv: i(1),
+                imax_ca: i(2),
+                com: u(0),
+                oc_hw_ca: i(3),
+                ov_hw_v: i(4),
+                warning: None,
+                sf_requested: u(1),
+                sf_status: u(2),
+                sf_sdc: k % 3 == 0,
+                sf_elapsed_ds: u(3),
+                sf_signature: u(4),
+                sto_in_low: k % 5 == 0,
+                program_loaded: k % 7 == 0,
+            };
+            let old = UntypedStatus {
+                state: s.state,
+                fault: 0,
+                freq_dhz: s.freq_dhz,
+                reverse: s.reverse,
+                udc_dv: s.udc_dv,
+                imax_ca: s.imax_ca,
+                com: s.com,
+                oc_hw_ca: s.oc_hw_ca,
+                ov_hw_v: s.ov_hw_v,
+                warning: s.warning,
+                sf_requested: s.sf_requested,
+                sf_status: s.sf_status,
+                sf_sdc: s.sf_sdc,
+                sf_elapsed_ds: s.sf_elapsed_ds,
+                sf_signature: s.sf_signature,
+                sto_in_low: s.sto_in_low,
+                program_loaded: s.program_loaded,
+            };
+            let n = postcard::to_slice(&s, &mut typed).unwrap().len();
+            assert_eq!(typed[..n], *postcard::to_slice(&old, &mut untyped).unwrap());
+            assert_eq!(postcard::from_bytes::<DriveStatus>(&typed[..n]), Ok(s));
         }
     }
 
