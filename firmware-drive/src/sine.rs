@@ -8,8 +8,8 @@
 //! interpolation, bounds the accuracy, and both are far below one timer count.
 //!
 //! The quarter table (516 B instead of 2 050 B for the whole period, `docs/size.md`) gives
-//! every point of the period exactly: point 256q + k is +-Q[k] in even quadrants and
-//! +-Q[256 - k] in odd ones, negative in the second half. The interpolation is the full
+//! every point of the period exactly: point 256q + k is `+-Q[k]` in even quadrants and
+//! `+-Q[256 - k]` in odd ones, negative in the second half. The interpolation is the full
 //! table's to the bit (`unfolded_sine_is_the_full_tables_everywhere`).
 
 include!(concat!(env!("OUT_DIR"), "/sine_table.rs"));
