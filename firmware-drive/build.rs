@@ -1,27 +1,35 @@
 //! Build script.
 //!
-//! * Generates the modulator's sine table into `OUT_DIR/sine_table.rs` (host and target):
+//! * Generates the modulator's quarter-period sine table into `OUT_DIR/sine_table.rs` (host and target):
 //!   the firmware never evaluates trigonometry at run time, and a table computed here in
 //!   `f64` is exact to the last bit of its Q15 format.
 //! * Links the target binaries against the workspace's `memory.x`; host builds are untouched.
 use std::{env, fmt::Write as _, fs, path::PathBuf};
 
-/// Points per full sine period; must match `sine::TABLE_BITS` (2^10).
+/// Points per full sine period; must match `sine::TABLE_BITS` (2^10). The table holds the
+/// first quarter of them (the rest follows by symmetry, `sine::sin_q15`).
 const SINE_POINTS: usize = 1024;
 
+/// Q15 sine of point `k` of `SINE_POINTS` per period, rounded half away from zero.
+fn sine_point(k: usize) -> i16 {
+    let x = (2.0 * std::f64::consts::PI * k as f64 / SINE_POINTS as f64).sin();
+    (32767.0 * x).round() as i16
+}
+
 fn sine_table() -> String {
+    let quarter = SINE_POINTS / 4;
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "/// round(32767 * sin(2*pi*k/{SINE_POINTS})) for k = 0..={SINE_POINTS} (the last entry\n\
-         /// repeats the first so that interpolation never wraps the index).\n\
-         pub static SINE_Q15: [i16; {}] = [",
-        SINE_POINTS + 1
+        "/// round(32767 * sin(2*pi*k/{SINE_POINTS})) for k = 0..={}: the first quarter period,\n\
+         /// its end point (sin = 1) and the point past it, so that interpolation from the end\n\
+         /// point (a zero step, `sine::sin_q15`) never leaves the table.\n\
+         pub static SINE_Q15_QUARTER: [i16; {}] = [",
+        quarter + 1,
+        quarter + 2
     );
-    for k in 0..=SINE_POINTS {
-        let x = (2.0 * std::f64::consts::PI * k as f64 / SINE_POINTS as f64).sin();
-        let v = (32767.0 * x).round() as i16;
-        let _ = write!(s, "{v},");
+    for k in 0..=quarter + 1 {
+        let _ = write!(s, "{},", sine_point(k));
         if k % 16 == 15 {
             s.push('\n');
         }

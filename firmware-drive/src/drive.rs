@@ -26,7 +26,7 @@ use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
 use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
-use crate::sine::{phase_of_decidegrees, SINE_Q15};
+use crate::sine::phase_of_decidegrees;
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
 use crate::vm::{DriveVm, Settings, VmWarning};
@@ -773,9 +773,7 @@ impl DriveCore {
     }
 
     fn finish_boot(&mut self) {
-        let table_ok = SINE_Q15.first() == Some(&0)
-            && SINE_Q15.get(256) == Some(&32767)
-            && SINE_Q15.get(768) == Some(&-32767);
+        let table_ok = crate::sine::table_ok();
         let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2;
         let offsets_ok = match self.zero_cal.result() {
             Ok(Some(zero)) => {
@@ -837,10 +835,11 @@ impl DriveCore {
             legs_on.swap(0, 1);
         }
         self.legs_on = legs_on;
-        let fjm = u64::from(s.fjm.max(1) as u16);
-        let m = (u64::from(a.max(0) as u16) << 16) / fjm + (u64::from(s.du) << 16) / 1023;
+        // In 32 bits (hardware divisions): A < 2^15 and dU < 2^16, so both shifted terms
+        // and their sum fit (`modulation_index_in_32_bits_is_the_64_bit_formula`).
+        let m = modulation_q16(a, s.fjm, s.du);
         // Above the linear range the modulator clips (overmodulation, program.md 4.3).
-        let m_q16 = m.min(u64::from(M_LIMIT_Q16)) as u32;
+        let m_q16 = m.min(M_LIMIT_Q16);
         let [p1, p2, p3] = o.phase_decideg;
         self.modulator.set_params(ModulatorParams {
             step: self.timing.phase_step(f),
@@ -854,6 +853,14 @@ impl DriveCore {
             swap_1_2: self.reversal.applied(),
         });
     }
+}
+
+/// Requested modulation index m = A / fjm + dU / 1023, Q16 (`fjm` below 1 counts as 1, a
+/// negative A as 0). A <= 32767 and dU <= 65535, so `A << 16` and `dU << 16` fit in 32
+/// bits and their quotients' sum stays below 2^31 + 2^22.
+fn modulation_q16(a: i16, fjm: i16, du: u16) -> u32 {
+    let fjm = u32::from(fjm.max(1) as u16);
+    (u32::from(a.max(0) as u16) << 16) / fjm + (u32::from(du) << 16) / 1023
 }
 
 #[cfg(test)]
@@ -1287,5 +1294,44 @@ mod tests {
         assert_eq!(s.i_peak, CentiAmps(100));
         assert_eq!(s.com, 1023);
         assert!(s.ready());
+    }
+
+    /// The 32-bit modulation index is the 64-bit formula it replaced, over every A and dU
+    /// and a spread of fjm (every fjm for a few A).
+    #[test]
+    fn modulation_index_in_32_bits_is_the_64_bit_formula() {
+        let old = |a: i16, fjm: i16, du: u16| {
+            let fjm = u64::from(fjm.max(1) as u16);
+            (u64::from(a.max(0) as u16) << 16) / fjm + (u64::from(du) << 16) / 1023
+        };
+        let fjms = [
+            i16::MIN,
+            -1,
+            0,
+            1,
+            2,
+            3,
+            7,
+            50,
+            499,
+            500,
+            501,
+            1023,
+            9999,
+            i16::MAX,
+        ];
+        for a in i16::MIN..=i16::MAX {
+            for fjm in fjms {
+                let du = (a as u16).wrapping_mul(7);
+                assert_eq!(u64::from(modulation_q16(a, fjm, du)), old(a, fjm, du));
+            }
+        }
+        for fjm in i16::MIN..=i16::MAX {
+            for a in [0, 1, 500, i16::MAX] {
+                for du in [0, 1023, u16::MAX] {
+                    assert_eq!(u64::from(modulation_q16(a, fjm, du)), old(a, fjm, du));
+                }
+            }
+        }
     }
 }

@@ -89,22 +89,23 @@ impl PwmTiming {
     }
 }
 
-/// `(n << 64) / d` (`d` > 0), exact, in 64-bit divisions when `d` fits in 32 bits. A
-/// 128-bit division is a software routine of thousands of Cortex-M4 instructions; this
+/// `(n << 64) / d` for `d` in 1..2^36 (the callers' `10 * f_tim` with a 32-bit `f_tim`),
+/// exact, in 64-bit divisions: long division by 28-bit digits (every remainder is below
+/// d < 2^36, so shifting it by 28 bits stays within 64). A 128-bit division is a software
+/// loop of thousands of Cortex-M4 instructions and, expanded inline, 666 B of flash; this
 /// runs in the 1 ms tick whenever `PWF` changes, inside the critical section the PWM
 /// interrupt waits for (review D13).
 fn shl64_div(n: u64, d: u64) -> u128 {
-    let d = d.max(1);
-    if d > u64::from(u32::MAX) {
-        return (u128::from(n) << 64) / u128::from(d);
-    }
-    // Long division by 32-bit digits: every remainder is below d < 2^32, so shifting it
-    // by 32 bits stays within 64.
-    let (q2, r) = (n / d, n % d);
-    let (q1, r) = ((r << 32) / d, (r << 32) % d);
-    let q0 = (r << 32) / d;
-    (u128::from(q2) << 64) | (u128::from(q1) << 32) | u128::from(q0)
+    let d = d.clamp(1, SHL64_DIV_MAX);
+    let (q, r) = (n / d, n % d);
+    let (q1, r) = ((r << 28) / d, (r << 28) % d);
+    let (q2, r) = ((r << 28) / d, (r << 28) % d);
+    let q3 = (r << 8) / d;
+    (u128::from(q) << 64) | (u128::from(q1) << 36) | (u128::from(q2) << 8) | u128::from(q3)
 }
+
+/// Largest divisor of [`shl64_div`]: 2^36 - 1 (10 times any 32-bit timer clock is below).
+const SHL64_DIV_MAX: u64 = (1 << 36) - 1;
 
 /// The smallest BDTR.DTG code whose dead time is at least `counts` CK_INT periods
 /// (RM0440 BDTR: four ranges with steps of 1, 2, 8 and 16 counts). Saturates at the
@@ -149,7 +150,8 @@ mod tests {
             1_699_999_999,
             u64::from(u32::MAX),
             1 << 32,
-            u64::MAX,
+            10 * u64::from(u32::MAX),
+            SHL64_DIV_MAX,
         ];
         let ns = [
             0u64,
@@ -171,18 +173,24 @@ mod tests {
             }
         }
         let mut x = 0x9E37_79B9_7F4A_7C15u64;
-        for _ in 0..10_000 {
+        for _ in 0..100_000 {
             x ^= x << 13;
             x ^= x >> 7;
             x ^= x << 17;
             let n = x >> (x % 40);
-            let d = (x.rotate_left(17) >> 33).max(1);
+            let d = (x.rotate_left(17) >> (28 + x % 36)).max(1);
             assert_eq!(
                 shl64_div(n, d),
                 (u128::from(n) << 64) / u128::from(d),
                 "{n} / {d}"
             );
         }
+    }
+
+    /// Every divisor `compute` passes (10 * f_tim for a 32-bit f_tim) is in range.
+    #[test]
+    fn the_phase_step_divisor_fits_shl64_div() {
+        assert!(10 * u64::from(u32::MAX) <= SHL64_DIV_MAX);
     }
 
     #[test]

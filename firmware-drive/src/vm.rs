@@ -210,8 +210,12 @@ impl DriveVm {
         self.underflows = 0;
         self.start_run();
         for (line, ins) in lines(s) {
-            if is_setting(ins) {
-                self.exec(line, ins, &mut |_| {});
+            if ins.mnemonic == Mnemonic::Pwf {
+                if matches!(ins.operand, Some(Operand::K(_))) {
+                    self.exec(line, ins, &mut |_| {});
+                }
+            } else {
+                self.setting(ins);
             }
         }
     }
@@ -270,7 +274,6 @@ impl DriveVm {
 
     fn exec(&mut self, line: u16, ins: &Instruction, warn: &mut impl FnMut(VmWarning)) {
         let k = ins.constant;
-        let ki = k.min(i16::MAX as u16) as i16;
         match ins.mnemonic {
             Mnemonic::Ld => {
                 if let Some(v) = self.value(ins) {
@@ -314,9 +317,6 @@ impl DriveVm {
                     self.settings.pwf_hz = applied;
                 }
             }
-            Mnemonic::Pr0 => self.settings.prescaler = 4,
-            Mnemonic::Pr1 => self.settings.prescaler = 16,
-            Mnemonic::Pr2 => self.settings.prescaler = 64,
             Mnemonic::Pi => self.pi(line, k),
             Mnemonic::Sn1 => {
                 let [phase, a, f, ..] = self.stack;
@@ -333,6 +333,21 @@ impl DriveVm {
                 self.out.phase_decideg[2] = self.stack[0];
                 self.out.legs[2] = LegMode::Sine;
             }
+            _ => self.setting(ins),
+        }
+    }
+
+    /// The instructions that only set a parameter from their constant (with `PWF K`, the
+    /// ones a load applies; anything else does nothing here). One copy for the cycle and the load (flash:
+    /// `docs/size.md`).
+    #[inline(never)]
+    fn setting(&mut self, ins: &Instruction) {
+        let k = ins.constant;
+        let ki = k.min(i16::MAX as u16) as i16;
+        match ins.mnemonic {
+            Mnemonic::Pr0 => self.settings.prescaler = 4,
+            Mnemonic::Pr1 => self.settings.prescaler = 16,
+            Mnemonic::Pr2 => self.settings.prescaler = 64,
             Mnemonic::RsSet => self.settings.rs_centiohm = k,
             Mnemonic::UcSet => self.settings.uc_volts = k,
             Mnemonic::IzSet => self.settings.iz_centiamps = k,
@@ -386,32 +401,6 @@ fn lines(s: &DriveSection) -> impl Iterator<Item = (u16, &Instruction)> {
         .iter()
         .enumerate()
         .filter_map(|(n, l)| l.as_ref().map(|i| (n as u16, i)))
-}
-
-/// Instructions that only set a parameter from their constant (applied at load too).
-fn is_setting(i: &Instruction) -> bool {
-    use Mnemonic as M;
-    match i.mnemonic {
-        M::Pr0
-        | M::Pr1
-        | M::Pr2
-        | M::RsSet
-        | M::UcSet
-        | M::IzSet
-        | M::CalcDu
-        | M::DuSet
-        | M::UMax
-        | M::UMin
-        | M::IMax
-        | M::IMaxHw
-        | M::UMaxHw
-        | M::Fmn
-        | M::Fjm
-        | M::Fmx
-        | M::Frv => true,
-        M::Pwf => matches!(i.operand, Some(Operand::K(_))),
-        _ => false,
-    }
 }
 
 #[cfg(test)]

@@ -30,7 +30,10 @@ const HEADER_BYTES: usize = 2;
 /// number the sender of this frame expects (all below it were received).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Frame<M> {
+    // One copy of the byte reads for every frame type (flash, `message::one_copy`).
+    #[serde(deserialize_with = "super::message::one_copy::de_u8")]
     pub seq: u8,
+    #[serde(deserialize_with = "super::message::one_copy::de_u8")]
     pub ack: u8,
     pub msg: M,
 }

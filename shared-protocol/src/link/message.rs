@@ -27,6 +27,7 @@ pub const CHUNK_BYTES: usize = 64;
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub struct QValue {
     /// Q00-Q63.
+    #[serde(deserialize_with = "one_copy::de_u8")]
     pub addr: u8,
     pub value: i16,
 }
@@ -35,7 +36,12 @@ pub struct QValue {
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub enum PlcMsg {
     /// Start of a handshake. `session` is chosen by the PLC and echoed by the drive.
-    Hello { version: u16, session: u8 },
+    Hello {
+        #[serde(deserialize_with = "one_copy::de_u16")]
+        version: u16,
+        #[serde(deserialize_with = "one_copy::de_u8")]
+        session: u8,
+    },
     /// Nothing to say: keeps the drive's supervision fed and carries the ack.
     Heartbeat,
     /// Reliable: new values of Q variables, applied in the listed order.
@@ -53,6 +59,7 @@ pub enum PlcMsg {
     DownloadBegin { crc: u32 },
     /// Reliable: encoded slots (`encode_slot`) of lines `first_line..`.
     DownloadChunk {
+        #[serde(deserialize_with = "one_copy::de_u8")]
         first_line: u8,
         data: heapless::Vec<u8, CHUNK_BYTES>,
     },
@@ -60,7 +67,10 @@ pub enum PlcMsg {
     DownloadEnd,
     /// Reliable, newest wins: the safety functions the PLC program requests (bit n set =
     /// function n requested, safety.md 2 and 9).
-    SafetyRequest { requested: u16 },
+    SafetyRequest {
+        #[serde(deserialize_with = "one_copy::de_u16")]
+        requested: u16,
+    },
 }
 
 impl PlcMsg {
@@ -80,37 +90,51 @@ pub struct DriveStatus {
     #[serde(with = "crate::fault::wire_option")]
     pub fault: Option<FaultCode>,
     /// Output frequency being generated, 0.1 Hz.
+    #[serde(serialize_with = "one_copy::i16")]
     pub freq_dhz: i16,
     /// Applied direction.
+    #[serde(serialize_with = "one_copy::bool")]
     pub reverse: bool,
     /// DC-link voltage, 0.1 V.
+    #[serde(serialize_with = "one_copy::i16")]
     pub udc_dv: i16,
     /// Largest |phase current| since the previous status, 0.01 A.
+    #[serde(serialize_with = "one_copy::i16")]
     pub imax_ca: i16,
     /// Auxiliary ADC channel (`COM`), 10-bit counts.
+    #[serde(serialize_with = "one_copy::u16")]
     pub com: u16,
     /// Hardware overcurrent threshold in effect (`I>>`, or the board's default), 0.01 A:
     /// the PLC's `IHW`.
+    #[serde(serialize_with = "one_copy::i16")]
     pub oc_hw_ca: i16,
     /// Hardware overvoltage threshold in effect (`U>>`, or the board's default), V: the
     /// PLC's `UHW`.
+    #[serde(serialize_with = "one_copy::i16")]
     pub ov_hw_v: i16,
     /// The drive's run-time warning while it lasts (none: `None`).
     pub warning: Option<DriveWarning>,
     /// Requested safety functions: the PLC's mask, plus bit 0 while `STO_IN` is low.
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_requested: u16,
     /// Safety status bits (bit n = function n requested and in its safe state).
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_status: u16,
     /// A ramp function is in its delay or ramp phase (`SDC`).
+    #[serde(serialize_with = "one_copy::bool")]
     pub sf_sdc: bool,
     /// The safety stopwatch (`SFT`), 0.1 s.
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_elapsed_ds: u16,
     /// The parameter signature of the drive section the drive accepted (safety.md 8).
+    #[serde(serialize_with = "one_copy::u16")]
     pub sf_signature: u16,
     /// The hardware `STO_IN` input is low (STO requested).
+    #[serde(serialize_with = "one_copy::bool")]
     pub sto_in_low: bool,
     /// The drive holds an accepted drive section. False after the drive's reset: a PLC in
     /// RUN that saw it true learns that the drive restarted and lost it.
+    #[serde(serialize_with = "one_copy::bool")]
     pub program_loaded: bool,
 }
 
@@ -126,6 +150,41 @@ impl DriveStatus {
             self.sf_sdc,
             self.sto_in_low,
         )
+    }
+}
+
+/// The drive's message fields serialised through one function per type, not each field's
+/// varint or byte code inlined into `DriveMsg::serialize` (the drive image's flash, `docs/size.md`).
+/// The wire bytes are postcard's as derived (`status_fields_keep_the_wire_bytes`).
+pub(crate) mod one_copy {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    #[inline(never)]
+    pub fn u16<S: Serializer>(v: &u16, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u16(*v)
+    }
+
+    #[inline(never)]
+    pub fn i16<S: Serializer>(v: &i16, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_i16(*v)
+    }
+
+    #[inline(never)]
+    pub fn bool<S: Serializer>(v: &bool, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_bool(*v)
+    }
+
+    // The drive's received fields (`PlcMsg`, `Frame`), the same way. Only types with
+    // several fields: a helper for one field costs more than it saves.
+
+    #[inline(never)]
+    pub fn de_u8<'de, D: Deserializer<'de>>(d: D) -> Result<u8, D::Error> {
+        u8::deserialize(d)
+    }
+
+    #[inline(never)]
+    pub fn de_u16<'de, D: Deserializer<'de>>(d: D) -> Result<u16, D::Error> {
+        u16::deserialize(d)
     }
 }
 
@@ -228,14 +287,22 @@ pub fn verify_kind_code(kind: &crate::program::VerifyErrorKind) -> u8 {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum DownloadResult {
     Accepted,
-    Rejected { line: u16, reason: RejectReason },
+    Rejected {
+        #[serde(serialize_with = "one_copy::u16")]
+        line: u16,
+        reason: RejectReason,
+    },
 }
 
 /// Drive to PLC.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub enum DriveMsg {
     /// Answer to `Hello`: the drive's version and the PLC's session.
-    HelloReply { version: u16, session: u8 },
+    HelloReply {
+        #[serde(serialize_with = "one_copy::u16")]
+        version: u16,
+        session: u8,
+    },
     /// Nothing else to say: carries the ack.
     Ack,
     /// Periodic report (also sent at once when state or fault changes).
@@ -375,6 +442,117 @@ mod tests {
             let n = postcard::to_slice(&new, &mut typed).unwrap().len();
             assert_eq!(typed[..n], *postcard::to_slice(&old, &mut untyped).unwrap());
             assert_eq!(postcard::from_bytes::<DriveMsg>(&typed[..n]), Ok(new));
+        }
+    }
+
+    /// Every integer field at the edges of postcard's varint lengths: the same bytes as
+    /// the plain derive, and back.
+    #[test]
+    fn status_fields_keep_the_wire_bytes() {
+        let mut typed = [0u8; 64];
+        let mut untyped = [0u8; 64];
+        let edges_u = [0u16, 1, 127, 128, 16_383, 16_384, u16::MAX];
+        let edges_i = [
+            0i16,
+            -1,
+            1,
+            -64,
+            63,
+            64,
+            -65,
+            8191,
+            -8192,
+            i16::MIN,
+            i16::MAX,
+        ];
+        for k in 0..edges_u.len() * edges_i.len() {
+            let u = |n: usize| edges_u[(k + n) % edges_u.len()];
+            let i = |n: usize| edges_i[(k + n) % edges_i.len()];
+            let s = DriveStatus {
+                state: DriveState::Run,
+                fault: None,
+                freq_dhz: i(0),
+                reverse: k % 2 == 0,
+                udc_dv: i(1),
+                imax_ca: i(2),
+                com: u(0),
+                oc_hw_ca: i(3),
+                ov_hw_v: i(4),
+                warning: None,
+                sf_requested: u(1),
+                sf_status: u(2),
+                sf_sdc: k % 3 == 0,
+                sf_elapsed_ds: u(3),
+                sf_signature: u(4),
+                sto_in_low: k % 5 == 0,
+                program_loaded: k % 7 == 0,
+            };
+            let old = UntypedStatus {
+                state: s.state,
+                fault: 0,
+                freq_dhz: s.freq_dhz,
+                reverse: s.reverse,
+                udc_dv: s.udc_dv,
+                imax_ca: s.imax_ca,
+                com: s.com,
+                oc_hw_ca: s.oc_hw_ca,
+                ov_hw_v: s.ov_hw_v,
+                warning: s.warning,
+                sf_requested: s.sf_requested,
+                sf_status: s.sf_status,
+                sf_sdc: s.sf_sdc,
+                sf_elapsed_ds: s.sf_elapsed_ds,
+                sf_signature: s.sf_signature,
+                sto_in_low: s.sto_in_low,
+                program_loaded: s.program_loaded,
+            };
+            let n = postcard::to_slice(&s, &mut typed).unwrap().len();
+            assert_eq!(typed[..n], *postcard::to_slice(&old, &mut untyped).unwrap());
+            assert_eq!(postcard::from_bytes::<DriveStatus>(&typed[..n]), Ok(s));
+        }
+    }
+
+    /// The other fields serialised through `one_copy`: the derive's bytes.
+    #[test]
+    fn hello_and_download_keep_the_wire_bytes() {
+        #[derive(Serialize)]
+        enum Plain {
+            HelloReply { version: u16, session: u8 },
+            _Ack,
+            _Status,
+            Download(PlainResult),
+        }
+        #[derive(Serialize)]
+        enum PlainResult {
+            _Accepted,
+            Rejected { line: u16, reason: RejectReason },
+        }
+        let mut typed = [0u8; 64];
+        let mut plain = [0u8; 64];
+        for v in [0u16, 127, 128, 16_384, u16::MAX] {
+            let n = postcard::to_slice(
+                &DriveMsg::HelloReply {
+                    version: v,
+                    session: v as u8,
+                },
+                &mut typed,
+            )
+            .unwrap()
+            .len();
+            let old = Plain::HelloReply {
+                version: v,
+                session: v as u8,
+            };
+            assert_eq!(typed[..n], *postcard::to_slice(&old, &mut plain).unwrap());
+            let reason = RejectReason::Verify(v as u8);
+            let n = postcard::to_slice(
+                &DriveMsg::Download(DownloadResult::Rejected { line: v, reason }),
+                &mut typed,
+            )
+            .unwrap()
+            .len();
+            let old = Plain::Download(PlainResult::Rejected { line: v, reason });
+            assert_eq!(typed[..n], *postcard::to_slice(&old, &mut plain).unwrap());
         }
     }
 
