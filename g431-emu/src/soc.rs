@@ -49,10 +49,13 @@ pub struct StackUse {
     pub used_bytes: u32,
 }
 pub const RAM_BYTES: usize = 32 * 1024;
-/// System memory (bootloader ROM, unique ID, flash size): 28 KiB+ at 0x1FFF_0000, mapped
-/// as a read-only page with the ID values the HAL reads.
+/// System memory (bootloader ROM, unique ID, flash size), mapped read-only with the ID
+/// values the HAL reads. RM0440's memory map (category 2 devices) ends it with the OTP
+/// area and the option bytes at 0x1FFF_782F; the rest of the 0x1FFF_xxxx page is reserved
+/// and faults. The map covers 0x1FFF_0000..0x1FFF_8000 (Unicorn maps whole 4 KiB pages),
+/// so an access above it (a stack pointer run into 0x1FFF_FFF0) faults as on the silicon.
 pub const SYSMEM_BASE: u32 = 0x1FFF_0000;
-pub const SYSMEM_BYTES: usize = 0x1_0000;
+pub const SYSMEM_BYTES: usize = 0x8000;
 
 /// Registers of the RCC and PWR models that are plain storage: their value changes nothing
 /// in the emulator, so the first change of each is reported (review E5: they were
