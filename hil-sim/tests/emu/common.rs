@@ -39,13 +39,6 @@ pub fn emu_on_documented_boards(program: &str, scenario: &str) -> Checked {
 /// there; the allowance goes when the fix lands).
 pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
     (
-        "ADC1: injected trigger during an injected sequence (ignored)",
-        "finding (issue 36): about 0.6 ms after each start the drive's ADC1 sees a TIM1 TRGO2 \
-         edge while its 3-channel injected sequence is still converting; RM0440 ignores the \
-         trigger (`injected trigger during an injected sequence (ignored)`): one sample set \
-         is lost during start-up. Reported once per start",
-    ),
-    (
         "HCLK 170.0 MHz is above what Range1Normal allows",
         "finding (issue 29): both images run 170 MHz with the regulator in range 1 normal \
          mode (limit 150 MHz, RM0440 6.1.5): embassy-stm32 0.6 clears R1MODE through \
