@@ -5,7 +5,7 @@
 //! link task (the serde visitors of eleven variants and two `heapless::Vec`s, each call
 //! through postcard's flavor), for a message set of a few fixed layouts; this is a few
 //! hundred bytes (docs/size.md, "Drive image: board side"). The wire format does not
-//! change: the PLC still encodes with postcard, and [`tests`] check this decoder against
+//! change: the PLC still encodes with postcard, and the tests below check this decoder against
 //! `postcard::take_from_bytes` on every message shape and on arbitrary and damaged bytes.
 //!
 //! Postcard's rules, as its deserializer (1.1) applies them: `u8` one raw byte; `bool` one
