@@ -29,7 +29,7 @@ pub mod supervisor {
 
 use board_common::clocks;
 
-use embassy_executor::Spawner;
+use embassy_executor::{SpawnError, SpawnToken, Spawner};
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::interrupt::{self, InterruptExt};
 use firmware_drive::config::DriveConfig;
@@ -107,10 +107,20 @@ pub async fn start(spawner: Spawner) {
 
     let port = link::open(board.link, link_cfg.baud);
     let tasks = supervisor::TASK_LINK | supervisor::TASK_CONTROL;
-    spawner.spawn(
-        board_common::supervisor::run(board.misc.iwdg, board.misc.led.into(), tasks)
-            .expect("spawn supervisor"),
-    );
-    spawner.spawn(link::run(port).expect("spawn link"));
-    spawner.spawn(control::run().expect("spawn control"));
+    spawner.spawn(spawned(
+        board_common::supervisor::run(board.misc.iwdg, board.misc.led.into(), tasks),
+        "spawn supervisor",
+    ));
+    spawner.spawn(spawned(link::run(port), "spawn link"));
+    spawner.spawn(spawned(control::run(), "spawn control"));
+}
+
+/// A task's spawn token, or [`fault::fatal`] with `what` (its pool is full: a start-up
+/// bug). Not `expect`: that formats the `SpawnError` through `core::fmt` for a message the
+/// panic handler does not print (docs/size.md).
+fn spawned<S>(token: Result<SpawnToken<S>, SpawnError>, what: &'static str) -> SpawnToken<S> {
+    match token {
+        Ok(t) => t,
+        Err(_) => fault::fatal(what),
+    }
 }

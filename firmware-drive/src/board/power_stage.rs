@@ -6,7 +6,10 @@
 //! inactive (low) level, so "off" is the same whether software cleared MOE, the break input
 //! did, or the timer never started. Register-level programming goes through the PAC because
 //! embassy-stm32 0.6's `ComplementaryPwm` rounds the centre-aligned period itself and takes
-//! the dead time as raw ticks; it is used only to claim the pins and clock the timer.
+//! the dead time as raw ticks. Embassy only clocks and resets the timer (`low_level::Timer`)
+//! and claims the pins (`PwmPin`/`ComplementaryPwmPin`); `ComplementaryPwm::new` is not used:
+//! it computed a period, counting mode and compare modes that [`init`] overwrote at once
+//! (~0.5 KiB of start-up code, docs/size.md), and set MOE.
 
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use embassy_stm32::gpio::{Level, Output};
@@ -15,10 +18,10 @@ use embassy_stm32::pac;
 use embassy_stm32::pac::timer::regs::{BdtrAdv, SrAdv};
 use embassy_stm32::pac::timer::vals::{Bkp, Cms, Mms2, Ocm, Ossi, Ossr};
 use embassy_stm32::peripherals::TIM1;
-use embassy_stm32::time::Hertz;
-use embassy_stm32::timer::complementary_pwm::{ComplementaryPwm, ComplementaryPwmPin};
-use embassy_stm32::timer::low_level::CountingMode;
+use embassy_stm32::timer::complementary_pwm::ComplementaryPwmPin;
+use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig};
+use embassy_stm32::timer::{Ch1, Ch2, Ch3};
 use firmware_drive::power_port::PowerPort;
 use firmware_drive::timing::{decode_dtg, PwmTiming};
 
@@ -26,7 +29,17 @@ use crate::pins::PowerStage;
 
 /// The timer, owned for the life of the firmware (dropping it would release the pins).
 pub struct Tim1Pwm {
-    _pwm: ComplementaryPwm<'static, TIM1>,
+    _tim: Timer<'static, TIM1>,
+    _high: (
+        PwmPin<'static, TIM1, Ch1>,
+        PwmPin<'static, TIM1, Ch2>,
+        PwmPin<'static, TIM1, Ch3>,
+    ),
+    _low: (
+        ComplementaryPwmPin<'static, TIM1, Ch1>,
+        ComplementaryPwmPin<'static, TIM1, Ch2>,
+        ComplementaryPwmPin<'static, TIM1, Ch3>,
+    ),
     /// `STO_IN` (PA11, TIM1_BKIN2): held so that nothing else takes the pin; configured
     /// by [`arm_sto_input`].
     _sto_in: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PA11>,
@@ -46,24 +59,26 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
         speed: Speed::VeryHigh,
         pull: Pull::Down,
     };
-    let pwm = ComplementaryPwm::new(
-        p.tim,
-        Some(PwmPin::new_with_config(p.u_high, cfg)),
-        Some(ComplementaryPwmPin::new_with_config(p.u_low, cfg)),
-        Some(PwmPin::new_with_config(p.v_high, cfg)),
-        Some(ComplementaryPwmPin::new_with_config(p.v_low, cfg)),
-        Some(PwmPin::new_with_config(p.w_high, cfg)),
-        Some(ComplementaryPwmPin::new_with_config(p.w_low, cfg)),
-        None,
-        None,
-        Hertz(u32::from(firmware_drive::vm::PWF_MIN_HZ)),
-        CountingMode::CenterAlignedDownInterrupts,
+    // TIM1's clock on and the timer reset (RCC APB2ENR/APB2RSTR): every register below
+    // starts from its reset value, MOE = 0 and the counter stopped.
+    let tim = Timer::new(p.tim);
+    // The pins go to TIM1's alternate function while its outputs are disabled (CCxE = 0,
+    // MOE = 0: the pull-downs hold the gate driver's inputs low).
+    let high = (
+        PwmPin::new_with_config(p.u_high, cfg),
+        PwmPin::new_with_config(p.v_high, cfg),
+        PwmPin::new_with_config(p.w_high, cfg),
     );
-    // `ComplementaryPwm::new` sets MOE; take it back before anything else (start-up: the
-    // configuration is not recorded yet, so this one clear is a read-modify-write).
+    let low = (
+        ComplementaryPwmPin::new_with_config(p.u_low, cfg),
+        ComplementaryPwmPin::new_with_config(p.v_low, cfg),
+        ComplementaryPwmPin::new_with_config(p.w_low, cfg),
+    );
+    // MOE is 0 after the reset; cleared again so that this function owns the output
+    // enable's start value (start-up: the configuration is not recorded yet, so this one
+    // clear is a read-modify-write).
     let t = pac::TIM1;
     t.bdtr().modify(|w| w.set_moe(false));
-    t.cr1().modify(|w| w.set_cen(false));
     // Review D1: a halted core (breakpoint, probe-rs halt) stops TIM1's counter, and a
     // stopped advanced timer disables its outputs as if MOE were cleared (RM0440 "Debug
     // mode"): no frozen duty cycle keeps driving DC into two windings.
@@ -137,7 +152,9 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
     t.dier().modify(|w| w.set_uie(true));
     t.cr1().modify(|w| w.set_cen(true));
     Tim1Pwm {
-        _pwm: pwm,
+        _tim: tim,
+        _high: high,
+        _low: low,
         _sto_in: p.sto_in,
     }
 }

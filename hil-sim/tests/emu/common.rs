@@ -39,13 +39,6 @@ pub fn emu_on_documented_boards(program: &str, scenario: &str) -> Checked {
 /// there; the allowance goes when the fix lands).
 pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
     (
-        "ADC1: injected trigger during an injected sequence (ignored)",
-        "finding (issue 36): about 0.6 ms after each start the drive's ADC1 sees a TIM1 TRGO2 \
-         edge while its 3-channel injected sequence is still converting; RM0440 ignores the \
-         trigger (`injected trigger during an injected sequence (ignored)`): one sample set \
-         is lost during start-up. Reported once per start",
-    ),
-    (
         "HCLK jumps from 16 to 170 MHz in boost mode with the AHB prescaler at /1",
         "finding N9 (board-review-2, issue 29): embassy-stm32 0.6's G4 clock set-up \
          (`rcc/g4.rs`) writes SW = PLL and HPRE = /1 in one CFGR write, where RM0440 6.1.5 \

@@ -13,6 +13,7 @@ use super::message::{
     MAX_Q_PER_FRAME, PROTOCOL_VERSION,
 };
 use super::plc::section_crc;
+use super::plc_decode::plc_frame;
 use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::LinkStats;
 use crate::fault::FaultCode;
@@ -218,7 +219,8 @@ impl DriveLink {
     /// Bytes received from the UART, in order.
     pub fn receive(&mut self, bytes: &[u8], now: Micros) {
         for &b in bytes {
-            if let Some(frame) = self.s.read_byte::<PlcMsg>(b) {
+            // The written-out decoder (`plc_decode`): ~2 KiB less on the drive than serde's.
+            if let Some(frame) = self.s.read_byte_with(b, plc_frame) {
                 self.on_frame(frame, now);
             }
         }

@@ -85,6 +85,14 @@ pub fn encode_frame<M: Serialize>(
 
 /// Decode the raw (already COBS-decoded) bytes of one frame.
 pub fn decode_raw<M: DeserializeOwned>(raw: &[u8]) -> Result<Frame<M>, FrameError> {
+    decode_raw_with(raw, decode_body::<M>)
+}
+
+/// [`decode_raw`] with the body decoder `body` (`None`: not a valid message).
+pub fn decode_raw_with<M>(
+    raw: &[u8],
+    decode: impl FnOnce(&[u8]) -> Option<Frame<M>>,
+) -> Result<Frame<M>, FrameError> {
     if raw.len() < HEADER_BYTES + 1 + CRC_BYTES {
         return Err(FrameError::TooShort);
     }
@@ -94,9 +102,16 @@ pub fn decode_raw<M: DeserializeOwned>(raw: &[u8]) -> Result<Frame<M>, FrameErro
     if CRC.checksum(body) != u32::from_le_bytes(crc_bytes) {
         return Err(FrameError::Crc);
     }
+    decode(body).ok_or(FrameError::Message)
+}
+
+/// A frame's body (header and message, without the CRC) by postcard's serde decoder, `None`
+/// unless it decodes and uses every byte: the body decoder of [`FrameReader::push`]
+/// ([`FrameReader::push_with`] takes another one).
+pub fn decode_body<M: DeserializeOwned>(body: &[u8]) -> Option<Frame<M>> {
     match postcard::take_from_bytes::<Frame<M>>(body) {
-        Ok((frame, [])) => Ok(frame),
-        _ => Err(FrameError::Message),
+        Ok((frame, [])) => Some(frame),
+        _ => None,
     }
 }
 
@@ -130,6 +145,16 @@ impl FrameReader {
 
     /// Feed one byte; at a delimiter that ends a non-empty frame, returns its result.
     pub fn push<M: DeserializeOwned>(&mut self, byte: u8) -> Option<Result<Frame<M>, FrameError>> {
+        self.push_with(byte, decode_body::<M>)
+    }
+
+    /// [`FrameReader::push`] with the body decoder `body` (the drive's written-out
+    /// `plc_decode::plc_frame`).
+    pub fn push_with<M>(
+        &mut self,
+        byte: u8,
+        body: impl FnOnce(&[u8]) -> Option<Frame<M>>,
+    ) -> Option<Result<Frame<M>, FrameError>> {
         if byte != 0 {
             if self.buf.push(byte).is_err() {
                 self.overflow = true;
@@ -144,7 +169,7 @@ impl FrameReader {
             return None;
         }
         let result = match cobs::decode_in_place(&mut self.buf) {
-            Ok(n) => decode_raw(self.buf.get(..n).unwrap_or(&[])),
+            Ok(n) => decode_raw_with(self.buf.get(..n).unwrap_or(&[]), body),
             Err(_) => Err(FrameError::Cobs),
         };
         self.reset();

@@ -2,6 +2,8 @@
 //!
 //! * [`frame`]: COBS framing with a 0x00 delimiter, CRC-32C, frame header (seq, ack).
 //! * [`message`]: every message of both directions (postcard + serde).
+//! * [`plc_decode`]: the drive's decoder of the PLC's frames, written out (postcard's
+//!   format, checked against postcard's decoder).
 //! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.
 //! * [`pump`]: the loop between a UART and an endpoint (boards and hil-sim), with deadlines.
 //! * [`session`]: what both endpoints share (frame reader, transmit window, sequencing,
@@ -23,6 +25,7 @@ pub mod message;
 #[cfg(any(test, feature = "sim"))]
 pub mod pair;
 pub mod plc;
+pub mod plc_decode;
 pub mod pump;
 pub mod reliable;
 pub mod session;

@@ -11,7 +11,7 @@ use serde::de::DeserializeOwned;
 use serde::Serialize;
 
 use super::config::LinkConfig;
-use super::frame::{encode_frame, Frame, FrameReader};
+use super::frame::{decode_body, encode_frame, Frame, FrameReader};
 use super::reliable::{Arrival, RxSeq, StallDetector, TxWindow, STALL_TIMEOUTS};
 use super::LinkStats;
 use crate::units::Micros;
@@ -75,7 +75,16 @@ impl<M: Serialize, const W: usize> Session<M, W> {
     /// One received byte; at the end of a frame, the frame if it is valid (both outcomes
     /// are counted).
     pub fn read_byte<R: DeserializeOwned>(&mut self, byte: u8) -> Option<Frame<R>> {
-        match self.reader.push::<R>(byte)? {
+        self.read_byte_with(byte, decode_body::<R>)
+    }
+
+    /// [`Session::read_byte`] with the body decoder `body` ([`FrameReader::push_with`]).
+    pub fn read_byte_with<R>(
+        &mut self,
+        byte: u8,
+        body: impl FnOnce(&[u8]) -> Option<Frame<R>>,
+    ) -> Option<Frame<R>> {
+        match self.reader.push_with(byte, body)? {
             Err(_) => {
                 self.stats.frames_bad = self.stats.frames_bad.saturating_add(1);
                 None
