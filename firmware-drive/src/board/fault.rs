@@ -2,8 +2,8 @@
 //! before any logging (review D7).
 //!
 //! * `core::panic!` (an `expect`, an embassy/PAC assertion, an index out of range) reaches
-//!   [`panic`], this image's own `#[panic_handler]`: outputs off, then the message over
-//!   defmt, then [`halt`].
+//!   [`panic`], this image's own `#[panic_handler]`: outputs off, then `panic` over defmt
+//!   (no message or location: probe-rs's backtrace at the breakpoint has them), then [`halt`].
 //! * The board's own fatal checks call [`fatal`]: the same order.
 //! * `defmt::panic!`/`unwrap!` inside embassy log their message first and then reach
 //!   [`defmt_panic`]; with RTT in non-blocking mode (`disable-blocking-mode`, review D8)
@@ -45,11 +45,15 @@ pub fn fatal(reason: &'static str) -> ! {
     halt()
 }
 
+/// Logs `panic` without the message and location: reading anything from `info` keeps, for
+/// every panic site, its location, message and `core::fmt` (6.4 KiB of the drive's flash,
+/// docs/size.md). With a probe attached (the only time RTT is read) `halt` stops at `bkpt`
+/// and probe-rs prints the backtrace with each frame's file and line.
 #[panic_handler]
-fn panic(info: &PanicInfo) -> ! {
+fn panic(_info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     safe_state();
-    board_common::debug::log_panic(info);
+    defmt::error!("panic (backtrace: probe-rs at the breakpoint)");
     halt()
 }
 
