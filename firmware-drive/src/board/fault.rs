@@ -45,15 +45,11 @@ pub fn fatal(reason: &'static str) -> ! {
     halt()
 }
 
-/// Logs `panic` without the message and location: reading anything from `info` keeps, for
-/// every panic site, its location, message and `core::fmt` (6.4 KiB of the drive's flash,
-/// docs/size.md). With a probe attached (the only time RTT is read) `halt` stops at `bkpt`
-/// and probe-rs prints the backtrace with each frame's file and line.
 #[panic_handler]
-fn panic(_info: &PanicInfo) -> ! {
+fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     safe_state();
-    defmt::error!("panic (backtrace: probe-rs at the breakpoint)");
+    board_common::debug::log_panic(info);
     halt()
 }
 
