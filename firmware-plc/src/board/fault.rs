@@ -2,7 +2,8 @@
 //! logging (review D7), as on the drive (`firmware-drive/src/board/fault.rs`).
 //!
 //! * `core::panic!` (an `expect`, an embassy/PAC assertion) reaches [`panic`], this image's
-//!   own `#[panic_handler]`: outputs off, then the message over defmt, then [`halt`].
+//!   own `#[panic_handler]`: outputs off, then `panic` over defmt (no message or location:
+//!   probe-rs's backtrace at the breakpoint has them), then [`halt`].
 //! * `defmt::panic!`/`unwrap!` inside embassy log their message first and then reach
 //!   [`defmt_panic`]: outputs off, [`halt`].
 //! * A HardFault turns the outputs off in [`HardFault`].
