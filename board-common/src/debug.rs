@@ -8,6 +8,8 @@
 //! (a release image with a probe attached still resets after a halt of 100 ms). The
 //! drive's TIM1 freeze (D1) is the drive board's own (`power_stage`), in every build.
 
+use core::sync::atomic::{AtomicBool, Ordering};
+
 use embassy_stm32::pac;
 
 /// Freezes the IWDG while the core is halted, in debug builds only. Call before the
@@ -50,4 +52,16 @@ pub fn log_panic(info: &core::panic::PanicInfo) {
         ),
         None => defmt::error!("panic: {=str}", message),
     }
+}
+
+/// A fault path is logging (or has logged).
+static FAULT_LOGGED: AtomicBool = AtomicBool::new(false);
+
+/// Whether this is the first fault path to log: the fault handlers log only then and go
+/// straight to [`halt`] otherwise. Review N11: a fault inside a defmt frame (the logger
+/// taken) makes the handler's own log panic with "defmt logger taken reentrantly"; that
+/// nested panic, and any fault while logging, must reach `halt` (the reset), not recurse
+/// into the logger until the core locks up.
+pub fn first_fault() -> bool {
+    !FAULT_LOGGED.swap(true, Ordering::Relaxed)
 }
