@@ -60,9 +60,9 @@ fn sto_pulse_latches(width_ns: u64) -> Result<(), String> {
 }
 
 /// Review E4, on the documented board glue: the plant's break latch follows the image's
-/// MOE, so the record shows the gates as they are. A short STO pulse sets the latch; when
-/// the image sets MOE again (today's image does, N2) the plant switches again, and while
-/// the image keeps MOE off the plant stays open.
+/// MOE, so the record shows the gates as they are. A short STO pulse sets the latch; were
+/// the image to set MOE again (it did before N2's fix) the plant would switch again, and
+/// while the image keeps MOE off the plant stays open.
 #[test]
 fn the_plants_break_latch_follows_the_images_moe() {
     let scen = format!(
