@@ -12,6 +12,8 @@
 //! is halted its outputs keep their levels (bench rule: `firmware-plc/docs/board.md`); the
 //! drive's TIM1 freeze (D1) is the drive board's own (`power_stage`), in every build.
 
+use core::sync::atomic::{AtomicBool, Ordering};
+
 use embassy_stm32::pac;
 
 /// DHCSR (ARMv7-M "Debug Halting Control and Status Register").
@@ -51,4 +53,16 @@ pub fn halt() -> ! {
 /// frame's file and line: the same facts, from the debug information instead of flash.
 pub fn log_panic(_info: &core::panic::PanicInfo) {
     defmt::error!("panic (backtrace: probe-rs at the breakpoint)");
+}
+
+/// A fault path is logging (or has logged).
+static FAULT_LOGGED: AtomicBool = AtomicBool::new(false);
+
+/// Whether this is the first fault path to log: the fault handlers log only then and go
+/// straight to [`halt`] otherwise. Review N11: a fault inside a defmt frame (the logger
+/// taken) makes the handler's own log panic with "defmt logger taken reentrantly"; that
+/// nested panic, and any fault while logging, must reach `halt` (the reset), not recurse
+/// into the logger until the core locks up.
+pub fn first_fault() -> bool {
+    !FAULT_LOGGED.swap(true, Ordering::Relaxed)
 }

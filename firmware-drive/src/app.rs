@@ -8,7 +8,8 @@
 //! | every 1 ms | [`DriveApp::tick_1ms`] |
 //! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`], then [`PeriodAction::apply`] |
 //! | TIM1 break interrupt | [`DriveApp::break_fired`] |
-//! | every 1 ms, before `tick_1ms` | [`DriveApp::break_poll`] |
+//! | TIM1 break interrupt, `STO_IN` / system break | [`DriveApp::sto_break`] / [`DriveApp::system_break`] |
+//! | every 1 ms, before `tick_1ms` | [`DriveApp::set_sto_input`], then [`DriveApp::break_poll`] |
 //!
 //! The board passes what the registers say (ADC counts, comparator levels) and performs
 //! what comes back over its [`PowerPort`](crate::power_port::PowerPort); hil-sim does the
@@ -262,7 +263,23 @@ impl DriveApp {
     /// The hardware `STO_IN` input as the board reads it every millisecond, before
     /// `tick_1ms` (`low` = STO requested; safety.md 6).
     pub fn set_sto_input(&mut self, low: bool) {
+        self.breaks.set_sto_input(low);
         self.core.set_sto_input(low);
+    }
+
+    /// The TIM1 break interrupt found the `STO_IN` break's flag (the hardware has already
+    /// opened every switch; the board has masked the interrupt and clears the flag after
+    /// this call): the core latches it ([`DriveCore::sto_break`]).
+    pub fn sto_break(&mut self) {
+        self.breaks.other_fired();
+        self.core.sto_break();
+    }
+
+    /// The TIM1 break interrupt found the system break's flag (review N4), as
+    /// [`DriveApp::sto_break`]: the core latches `BOOT` ([`DriveCore::system_break`]).
+    pub fn system_break(&mut self) {
+        self.breaks.other_fired();
+        self.core.system_break();
     }
 
     /// The TIM1 break interrupt with the comparators at `levels` (the hardware has

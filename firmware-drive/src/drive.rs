@@ -536,6 +536,25 @@ impl DriveCore {
         self.sto_in_low = low;
     }
 
+    /// The `STO_IN` break fired (safety.md 6; the hardware has already opened every
+    /// switch): the input was low, however briefly. Code 9 latches at once in RUN, so no
+    /// later PWM period sets the outputs again (review N2: a pulse shorter than the 1 ms
+    /// read was lost), and until the board's next [`DriveCore::set_sto_input`] the input
+    /// counts as low (RUN refused).
+    pub fn sto_break(&mut self) {
+        self.sto_in_low = true;
+        if self.state == DriveState::Run {
+            self.trip(FaultCode::Sto);
+        }
+    }
+
+    /// TIM1's system break fired (review N4: a PVD dip, an SRAM parity or flash double-ECC
+    /// error, routed by SYSCFG_CFGR2; the hardware has already opened every switch): the
+    /// MCU itself is not sound, so `BOOT` latches, which only a power cycle clears.
+    pub fn system_break(&mut self) {
+        self.trip(FaultCode::Boot);
+    }
+
     /// The requested safety functions: the PLC's mask, plus STO while `STO_IN` is low.
     pub fn safety_requested(&self) -> u16 {
         self.safety_requested | u16::from(self.sto_in_low)

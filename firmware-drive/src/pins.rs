@@ -18,7 +18,17 @@
 //! | brake chopper gate | PB5 | GPIO out, active high | free pin |
 //! | link TX / RX | PB6 / PB7 | USART1 (AF7), DMA1 CH1 / CH2 | encoder/Hall H1 / H2 pads |
 //! | heartbeat LED (toggles while the watchdog is fed) | PC6 | GPIO out | LED |
-//! | `STO_IN` (safety.md 6, NOT RATED): active low, pull-down (a broken wire requests STO) | PA11 | TIM1_BKIN2 (AF12), read every 1 ms | free pin (USB DM, unused) |
+//! | `STO_IN` (safety.md 6, NOT RATED): active low, pull-down (a broken wire requests STO) | PA15 | TIM1_BKIN (AF9), break 1; read every 1 ms | `PWM`, the ESC's command input pad |
+//!
+//! `STO_IN` (review N1): UM2516's pin table and stm32duino's `variant_B_G431B_ESC1.h`
+//! name PA11 `CAN_RX`, the CAN transceiver's RXD output, which drives the net (a broken
+//! STO wire would read "not requested"); the only TIM1_BKIN2 pin of the STM32G431CBU6 is
+//! PA11 (stm32-metapac 21, `STM32G431CB`: BKIN2 on PA11 AF12 only). PA15 is the ESC1's
+//! `PWM` pad (the servo-style command input: stm32duino `A_PWM`, UM2516 pin table), unused
+//! by this image, and TIM1_BKIN on AF9: the STO input is break 1 and the comparators
+//! moved to break 2 (`board::power_stage`). Whether the board puts a resistor on the
+//! `PWM` net is in UM2516's schematic, which we could not read: bench-check.md measures
+//! the open pad.
 //!
 //! The current rows are the bare ESC1's front end (`firmware_drive::front_end::ESC1_PGAS`);
 //! with the feature `source-sensors` the OPAMPs stay off and the ADC reads PA1 (ADC1_IN2)
@@ -41,8 +51,8 @@ pub struct PowerStage {
     pub v_low: Peri<'static, p::PA12>,
     pub w_high: Peri<'static, p::PA10>,
     pub w_low: Peri<'static, p::PB15>,
-    /// `STO_IN`: TIM1's second break input (BKIN2).
-    pub sto_in: Peri<'static, p::PA11>,
+    /// `STO_IN`: TIM1's break input 1 pin (BKIN).
+    pub sto_in: Peri<'static, p::PA15>,
 }
 
 /// Analog front end: measurement pins and the converters behind them.
@@ -106,7 +116,7 @@ pub fn split(p: Peripherals) -> Board {
             v_low: p.PA12,
             w_high: p.PA10,
             w_low: p.PB15,
-            sto_in: p.PA11,
+            sto_in: p.PA15,
         },
         analog: Analog {
             adc1: p.ADC1,

@@ -144,17 +144,23 @@ pub struct BreakReport {
     pub fired: [bool; 2],
     /// Causes whose comparators went low: [overcurrent, overvoltage].
     pub released: [bool; 2],
-    /// No comparator is high any more: the board may unmask the break interrupt again
-    /// (it was masked when the break fired, since the flag sets again at once while the
-    /// input stays active).
+    /// No comparator is high any more and `STO_IN` is high: the board may unmask the
+    /// break interrupt again (it was masked when a break fired, since a flag sets again at
+    /// once while its input stays active). The board only unmasks: a flag set while the
+    /// interrupt was masked (a comparator break during an STO) is still set and is
+    /// reported then, delayed, not lost (review N3).
     pub rearm: bool,
 }
 
-/// Attribution, release and re-arming of the hardware break.
+/// Attribution, release and re-arming of the hardware break: the comparators' break,
+/// the `STO_IN` break and the system break (safety.md 6, review N2-N4) share the one
+/// break interrupt, masked after each report until every input it watches is inactive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct BreakMonitor {
     active: [bool; 2],
     masked: bool,
+    /// `STO_IN` low as last read (the board reads it every millisecond).
+    sto_low: bool,
 }
 
 impl BreakMonitor {
@@ -178,6 +184,18 @@ impl BreakMonitor {
         }
     }
 
+    /// The `STO_IN` break or the system break fired (the hardware has already cleared MOE;
+    /// the board has masked the interrupt): masked until [`BreakMonitor::poll`] re-arms.
+    pub fn other_fired(&mut self) {
+        self.masked = true;
+    }
+
+    /// `STO_IN`'s level, every millisecond before [`BreakMonitor::poll`]: no re-arming
+    /// while it is low (its flag would set again at once).
+    pub fn set_sto_input(&mut self, low: bool) {
+        self.sto_low = low;
+    }
+
     /// Every millisecond with the comparators at `levels`: the latched causes whose
     /// comparators are low are released (the fault stays latched until ACK; only the
     /// "cause still present" check changes), and the interrupt is re-armed once none is
@@ -191,7 +209,7 @@ impl BreakMonitor {
                 *r = true;
             }
         }
-        let rearm = self.masked && high == [false, false];
+        let rearm = self.masked && high == [false, false] && !self.sto_low;
         if rearm {
             self.masked = false;
         }
@@ -442,5 +460,24 @@ mod tests {
         // COMP4 (phase W) is overcurrent; a pulse already gone blames overcurrent.
         assert_eq!(m.fired(b, levels(&[4])).fired, [true, false]);
         assert_eq!(m.fired(b, levels(&[])).fired, [true, false]);
+    }
+
+    /// Review N2/N3: after an `STO_IN` break the interrupt stays masked while the input
+    /// is low, even once the comparators are low (a comparator break meanwhile waits in
+    /// its flag), and is re-armed once, when the input is high again.
+    #[test]
+    fn sto_break_rearms_only_with_the_input_high() {
+        let b = &SOURCE_SENSORS;
+        let mut m = BreakMonitor::default();
+        m.other_fired();
+        m.set_sto_input(true);
+        assert!(!m.poll(b, levels(&[])).rearm, "STO_IN still low");
+        m.set_sto_input(false);
+        assert!(!m.poll(b, levels(&[3])).rearm, "a comparator still high");
+        assert!(m.poll(b, levels(&[])).rearm);
+        assert!(!m.poll(b, levels(&[])).rearm, "once");
+        // Nothing masked: a low STO_IN alone asks for nothing.
+        m.set_sto_input(true);
+        assert_eq!(m.poll(b, levels(&[])), BreakReport::default());
     }
 }

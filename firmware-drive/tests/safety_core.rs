@@ -141,6 +141,64 @@ fn sto_in_refuses_run_latches_code_9_in_run_and_blocks_its_ack() {
     core.command(DriveCommand::Ack).unwrap();
 }
 
+/// Review N2: the `STO_IN` break seen by the break interrupt, with the input high again
+/// by the next tick (a pulse shorter than the 1 ms read): code 9 at once, no PWM period
+/// enables the outputs, ACK and a new RUN bring them back.
+#[test]
+fn an_sto_break_shorter_than_a_tick_latches_code_9_until_ack_and_run() {
+    let mut core = core_with(LAB, 100);
+    tick(&mut core);
+    assert!(core.pwm_period(&ok()).enable);
+    core.sto_break();
+    assert_eq!(core.fault(), Some(FaultCode::Sto));
+    assert!(!core.pwm_period(&ok()).enable, "no period after the break");
+    assert_eq!(core.command(DriveCommand::Run), Err(CommandError::Faulted));
+    core.set_sto_input(false);
+    for _ in 0..10 {
+        tick(&mut core);
+        assert!(!core.pwm_period(&ok()).enable, "not by itself");
+    }
+    core.command(DriveCommand::SetQ { addr: 1, value: 0 })
+        .unwrap();
+    tick(&mut core);
+    core.command(DriveCommand::Ack).unwrap();
+    core.command(DriveCommand::SetQ {
+        addr: 1,
+        value: 100,
+    })
+    .unwrap();
+    core.command(DriveCommand::Run).unwrap();
+    tick(&mut core);
+    assert!(core.pwm_period(&ok()).enable, "after ACK and a new RUN");
+}
+
+/// In IDLE an `STO_IN` break latches nothing (code 9 is a RUN fault, safety.md 6) but
+/// refuses RUN until the board reads the input high again.
+#[test]
+fn an_sto_break_in_idle_refuses_run_until_the_input_reads_high() {
+    let mut core = core_with(LAB, 100);
+    core.command(DriveCommand::Stop).unwrap();
+    core.sto_break();
+    assert_eq!(core.fault(), None);
+    assert_eq!(core.command(DriveCommand::Run), Err(CommandError::StoInput));
+    core.set_sto_input(false);
+    core.command(DriveCommand::Run).unwrap();
+}
+
+/// Review N4: a system break latches `BOOT`, whose ACK is refused (a power cycle).
+#[test]
+fn a_system_break_latches_boot_for_good() {
+    let mut core = core_with(LAB, 100);
+    tick(&mut core);
+    core.system_break();
+    assert_eq!(core.fault(), Some(FaultCode::Boot));
+    assert!(!core.pwm_period(&ok()).enable);
+    assert_eq!(
+        core.command(DriveCommand::Ack),
+        Err(CommandError::CauseActive(FaultCode::Boot))
+    );
+}
+
 #[test]
 fn the_lab_ss1_ends_15000_ticks_after_the_request_with_code_10() {
     let mut core = core_with(LAB, 100);

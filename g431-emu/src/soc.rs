@@ -1086,8 +1086,19 @@ impl Soc {
         }
     }
 
-    /// The level of TIM1's BKIN2 pin (the drive board's hardware STO input, safety.md 6:
-    /// PA11, AF12). The board's net drives TIM1's break 2 directly: the host calls this
+    /// The level of TIM1's BKIN pin (break input 1; on the drive board the hardware STO
+    /// input on PA15, AF9). As [`Soc::set_tim1_bkin2`]: the host calls this when the net's
+    /// level changes (the AF selection of the pin is not checked).
+    pub fn set_tim1_bkin(&mut self, level: bool, now: Cycles) {
+        let t1 = self.wired.tim1;
+        if let Some(tim) = self.model_mut::<TimAdv>(t1) {
+            tim.set_bkin(level, now);
+        }
+        self.refresh(t1);
+    }
+
+    /// The level of TIM1's BKIN2 pin (PA11, AF12, on the ESC1 the CAN transceiver's RXD).
+    /// The board's net drives TIM1's break 2 directly: the host calls this
     /// when the level changes (the AF selection of the pin is not checked), and the pin's
     /// GPIO level (IDR) is the board's `PinReader::external` for the same pin.
     pub fn set_tim1_bkin2(&mut self, level: bool, now: Cycles) {

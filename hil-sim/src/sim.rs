@@ -486,13 +486,13 @@ impl Simulation {
         if t >= self.next_drive_tick_ns {
             // The lift moves on with the outputs of the PLC's last scan.
             self.lift_step();
-            // The board's 1 ms task: comparator levels to the break monitor, then the tick.
+            // The board's 1 ms task: STO_IN (safety.md 6) and the comparator levels to the
+            // break monitor, then the tick.
+            self.drive.set_sto_input(self.plant.sto_in_low());
             let report = self.drive.break_poll(self.plant.comparator_levels());
             if report.rearm {
                 self.tim1.rearm_break(&mut self.plant);
             }
-            // The board reads STO_IN every tick (safety.md 6).
-            self.drive.set_sto_input(self.plant.sto_in_low());
             self.drive.tick_1ms(now);
             self.next_drive_tick_ns += MS_NS;
             app_ran[1] = true;
@@ -628,7 +628,13 @@ impl Simulation {
             }
             // 10-bit value on the drive's 12-bit converter.
             Action::Set(Input::Aux, v) => self.aux_counts = (v << 2).min(4095),
-            Action::Set(Input::StoIn, v) => self.plant.set_sto_input(v == 0),
+            Action::Set(Input::StoIn, v) => {
+                self.plant.set_sto_input(v == 0);
+                if v == 0 {
+                    // The board's break interrupt on `STO_IN`'s break (issue 29 N2).
+                    self.drive.sto_break();
+                }
+            }
             Action::KeyDown(k) => self.plc.key(k, true, now),
             Action::KeyUp(k) => self.plc.key(k, false, now),
             Action::Plant(c) => c.apply(self.plant.params_mut()),

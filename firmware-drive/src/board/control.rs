@@ -30,9 +30,10 @@ pub async fn run() {
         #[cfg(feature = "dwt-cycles")]
         let start = super::cycles::now();
         let rearm = shared::with(|s| {
-            let rearm = s.app.break_poll(levels).rearm;
-            // safety.md 6: the STO input's level, every tick, before the tick.
+            // safety.md 6: the STO input's level, every tick, before the break monitor
+            // (no re-arming while it is low) and the tick.
             s.app.set_sto_input(power_stage::sto_input_low());
+            let rearm = s.app.break_poll(levels).rearm;
             s.app.tick_1ms(shared::now());
             // A download may have changed I>>/U>>: write the core's new DAC values.
             let now = s.app.core().comparator_dacs();
@@ -53,7 +54,7 @@ pub async fn run() {
         #[cfg(feature = "dwt-cycles")]
         super::cycles::record_tick(start);
         super::link::kick_if_due();
-        if rearm == Some(true) || power_stage::sto_rearm_due() {
+        if rearm == Some(true) {
             power_stage::rearm_break_irq();
         }
         for e in events {

@@ -8,7 +8,16 @@
 //! * `defmt::panic!`/`unwrap!` inside embassy log their message first and then reach
 //!   [`defmt_panic`]; with RTT in non-blocking mode (`disable-blocking-mode`, review D8)
 //!   that log costs a few microseconds, never a wait for the probe.
-//! * A HardFault turns the outputs off in [`HardFault`]. A lockup (a fault while the
+//! * A HardFault turns the outputs off in [`HardFault`]; the NMI in [`NonMaskableInt`] and every
+//!   exception without a handler of its own in [`DefaultHandler`], before anything else
+//!   (review N10). A flash double-ECC error or an SRAM parity error (the NMI's sources on
+//!   this image) also reach TIM1's system break (`power_stage::route_system_faults_to_break`):
+//!   the NMI clears its flag and returns, and the break interrupt has the core latch
+//!   `BOOT` and report it (review N4); any other NMI halts.
+//! * Only the first fault path logs (`board_common::debug::first_fault`): a fault inside a
+//!   defmt frame makes the log panic ("logger taken reentrantly"), and that nested panic
+//!   goes straight to [`halt`] (review N11).
+//! * A lockup (a fault while the
 //!   HardFault handler cannot run, e.g. a stack overflow) never reaches software: SYSCFG
 //!   routes it to TIM1's break in hardware (`power_stage::route_system_faults_to_break`).
 //!
@@ -19,8 +28,9 @@
 
 use core::panic::PanicInfo;
 
-use board_common::debug::halt;
+use board_common::debug::{first_fault, halt};
 use cortex_m_rt::{exception, ExceptionFrame};
+use embassy_stm32::pac;
 
 use super::power_stage;
 use crate::pins;
@@ -41,7 +51,9 @@ pub const UNBINDABLE_PROFILE: &str = "board profile entry not bindable";
 pub fn fatal(reason: &'static str) -> ! {
     cortex_m::interrupt::disable();
     safe_state();
-    defmt::error!("fatal: {=str}", reason);
+    if first_fault() {
+        defmt::error!("fatal: {=str}", reason);
+    }
     halt()
 }
 
@@ -49,14 +61,54 @@ pub fn fatal(reason: &'static str) -> ! {
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     safe_state();
-    board_common::debug::log_panic(info);
+    if first_fault() {
+        board_common::debug::log_panic(info);
+    }
     halt()
 }
 
 #[exception]
 unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
     safe_state();
-    defmt::error!("HardFault");
+    if first_fault() {
+        defmt::error!("HardFault");
+    }
+    halt()
+}
+
+/// Outputs off first. A flash double-ECC error (FLASH_ECCR.ECCD) or an SRAM parity error
+/// (SYSCFG_CFGR2.SPF) has also set TIM1's system break (ECCL/SPL): its flag is cleared
+/// (rc_w1) so that the NMI does not repeat, and the break interrupt reports the fault
+/// (`BOOT`) over the link. An NMI with neither flag (nothing else raises it here) halts.
+#[exception]
+unsafe fn NonMaskableInt() {
+    safe_state();
+    let flash = pac::FLASH.eccr().read();
+    let syscfg = pac::SYSCFG.cfgr2().read();
+    if flash.eccd() {
+        pac::FLASH.eccr().write_value(flash);
+    }
+    if syscfg.spf() {
+        pac::SYSCFG.cfgr2().write_value(syscfg);
+    }
+    if !flash.eccd() && !syscfg.spf() {
+        unknown_exception("NMI")
+    }
+}
+
+/// Every exception and interrupt without a handler of its own (review N10).
+#[exception]
+unsafe fn DefaultHandler(_irqn: i16) -> ! {
+    unknown_exception("unexpected exception")
+}
+
+/// Outputs off, logged once, halt.
+fn unknown_exception(what: &'static str) -> ! {
+    cortex_m::interrupt::disable();
+    safe_state();
+    if first_fault() {
+        defmt::error!("{=str}", what);
+    }
     halt()
 }
 

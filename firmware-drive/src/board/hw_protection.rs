@@ -146,7 +146,7 @@ pub fn init(
     }
 }
 
-/// TIM1 break-input comparator indices (AF1.BKCMPxE, 0-based) of the profile.
+/// TIM1 break-input comparator indices (AF2.BK2CMPxE since issue 29: break 2; 0-based) of the profile.
 pub fn break_comparators(board: &BoardProfile) -> heapless::Vec<usize, 7> {
     board
         .comparators

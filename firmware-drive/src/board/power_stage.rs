@@ -11,7 +11,7 @@
 //! it computed a period, counting mode and compare modes that [`init`] overwrote at once
 //! (~0.5 KiB of start-up code, docs/size.md), and set MOE.
 
-use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use core::sync::atomic::{AtomicU32, Ordering};
 use embassy_stm32::gpio::{Level, Output};
 use embassy_stm32::gpio::{OutputType, Pull, Speed};
 use embassy_stm32::pac;
@@ -40,9 +40,9 @@ pub struct Tim1Pwm {
         ComplementaryPwmPin<'static, TIM1, Ch2>,
         ComplementaryPwmPin<'static, TIM1, Ch3>,
     ),
-    /// `STO_IN` (PA11, TIM1_BKIN2): held so that nothing else takes the pin; configured
+    /// `STO_IN` (PA15, TIM1_BKIN): held so that nothing else takes the pin; configured
     /// by [`arm_sto_input`].
-    _sto_in: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PA11>,
+    _sto_in: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PA15>,
 }
 
 /// Fewest CK_INT periods of dead time the power stage accepts: `min_dead_time_ns` rounded up.
@@ -159,34 +159,42 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
     }
 }
 
-/// Arms break input 1 (active high, fed by the comparators) with automatic output enable
-/// off: a break clears MOE in hardware and it stays cleared until software sets it again.
-/// MOE is 0 here (`init`), so the read-modify-write of BDTR cannot set it.
+/// Arms break input 2 (active high, fed by the comparators; its BKIN2 pin, PA11, is the
+/// ESC1's CAN_RX and not used) with automatic output enable off: a break clears MOE in
+/// hardware and it stays cleared until software sets it again. Break 1 is `STO_IN`'s
+/// ([`arm_sto_input`]): the only TIM1 break pin the ESC1 leaves free is a BKIN pin
+/// (review N1, `pins`). MOE is 0 here (`init`), so the read-modify-write of BDTR cannot
+/// set it.
 pub fn arm_break(comparators: &[usize]) {
     let t = pac::TIM1;
-    t.af1().modify(|w| {
-        // Only the comparators: the BKIN pin (reset default on) is not wired.
-        w.set_bkine(false);
+    t.af2().modify(|w| {
+        // Only the comparators: the BKIN2 pin (reset default on) is not wired.
+        w.set_bk2ine(false);
         for &c in comparators {
-            w.set_bkcmpe(c, true);
+            w.set_bk2cmpe(c, true);
         }
     });
     t.bdtr().modify(|w| {
         w.set_moe(false);
-        w.set_bkp(0, Bkp::ACTIVE_HIGH);
+        w.set_bkp(1, Bkp::ACTIVE_HIGH);
         w.set_aoe(false);
-        w.set_bke(0, true);
+        w.set_bke(1, true);
     });
     clear_flags(break_flags());
     t.dier().modify(|w| w.set_bie(true));
 }
 
-/// safety.md 6 (NOT RATED): `STO_IN` on PA11 as TIM1_BKIN2 (AF12), with a pull-down so
-/// that a broken wire requests STO; break 2 armed active low with automatic output
-/// enable off: `STO_IN` low clears MOE in hardware, with no software, and only the drive
-/// software sets it again (after ACK and a new RUN). No policy here: the core reads the
-/// level every tick ([`sto_input_low`]) and decides. The pin stays reserved by `pins`
-/// (its `Peri` is kept by the caller); MOE is 0 here (`init`).
+/// safety.md 6 (NOT RATED): `STO_IN` on PA15 as TIM1_BKIN (AF9; not BKIN2 as safety.md
+/// says: the G431CBU6's only BKIN2 pin is PA11, the ESC1's CAN_RX, review N1), with a
+/// pull-down so that a broken wire requests STO; break 1 armed active low (its only
+/// source: the comparators are on break 2) with automatic output enable off: `STO_IN` low
+/// clears MOE in hardware, with no software, and sets BIF, which stays set until the core
+/// has seen it ([`take_break`]); only the drive software sets MOE again (after ACK and a
+/// new RUN). No filter (BKF = 0): a pulse of one timer clock (5.9 ns) breaks. No policy
+/// here: the core latches the break and reads the level every tick
+/// ([`sto_input_low`]). The pin stays reserved by `pins` (its `Peri` is kept by the
+/// caller); MOE is 0 here (`init`). Break 1 also carries the system break (SBIF,
+/// [`route_system_faults_to_break`]), which needs BKE = 1.
 pub fn arm_sto_input() {
     let a = pac::GPIOA;
     a.pupdr()
@@ -196,24 +204,24 @@ pub fn arm_sto_input() {
     a.moder()
         .modify(|w| w.set_moder(STO_PIN, pac::gpio::vals::Moder::ALTERNATE));
     let t = pac::TIM1;
-    t.af2().modify(|w| {
-        // The BKIN2 pin, not inverted; no comparator on break 2.
-        w.set_bk2ine(true);
-        w.set_bk2inp(pac::timer::vals::Bkinp::NOT_INVERTED);
+    t.af1().modify(|w| {
+        // The BKIN pin, not inverted; no comparator on break 1.
+        w.set_bkine(true);
+        w.set_bkinp(pac::timer::vals::Bkinp::NOT_INVERTED);
     });
     t.bdtr().modify(|w| {
         w.set_moe(false);
-        w.set_bkp(1, Bkp::ACTIVE_LOW);
+        w.set_bkp(0, Bkp::ACTIVE_LOW);
         w.set_aoe(false);
-        w.set_bke(1, true);
+        w.set_bke(0, true);
     });
     clear_flags(break_flags());
 }
 
-/// PA11 (`STO_IN`).
-const STO_PIN: usize = 11;
-/// PA11's alternate function TIM1_BKIN2.
-const STO_AF: u8 = 12;
+/// PA15 (`STO_IN`).
+const STO_PIN: usize = 15;
+/// PA15's alternate function TIM1_BKIN.
+const STO_AF: u8 = 9;
 
 /// `STO_IN` is low (STO requested), as its input data register reads (the pin is in
 /// alternate-function mode; IDR still reads its level).
@@ -282,11 +290,13 @@ pub fn record_bdtr() {
     BDTR_CONFIG.store(v.0, Ordering::Relaxed);
 }
 
-/// The break flags of both break inputs (BIF, B2IF).
+/// The break flags: both break inputs (BIF: `STO_IN`, B2IF: the comparators) and the
+/// system break (SBIF, review N4).
 fn break_flags() -> SrAdv {
     let mut m = SrAdv(0);
     m.set_bif(0, true);
     m.set_bif(1, true);
+    m.set_sbif(true);
     m
 }
 
@@ -387,55 +397,53 @@ pub fn take_update() -> bool {
     set
 }
 
-/// What set the break interrupt's flags.
-#[derive(Clone, Copy, PartialEq, Eq)]
-pub enum BreakKind {
-    /// No break flag (a spurious entry).
-    None,
-    /// Break 1: a comparator (reported to the core with the comparator levels).
-    Comparator,
-    /// Only break 2: `STO_IN` low (safety.md 6). Not a comparator trip: the core reads the
-    /// input's level in its tick and latches code 9 itself.
-    StoOnly,
+/// The break flags the break interrupt found (a register value: which source each flag
+/// stands for is `arm_break`'s and `arm_sto_input`'s wiring).
+#[derive(Clone, Copy)]
+pub struct BreakFlags(SrAdv);
+
+impl BreakFlags {
+    /// None set (a spurious entry).
+    pub fn none(self) -> bool {
+        self.0 .0 == 0
+    }
+    /// BIF: `STO_IN` (break 1).
+    pub fn sto(self) -> bool {
+        self.0.bif(0)
+    }
+    /// B2IF: a comparator (break 2).
+    pub fn comparator(self) -> bool {
+        self.0.bif(1)
+    }
+    /// SBIF: the system break (PVD, SRAM parity, flash ECC, LOCKUP).
+    pub fn system(self) -> bool {
+        self.0.sbif()
+    }
 }
 
-/// `STO_IN` masked the break interrupt (its flag sets again at once while the input is
-/// low); [`sto_rearm_due`] unmasks it once the input is high again.
-static STO_MASKED: AtomicBool = AtomicBool::new(false);
-
-/// Which break set a flag; clears the break flags and masks the break interrupt (the flag
-/// sets again at once while a comparator or `STO_IN` stays active) until
-/// [`rearm_break_irq`].
-pub fn take_break() -> BreakKind {
+/// The break flags now set, with the break interrupt masked (a flag sets again at once
+/// while its input stays active) until [`rearm_break_irq`]. The flags stay set until
+/// [`clear_break_flags`], after the core has been told (safety.md 6: the break stays
+/// latched until the core has seen it; meanwhile `Tim1Port::break_pending` keeps MOE off).
+pub fn take_break() -> BreakFlags {
     let t = pac::TIM1;
-    let sr = t.sr().read();
-    if sr.0 & break_flags().0 == 0 {
-        return BreakKind::None;
+    let seen = SrAdv(t.sr().read().0 & break_flags().0);
+    if seen.0 != 0 {
+        t.dier().modify(|w| w.set_bie(false));
     }
-    t.dier().modify(|w| w.set_bie(false));
-    clear_flags(break_flags());
-    if sr.bif(0) {
-        BreakKind::Comparator
-    } else {
-        STO_MASKED.store(true, Ordering::Relaxed);
-        BreakKind::StoOnly
-    }
+    BreakFlags(seen)
 }
 
-/// Every millisecond: a break interrupt masked by `STO_IN` is unmasked once the input is
-/// high again (while it is low a comparator break still opens the outputs in hardware;
-/// its software report waits for the unmasking: firmware-drive docs/safety.md).
-pub fn sto_rearm_due() -> bool {
-    if STO_MASKED.load(Ordering::Relaxed) && !sto_input_low() {
-        STO_MASKED.store(false, Ordering::Relaxed);
-        return true;
-    }
-    false
+/// Clears the flags of `seen` and no other: a flag that set in between (another source)
+/// stays for the next entry.
+pub fn clear_break_flags(seen: BreakFlags) {
+    clear_flags(seen.0);
 }
 
-/// Clears the break flags and unmasks the break interrupt (the core's `BreakReport::rearm`).
+/// Unmasks the break interrupt (the core's `BreakReport::rearm`) without clearing any
+/// flag: a break that came while the interrupt was masked (a comparator during an STO)
+/// is then reported, delayed, not lost (review N3).
 pub fn rearm_break_irq() {
-    clear_flags(break_flags());
     pac::TIM1.dier().modify(|w| w.set_bie(true));
 }
 

@@ -42,20 +42,28 @@ fn TIM1_UP_TIM16() {
     super::cycles::record_pwm(start);
 }
 
-/// The break input fired: MOE is already cleared by hardware. The application attributes
-/// it from the comparator levels.
+/// A break fired: MOE is already cleared by hardware. The application is told each source
+/// whose flag is set (the comparators with their levels, for the attribution), and only
+/// then are those flags cleared: until the core has seen a break, its flag keeps the PWM
+/// interrupt from setting MOE (`Tim1Port::break_pending`).
 #[interrupt]
 fn TIM1_BRK_TIM15() {
-    match power_stage::take_break() {
-        power_stage::BreakKind::None => return,
-        // STO_IN (break 2): the hardware has opened the outputs; the tick reads the input.
-        power_stage::BreakKind::StoOnly => {
-            power_stage::outputs_off();
-            return;
-        }
-        power_stage::BreakKind::Comparator => {}
+    let seen = power_stage::take_break();
+    if seen.none() {
+        return;
     }
     power_stage::outputs_off();
     let levels = hw_protection::levels();
-    shared::with(|s| s.app.break_fired(levels));
+    shared::with(|s| {
+        if seen.sto() {
+            s.app.sto_break();
+        }
+        if seen.comparator() {
+            let _ = s.app.break_fired(levels);
+        }
+        if seen.system() {
+            s.app.system_break();
+        }
+    });
+    power_stage::clear_break_flags(seen);
 }

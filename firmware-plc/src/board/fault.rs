@@ -6,7 +6,12 @@
 //!   probe-rs's backtrace at the breakpoint has them), then [`halt`].
 //! * `defmt::panic!`/`unwrap!` inside embassy log their message first and then reach
 //!   [`defmt_panic`]: outputs off, [`halt`].
-//! * A HardFault turns the outputs off in [`HardFault`].
+//! * A HardFault turns the outputs off in [`HardFault`], the NMI (a flash double-ECC or SRAM
+//!   parity error) in [`NonMaskableInt`] and every exception without a handler of its own in
+//!   [`DefaultHandler`], before anything else, then halt (review N10).
+//! * Only the first fault path logs (`board_common::debug::first_fault`): a fault inside a
+//!   defmt frame makes the log panic ("logger taken reentrantly"), and that nested panic
+//!   goes straight to [`halt`] (review N11).
 //!
 //! [`halt`] stops for a debugger (`bkpt`) or, without one, resets the MCU at once: it does
 //! not wait for the watchdog, which may not have been started yet (a panic during
@@ -15,7 +20,7 @@
 
 use core::panic::PanicInfo;
 
-use board_common::debug::halt;
+use board_common::debug::{first_fault, halt};
 use cortex_m_rt::{exception, ExceptionFrame};
 
 use crate::pins;
@@ -24,14 +29,36 @@ use crate::pins;
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     pins::force_outputs_low();
-    board_common::debug::log_panic(info);
+    if first_fault() {
+        board_common::debug::log_panic(info);
+    }
     halt()
 }
 
 #[exception]
 unsafe fn HardFault(_frame: &ExceptionFrame) -> ! {
+    stop("HardFault")
+}
+
+/// A flash double-ECC or SRAM parity error: the program or its data cannot be trusted.
+#[exception]
+unsafe fn NonMaskableInt() {
+    stop("NMI")
+}
+
+/// Every exception and interrupt without a handler of its own.
+#[exception]
+unsafe fn DefaultHandler(_irqn: i16) -> ! {
+    stop("unexpected exception")
+}
+
+/// Outputs off, logged once, halt.
+fn stop(what: &'static str) -> ! {
+    cortex_m::interrupt::disable();
     pins::force_outputs_low();
-    defmt::error!("HardFault");
+    if first_fault() {
+        defmt::error!("{=str}", what);
+    }
     halt()
 }
 

@@ -19,7 +19,8 @@
 //! What it models: the three low-side shunts and the resistor network that brings each
 //! shunt's two ends to its OPAMP's VINP and VINM0 pins (with the bias that network puts on
 //! both), the DC-link divider, the potentiometer, the CAN transceiver's RX output on PA11
-//! with its shutdown input on PC11, the BEMF divider enable on PB5 and the user LED on PC6.
+//! with its shutdown input on PC11, the `PWM` command pad on PA15, the BEMF divider enable
+//! on PB5 and the user LED on PC6.
 //! The board has no brake chopper: nothing on it dissipates regenerated energy.
 
 use super::{ExternalWire, NetLevel, PowerStageQuantities, VDDA_VOLTS};
@@ -117,6 +118,12 @@ pub const BEMF_ENABLE: (u8, u8) = (1, 5);
 
 /// PA11: `CAN_RX` \[UM2516\], \[duino\]: the CAN transceiver's RXD output.
 pub const CAN_RX: (u8, u8) = (0, 11);
+/// PA15: `PWM` \[UM2516\], \[duino\] (`A_PWM`): the ESC's command input pad (a
+/// servo-style PWM from a flight controller). No part on the net is named in the
+/// documents we reached (a series or pull resistor would be in the unread schematic):
+/// the pad's net is the external wire alone, and an open wire leaves the pin to the MCU's
+/// own pull (the one reading the documents allow; bench-check.md measures it).
+pub const PWM_INPUT: (u8, u8) = (0, 15);
 /// PC11: `CAN_SHDN` \[UM2516\], \[duino\]: the transceiver's shutdown input.
 pub const CAN_SHDN: (u8, u8) = (2, 11);
 

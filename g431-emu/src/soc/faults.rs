@@ -115,7 +115,14 @@ impl Soc {
     /// NMI pending: the CPU takes it at its next instruction boundary (it preempts
     /// everything but a HardFault's lockup).
     fn raise_nmi(&mut self) {
-        self.scs.set_pending(exc::NMI);
+        self.pend_exception(exc::NMI);
+    }
+
+    /// Exception `n` (`scs::exc`) pended now, as a debugger writing ICSR's NMIPENDSET or
+    /// PENDSVSET would (tests of the images' handlers); taken at the next instruction
+    /// boundary its priority allows.
+    pub fn pend_exception(&mut self, n: u16) {
+        self.scs.set_pending(n);
         self.stop.irq = true;
     }
 

@@ -174,7 +174,8 @@ impl Rig {
     /// The level of the net the STO wire is brought to.
     pub fn sto_net(&self) -> NetLevel {
         if drive_pins::STO_IN == esc1::CAN_RX {
-            // Both drive boards keep the ESC1's CAN transceiver on PA11.
+            // Both drive boards keep the ESC1's CAN transceiver on PA11 (review N1: where
+            // STO_IN was).
             esc1::can_rx_net(self.can_shdn, Some(self.sto_wire))
         } else {
             NetLevel {
@@ -272,9 +273,11 @@ pub struct DriveBoard {
 /// Drive pins the rig wires (README "Drive board"; the boards' own nets are in
 /// `g431_emu::boards`).
 pub mod drive_pins {
-    /// The rig's STO wire (safety.md 6): brought to PA11 (`STO_IN` in the README's pin
-    /// map), which is TIM1_BKIN2 and, on the ESC1, the CAN transceiver's RX net.
-    pub const STO_IN: (u8, u8) = (0, 11);
+    /// The rig's STO wire (safety.md 6): brought to PA15 (`STO_IN` in the README's pin
+    /// map), TIM1_BKIN and, on the ESC1, the `PWM` command pad
+    /// (`g431_emu::boards::b_g431b_esc1::PWM_INPUT`; review N1: no longer PA11, the CAN
+    /// transceiver's RX net).
+    pub const STO_IN: (u8, u8) = (0, 15);
     /// The link's wires: TX and RX of the drive.
     pub const LINK_TX: &str = "PB6";
     pub const LINK_RX: &str = "PB7";
@@ -535,20 +538,24 @@ mod tests {
         assert_eq!(pin_id("PC13"), Some((2, 13)));
     }
 
+    /// Review N1: the STO wire is on PA15, the ESC1's `PWM` pad, with nothing of the board
+    /// on its net: an open wire floats (the image's pull-down then reads STO requested),
+    /// and the CAN transceiver (PA11) no longer meets it.
     #[test]
-    fn the_sto_wire_meets_the_can_transceiver_on_pa11() {
+    fn the_sto_wire_is_alone_on_the_pwm_pad() {
+        assert_eq!(drive_pins::STO_IN, esc1::PWM_INPUT);
+        assert_ne!(drive_pins::STO_IN, esc1::CAN_RX);
         let mut r = rig(DriveBoardId::Esc1);
         r.sto_wire = ExternalWire::Open;
         assert_eq!(
             r.sto_net().level,
-            External::High,
-            "RXD holds a broken wire high"
+            External::Floating,
+            "a broken wire floats"
         );
         r.sto_wire = ExternalWire::DrivenLow;
         let n = r.sto_net();
-        assert_eq!((n.level, n.contention), (External::Low, true));
-        r.can_shdn = Drive::High;
-        r.sto_wire = ExternalWire::Open;
-        assert_eq!(r.sto_net().level, External::Floating);
+        assert_eq!((n.level, n.contention), (External::Low, false));
+        r.sto_wire = ExternalWire::DrivenHigh;
+        assert_eq!(r.sto_net().level, External::High);
     }
 }

@@ -307,8 +307,7 @@ impl EmuSim {
 
     /// The rig's STO wire: the level its net settles to (with the board's own driver on
     /// it, `Rig::sto_net`, and the image's pull on the pin) reaches the plant and TIM1's
-    /// BKIN2. A later change of how the image drives PC11 (the ESC1's CAN_SHDN) reaches
-    /// BKIN2 at the next call; the images do not drive it.
+    /// BKIN (PA15, review N1).
     pub fn set_sto_wire(&mut self, wire: ExternalWire) {
         let shdn = {
             let (p, n) = g431_emu::boards::b_g431b_esc1::CAN_SHDN;
@@ -335,7 +334,7 @@ impl EmuSim {
             .unwrap_or(true);
         self.rig.borrow_mut().plant.set_sto_input(!high);
         let now = ns_to_cycles(self.now_ns);
-        self.drive.soc_mut().set_tim1_bkin2(high, now);
+        self.drive.soc_mut().set_tim1_bkin(high, now);
     }
 
     pub fn now_ns(&self) -> u64 {

@@ -74,6 +74,11 @@ impl DriveBoard {
         self.app.core().safety().turns_e4()
     }
 
+    /// TIM1 break interrupt on `STO_IN`'s break (break 1).
+    pub fn sto_break(&mut self) {
+        self.app.sto_break();
+    }
+
     /// TIM1 break interrupt with the comparators at `levels`.
     pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
         self.app.break_fired(levels)

@@ -2,7 +2,8 @@
 //! on the real drive image, on the boards as documented (`g431_emu::boards`). Each test
 //! states what the documented board requires; those that today's image fails wait for
 //! issue 29 ("The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage,
-//! current sensing") and are ignored until then (run them with `--ignored`).
+//! current sensing") and are ignored until then (run them with `--ignored`); N1 and N2 are
+//! fixed (STO_IN on PA15, the STO break latched by the core).
 //!
 //! N1, N2 and N7 run the image with `common::emu` (the ESC1's amplifier pins as the image
 //! assumes them) so that each shows its own finding, not N5's boot fault; N5 runs on the
@@ -59,9 +60,9 @@ fn sto_pulse_latches(width_ns: u64) -> Result<(), String> {
 }
 
 /// Review E4, on the documented board glue: the plant's break latch follows the image's
-/// MOE, so the record shows the gates as they are. A short STO pulse sets the latch; when
-/// the image sets MOE again (today's image does, N2) the plant switches again, and while
-/// the image keeps MOE off the plant stays open.
+/// MOE, so the record shows the gates as they are. A short STO pulse sets the latch; were
+/// the image to set MOE again (it did before N2's fix) the plant would switch again, and
+/// while the image keeps MOE off the plant stays open.
 #[test]
 fn the_plants_break_latch_follows_the_images_moe() {
     let scen = format!(
@@ -92,7 +93,6 @@ fn the_plants_break_latch_follows_the_images_moe() {
 /// N2: STO pulses of 5 us, 300 us and 2 ms, each ending in code 9 with the outputs off
 /// until ACK and a new RUN (safety.md 6).
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N2, an STO pulse shorter than the 1 ms sample is not latched and the outputs come back on by themselves"]
 fn n2_sto_pulses_of_5us_300us_and_2ms_latch_code_9_and_the_outputs_off() {
     let failures: Vec<String> = [5_000u64, 300_000, 2_000_000]
         .into_iter()
@@ -102,11 +102,10 @@ fn n2_sto_pulses_of_5us_300us_and_2ms_latch_code_9_and_the_outputs_off() {
 }
 
 /// N1: the rig's STO wire breaks while the motor runs. The closed-circuit principle of
-/// safety.md 6: a broken wire requests STO (code 9, outputs off). On the ESC1 the wire
-/// is brought to PA11 (the README's `STO_IN`), which is also the CAN transceiver's RXD
-/// output: it holds the net high.
+/// safety.md 6: a broken wire requests STO (code 9, outputs off). The wire is brought to
+/// the README's `STO_IN`: PA15, the ESC1's `PWM` pad (it was PA11, the CAN transceiver's
+/// RXD output, which held a broken wire's net high).
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N1, STO_IN is on PA11, the CAN transceiver's RX output, which holds a broken STO wire high"]
 fn n1_a_broken_sto_wire_requests_sto() {
     let mut sim = emu(MOTOR_PLC, START_50HZ);
     sim.run_until(ns(1.5), |_| {});

@@ -9,6 +9,7 @@ mod common;
 mod board_findings;
 mod boot;
 mod cli;
+mod exceptions;
 mod io;
 mod link;
 mod motor;

@@ -95,9 +95,8 @@ fn assert_system_break_handled(sim: &mut EmuSim, what: &str) {
 
 /// N4, PVD: the supply dips to 2.6 V (below the 2.75 V the image programs, PLS = 101) for
 /// 50 ms. SYSCFG_CFGR2.PVDL routes PVDO to TIM1's system break: SBIF, not BIF (RM0440
-/// TIMx_SR). The image's break handler looks at BIF/B2IF only.
+/// TIMx_SR). The image's break handler reports SBIF as `BOOT` and masks it until re-armed.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N4, a PVD system break sets SBIF only; the break handler neither clears nor masks it and re-enters until the watchdog resets the drive"]
 fn a_pvd_dip_while_running_opens_the_outputs_and_is_reported() {
     let mut sim = emu(
         MOTOR_PLC,
@@ -110,7 +109,6 @@ fn a_pvd_dip_while_running_opens_the_outputs_and_is_reported() {
 
 /// N4, flash double ECC: an NMI (RM0440 FLASH_ECCR.ECCD) and, with ECCL, a system break.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N4/N10, a flash double-ECC error takes the NMI, which spins in cortex-m-rt's default handler until the watchdog resets the drive"]
 fn a_flash_double_ecc_error_while_running_opens_the_outputs_and_is_reported() {
     let mut sim = emu(
         MOTOR_PLC,
@@ -139,7 +137,6 @@ fn with_factory_option_bytes_an_sram_parity_error_is_not_detected() {
 /// N4, SRAM parity with the check enabled in the option bytes (SRAM_PE = 0, as a
 /// production line could program them): an NMI and, with SPL, a system break.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N4/N10, with SRAM_PE = 0 an SRAM parity error takes the NMI, which spins in cortex-m-rt's default handler until the watchdog resets the drive"]
 fn with_the_parity_check_on_an_sram_parity_error_opens_the_outputs_and_is_reported() {
     let mut sim = emu(
         MOTOR_PLC,
