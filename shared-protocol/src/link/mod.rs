@@ -2,6 +2,7 @@
 //!
 //! * [`frame`]: COBS framing with a 0x00 delimiter, CRC-32C, frame header (seq, ack).
 //! * [`message`]: every message of both directions (postcard + serde).
+//! * [`wire`]: postcard's format written by a serializer that is small in flash.
 //! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.
 //! * [`pump`]: the loop between a UART and an endpoint (boards and hil-sim), with deadlines.
 //! * [`session`]: what both endpoints share (frame reader, transmit window, sequencing,
@@ -26,6 +27,7 @@ pub mod plc;
 pub mod pump;
 pub mod reliable;
 pub mod session;
+pub mod wire;
 
 pub use config::LinkConfig;
 pub use drive::{DriveEvent, DriveLink, DriveLinkState};
