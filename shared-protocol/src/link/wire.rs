@@ -345,7 +345,7 @@ pub struct Reader<'de> {
 /// postcard's varint limits per width: at most `(bits + 6) / 7` bytes, and the last one
 /// at most `2^(bits % 7) - 1` (so that the value fits the width).
 const fn limits(bits: u32) -> (u32, u8) {
-    ((bits + 6) / 7, ((1u32 << (bits % 7)) - 1) as u8)
+    (bits.div_ceil(7), ((1u32 << (bits % 7)) - 1) as u8)
 }
 
 impl<'de> Reader<'de> {
