@@ -393,6 +393,8 @@ impl<E: Eeprom> PlcApp<E> {
         }
     }
 
+    // Out of line: eight callers had their own copy.
+    #[inline(never)]
     fn drive_status(&self) -> Option<DriveStatus> {
         if !self.link.is_up() {
             return None;

@@ -9,8 +9,8 @@
 //! budget it is given: the board calls it once per millisecond after the scan, in place of
 //! an LCD cell update (see [`super::Service::eeprom_step`]).
 
-use crc::Digest;
 use heapless::Vec;
+use shared_protocol::crc32::Digest;
 use shared_protocol::link::frame::CRC as C32;
 use shared_protocol::service::{SlotState, SlotSummary, CHUNK_BYTES};
 
@@ -37,8 +37,8 @@ struct Scan {
     pos: usize,
     head: [u8; COPY_HEADER_BYTES],
     header: Option<CopyHeader>,
-    iso: Digest<'static, u32>,
-    c32: Digest<'static, u32>,
+    iso: Digest<16>,
+    c32: Digest<256>,
     parser: PayloadParser,
     results: [Option<CopyResult>; 2],
 }

@@ -243,14 +243,6 @@ pub(crate) enum Phase {
     Settle(JobDone),
 }
 
-/// What a phase did in one call.
-enum Went {
-    /// One transfer made; continue with this phase in a later step.
-    Later(Phase),
-    /// The job is over (possibly after a transfer).
-    Over(JobDone),
-}
-
 /// The EEPROM access a phase step made.
 #[derive(Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Access {
@@ -291,121 +283,96 @@ pub(crate) fn start(job: Job) -> Result<Phase, StorageError> {
     })
 }
 
-/// Moves `phase` of `job` on by at most one transfer. Returns the new phase (or the
-/// outcome) and which access was made.
+/// Moves `phase` of `job` on by at most one transfer, in place (a phase holds a page
+/// buffer and running CRCs: moving it by value through every step cost flash and stack).
+/// Returns the outcome once the job is over, and which access was made.
 pub(crate) fn advance<E: super::Eeprom>(
     e: &mut E,
     job: Job,
-    phase: Phase,
+    phase: &mut Phase,
     prog: &mut Prog<'_>,
-) -> (Result<Phase, JobDone>, Access) {
+) -> (Option<JobDone>, Access) {
     match one(e, job, phase, prog) {
-        Ok((Went::Later(p), access)) => (Ok(p), access),
-        Ok((Went::Over(d), access)) => (Err(d), access),
-        Err((err, access)) => (Err(JobDone::failed(job, err)), access),
+        Ok(went) => went,
+        Err((err, access)) => (Some(JobDone::failed(job, err)), access),
     }
 }
 
-type OneResult = Result<(Went, Access), (StorageError, Access)>;
+type OneResult = Result<(Option<JobDone>, Access), (StorageError, Access)>;
 
-/// One phase step: at most one transfer (none only when the job ends here).
-fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>) -> OneResult {
+/// One phase step: at most one transfer (none only when the job ends here). The phase
+/// is updated in place; `Some` when the job is over.
+fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: &mut Phase, prog: &mut Prog<'_>) -> OneResult {
     let r = |err: StorageError| (err, Access::Read);
     let w = |err: StorageError| (err, Access::Write);
-    match phase {
-        Phase::CheckA(mut rd) => {
+    let (next, access) = match phase {
+        Phase::CheckA(rd) => {
             let slot = job_slot(job);
-            match rd.step(e, None) {
-                Ok(None) => Ok((Went::Later(Phase::CheckA(rd)), Access::Read)),
-                res => {
-                    let a = match res {
-                        Ok(Some(h)) => Ok(h),
-                        Err(err) => eeprom_err(err).map_err(r)?,
-                        Ok(None) => Err(CopyError::Format),
-                    };
-                    let rb = CopyReader::check(copy_addr(slot, SlotCopy::B).map_err(r)?, slot);
-                    Ok((Went::Later(Phase::CheckB { a, r: rb }), Access::Read))
-                }
-            }
+            let a = match rd.step(e, None) {
+                Ok(None) => return Ok((None, Access::Read)),
+                Ok(Some(h)) => Ok(h),
+                Err(err) => eeprom_err(err).map_err(r)?,
+            };
+            let rb = CopyReader::check(copy_addr(slot, SlotCopy::B).map_err(r)?, slot);
+            (Phase::CheckB { a, r: rb }, Access::Read)
         }
-        Phase::CheckB { a, r: mut rd } => match rd.step(e, None) {
-            Ok(None) => Ok((Went::Later(Phase::CheckB { a, r: rd }), Access::Read)),
-            res => {
-                let b = match res {
-                    Ok(Some(h)) => Ok(h),
-                    Err(err) => eeprom_err(err).map_err(r)?,
-                    Ok(None) => Err(CopyError::Format),
-                };
-                let next = match job {
-                    Job::Save { slot } => save_plan(slot, a, b, prog.get()).map_err(r)?,
-                    Job::Load { slot } => load_plan(slot, a, b).map_err(r)?,
-                    Job::Commit {
-                        slot, copy, len, ..
-                    } => Phase::StagedRead {
-                        generation: newest_generation(&a, &b).wrapping_add(1),
-                        check: StagedCheck::new(copy_addr(slot, copy).map_err(r)?, len),
-                    },
-                    _ => return Err(r(StorageError::Busy)),
-                };
-                Ok((Went::Later(next), Access::Read))
-            }
-        },
+        Phase::CheckB { a, r: rd } => {
+            let b = match rd.step(e, None) {
+                Ok(None) => return Ok((None, Access::Read)),
+                Ok(Some(h)) => Ok(h),
+                Err(err) => eeprom_err(err).map_err(r)?,
+            };
+            let a = *a;
+            let next = match job {
+                Job::Save { slot } => save_plan(slot, a, b, prog.get()).map_err(r)?,
+                Job::Load { slot } => load_plan(slot, a, b).map_err(r)?,
+                Job::Commit {
+                    slot, copy, len, ..
+                } => Phase::StagedRead {
+                    generation: newest_generation(&a, &b).wrapping_add(1),
+                    check: StagedCheck::new(copy_addr(slot, copy).map_err(r)?, len),
+                },
+                _ => return Err(r(StorageError::Busy)),
+            };
+            (next, Access::Read)
+        }
         Phase::SaveWrite {
             copy,
             second,
-            w: mut wr,
+            w: wr,
         } => {
             let slot = job_slot(job);
             let went = wr.step(e, prog.get()).map_err(|err| match err {
                 CopyError::Eeprom(x) => w(StorageError::Eeprom(x)),
                 _ => w(StorageError::TooBig),
             })?;
-            if went == WriterStep::Read {
-                return Ok((
-                    Went::Later(Phase::SaveWrite {
-                        copy,
-                        second,
-                        w: wr,
-                    }),
-                    Access::Read,
-                ));
+            match went {
+                WriterStep::Read => return Ok((None, Access::Read)),
+                WriterStep::Wrote => return Ok((None, Access::Write)),
+                WriterStep::Done => {
+                    let addr = copy_addr(slot, *copy).map_err(w)?;
+                    let next = Phase::SaveVerify {
+                        copy: *copy,
+                        second: *second,
+                        generation: wr.header().generation,
+                        r: CopyReader::check(addr, slot),
+                    };
+                    (next, Access::Write)
+                }
             }
-            let next = if went == WriterStep::Done {
-                let addr = copy_addr(slot, copy).map_err(w)?;
-                Phase::SaveVerify {
-                    copy,
-                    second,
-                    generation: wr.header().generation,
-                    r: CopyReader::check(addr, slot),
-                }
-            } else {
-                Phase::SaveWrite {
-                    copy,
-                    second,
-                    w: wr,
-                }
-            };
-            Ok((Went::Later(next), Access::Write))
         }
         Phase::SaveVerify {
             copy,
             second,
             generation,
-            r: mut rd,
+            r: rd,
         } => {
             let slot = job_slot(job);
+            let generation = *generation;
             match rd.step(e, None) {
-                Ok(None) => Ok((
-                    Went::Later(Phase::SaveVerify {
-                        copy,
-                        second,
-                        generation,
-                        r: rd,
-                    }),
-                    Access::Read,
-                )),
+                Ok(None) => return Ok((None, Access::Read)),
                 Ok(Some(h)) if h.generation == generation => {
-                    if second {
+                    if *second {
                         let done = match job {
                             Job::Commit { .. } => JobDone::Written {
                                 slot,
@@ -416,8 +383,9 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
                                 result: Ok(generation),
                             },
                         };
-                        return Ok((Went::Over(done), Access::Read));
+                        return Ok((Some(done), Access::Read));
                     }
+                    let copy = *copy;
                     let other = copy.other();
                     let addr = copy_addr(slot, other).map_err(r)?;
                     // The second copy: from the program in RAM (a keypad save), or as a
@@ -430,43 +398,39 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
                         _ => CopyWriter::new(addr, slot, generation, prog.get())
                             .map_err(|_| r(StorageError::TooBig))?,
                     };
-                    Ok((
-                        Went::Later(Phase::SaveWrite {
-                            copy: other,
-                            second: true,
-                            w: wr,
-                        }),
-                        Access::Read,
-                    ))
+                    let next = Phase::SaveWrite {
+                        copy: other,
+                        second: true,
+                        w: wr,
+                    };
+                    (next, Access::Read)
                 }
-                Err(CopyError::Eeprom(x)) => Err(r(StorageError::Eeprom(x))),
-                _ => Err(r(StorageError::VerifyFailed)),
+                Err(CopyError::Eeprom(x)) => return Err(r(StorageError::Eeprom(x))),
+                _ => return Err(r(StorageError::VerifyFailed)),
             }
         }
-        Phase::StagedRead {
-            generation,
-            mut check,
-        } => {
+        Phase::StagedRead { generation, check } => {
             let Job::Commit { slot, len, crc, .. } = job else {
                 return Err(r(StorageError::Busy));
             };
             let access = if len > 0 { Access::Read } else { Access::None };
             match check
-                .step(e, slot, generation, crc)
+                .step(e, slot, *generation, crc)
                 .map_err(|x| r(x.into()))?
             {
-                Checked::More => Ok((Went::Later(Phase::StagedRead { generation, check }), access)),
-                Checked::Refused(why) => Ok((
-                    Went::Over(JobDone::Written {
+                Checked::More => return Ok((None, access)),
+                Checked::Refused(why) => {
+                    let done = JobDone::Written {
                         slot,
                         result: Ok(why),
-                    }),
-                    access,
-                )),
-                Checked::Header(h) => Ok((Went::Later(Phase::StagedHeader(h)), access)),
+                    };
+                    return Ok((Some(done), access));
+                }
+                Checked::Header(h) => (Phase::StagedHeader(h), access),
             }
         }
         Phase::StagedHeader(h) => {
+            let h = *h;
             let Job::Commit { slot, copy, .. } = job else {
                 return Err(w(StorageError::Busy));
             };
@@ -474,49 +438,43 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
             // From here on this copy is the slot's newest: the old program is replaced.
             e.start_write(addr, &h.to_bytes())
                 .map_err(|x| w(x.into()))?;
-            Ok((
-                Went::Later(Phase::SaveVerify {
-                    copy,
-                    second: false,
-                    generation: h.generation,
-                    r: CopyReader::check(addr, slot),
-                }),
-                Access::Write,
-            ))
+            let next = Phase::SaveVerify {
+                copy,
+                second: false,
+                generation: h.generation,
+                r: CopyReader::check(addr, slot),
+            };
+            (next, Access::Write)
         }
-        Phase::LoadRead { report, r: mut rd } => {
+        Phase::LoadRead { report, r: rd } => {
             let Some(p) = prog.get_mut() else {
                 return Err(r(StorageError::Busy));
             };
-            match rd.step(e, Some(p)) {
-                Ok(None) => Ok((Went::Later(Phase::LoadRead { report, r: rd }), Access::Read)),
-                Ok(Some(_)) => Ok((
-                    Went::Over(JobDone::Loaded {
+            return match rd.step(e, Some(p)) {
+                Ok(None) => Ok((None, Access::Read)),
+                Ok(Some(_)) => {
+                    let done = JobDone::Loaded {
                         slot: report.slot,
-                        result: Ok(report),
-                    }),
-                    Access::Read,
-                )),
+                        result: Ok(*report),
+                    };
+                    Ok((Some(done), Access::Read))
+                }
                 Err(CopyError::Eeprom(x)) => Err(r(StorageError::Eeprom(x))),
                 Err(_) => Err(r(StorageError::Damaged(report.slot))),
-            }
+            };
         }
         Phase::BootRead { next, best } => {
             let Job::Boot(change) = job else {
                 return Err(r(StorageError::Busy));
             };
-            if let Some(&addr) = BOOT_ADDR.get(usize::from(next)) {
+            if let Some(&addr) = BOOT_ADDR.get(usize::from(*next)) {
                 let mut b = [0u8; RECORD_BYTES];
                 e.read(addr, &mut b).map_err(|x| r(x.into()))?;
-                let best = boot::keep_newest(best, usize::from(next), &b);
-                return Ok((
-                    Went::Later(Phase::BootRead {
-                        next: next + 1,
-                        best,
-                    }),
-                    Access::Read,
-                ));
+                *best = boot::keep_newest(*best, usize::from(*next), &b);
+                *next += 1;
+                return Ok((None, Access::Read));
             }
+            let best = *best;
             let current = best.map(|(rec, _)| rec);
             let mut record = current.unwrap_or_default();
             match change {
@@ -526,13 +484,11 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
                     let want_slot = slot.or(record.last_run_slot);
                     if record.last_run_slot == want_slot && record.run_at_power_up == running {
                         // Nothing changes: spare the EEPROM a write.
-                        return Ok((
-                            Went::Over(JobDone::BootWritten {
-                                change,
-                                result: Ok(()),
-                            }),
-                            Access::None,
-                        ));
+                        let done = JobDone::BootWritten {
+                            change,
+                            result: Ok(()),
+                        };
+                        return Ok((Some(done), Access::None));
                     }
                     record.last_run_slot = want_slot;
                     record.run_at_power_up = running;
@@ -541,56 +497,48 @@ fn one<E: super::Eeprom>(e: &mut E, job: Job, phase: Phase, prog: &mut Prog<'_>)
             let (addr, record) = boot::next_write(best, record);
             e.start_write(addr, &record.to_bytes())
                 .map_err(|x| w(x.into()))?;
-            Ok((
-                Went::Later(Phase::Settle(JobDone::BootWritten {
-                    change,
-                    result: Ok(()),
-                })),
-                Access::Write,
-            ))
+            let done = JobDone::BootWritten {
+                change,
+                result: Ok(()),
+            };
+            (Phase::Settle(done), Access::Write)
         }
-        Phase::RingScan { next, mut finder } => {
+        Phase::RingScan { next, finder } => {
             let Job::LogFault(entry) = job else {
                 return Err(r(StorageError::Busy));
             };
-            if usize::from(next) < LOG_PAGES {
+            if usize::from(*next) < LOG_PAGES {
                 let mut page = [0u8; PAGE_BYTES];
-                e.read(fault_log::page_addr(usize::from(next)), &mut page)
+                e.read(fault_log::page_addr(usize::from(*next)), &mut page)
                     .map_err(|x| r(x.into()))?;
                 finder.push_bytes(&page);
-                return Ok((
-                    Went::Later(Phase::RingScan {
-                        next: next + 1,
-                        finder,
-                    }),
-                    Access::Read,
-                ));
+                *next += 1;
+                return Ok((None, Access::Read));
             }
             e.start_write(finder.append_addr(), &entry.to_bytes())
                 .map_err(|x| w(x.into()))?;
-            Ok((
-                Went::Later(Phase::Settle(JobDone::FaultLogged {
-                    entry,
-                    result: Ok(()),
-                })),
-                Access::Write,
-            ))
+            let done = JobDone::FaultLogged {
+                entry,
+                result: Ok(()),
+            };
+            (Phase::Settle(done), Access::Write)
         }
         Phase::Clear { next } => {
             let blank = [0xFFu8; PAGE_BYTES];
-            e.start_write(fault_log::page_addr(usize::from(next)), &blank)
+            e.start_write(fault_log::page_addr(usize::from(*next)), &blank)
                 .map_err(|x| w(x.into()))?;
-            let next = next + 1;
-            let phase = if usize::from(next) < LOG_PAGES {
-                Phase::Clear { next }
-            } else {
-                Phase::Settle(JobDone::FaultLogCleared { result: Ok(()) })
-            };
-            Ok((Went::Later(phase), Access::Write))
+            *next += 1;
+            if usize::from(*next) < LOG_PAGES {
+                return Ok((None, Access::Write));
+            }
+            let done = JobDone::FaultLogCleared { result: Ok(()) };
+            (Phase::Settle(done), Access::Write)
         }
         // Reached only once the write cycle has ended (the caller polls first).
-        Phase::Settle(done) => Ok((Went::Over(done), Access::None)),
-    }
+        Phase::Settle(done) => return Ok((Some(*done), Access::None)),
+    };
+    *phase = next;
+    Ok((None, access))
 }
 
 fn job_slot(job: Job) -> u8 {

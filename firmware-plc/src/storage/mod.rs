@@ -275,74 +275,65 @@ impl<E: Eeprom> Storage<E> {
                 done: None,
             };
         }
-        let (job, phase) = match self.active.take() {
-            Some(a) => a,
-            None => {
-                let Some(job) = self.queue.pop_front() else {
-                    return Step::IDLE;
-                };
-                match job::start(job) {
-                    Ok(phase) => (job, phase),
-                    Err(e) => {
-                        return Step {
-                            used_bus: false,
-                            done: Some(JobDone::failed(job, e)),
-                        }
+        if self.active.is_none() {
+            let Some(job) = self.queue.pop_front() else {
+                return Step::IDLE;
+            };
+            match job::start(job) {
+                Ok(phase) => self.active = Some((job, phase)),
+                Err(e) => {
+                    return Step {
+                        used_bus: false,
+                        done: Some(JobDone::failed(job, e)),
                     }
                 }
             }
+        }
+        let Some((job, _)) = self.active else {
+            return Step::IDLE;
         };
         let mut used_bus = false;
         if let Some(since) = self.writing_since {
             used_bus = true;
             let since = since.unwrap_or(now);
-            match self.eeprom.ready() {
-                Ok(true) => self.writing_since = None,
+            let failed = match self.eeprom.ready() {
+                Ok(true) => {
+                    self.writing_since = None;
+                    None
+                }
                 Ok(false) if now.0.saturating_sub(since.0) <= WRITE_CYCLE_LIMIT_US => {
                     self.writing_since = Some(Some(since));
-                    self.active = Some((job, phase));
                     return Step {
                         used_bus,
                         done: None,
                     };
                 }
-                Ok(false) => {
-                    self.writing_since = None;
-                    let e = StorageError::Eeprom(EepromError::Bus);
-                    return Step {
-                        used_bus,
-                        done: Some(JobDone::failed(job, e)),
-                    };
-                }
-                Err(e) => {
-                    self.writing_since = None;
-                    return Step {
-                        used_bus,
-                        done: Some(JobDone::failed(job, StorageError::Eeprom(e))),
-                    };
-                }
+                Ok(false) => Some(StorageError::Eeprom(EepromError::Bus)),
+                Err(e) => Some(StorageError::Eeprom(e)),
+            };
+            if let Some(e) = failed {
+                self.writing_since = None;
+                self.active = None;
+                return Step {
+                    used_bus,
+                    done: Some(JobDone::failed(job, e)),
+                };
             }
         }
-        let (next, access) = job::advance(&mut self.eeprom, job, phase, prog);
+        let Some((_, phase)) = self.active.as_mut() else {
+            return Step::IDLE;
+        };
+        let (done, access) = job::advance(&mut self.eeprom, job, phase, prog);
         if access == Access::Write {
             // Even a failed write may have started a cycle: wait it out before the next
             // access of any job.
             self.writing_since = Some(None);
         }
         used_bus |= access != Access::None;
-        match next {
-            Ok(phase) => {
-                self.active = Some((job, phase));
-                Step {
-                    used_bus,
-                    done: None,
-                }
-            }
-            Err(done) => Step {
-                used_bus,
-                done: Some(done),
-            },
+        if done.is_some() {
+            self.active = None;
         }
+        Step { used_bus, done }
     }
 
     /// Runs `job` to the end, steps timed by `clock`. Refused while jobs are queued.

@@ -15,12 +15,12 @@
 
 use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::{COPY_HEADER_BYTES, PAYLOAD_MAX};
-use crc::{Crc, Digest, CRC_32_ISO_HDLC};
+use shared_protocol::crc32::Digest;
 use shared_protocol::program::{decode_line, encode_line, Instruction, Program, LINES, LINE_BYTES};
 
-/// CRC-32 (ISO-HDLC) of copies and boot records. A `static` (a constant table, not
-/// state) so that a running [`Digest`] can live in a stepper between calls.
-pub(crate) static CRC32: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+/// CRC-32 (ISO-HDLC) of copies and boot records (shared-protocol's implementation, with a
+/// 64-byte nibble table: storage steps are not time-critical).
+pub(crate) use shared_protocol::crc32::ISO_HDLC as CRC32;
 const MAGIC: [u8; 2] = *b"PG";
 const VERSION: u8 = 1;
 const RUN_MAX: usize = 255;
@@ -341,7 +341,7 @@ pub(crate) struct CopyReader {
     header: Option<CopyHeader>,
     /// Next page of the copy to read.
     page: u16,
-    digest: Digest<'static, u32>,
+    digest: Digest<16>,
     parser: PayloadParser,
     /// Load: decoded lines go into the program (cleared before page 0).
     load: bool,

@@ -15,7 +15,7 @@
 //! No RAM holds the program meanwhile: the PLC has no room for a second 4 KiB payload
 //! beside the program in RAM (`docs/eeprom-image.md`).
 
-use crc::Digest;
+use shared_protocol::crc32::Digest;
 use shared_protocol::link::frame::CRC as C32;
 use shared_protocol::link::message::verify_kind_code;
 use shared_protocol::program::ProgramVerifier;
@@ -46,7 +46,7 @@ pub(crate) struct StagedCheck {
 enum Pass {
     /// CRC-32C, layout, decoding and verification.
     Check {
-        crc: Digest<'static, u32>,
+        crc: Digest<256>,
         parser: PayloadParser,
         verifier: ProgramVerifier,
         /// The first line the verifier refused, and its reason code.
@@ -56,7 +56,7 @@ enum Pass {
     /// payload.
     Seal {
         header: CopyHeader,
-        digest: Digest<'static, u32>,
+        digest: Digest<16>,
     },
 }
 

@@ -7,15 +7,14 @@
 //! The optional leading delimiter is sent before handshake frames only, so that a receiver
 //! that saw a cut mid-frame never glues the garbage to the handshake.
 
-use crc::{Crc, CRC_32_ISCSI};
 use serde::{de::DeserializeOwned, Deserialize, Serialize};
 
 /// CRC-32C (Castagnoli): Hamming distance 6 up to 5243 data bits, so every frame of this
 /// protocol (< 800 bits) with up to 5 flipped bits is caught, and random garbage passes
 /// with probability 2^-32. CRC-32 (ISO-HDLC) only gives HD 5 at these lengths.
-/// A `static`, not a `const`: one 1 KiB table in an image, whoever uses it (the service
-/// payload's CRC is the same CRC-32C).
-pub static CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISCSI);
+/// One 1 KiB table in an image, whoever uses it (the service payload's CRC is the same
+/// CRC-32C): [`crate::crc32::CASTAGNOLI`].
+pub use crate::crc32::CASTAGNOLI as CRC;
 
 /// Largest frame before COBS: header, message, CRC.
 pub const MAX_RAW_FRAME: usize = 96;
@@ -63,9 +62,8 @@ pub fn encode_frame<M: Serialize>(
     out: &mut [u8],
 ) -> Result<usize, FrameError> {
     let mut raw = [0u8; MAX_RAW_FRAME];
-    let body_len = postcard::to_slice(frame, &mut raw[..MAX_RAW_FRAME - CRC_BYTES])
-        .map_err(|_| FrameError::BufferTooSmall)?
-        .len();
+    let body_len = super::wire::to_slice(frame, &mut raw[..MAX_RAW_FRAME - CRC_BYTES])
+        .map_err(|_| FrameError::BufferTooSmall)?;
     let crc = CRC.checksum(raw.get(..body_len).unwrap_or(&[]));
     let raw_len = body_len + CRC_BYTES;
     raw.get_mut(body_len..raw_len)
@@ -105,11 +103,11 @@ pub fn decode_raw_with<M>(
     decode(body).ok_or(FrameError::Message)
 }
 
-/// A frame's body (header and message, without the CRC) by postcard's serde decoder, `None`
+/// A frame's body (header and message, without the CRC) by postcard's format ([`super::wire`]), `None`
 /// unless it decodes and uses every byte: the body decoder of [`FrameReader::push`]
 /// ([`FrameReader::push_with`] takes another one).
 pub fn decode_body<M: DeserializeOwned>(body: &[u8]) -> Option<Frame<M>> {
-    match postcard::take_from_bytes::<Frame<M>>(body) {
+    match super::wire::take_from_bytes::<Frame<M>>(body) {
         Ok((frame, [])) => Some(frame),
         _ => None,
     }

@@ -4,6 +4,7 @@
 //! * [`message`]: every message of both directions (postcard + serde).
 //! * [`plc_decode`]: the drive's decoder of the PLC's frames, written out (postcard's
 //!   format, checked against postcard's decoder).
+//! * [`wire`]: postcard's format written by a serializer that is small in flash.
 //! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.
 //! * [`pump`]: the loop between a UART and an endpoint (boards and hil-sim), with deadlines.
 //! * [`session`]: what both endpoints share (frame reader, transmit window, sequencing,
@@ -29,6 +30,7 @@ pub mod plc_decode;
 pub mod pump;
 pub mod reliable;
 pub mod session;
+pub mod wire;
 
 pub use config::LinkConfig;
 pub use drive::{DriveEvent, DriveLink, DriveLinkState};

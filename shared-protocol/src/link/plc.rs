@@ -235,6 +235,8 @@ impl PlcLink {
         PENDING_NOT_STOP.saturating_sub(self.pending.len())
     }
 
+    // Out of line: every command calls it (it was inlined into each of them).
+    #[inline(never)]
     fn push_pending(&mut self, p: Pending) -> Result<(), CommandError> {
         if self.room() == 0 {
             return Err(CommandError::QueueFull);
@@ -242,6 +244,7 @@ impl PlcLink {
         self.pending.push(p).map_err(|_| CommandError::QueueFull)
     }
 
+    #[inline(never)]
     fn command(&mut self, p: Pending) -> Result<(), CommandError> {
         if !self.is_up() {
             return Err(CommandError::NotConnected);

@@ -241,7 +241,9 @@ impl Mnemonic {
         Mnemonic::ALL.iter().copied().find(|m| m.code() == code)
     }
 
-    /// The text form, exactly as program.md writes it (canonical case).
+    /// The text form, exactly as program.md writes it (canonical case). Out of line: the
+    /// PLC image had two copies of its 340-byte table.
+    #[inline(never)]
     pub const fn text(self) -> &'static str {
         match self {
             Mnemonic::Ld => "LD",
