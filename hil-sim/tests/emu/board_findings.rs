@@ -4,9 +4,8 @@
 //! issue 29 ("The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage,
 //! current sensing") and are ignored until then (run them with `--ignored`).
 //!
-//! N1, N2 and N7 run the image with `common::emu` (the ESC1's amplifier pins as the image
-//! assumes them) so that each shows its own finding, not N5's boot fault; N5 runs on the
-//! documented network.
+//! All run on the documented boards (`common::emu`, since issue 29 put the ESC1's
+//! amplifiers in the mode the board is wired for: N5).
 
 use g431_emu::boards::b_g431b_esc1::DC_LINK_MAX_VOLTS;
 use g431_emu::boards::ExternalWire;
@@ -129,7 +128,6 @@ fn n1_a_broken_sto_wire_requests_sto() {
 /// 3V3), the image calibrates its current zeros at boot and runs the motor: no `BOOT`
 /// fault, IDLE, then RUN at speed with a measured current that is the plant's.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N5, the shunt amplifiers are in the grounded-input PGA mode, which rails on the ESC1's biased network: the boot zero check fails"]
 fn n5_the_image_measures_current_on_the_documented_amplifier_network() {
     use g431_emu::periph::adc::AdcId;
     let mut sim = emu_on_documented_boards(MOTOR_PLC, START_50HZ);
@@ -171,7 +169,6 @@ fn n5_the_image_measures_current_on_the_documented_amplifier_network() {
 /// the DC link above the board's rating: the drive stops at 0 Hz with the DC link at
 /// most [`DC_LINK_MAX_VOLTS`], without a trip (issue 29: an overvoltage controller).
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N7, no overvoltage protection on the bare ESC1 (U>> above the 34.3 V range, no software trip, PB5 is no chopper): braking pumps the DC link unchecked"]
 fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     // 20 V: inside the ESC1's 25 V rating with room for an overvoltage controller; six
     // times the rig's inertia, as the regen_brake scenario. The example's `U<` (25 V, for

@@ -129,8 +129,9 @@ fn the_esc1_front_end_measures_what_the_source_sensors_do() {
 }
 
 /// On the ESC1 the hardware overcurrent acts at the PGA input, in steps of about 0.47 A,
-/// at the step at or below the setting: `I>>` 1.20 A trips above 0.94 A; a locked rotor
-/// trips `OC_HW` on the positive half-wave, before the software `I>` (2 A).
+/// counted from the trimmed zero so that the trip lies in the step that holds the setting
+/// (review N6): `I>>` 1.20 A trips at 1.41 A on the host's ideal sensors (the step's top);
+/// a locked rotor trips `OC_HW` on the positive half-wave, before the software `I>` (2 A).
 #[test]
 fn on_the_esc1_i_hw_trips_at_the_pga_input() {
     let program = format!("{MOTOR_PLC}\n026 I>> K21 0120\n");
@@ -144,12 +145,12 @@ fn on_the_esc1_i_hw_trips_at_the_pga_input() {
         .filter(|x| x.t_ns < t)
         .flat_map(|x| x.i_abc_a)
         .fold(f64::NEG_INFINITY, f64::max);
-    assert!(peak_pos > 0.9 && peak_pos < 1.2, "peak {peak_pos}");
+    assert!(peak_pos > 1.2 && peak_pos < 1.6, "peak {peak_pos}");
 }
 
 /// Review D10 on the host cores: TIM1's OC5 window (CCR5 from the core, around the valley,
 /// covering every switching edge plus dead time and ringing) blanks the phase-current
-/// comparators (`I>>` 1.50 A: 1.41 A on the ESC1's steps, above the start-up current). A 0.8 us, +3 A disturbance of the sensed phase-a current at the valley
+/// comparators (`I>>` 1.50 A: 1.88 A on the ESC1's steps, above the start-up current). A 0.8 us, +3 A disturbance of the sensed phase-a current at the valley
 /// (inside the window) does not trip; the same disturbance next to the counter's peak,
 /// where the comparators stay live, trips `OC_HW`; so does a sustained overcurrent.
 #[test]
