@@ -1315,7 +1315,8 @@ mod tests {
             events(&mut core);
         }
         assert_eq!(core.status().f_applied, Decihertz(500));
-        // The command falls to 30 Hz while the link is at 23 V: held at 50 Hz.
+        // The command falls to 30 Hz while the link is at 23 V (level 21 V): the controller
+        // takes over and raises the frequency.
         core.command(DriveCommand::SetQ {
             addr: 1,
             value: 300,
@@ -1324,12 +1325,14 @@ mod tests {
         let _ = core.pwm_period(&esc1_at(2746));
         events(&mut core);
         assert!(core.ov_controller().holding());
-        assert_eq!(core.status().f_applied, Decihertz(500));
+        let held = core.status().f_applied;
+        assert!(held.0 > 500, "{held:?}");
         assert_eq!(core.status().f_command, Decihertz(300));
-        // Back at the supply: it falls 0.2 Hz per ms towards the command.
+        // Back at the supply (1 V below the level): it falls towards the command.
         let _ = core.pwm_period(&esc1_at(supply));
         events(&mut core);
-        assert_eq!(core.status().f_applied, Decihertz(496));
+        let f = core.status().f_applied.0;
+        assert!(f < held.0 && f > 300, "{f}");
         // On the source's sensors (a chopper) there is no such hold.
         let mut core = running(500);
         core.command(DriveCommand::SetQ {

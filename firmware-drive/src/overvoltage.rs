@@ -4,20 +4,24 @@
 //! B-G431B-ESC1) and on a supply that cannot take energy back (a lab supply, a diode
 //! rectifier) that energy can only lift the DC link, by volts per millisecond on a small
 //! capacitor. Once the DC link passes its level during a deceleration, the controller
-//! takes the applied frequency over from the command: it integrates the DC link's
-//! distance from the level, [`GAIN_CENTI_DHZ_PER_MS_PER_VOLT`], falling while the link is
-//! below the level and rising while it is above (a frequency back above the rotor's
-//! speed makes the motor draw energy again), never below the command and never above the
-//! frequency at which it took over. It hands back when the command is at or above the
-//! applied frequency: the stop takes longer and ends at 0 Hz instead of in `OV_HW`.
+//! takes the applied frequency over from the command, a PI controller on the DC link: it
+//! integrates the link's distance from the level ([`GAIN_CENTI_DHZ_PER_MS_PER_VOLT`]),
+//! falling while the link is below the level and rising while it is above (a frequency
+//! back above the rotor's speed makes the motor draw energy again), plus
+//! [`PROPORTIONAL_CENTI_DHZ_PER_VOLT`] per volt above the level; never below the command
+//! and at most [`RAISE_LIMIT_DHZ`] above the frequency at which it took over. It hands
+//! back when the command is at or above the applied frequency: the stop takes as long as
+//! the motor's losses need and ends at 0 Hz instead of in `OV_HW`.
 //!
 //! The level follows the supply, as SINAMICS' automatic "Vdc_max on level" does:
-//! [`LEVEL_MARGIN_VOLTS`] above the DC link last measured while the motor took energy
-//! (outputs off, or the frequency not falling), never above the cap (`U>` on such a
+//! [`LEVEL_MARGIN_VOLTS`] above the supply, never above the cap (`U>` on such a
 //! board, at most `U>>` - [`CAP_BELOW_OV_HW_VOLTS`]). A supply within
 //! [`MIN_HEADROOM_DECIVOLTS`] of the cap leaves no room to regulate: the controller is
 //! then off and `U>>` protects alone (`docs/drive-core.md`, "Overvoltage without a
-//! chopper").
+//! chopper"). The supply is the DC link with the outputs off; while they switch, the
+//! estimate follows the link down at once and up by one count (11 mV) every
+//! [`SUPPLY_RISE_TICKS`] ticks while the frequency is not falling (0.7 V/s: a supply
+//! turned up is followed, a link pumped up by a deceleration is not).
 //!
 //! Sans-IO: the DC link in canonical counts and the frequencies in 0.1 Hz in, the
 //! frequency to apply out, once per 1 ms tick.
@@ -25,16 +29,24 @@
 use crate::measure::udc_counts_at_volts;
 
 /// The level sits this far above the supply's DC link, V.
-pub const LEVEL_MARGIN_VOLTS: u32 = 2;
+pub const LEVEL_MARGIN_VOLTS: u32 = 1;
 /// The level's cap is at least this far below `U>>`, V: regulation starts before the trip.
 pub const CAP_BELOW_OV_HW_VOLTS: u16 = 2;
 /// The controller is off when the level is less than this above the supply, 0.1 V.
 pub const MIN_HEADROOM_DECIVOLTS: u32 = 5;
 /// Integral gain: the applied frequency changes this much per millisecond for each volt
-/// between the DC link and the level, 0.01 x 0.1 Hz (2 x 0.1 Hz/ms per V: 20 Hz/s per V).
-pub const GAIN_CENTI_DHZ_PER_MS_PER_VOLT: i32 = 200;
-/// Fastest change the controller makes, 0.01 x 0.1 Hz per ms (1 Hz/ms either way).
-pub const MAX_STEP_CENTI_DHZ: i32 = 1000;
+/// between the DC link and the level, 0.01 x 0.1 Hz (0.01 Hz/ms per V: 10 Hz/s per V).
+pub const GAIN_CENTI_DHZ_PER_MS_PER_VOLT: i32 = 10;
+/// Proportional gain: the applied frequency is raised this much per volt above the level
+/// for as long as the link is above it, 0.01 x 0.1 Hz (0.1 Hz per V).
+pub const PROPORTIONAL_CENTI_DHZ_PER_VOLT: i32 = 100;
+/// Fastest change the controller's integral makes, 0.01 x 0.1 Hz per ms (0.1 Hz/ms).
+pub const MAX_STEP_CENTI_DHZ: i32 = 100;
+/// The controller raises the frequency at most this far above the one at which it took
+/// over, 0.1 Hz (the slip of a small motor is a few hertz).
+pub const RAISE_LIMIT_DHZ: i32 = 100;
+/// While switching, the supply estimate rises one count per this many ticks.
+pub const SUPPLY_RISE_TICKS: u8 = 16;
 
 /// The controller's state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -48,6 +60,8 @@ pub struct OvController {
     f_prev: i32,
     /// The controller has taken the frequency over, since it was at this one (0.1 Hz).
     active_from: Option<i16>,
+    /// Ticks since the supply estimate last rose.
+    rise_ticks: u8,
 }
 
 impl OvController {
@@ -79,13 +93,16 @@ impl OvController {
         let u = u32::from(u_dc);
         let prev = (self.f_prev / 100) as i16;
         let level = self.level_counts();
-        let take_over = level.is_some_and(|on| u > on) && f_cmd < prev;
+        let take_over = level.is_some_and(|on| u > on) && f_cmd <= prev;
         let regulate = switching && f_cmd < prev && (self.active_from.is_some() || take_over);
         let (Some(on), true) = (level, regulate) else {
-            // The motor takes energy (or there is nothing to regulate): the command, and
-            // the DC link is the supply's.
-            if !switching || f_cmd >= prev {
+            // Nothing to regulate: the command; the supply estimate follows the link.
+            self.rise_ticks = self.rise_ticks.saturating_add(1);
+            if !switching || u < self.supply {
                 self.supply = u;
+            } else if u > self.supply && f_cmd >= prev && self.rise_ticks >= SUPPLY_RISE_TICKS {
+                self.supply += 1;
+                self.rise_ticks = 0;
             }
             self.active_from = None;
             self.f_prev = i32::from(f_cmd) * 100;
@@ -97,15 +114,19 @@ impl OvController {
         let below = on as i32 - u as i32;
         let step = (below * GAIN_CENTI_DHZ_PER_MS_PER_VOLT / per_volt)
             .clamp(-MAX_STEP_CENTI_DHZ, MAX_STEP_CENTI_DHZ);
-        // Never above where it took over, never below the command (`f_cmd < prev <= from`).
-        let f = (self.f_prev - step)
-            .min(i32::from(from) * 100)
-            .max(i32::from(f_cmd) * 100);
-        self.f_prev = f;
-        if f <= i32::from(f_cmd) * 100 {
+        // At most RAISE_LIMIT_DHZ above where it took over (the rotor runs above the applied
+        // frequency by its slip; the motor draws energy again once the frequency is above
+        // it), never below the command.
+        let top = (i32::from(from) + RAISE_LIMIT_DHZ) * 100;
+        let floor = i32::from(f_cmd) * 100;
+        let f_i = (self.f_prev - step).min(top).max(floor);
+        self.f_prev = f_i;
+        if f_i <= floor {
             self.active_from = None;
         }
-        (f / 100) as i16
+        // The proportional part acts on this tick only (it damps the loop).
+        let p = (-below).max(0) * PROPORTIONAL_CENTI_DHZ_PER_VOLT / per_volt;
+        ((f_i + p).min(top) / 100) as i16
     }
 }
 
@@ -137,7 +158,7 @@ mod tests {
     #[test]
     fn the_level_follows_the_supply_under_the_cap() {
         let c = ctl(26, 20, 500);
-        assert_eq!(c.level_counts(), Some(udc_counts_at_volts(22)));
+        assert_eq!(c.level_counts(), Some(udc_counts_at_volts(21)));
         let c = ctl(26, 25, 500);
         assert_eq!(c.level_counts(), Some(udc_counts_at_volts(26)));
         // Within 0.5 V of the cap, or above it: off.
@@ -153,40 +174,54 @@ mod tests {
     }
 
     #[test]
-    fn above_the_level_the_frequency_rises_at_the_level_it_falls_below_it_faster() {
+    fn above_the_level_the_frequency_rises_below_it_falls_within_its_bounds() {
         let mut c = ctl(26, 20, 500);
-        assert_eq!(c.step(490, counts(21), true), 490);
-        // The link passes 22 V: taken over at 49.0 Hz; 1 V above the level: +0.2 Hz/ms,
-        // but never above where it took over.
-        assert_eq!(c.step(400, counts(23), true), 490);
-        assert!(c.holding());
-        // At the level: held.
-        assert_eq!(c.step(100, counts(22), true), 490);
-        // 1 V below: -0.2 Hz per ms; 3 V below: -0.6 Hz per ms.
-        assert_eq!(c.step(100, counts(21), true), 488);
-        assert_eq!(c.step(100, counts(19), true), 482);
-        // 1 V above: back up 0.2 Hz per ms.
-        assert_eq!(c.step(100, counts(23), true), 484);
-        // Far below: at most 1 Hz per ms, never below the command.
-        assert_eq!(c.step(100, counts(5), true), 474);
-        assert_eq!(c.step(470, counts(5), true), 470);
+        assert_eq!(c.step(490, counts(20), true), 490);
+        // The link passes 21 V: taken over at 49.0 Hz, raised while above.
+        let a = c.step(400, counts(22), true);
+        assert!(a > 490 && c.holding(), "{a}");
+        // Below the level it falls.
+        let b = c.step(100, counts(19), true);
+        assert!(b < a, "{a} {b}");
+        // Far above: at most 10 Hz above where it took over.
+        for _ in 0..2000 {
+            c.step(100, counts(30), true);
+        }
+        assert_eq!(c.step(100, counts(30), true), 590);
+        // Far below: never below the command, and then the command's again.
+        for _ in 0..2000 {
+            c.step(560, counts(5), true);
+        }
+        assert_eq!(c.step(560, counts(5), true), 560);
         assert!(!c.holding(), "caught up with the command");
-        assert_eq!(c.step(300, counts(20), true), 300);
     }
 
     #[test]
     fn the_command_rising_above_the_applied_frequency_ends_it() {
         let mut c = ctl(26, 20, 500);
-        assert_eq!(c.step(400, counts(23), true), 500);
-        assert_eq!(c.step(600, counts(23), true), 600);
+        assert!(c.step(400, counts(22), true) > 500);
+        assert_eq!(c.step(600, counts(22), true), 600);
         assert!(!c.holding());
     }
 
     #[test]
     fn outputs_off_reset_it() {
         let mut c = ctl(26, 20, 500);
-        assert_eq!(c.step(100, counts(24), true), 500);
+        assert!(c.step(100, counts(24), true) > 500);
         assert_eq!(c.step(0, counts(24), false), 0);
         assert!(!c.holding());
+    }
+
+    #[test]
+    fn the_supply_estimate_follows_down_at_once_and_up_slowly() {
+        let mut c = ctl(26, 20, 500);
+        // Steady at 50 Hz, the link at 18 V: followed at once.
+        assert_eq!(c.step(500, counts(18), true), 500);
+        assert_eq!(c.level_counts(), Some(udc_counts_at_volts(19)));
+        // Back at 20 V: one count per 16 ticks.
+        for _ in 0..32 {
+            c.step(500, counts(20), true);
+        }
+        assert_eq!(c.level_counts(), Some(udc_counts_at_volts(19) + 2));
     }
 }

@@ -159,7 +159,6 @@ pub fn init(
         regs.csr()
             .modify(|w| w.set_blanksel(pac::comp::vals::Blanking::from_bits(code)));
     }
-    defmt::info!("comparator trim: {}", trimmed);
     (
         HwProtection {
             _comps: (c1, c2, c3, c4),

@@ -83,7 +83,6 @@ pub async fn start(spawner: Spawner) {
     // The thresholds from the trimmed zeros (a failed trim ends BOOT in `BOOT`).
     app.set_comparator_trim(trim);
     hw_protection::write_dacs(app.core().comparator_dacs());
-    defmt::info!("hw trips: {}", app.core().comparator_dacs());
     // Below TIM1 (review D13), as everything else is (`board_common::boot`).
     for irq in [interrupt::COMP1_2_3, interrupt::COMP4] {
         irq.set_priority(board_common::boot::BACKGROUND);

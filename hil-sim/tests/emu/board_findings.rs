@@ -168,6 +168,9 @@ fn n5_the_image_measures_current_on_the_documented_amplifier_network() {
 /// supply; the ESC1 has no brake chopper, PB5 enables its BEMF dividers) must not pump
 /// the DC link above the board's rating: the drive stops at 0 Hz with the DC link at
 /// most [`DC_LINK_MAX_VOLTS`], without a trip (issue 29: an overvoltage controller).
+/// Without a chopper only the motor's losses take the energy: the stop lengthens from
+/// the program's 5.4 s to about 19 s (hil-sim's host test of the same stop), so the run
+/// lasts 30 s.
 #[test]
 fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     // 20 V: inside the ESC1's 25 V rating with room for an overvoltage controller; six
@@ -182,7 +185,7 @@ fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     let mut peak = (0.0f64, 0u64);
     let mut f_at_stop = 0.0;
     let mut last: Option<Sample> = None;
-    sim.run_until(ns(12.0), |s: &Sample| {
+    sim.run_until(ns(30.0), |s: &Sample| {
         if s.u_dc_v > peak.0 {
             peak = (s.u_dc_v, s.t_ns);
         }
@@ -204,7 +207,7 @@ fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     assert!(
         peak.0 <= DC_LINK_MAX_VOLTS && sim.faults().is_empty() && last.f_cmd_hz == 0.0,
         "stop from {f_at_stop:.1} Hz at 7.0 s on a 20 V supply: DC link peak {:.1} V at {:.3} s \
-         (ESC1 rating {DC_LINK_MAX_VOLTS} V), faults {:?}, f {:.1} Hz and DC link {:.1} V at 12 s",
+         (ESC1 rating {DC_LINK_MAX_VOLTS} V), faults {:?}, f {:.1} Hz and DC link {:.1} V at 30 s",
         peak.0,
         peak.1 as f64 * 1e-9,
         sim.faults(),
