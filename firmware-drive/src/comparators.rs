@@ -603,6 +603,6 @@ mod tests {
         for (k, c) in chans.iter().enumerate() {
             assert!(!chans[..k].contains(c), "{chans:?}");
         }
-        assert!(!B_G431B_ESC1.brake_chopper && SOURCE_SENSORS.brake_chopper);
+        const { assert!(!B_G431B_ESC1.brake_chopper && SOURCE_SENSORS.brake_chopper) };
     }
 }
