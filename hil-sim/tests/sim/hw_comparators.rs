@@ -33,8 +33,8 @@ fn the_trimmer_levels_are_settings_the_plc_reads() {
     // On the bare ESC1 the default U>> is at most the board's 32 V (review N7).
     let r = run_text(&plc_only, "", 0.5);
     assert_eq!(r.samples.last().unwrap().lcd[2..], [Some(300), Some(32)]);
-    let r = run_text(&plc_only, "[plant]\noc_hw_a = 1.5\nov_hw_v = 30.0\n", 0.5);
-    assert_eq!(r.samples.last().unwrap().lcd[2..], [Some(150), Some(30)]);
+    let r = run_text(&plc_only, "[plant]\noc_hw_a = 1.5\nov_hw_v = 31.0\n", 0.5);
+    assert_eq!(r.samples.last().unwrap().lcd[2..], [Some(150), Some(31)]);
 }
 
 #[test]
