@@ -135,6 +135,15 @@ impl DriveApp {
         &self.core
     }
 
+    /// The comparators' boot trim, run by the board before the break is armed
+    /// ([`DriveCore::set_comparator_trim`]).
+    pub fn set_comparator_trim(
+        &mut self,
+        r: Result<crate::comparator_trim::TrimmedZeros, crate::comparator_trim::TrimFailed>,
+    ) {
+        self.core.set_comparator_trim(r);
+    }
+
     pub fn link(&self) -> &DriveLink {
         &self.link
     }

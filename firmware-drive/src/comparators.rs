@@ -22,6 +22,7 @@
 
 use shared_protocol::units::{CentiAmps, Volts};
 
+use crate::comparator_trim::{trimmed_dac, TrimmedZeros};
 use crate::front_end::{FrontEndSpec, DIRECT_PINS, ESC1_PGAS};
 use crate::measure::{udc_counts_at_volts, ADC_FULL_COUNTS, CURRENT_FULL_CENTIAMPS};
 use crate::measure::{FrontEnd, SensorScaling, CURRENT_ZERO_COUNTS, ESC1_SCALING, SOURCE_SCALING};
@@ -96,9 +97,18 @@ pub struct ComparatorSpec {
     pub threshold: Threshold,
     /// Its inverting input.
     pub dac: DacChannel,
-    /// The comparator sees the ADC's signal divided by this: 1 when it watches the ADC's
-    /// own pin, 16 when it watches the input of a PGA of gain 16 with VINM grounded.
+    /// A change of the signal at the comparator is the ADC's divided by this: 1 when it
+    /// watches the ADC's own pin, 16 when it watches the input of a PGA of gain 16 (whose
+    /// output the ADC reads).
     pub input_divider: u16,
+    /// Its DAC counts from the zero code found at boot with 0 A (`crate::comparator_trim`,
+    /// review N6) rather than from the ADC's calibrated zero: a comparator on a signal
+    /// whose 0 A level is not known to a few counts (the ESC1's biased PGA inputs).
+    pub zero_trim: bool,
+    /// COMPx_CSR.HYST, mV (0, 10 .. 70). The hysteresis lies below the inverting input on
+    /// the way down of the raw comparison (RM0440 "Comparator hysteresis" figure, ST's HAL
+    /// "hysteresis of the input minus"): for a `Below` comparator on the trip edge.
+    pub hysteresis_mv: u8,
     /// Blanked by TIM1's OC5 around the switching edges (`crate::blanking`, review D10):
     /// the phase-current comparators, whose shunts ring at every turn-on.
     pub blanked: bool,
@@ -145,11 +155,23 @@ impl ComparatorSpec {
     }
 
     /// The DAC value (12-bit counts at the comparator's input) for these thresholds on a
-    /// front end with its calibration. An overcurrent comparator watches the positive
-    /// half-wave: above +`I>>` on a non-inverting front end, below it on an inverting one;
-    /// `direction` says which way the signal at the pin goes.
-    pub fn dac_counts(&self, t: HwThresholds, fe: &FrontEnd) -> u16 {
+    /// front end with its calibration and the boot trim's zero codes. An overcurrent
+    /// comparator watches the positive half-wave: above +`I>>` on a non-inverting front
+    /// end, below it on an inverting one; `direction` says which way the signal at the pin
+    /// goes.
+    pub fn dac_counts(&self, t: HwThresholds, fe: &FrontEnd, trim: &TrimmedZeros) -> u16 {
         let raw = match self.threshold {
+            Threshold::OcHw if self.zero_trim => {
+                // Until the trim has run: the nominal zero (both PGA pins at the bias).
+                let zero = trim
+                    .get(self.comp)
+                    .unwrap_or(fe.scaling().current_zero_counts);
+                let per_amp = fe.scaling().current_millicounts_per_amp.unsigned_abs()
+                    / u32::from(self.input_divider.max(1));
+                let steps_x1000 = u32::from(t.oc_hw.0.max(0) as u16) * per_amp / 100;
+                let below = matches!(self.direction, Direction::Below);
+                return trimmed_dac(zero, below, steps_x1000);
+            }
             Threshold::OcHw => {
                 let d = (i32::from(t.oc_hw.0) * CURRENT_ZERO_COUNTS + CURRENT_FULL_CENTIAMPS / 2)
                     / CURRENT_FULL_CENTIAMPS;
@@ -178,8 +200,8 @@ impl ComparatorSpec {
     }
 
     /// The comparator output for a signal of `signal_counts` (ADC counts, not quantised)
-    /// against `dac` counts (ideal comparator; the board's 20 mV hysteresis is ~25 counts
-    /// on the way back, which only delays the release).
+    /// against `dac` counts (ideal comparator: no offset; a hysteresis only delays the
+    /// release of a latched break).
     pub fn trips(&self, signal_counts: f64, dac: u16) -> bool {
         match self.direction {
             Direction::Above => signal_counts > f64::from(dac),
@@ -201,6 +223,11 @@ pub struct BoardProfile {
     pub scaling: SensorScaling,
     /// The amplifiers the board enables and the ADC channels it reads.
     pub front_end: FrontEndSpec,
+    /// The board has a brake chopper (`U>` switches it); without one `U>` caps the
+    /// overvoltage controller's level (`crate::overvoltage`, review N7).
+    pub brake_chopper: bool,
+    /// `U>>` while the program sets none, V (at most `DriveConfig::ov_hw_default_volts`).
+    pub ov_hw_default_volts: u16,
 }
 
 impl BoardProfile {
@@ -229,6 +256,8 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
     key: "source",
     scaling: SOURCE_SCALING,
     front_end: DIRECT_PINS,
+    brake_chopper: true,
+    ov_hw_default_volts: 40,
     comparators: &[
         ComparatorSpec {
             comp: 1,
@@ -238,6 +267,8 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch1,
             input_divider: 1,
+            zero_trim: false,
+            hysteresis_mv: 20,
             blanked: true,
         },
         ComparatorSpec {
@@ -248,6 +279,8 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 1,
+            zero_trim: false,
+            hysteresis_mv: 20,
             blanked: true,
         },
         ComparatorSpec {
@@ -258,6 +291,8 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OvHw,
             dac: DacChannel::Dac1Ch1,
             input_divider: 1,
+            zero_trim: false,
+            hysteresis_mv: 20,
             blanked: false,
         },
         // DAC3 CH2 is shared with COMP2: the same I>> threshold.
@@ -269,24 +304,39 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 1,
+            zero_trim: false,
+            hysteresis_mv: 20,
             blanked: true,
         },
     ],
 };
 
-/// The bare B-G431B-ESC1 (review D4). The ADC reads the OPAMPs' outputs (PGA, gain 16,
-/// [`ESC1_SCALING`]); the comparators watch the OPAMPs' inputs PA1, PA7, PB0, the only
-/// pins of the three phases that reach COMP1/2/4 (OPAMP1/2 outputs PA2/PA6 reach no
-/// comparator; OPAMP3's PB1 reaches COMP1 only), as ST's motor-control SDK does for this
-/// board. The signal there falls 1.71 mV/A from 0.103 V: 2.13 DAC counts per ampere, so
-/// `I>>` acts in steps of about 0.47 A (at the step at or below the setting), on the
-/// positive half-wave (signal below the threshold). DC link on PA0 through the 0.0962
-/// divider (full scale 34.3 V: `U>>` above it cannot trip).
+/// The bare B-G431B-ESC1 (reviews D4, N5, N6). The ADC reads the OPAMPs' outputs (PGA x16
+/// with the network's foot on VINM0, [`ESC1_SCALING`]); the comparators watch the OPAMPs'
+/// inputs PA1, PA7, PB0, the only pins of the three phases that reach COMP1/2/4 (OPAMP1/2
+/// outputs PA2/PA6 reach no comparator input; OPAMP3's PB1 reaches COMP1 only). The
+/// signal there falls 1.71 mV/A from the bias (~1.41 V): 2.13 DAC counts per ampere, too
+/// small against the bias's tolerance and the comparator's and DAC's offsets to count
+/// from a nominal zero: each comparator's zero is trimmed at boot
+/// (`crate::comparator_trim`), each with a DAC channel of its own (COMP2 on DAC1 CH2,
+/// whose pin PA5 stays off: internal mode), no hysteresis; `I>>` then trips within one
+/// DAC step (0.47 A) of the setting, on the positive half-wave (signal below the
+/// threshold). DC link on PA0 through the 0.0962 divider (full scale 34.3 V), 20 mV
+/// hysteresis (0.21 V of DC link).
 pub const B_G431B_ESC1: BoardProfile = BoardProfile {
     name: "B-G431B-ESC1",
     key: "esc1",
     scaling: ESC1_SCALING,
     front_end: ESC1_PGAS,
+    // No chopper: PB5 is `GPIO_BEMF` (UM2516 pin table, stm32duino's ESC1 variant).
+    brake_chopper: false,
+    // UM2516: "up to 6S LiPo" (25.2 V full); the measuring range ends at 34.3 V; the
+    // MOSFETs are 60 V parts, the capacitors' rating is in the schematic we could not
+    // read. 32 V: 2.3 V inside the range (the comparator's and the divider's tolerances
+    // stay measurable), room above a 6S pack for the overvoltage controller (cap 30 V),
+    // and above the 30 V of the project's rig (docs/drive-core.md "Overvoltage without a
+    // chopper").
+    ov_hw_default_volts: 32,
     comparators: &[
         ComparatorSpec {
             comp: 1,
@@ -296,6 +346,8 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch1,
             input_divider: 16,
+            zero_trim: true,
+            hysteresis_mv: 0,
             blanked: true,
         },
         ComparatorSpec {
@@ -304,8 +356,10 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             signal: Signal::CurrentB,
             direction: Direction::Below,
             threshold: Threshold::OcHw,
-            dac: DacChannel::Dac3Ch2,
+            dac: DacChannel::Dac1Ch2,
             input_divider: 16,
+            zero_trim: true,
+            hysteresis_mv: 0,
             blanked: true,
         },
         ComparatorSpec {
@@ -316,6 +370,8 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OvHw,
             dac: DacChannel::Dac1Ch1,
             input_divider: 1,
+            zero_trim: false,
+            hysteresis_mv: 20,
             blanked: false,
         },
         ComparatorSpec {
@@ -326,6 +382,8 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
             threshold: Threshold::OcHw,
             dac: DacChannel::Dac3Ch2,
             input_divider: 16,
+            zero_trim: true,
+            hysteresis_mv: 0,
             blanked: true,
         },
     ],
@@ -353,14 +411,20 @@ impl DacValues {
     }
 }
 
-/// The DAC values a profile needs for these thresholds. Comparators sharing a channel
-/// must agree on its value (unit-tested for every profile); the first one sets it.
-pub fn dac_values(profile: &BoardProfile, t: HwThresholds, fe: &FrontEnd) -> DacValues {
+/// The DAC values a profile needs for these thresholds (with the boot trim's zero codes,
+/// `TrimmedZeros::default()` before it). Comparators sharing a channel must agree on its
+/// value (unit-tested for every profile); the first one sets it.
+pub fn dac_values(
+    profile: &BoardProfile,
+    t: HwThresholds,
+    fe: &FrontEnd,
+    trim: &TrimmedZeros,
+) -> DacValues {
     let mut v = [None; 4];
     for spec in profile.comparators {
         if let Some(slot) = v.get_mut(spec.dac.index()) {
             if slot.is_none() {
-                *slot = Some(spec.dac_counts(t, fe));
+                *slot = Some(spec.dac_counts(t, fe, trim));
             }
         }
     }
@@ -415,13 +479,18 @@ mod tests {
             );
         }
         // Comparators sharing a DAC channel need the same value for any thresholds.
+        let z = TrimmedZeros::default();
         for oc in [1, 150, 300, 999] {
             for ov in [1, 40, 45] {
                 let th = t(oc, ov);
                 for a in p.comparators {
                     for b in p.comparators {
                         if a.dac == b.dac {
-                            assert_eq!(a.dac_counts(th, &fe), b.dac_counts(th, &fe), "{a:?} {b:?}");
+                            assert_eq!(
+                                a.dac_counts(th, &fe, &z),
+                                b.dac_counts(th, &fe, &z),
+                                "{a:?} {b:?}"
+                            );
                         }
                     }
                 }
@@ -475,7 +544,8 @@ mod tests {
     fn thresholds_in_adc_counts() {
         let p = &SOURCE_SENSORS;
         let fe = FrontEnd::new(p.scaling);
-        let v = dac_values(p, t(300, 40), &fe);
+        let z = TrimmedZeros::default();
+        let v = dac_values(p, t(300, 40), &fe, &z);
         // 3.00 A = 614.4 counts above 2048; 40 V = 91 * 40 counts.
         assert_eq!(v.get(DacChannel::Dac3Ch1), Some(2662));
         assert_eq!(v.get(DacChannel::Dac3Ch2), Some(2662));
@@ -483,7 +553,7 @@ mod tests {
         assert_eq!(v.get(DacChannel::Dac1Ch2), None);
         assert!(current_centiamps(2662).0 >= 299);
         // Full scale: clamped to the DAC's range.
-        let v = dac_values(p, t(999, 45), &fe);
+        let v = dac_values(p, t(999, 45), &fe, &z);
         assert_eq!(v.get(DacChannel::Dac3Ch1), Some(4094));
         assert_eq!(v.get(DacChannel::Dac1Ch1), Some(4095));
         // A "below" comparator (another profile) mirrors the threshold around 0 A.
@@ -491,28 +561,48 @@ mod tests {
             direction: Direction::Below,
             ..p.comparators[0]
         };
-        assert_eq!(below.dac_counts(t(300, 40), &fe), 2048 - 614);
+        assert_eq!(below.dac_counts(t(300, 40), &fe, &z), 2048 - 614);
         assert!(below.inverted());
         assert!(below.trips(1400.0, 1434) && !below.trips(1500.0, 1434));
         assert!(p.comparators[0].trips(2663.0, 2662) && !p.comparators[0].trips(2662.0, 2662));
     }
 
     #[test]
-    fn esc1_thresholds_follow_the_calibrated_zero_at_the_pga_input() {
+    fn esc1_thresholds_count_from_the_trimmed_zero_at_the_pga_input() {
         let p = &B_G431B_ESC1;
-        let mut fe = FrontEnd::new(p.scaling);
-        // 3 A: 102 counts below the zero at the ADC, /16 at the PGA input.
-        let v = dac_values(p, t(300, 30), &fe);
-        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(122));
-        assert_eq!(v.get(DacChannel::Dac3Ch2), Some(122));
-        // 30 V on the 34.3 V range.
-        assert_eq!(v.get(DacChannel::Dac1Ch1), Some(3582));
-        // A zero calibrated 32 counts higher moves the threshold 2 counts up.
-        fe.calibrate([2080, 2080]);
-        let v = dac_values(p, t(300, 30), &fe);
-        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(124));
-        // Above the 34.3 V range the overvoltage comparator can never trip: clamped.
-        let v = dac_values(p, t(300, 40), &fe);
-        assert_eq!(v.get(DacChannel::Dac1Ch1), Some(4095));
+        let fe = FrontEnd::new(p.scaling);
+        // Before the trim: the nominal zero (the bias, 1755 counts); 3 A = 6.38 steps of
+        // 2.128 counts/A -> 7 codes below it.
+        let v = dac_values(p, t(300, 28), &fe, &TrimmedZeros::default());
+        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(1748));
+        assert_eq!(v.get(DacChannel::Dac1Ch2), Some(1748));
+        assert_eq!(v.get(DacChannel::Dac3Ch2), Some(1748));
+        // 28 V on the 34.3 V range.
+        assert_eq!(v.get(DacChannel::Dac1Ch1), Some(3343));
+        // Each comparator from its own trimmed zero.
+        let z = TrimmedZeros([Some(1760), Some(1740), None, Some(1790)]);
+        let v = dac_values(p, t(300, 28), &fe, &z);
+        assert_eq!(v.get(DacChannel::Dac3Ch1), Some(1753));
+        assert_eq!(v.get(DacChannel::Dac1Ch2), Some(1733));
+        assert_eq!(v.get(DacChannel::Dac3Ch2), Some(1783));
+        // The ADC's calibrated zero does not move a trimmed comparator.
+        let mut fe2 = fe;
+        fe2.calibrate([2080, 2080]);
+        assert_eq!(dac_values(p, t(300, 28), &fe2, &z), v);
+    }
+
+    #[test]
+    fn the_esc1_trims_its_phase_comparators_without_hysteresis() {
+        for s in B_G431B_ESC1.comparators {
+            let oc = s.cause() == HwBreak::Overcurrent;
+            assert_eq!(s.zero_trim, oc, "{s:?}");
+            assert_eq!(s.hysteresis_mv, if oc { 0 } else { 20 }, "{s:?}");
+        }
+        // One DAC channel per comparator: each trim needs its own.
+        let chans: Vec<_> = B_G431B_ESC1.comparators.iter().map(|s| s.dac).collect();
+        for (k, c) in chans.iter().enumerate() {
+            assert!(!chans[..k].contains(c), "{chans:?}");
+        }
+        const { assert!(!B_G431B_ESC1.brake_chopper && SOURCE_SENSORS.brake_chopper) };
     }
 }

@@ -18,11 +18,13 @@ use shared_protocol::program::{verify_drive, DriveSection, VerifiedDriveSection,
 use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Volts};
 
+use crate::comparator_trim::{TrimFailed, TrimmedZeros};
 use crate::comparators::{dac_values, DacValues, HwThresholds};
 use crate::config::{DriveConfig, ResetCause};
 use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, PeakTracker};
 use crate::measure::{FrontEnd, ZeroCalibration};
 use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
+use crate::overvoltage::{OvController, CAP_BELOW_OV_HW_VOLTS};
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
 use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
@@ -238,8 +240,18 @@ pub struct DriveCore {
     safety: Monitor,
     /// The signature of the accepted section's safety settings.
     signature: u16,
-    /// The frequency the modulator takes: the section's, under the monitor's `asr` cap.
+    /// The frequency the modulator takes: the section's, under the monitor's `asr` cap
+    /// and the overvoltage controller's hold.
     f_out: i16,
+    /// The comparators' zero codes from the boot trim (`crate::comparator_trim`).
+    trim: TrimmedZeros,
+    /// The boot trim failed: `BOOT`.
+    trim_failed: bool,
+    /// The overvoltage controller (a board without a brake chopper, review N7).
+    ovc: OvController,
+    /// The frequency and amplitude applied in the last tick (the V/f ratio while the
+    /// overvoltage controller holds the frequency above the command).
+    applied_fa: (i16, i16),
 }
 
 /// The comparator thresholds from the settings (`OC`/`OV` when set, else the board's
@@ -249,13 +261,18 @@ fn hw_thresholds(s: &Settings, cfg: &DriveConfig) -> HwThresholds {
         let v = if set > 0 { set } else { default };
         v.clamp(1, max) as i16
     };
+    // `U>>` inside the DC link's measuring range (review N7: on the ESC1 34.3 V, where
+    // the DAC would clamp a higher level and the comparator never trip), and the board's
+    // default when the program sets none.
+    let ov_max = ((cfg.board.scaling.udc_full_decivolts / 10) as u16).min(U_MAX_HW_LIMIT);
+    let ov_default = cfg.ov_hw_default_volts.min(cfg.board.ov_hw_default_volts);
     HwThresholds {
         oc_hw: CentiAmps(pick(
             s.oc_hw_centiamps,
             cfg.oc_hw_default_centiamps,
             I_MAX_HW_LIMIT,
         )),
-        ov_hw: Volts(pick(s.ov_hw_volts, cfg.ov_hw_default_volts, U_MAX_HW_LIMIT)),
+        ov_hw: Volts(pick(s.ov_hw_volts, ov_default, ov_max)),
     }
 }
 
@@ -268,7 +285,7 @@ impl DriveCore {
         let key = (settings.pwf_hz, settings.prescaler);
         let front_end = FrontEnd::new(cfg.board.scaling);
         let hw = hw_thresholds(&settings, &cfg);
-        let dacs = dac_values(cfg.board, hw, &front_end);
+        let dacs = dac_values(cfg.board, hw, &front_end, &TrimmedZeros::default());
         DriveCore {
             timing: Self::timing_for(&cfg, key),
             timing_changes: 0,
@@ -281,7 +298,7 @@ impl DriveCore {
             vm: DriveVm::new(cfg.default_pwm_hz),
             run_requested: false,
             reversal: Reversal::default(),
-            limits: Limits::default(),
+            limits: Limits::with_ov_hw(hw.ov_hw),
             modulator: Modulator::new(cfg.min_pulse_counts, cfg.min_max_injection),
             outputs_on: false,
             sine_on: false,
@@ -302,6 +319,10 @@ impl DriveCore {
             safety: Monitor::default(),
             signature: shared_protocol::safety::SafetySettings::default().signature(),
             f_out: 0,
+            trim: TrimmedZeros::default(),
+            trim_failed: false,
+            ovc: OvController::default(),
+            applied_fa: (0, 0),
         }
     }
 
@@ -367,7 +388,26 @@ impl DriveCore {
     /// download).
     fn update_hw_thresholds(&mut self) {
         self.hw = self.compute_hw_thresholds();
-        self.dacs = dac_values(self.cfg.board, self.hw, &self.front_end);
+        self.dacs = dac_values(self.cfg.board, self.hw, &self.front_end, &self.trim);
+        self.limits.set_ov_hw(self.hw.ov_hw);
+    }
+
+    /// The boot trim of the comparators (`crate::comparator_trim`, run by the board before
+    /// TIM1's break is armed): their thresholds count from its zero codes from now on; a
+    /// failed trim ends BOOT in `BOOT`.
+    pub fn set_comparator_trim(&mut self, r: Result<TrimmedZeros, TrimFailed>) {
+        match r {
+            Ok(z) => {
+                self.trim = z;
+                self.update_hw_thresholds();
+            }
+            Err(_) => self.trim_failed = true,
+        }
+    }
+
+    /// The overvoltage controller (read-only: level and hold, for hil-sim probes).
+    pub fn ov_controller(&self) -> &OvController {
+        &self.ovc
     }
 
     /// What TIM1 must be programmed with now (changes when the program's `PWF`/`PRx` do).
@@ -639,10 +679,17 @@ impl DriveCore {
                 if self.limits.overcurrent(abs_i) {
                     self.trip(FaultCode::Oc);
                 }
+                // The software twin of the overvoltage comparator (review N7): the same
+                // `U>>`, code 3, whichever sees it first.
+                if self.limits.overvoltage(s) {
+                    self.trip(FaultCode::OvHw);
+                }
             }
             DriveState::Fault => {}
         }
-        self.brake = self.limits.brake(self.brake, s);
+        // Only a board with a chopper switches one (on the ESC1 PB5 is the BEMF dividers'
+        // enable: review N7).
+        self.brake = self.cfg.board.brake_chopper && self.limits.brake(self.brake, s);
         let mut on = self.state == DriveState::Run && self.outputs_on;
         if on && self.limits.undervoltage(s) {
             self.trip(FaultCode::Uv);
@@ -765,7 +812,9 @@ impl DriveCore {
         match f {
             FaultCode::Oc => !self.limits.overcurrent(self.last.abs_current_counts()),
             FaultCode::OcHw => !self.hw_active(HwBreak::Overcurrent),
-            FaultCode::OvHw => !self.hw_active(HwBreak::Overvoltage),
+            FaultCode::OvHw => {
+                !self.hw_active(HwBreak::Overvoltage) && !self.limits.overvoltage(&self.last)
+            }
             FaultCode::Uv => !self.limits.undervoltage(&self.last),
             // The ACK itself arrived over the link.
             FaultCode::Link => true,
@@ -804,7 +853,7 @@ impl DriveCore {
             Ok(None) => true,
             Err(()) => false,
         };
-        if !(table_ok && timing_ok && offsets_ok) {
+        if !(table_ok && timing_ok && offsets_ok) || self.trim_failed {
             self.trip(FaultCode::Boot);
         } else if self.reset_cause == ResetCause::Watchdog {
             self.trip(FaultCode::Wdg);
@@ -819,6 +868,15 @@ impl DriveCore {
         self.limits.set_i_max(s.i_max_centiamps);
         self.limits.set_u_min(s.u_min_volts);
         self.limits.set_u_max(s.u_max_volts);
+        // Without a chopper `U>` caps the overvoltage controller's level, which stays
+        // CAP_BELOW_OV_HW_VOLTS below `U>>` (docs/drive-core.md "Overvoltage").
+        let below_trip = (self.hw.ov_hw.0.max(0) as u16).saturating_sub(CAP_BELOW_OV_HW_VOLTS);
+        let cap = match s.u_max_volts {
+            0 => below_trip,
+            u => u.min(below_trip),
+        };
+        self.ovc
+            .set_cap_volts((!self.cfg.board.brake_chopper).then_some(cap));
         let key = (s.pwf_hz, s.prescaler);
         if key != self.timing_key {
             self.timing_key = key;
@@ -835,13 +893,22 @@ impl DriveCore {
         // fmn stops only the sine legs (program.md 4.2, as the source): a direct `WR PWx`
         // leg keeps switching, and an unused leg (duty 0) is driven while any other is.
         let run = self.state == DriveState::Run;
-        // The monitor's `asr` cap lowers f (never raises it); A follows, keeping V/f.
-        let f = self.f_out.min(o.f);
+        // The monitor's `asr` cap lowers f (never raises it); the overvoltage controller
+        // holds it above the command while the DC link is high; A follows, keeping V/f.
+        let switching = run && self.sine_on;
+        let f = self
+            .ovc
+            .step(self.f_out.min(o.f), self.last.u_dc, switching);
+        let (f_last, a_last) = self.applied_fa;
         let a = if f < o.f && o.f > 0 {
             (i32::from(o.a) * i32::from(f) / i32::from(o.f)) as i16
+        } else if f > o.f && f_last > 0 {
+            (i32::from(a_last) * i32::from(f) / i32::from(f_last)) as i16
         } else {
             o.a
         };
+        self.f_out = f;
+        self.applied_fa = (f, a);
         let sine_on = f >= s.fmn;
         let direct = o.legs.iter().any(|l| matches!(l, LegMode::Direct { .. }));
         let sine = o.legs.contains(&LegMode::Sine);
@@ -1185,6 +1252,126 @@ mod tests {
         core.trip(FaultCode::Link);
         assert!(core.pwm_period(&high).brake);
         assert!(!core.pwm_period(&ok_sample()).brake);
+    }
+
+    /// A sample of the bare ESC1's front end: 0 A (the bias, 1755 counts) and the DC
+    /// link at `raw_udc` counts (34.3 V full scale).
+    fn esc1_at(raw_udc: u16) -> AdcSample {
+        AdcSample {
+            i_a: 1755,
+            i_b: 1755,
+            u_dc: raw_udc,
+            aux: 0,
+        }
+    }
+
+    fn esc1() -> DriveConfig {
+        DriveConfig {
+            board: &crate::comparators::B_G431B_ESC1,
+            ..DriveConfig::default()
+        }
+    }
+
+    /// Review N7: the ESC1 (no chopper) never switches one; `U>>` is 32 V by default and
+    /// inside the 34.3 V range when the program sets more, and its software twin trips
+    /// code 3 from the ADC reading.
+    #[test]
+    fn the_esc1_has_no_chopper_and_a_software_overvoltage_trip() {
+        let mut core = DriveCore::new(esc1(), ResetCause::PowerOn);
+        assert_eq!(core.hw_thresholds().ov_hw, Volts(32));
+        events(&mut core);
+        core.load_program(&section(SINE)).unwrap();
+        // 27.0 V: U> (35 V) is no chopper here, nothing trips.
+        let c = core.pwm_period(&esc1_at(3223));
+        assert!(!c.brake && core.fault().is_none());
+        // 32.5 V: above U>> 32 V.
+        let c = core.pwm_period(&esc1_at(3880));
+        assert!(!c.brake && !c.enable);
+        assert_eq!(core.fault(), Some(FaultCode::OvHw));
+        assert!(!core.cause_gone(FaultCode::OvHw));
+        let _ = core.pwm_period(&esc1_at(3223));
+        assert!(core.cause_gone(FaultCode::OvHw));
+        // A program's U>> 40 V is clamped to the measuring range.
+        let mut core = DriveCore::new(esc1(), ResetCause::PowerOn);
+        events(&mut core);
+        core.load_program(&section(&format!("{SINE}013 U>> K08 0040\n")))
+            .unwrap();
+        assert_eq!(core.hw_thresholds().ov_hw, Volts(34));
+    }
+
+    #[test]
+    fn the_comparator_trim_moves_the_thresholds_and_a_failed_one_is_boot() {
+        use crate::comparators::DacChannel;
+        let mut core = DriveCore::new(esc1(), ResetCause::PowerOn);
+        assert_eq!(core.comparator_dacs().get(DacChannel::Dac3Ch1), Some(1748));
+        core.set_comparator_trim(Ok(TrimmedZeros([Some(1760), Some(1750), None, Some(1770)])));
+        let d = core.comparator_dacs();
+        assert_eq!(d.get(DacChannel::Dac3Ch1), Some(1753));
+        assert_eq!(d.get(DacChannel::Dac1Ch2), Some(1743));
+        assert_eq!(d.get(DacChannel::Dac3Ch2), Some(1763));
+        events(&mut core);
+        assert_eq!(core.state(), DriveState::Idle);
+        let mut core = DriveCore::new(esc1(), ResetCause::PowerOn);
+        core.set_comparator_trim(Err(TrimFailed {
+            comp: 2,
+            code: 4095,
+        }));
+        events(&mut core);
+        assert_eq!(core.fault(), Some(FaultCode::Boot));
+    }
+
+    /// Review N7: on the ESC1 the overvoltage controller takes the applied frequency over
+    /// while the DC link is above its level (the supply's 20 V + 2 V), keeping V/f.
+    #[test]
+    fn the_esc1_holds_a_deceleration_while_the_dc_link_is_high() {
+        let mut core = DriveCore::new(esc1(), ResetCause::PowerOn);
+        events(&mut core);
+        // U< 15 V for the 20 V supply.
+        let program = SINE.replace("U<  K06 0025", "U<  K06 0015");
+        core.load_program(&section(&program)).unwrap();
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 500,
+        })
+        .unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        let supply = 2388; // 20.0 V
+        for _ in 0..3 {
+            let _ = core.pwm_period(&esc1_at(supply));
+            events(&mut core);
+        }
+        assert_eq!(core.status().f_applied, Decihertz(500));
+        // The command falls to 30 Hz while the link is at 23 V (level 21 V): the controller
+        // takes over and raises the frequency.
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 300,
+        })
+        .unwrap();
+        let _ = core.pwm_period(&esc1_at(2746));
+        events(&mut core);
+        assert!(core.ov_controller().holding());
+        let held = core.status().f_applied;
+        assert!(held.0 > 500, "{held:?}");
+        assert_eq!(core.status().f_command, Decihertz(300));
+        // Back at the supply (1 V below the level): it falls towards the command.
+        let _ = core.pwm_period(&esc1_at(supply));
+        events(&mut core);
+        let f = core.status().f_applied.0;
+        assert!(f < held.0 && f > 300, "{f}");
+        // On the source's sensors (a chopper) there is no such hold.
+        let mut core = running(500);
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 300,
+        })
+        .unwrap();
+        let _ = core.pwm_period(&AdcSample {
+            u_dc: 3100, // 34 V
+            ..AdcSample::default()
+        });
+        events(&mut core);
+        assert_eq!(core.status().f_applied, Decihertz(300));
     }
 
     #[test]

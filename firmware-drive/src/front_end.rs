@@ -7,8 +7,12 @@
 //! RM0440 facts the tables are checked against (unit tests below):
 //! * OPAMPx_CSR.VP_SEL (§25.5.1): OPAMP1 VINP0-2 = PA1, PA3, PA7; OPAMP2 = PA7, PB14, PB0;
 //!   OPAMP3 = PB0, PB13, PA1 (11 = DAC3 for OPAMP1/3, not bonded for OPAMP2 on the G431).
-//! * PGA_GAIN bits 2:0 (VM_SEL = 10, PGA_GAIN bits 4:3 = 00: the gain network's ground end on
-//!   VSSA, non-inverting gain): 000 = 2, 001 = 4, 010 = 8, 011 = 16, 100 = 32, 101 = 64.
+//! * PGA_GAIN bits 2:0 (VM_SEL = 10): 000 = 2, 001 = 4, 010 = 8, 011 = 16, 100 = 32,
+//!   101 = 64. Bits 4:3 place the foot of the gain network: 00 on VSSA (output
+//!   G x VINP), 01 on the VINM0 pin ("input/bias connected to VINM0", stm32-metapac 21
+//!   `PgaGain::GAIN16_INPUT_VINM0` = 0x0B, embassy-stm32 0.6 `pga_biased_int`): output
+//!   G x VINP - (G - 1) x VINM0, which is what a board that brings a biased shunt to VINP
+//!   and VINM0 needs (review N5).
 //! * With OPAINTOEN = 1 the output reaches an ADC channel internally, not the VOUT pin
 //!   (PA2, PA6, PB1): OPAMP1 = ADC1_IN13, OPAMP2 = ADC2_IN16, OPAMP3 = ADC2_IN18 (RM0440
 //!   ADC1/ADC2 channel tables, "VOPAMP1", "VOPAMP2", "VOPAMP3"; the same numbers as ST's
@@ -29,6 +33,9 @@ pub struct OpampSpec {
     pub vinp: &'static str,
     /// Non-inverting gain: 2, 4, 8, 16, 32 or 64.
     pub gain: u8,
+    /// The gain network's foot on the VINM0 pin (PGA_GAIN bits 4:3 = 01) rather than on
+    /// VSSA: the amplifier outputs G x VINP - (G - 1) x VINM0.
+    pub vinm0_bias: bool,
 }
 
 impl OpampSpec {
@@ -43,18 +50,24 @@ impl OpampSpec {
         pins.iter().position(|p| *p == self.vinp).map(|k| k as u8)
     }
 
-    /// OPAMPx_CSR.PGA_GAIN for a non-inverting PGA with the network grounded (bits 4:3 = 00);
-    /// `None` for a gain the PGA does not have.
+    /// OPAMPx_CSR.PGA_GAIN: the gain (bits 2:0) and the network's foot (bits 4:3: 00 =
+    /// VSSA, 01 = VINM0, [`OpampSpec::vinm0_bias`]); `None` for a gain the PGA does not
+    /// have.
     pub const fn pga_gain_bits(&self) -> Option<u8> {
-        match self.gain {
-            2 => Some(0b000),
-            4 => Some(0b001),
-            8 => Some(0b010),
-            16 => Some(0b011),
-            32 => Some(0b100),
-            64 => Some(0b101),
-            _ => None,
-        }
+        let gain = match self.gain {
+            2 => 0b000,
+            4 => 0b001,
+            8 => 0b010,
+            16 => 0b011,
+            32 => 0b100,
+            64 => 0b101,
+            _ => return None,
+        };
+        Some(if self.vinm0_bias {
+            0b01000 | gain
+        } else {
+            gain
+        })
     }
 
     /// The ADC and channel its internal output (OPAINTOEN = 1) reaches: (1 = ADC1, channel).
@@ -132,10 +145,15 @@ pub const DIRECT_PINS: FrontEndSpec = FrontEndSpec {
     },
 };
 
-/// The B-G431B-ESC1's shunt amplifiers: OPAMP1/2/3 in PGA mode, gain 16, on the shunt
-/// networks of U (PA1), V (PA7) and W (PB0) (NuttX `boards/arm/stm32/b-g431b-esc1`:
-/// "Current U+ OPAMP1_VINP PA1", "Current V+ OPAMP2_VINP PA7", W on OPAMP3_VINP PB0; ST's
-/// motor-control SDK reads them as VOPAMP1/VOPAMP2/VOPAMP3 with PGA gain 16). ADC1 reads
+/// The B-G431B-ESC1's shunt amplifiers: OPAMP1/2/3 in PGA mode, gain 16, with the foot of
+/// the gain network on VINM0, on the shunt networks of U (PA1/PA3), V (PA7/PA5) and W
+/// (PB0/PB2) (NuttX `boards/arm/stm32/b-g431b-esc1/src/stm32_foc.c`: "Current U+
+/// OPAMP1_VINP PA1", "Current U- PA3", PGA_GAIN `0b01011` "PGA mode, non-inverting
+/// configuration with external bias on VINM0"; SimpleFOC `_configureOPAMP`:
+/// `OPAMP_PGA_GAIN_16_OR_MINUS_15`, `OPAMP_PGA_CONNECT_INVERTINGINPUT_IO0_BIAS`; the
+/// UM2516 pin table brings each shunt's minus side to VINM0). The board biases both pins of
+/// a leg from 3V3; only this mode subtracts that bias (the grounded-input mode outputs
+/// 16 x 1.4 V: the rail, review N5). ADC1 reads
 /// OPAMP1 (IN13), ADC2 reads OPAMP2 (IN16); OPAMP3 (ADC2 IN18) is enabled for the bench
 /// check and the W comparator's future use, the core does not sample it.
 pub const ESC1_PGAS: FrontEndSpec = FrontEndSpec {
@@ -145,18 +163,21 @@ pub const ESC1_PGAS: FrontEndSpec = FrontEndSpec {
             signal: Signal::CurrentA,
             vinp: "PA1",
             gain: 16,
+            vinm0_bias: true,
         },
         OpampSpec {
             opamp: 2,
             signal: Signal::CurrentB,
             vinp: "PA7",
             gain: 16,
+            vinm0_bias: true,
         },
         OpampSpec {
             opamp: 3,
             signal: Signal::CurrentC,
             vinp: "PB0",
             gain: 16,
+            vinm0_bias: true,
         },
     ],
     current_a: AdcInput::Opamp(1),
@@ -172,7 +193,11 @@ mod tests {
         let fe = &ESC1_PGAS;
         for (k, o) in fe.opamps.iter().enumerate() {
             assert_eq!(o.vp_sel(), Some(0), "{o:?}: VINP0");
-            assert_eq!(o.pga_gain_bits(), Some(0b011), "{o:?}: gain 16");
+            assert_eq!(
+                o.pga_gain_bits(),
+                Some(0b01011),
+                "{o:?}: gain 16, network foot on VINM0 (metapac GAIN16_INPUT_VINM0)"
+            );
             assert!(fe.opamps[..k].iter().all(|p| p.opamp != o.opamp));
         }
         assert_eq!(fe.adc_channel(fe.current_a), Some((1, 13)));
@@ -197,9 +222,12 @@ mod tests {
             signal: Signal::CurrentA,
             vinp: "PB0",
             gain: 3,
+            vinm0_bias: false,
         };
         assert_eq!(o.vp_sel(), None);
         assert_eq!(o.pga_gain_bits(), None);
+        let grounded = OpampSpec { gain: 16, ..o };
+        assert_eq!(grounded.pga_gain_bits(), Some(0b00011));
         let o = OpampSpec { opamp: 4, ..o };
         assert_eq!(o.adc_channel(), None);
         assert_eq!(

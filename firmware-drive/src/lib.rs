@@ -15,6 +15,7 @@
 // Drive core modules (issue 4). Units, scaling and every decision: `docs/drive-core.md`.
 pub mod app;
 pub mod blanking;
+pub mod comparator_trim;
 pub mod comparators;
 pub mod config;
 pub mod drive;
@@ -22,6 +23,7 @@ pub mod front_end;
 pub mod link;
 pub mod measure;
 pub mod modulator;
+pub mod overvoltage;
 pub mod power_port;
 pub mod protection;
 pub mod reversal;

@@ -108,14 +108,22 @@ pub const SOURCE_SCALING: SensorScaling = SensorScaling {
     udc_full_decivolts: UDC_FULL_DECIVOLTS,
 };
 
-/// The bare B-G431B-ESC1: 3 mOhm shunts, a bias network (0.1031 V at 0 A, -1.7138 mV/A
-/// at the OPAMP's VINP) and the OPAMP in PGA mode, gain 16, VINM grounded: 1.65 V at 0 A,
-/// -27.42 mV/A = -34.03 counts/A at the ADC (+-60 A range). DC link divided by
-/// 18k / (18k + 169k) = 0.0962: 34.3 V at full scale.
+/// The bare B-G431B-ESC1: 3 mOhm shunts whose two ends reach VINP and VINM0 through a
+/// network biased from 3V3, and the OPAMP in the VINM0-biased PGA mode, gain 16
+/// (`front_end::ESC1_PGAS`, review N5): out = 16 VINP - 15 VINM0 = the bias - 9.14 x the
+/// shunt's volts (-64/7: NuttX "Current sense gain = -9.14", SimpleFOC `-64.0f/7.0f`),
+/// i.e. -27.43 mV/A = -34.05 counts/A at the ADC. The bias is not in a document we
+/// reached: 64/7 over the PGA's 16 leaves 4/7 of each shunt end on its pin, the rest of a
+/// two-resistor divider to 3V3 is 3/7 x 3.3 V = 1.414 V = 1755 counts at 0 A (the same
+/// derivation as g431-emu's board model, `docs/models.md`); the boot check accepts
+/// +-410 counts (0.33 V: 1 % resistors move the bias ~20 mV, the OPAMP's +-4.5 mV offset
+/// x 16 = 72 mV) and rejects an amplifier at a rail (the grounded-input mode on this
+/// network, an amplifier not started). Range about -51 A..+69 A. DC link divided by
+/// 0.0962 (NuttX "Vbus sense gain = 0.0962"): 34.3 V at full scale.
 pub const ESC1_SCALING: SensorScaling = SensorScaling {
-    current_zero_counts: 2048,
-    current_zero_tolerance_counts: 205,
-    current_millicounts_per_amp: -34_030,
+    current_zero_counts: 1755,
+    current_zero_tolerance_counts: 410,
+    current_millicounts_per_amp: -34_050,
     udc_full_decivolts: 343,
 };
 
@@ -331,18 +339,18 @@ mod tests {
     #[test]
     fn the_esc1_scaling_reads_amps_and_volts() {
         let fe = FrontEnd::new(ESC1_SCALING);
-        // +2 A at the ESC1 (inverting): 2048 - 68 counts -> +2 A canonical.
-        let s = fe.canonical(&raw(2048 - 68, 2048 + 34, 0));
+        // +2 A at the ESC1 (inverting, zero at the bias 1755): 1755 - 68 counts -> +2 A.
+        let s = fe.canonical(&raw(1755 - 68, 1755 + 34, 0));
         assert_eq!(current_centiamps(s.i_a), CentiAmps(199));
         assert!((current_centiamps(s.i_b).0 + 100).abs() <= 1);
         // 24 V on the 0.0962 divider: 24 / 34.3 x 4095 = 2865 counts.
-        let s = fe.canonical(&raw(2048, 2048, 2865));
+        let s = fe.canonical(&raw(1755, 1755, 2865));
         assert!((udc_decivolts(s.u_dc).0 - 240).abs() <= 1, "{s:?}");
         // Beyond +-10 A the canonical scale saturates (the program's limits stop at 9.99 A).
         let s = fe.canonical(&raw(0, 4095, 4095));
         assert_eq!((s.i_a, s.i_b), (4095, 0));
         // The inverse: +3 A is 102 counts below the zero; 40 V canonical is 34.3 V max.
-        assert_eq!(fe.raw_current_counts(2048 + 614), 2048 - 102);
+        assert_eq!(fe.raw_current_counts(2048 + 614), 1755 - 102);
         assert_eq!(fe.raw_udc_counts(3000), 3936);
     }
 

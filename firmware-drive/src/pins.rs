@@ -10,12 +10,12 @@
 //! | PWM U high / low | PA8 / PC13 | TIM1_CH1 / TIM1_CH1N | UH / UL |
 //! | PWM V high / low | PA9 / PA12 | TIM1_CH2 / TIM1_CH2N | VH / VL |
 //! | PWM W high / low | PA10 / PB15 | TIM1_CH3 / TIM1_CH3N | WH / WL |
-//! | phase current a | PA1 | OPAMP1_VINP (PGA x16) -> ADC1_IN13 (injected); COMP1_INP vs DAC3_CH1 | Curr_fdbk1 |
-//! | phase current b | PA7 | OPAMP2_VINP (PGA x16) -> ADC2_IN16 (injected); COMP2_INP vs DAC3_CH2 | Curr_fdbk2 |
-//! | phase current c (comparator only) | PB0 | OPAMP3_VINP (PGA x16) -> ADC2_IN18 (not sampled); COMP4_INP vs DAC3_CH2 | Curr_fdbk3 |
+//! | phase current a | PA1 (+ PA3 = VINM0) | OPAMP1_VINP (PGA x16, foot on VINM0) -> ADC1_IN13 (injected); COMP1_INP vs DAC3_CH1 | Curr_fdbk1 +/- |
+//! | phase current b | PA7 (+ PA5 = VINM0) | OPAMP2_VINP (PGA x16, foot on VINM0) -> ADC2_IN16 (injected); COMP2_INP vs DAC1_CH2 (internal) | Curr_fdbk2 +/- |
+//! | phase current c (comparator only) | PB0 (+ PB2 = VINM0) | OPAMP3_VINP (PGA x16, foot on VINM0) -> ADC2_IN18 (not sampled); COMP4_INP vs DAC3_CH2 | Curr_fdbk3 +/- |
 //! | DC link voltage | PA0 | ADC1_IN1 (injected), COMP3_INP vs DAC1_CH1 | VBUS |
 //! | aux (`COM`, potentiometer) | PB12 | ADC1_IN11 (injected) | POT |
-//! | brake chopper gate | PB5 | GPIO out, active high | free pin |
+//! | brake chopper gate (`source-sensors` only; on the bare ESC1 not driven) | PB5 | GPIO out, active high | `GPIO_BEMF` (BEMF dividers' enable, UM2516) |
 //! | link TX / RX | PB6 / PB7 | USART1 (AF7), DMA1 CH1 / CH2 | encoder/Hall H1 / H2 pads |
 //! | heartbeat LED (toggles while the watchdog is fed) | PC6 | GPIO out | LED |
 //! | `STO_IN` (safety.md 6, NOT RATED): active low, pull-down (a broken wire requests STO) | PA15 | TIM1_BKIN (AF9), break 1; read every 1 ms | `PWM`, the ESC's command input pad |
@@ -74,11 +74,11 @@ pub struct Analog {
 pub struct Protection {
     /// Phase current a against DAC3 CH1.
     pub comp_ia: Peri<'static, p::COMP1>,
-    /// Phase current b against DAC3 CH2.
+    /// Phase current b against DAC1 CH2 (its own channel: the boot trim, review N6).
     pub comp_ib: Peri<'static, p::COMP2>,
     /// DC link against DAC1 CH1.
     pub comp_udc: Peri<'static, p::COMP3>,
-    /// Phase current c against DAC3 CH2 (shared with COMP2: the same threshold).
+    /// Phase current c against DAC3 CH2.
     pub comp_ic: Peri<'static, p::COMP4>,
     /// Phase current c's sense signal (the ESC1's third shunt; the core does not sample it).
     pub current_c: Peri<'static, p::PB0>,
@@ -166,9 +166,12 @@ pub fn force_power_outputs_low() {
         (pac::GPIOA, 12), // V low
         (pac::GPIOA, 10), // W high
         (pac::GPIOB, 15), // W low
-        (pac::GPIOB, 5),  // brake
     ];
-    for (port, pin) in gates {
+    // The chopper's gate, on a board with one (on the ESC1 PB5 is `GPIO_BEMF`).
+    let brake = firmware_drive::config::IMAGE_BOARD
+        .brake_chopper
+        .then_some((pac::GPIOB, 5));
+    for (port, pin) in gates.into_iter().chain(brake) {
         port.bsrr().write(|w| w.set_br(pin, true));
         port.moder().modify(|w| w.set_moder(pin, Moder::OUTPUT));
     }

@@ -3,6 +3,7 @@
 //! compares integers.
 
 use crate::measure::{udc_counts_at_volts, AdcSample};
+use shared_protocol::units::Volts;
 
 /// The fault vocabulary is shared with the PLC and hil-sim (one copy, in
 /// `shared-protocol`); re-exported here for the drive's modules.
@@ -19,9 +20,33 @@ pub struct Limits {
     brake_on_above: Option<u32>,
     /// ... and off again below this one (`U>` - 1 V).
     brake_off_below: u32,
+    /// Trip `OV_HW` above this reading (counts of `U>>` V, review N7).
+    ov_above: Option<u32>,
 }
 
 impl Limits {
+    /// No program limits yet, the overvoltage check at `U>>`.
+    pub fn with_ov_hw(ov_hw: Volts) -> Self {
+        let mut l = Limits::default();
+        l.set_ov_hw(ov_hw);
+        l
+    }
+
+    /// `U>>` in V: the software overvoltage check trips above it (0 or less: none).
+    pub fn set_ov_hw(&mut self, ov_hw: Volts) {
+        let v = ov_hw.0.max(0) as u32;
+        self.ov_above = (v > 0).then_some(udc_counts_at_volts(v));
+    }
+
+    /// DC link above `U>>`?
+    #[inline(always)]
+    pub fn overvoltage(&self, s: &AdcSample) -> bool {
+        match self.ov_above {
+            Some(lim) => u32::from(s.u_dc) > lim,
+            None => false,
+        }
+    }
+
     /// `I>` in 0.01 A (0 = no software overcurrent trip).
     pub fn set_i_max(&mut self, centiamps: u16) {
         self.oc_x2048 = (centiamps > 0).then_some(u32::from(centiamps) * 2048);
@@ -100,6 +125,17 @@ mod tests {
         assert!(!l.undervoltage(&udc(edge)));
         assert!(f64::from(edge - 1) * 45.0 / 4095.0 < 25.0);
         assert!(f64::from(edge) * 45.0 / 4095.0 >= 25.0);
+    }
+
+    #[test]
+    fn overvoltage_strictly_above_u_max_hw() {
+        let mut l = Limits::default();
+        assert!(!l.overvoltage(&udc(4095)));
+        l.set_ov_hw(Volts(28));
+        let edge = udc_counts_at_volts(28) as u16;
+        assert!(!l.overvoltage(&udc(edge)));
+        assert!(l.overvoltage(&udc(edge + 1)));
+        assert_eq!(Limits::with_ov_hw(Volts(28)), l);
     }
 
     #[test]

@@ -880,6 +880,12 @@ impl Soc {
         if k == self.wired.comp {
             self.comp_edges();
         }
+        // A DAC output that moved is compared at once, as the silicon's comparator follows
+        // its inputs continuously (a search over the DAC with TIM1 stopped, the drive's
+        // boot trim, sees each step).
+        if self.wired.dac.contains(&k) {
+            self.sample_comparators(t);
+        }
         if self.dma_related(k) {
             self.service_dma();
         }

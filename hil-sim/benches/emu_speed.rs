@@ -45,9 +45,6 @@ fn main() {
         let duration = scen.duration_s(None);
         let mut sim =
             EmuSim::new(&drive, &plc, &program, scen, RunOptions::default()).expect("images");
-        // On the documented ESC1 network today's image stops at boot (board review N5,
-        // issue 29): the speed is measured with the amplifier inputs it assumes.
-        sim.rig_mut().esc1_sense = hil_sim::emu::boards::Esc1Sense::AsImageAssumes;
         let start = Instant::now();
         let mut pwm_hz = 0i16;
         sim.run_until((duration * 1e9) as u64, |s| pwm_hz = s.lcd[1].unwrap_or(0));

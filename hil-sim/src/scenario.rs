@@ -143,8 +143,8 @@ pub struct EmuKeys {
     #[serde(default)]
     pub expect: Vec<ImageTrouble>,
     /// What the bare ESC1's amplifier input pins carry: `documented` (the default: the
-    /// board's network) or `as_image_assumes` (what today's drive image assumes, not the
-    /// board: for runs of everything else while issue 29 fixes the amplifier mode, N5).
+    /// board's network) or `as_image_assumes` (what the image before issue 29 assumed, not
+    /// the board: a what-if, `docs/cli.md`).
     #[serde(default)]
     pub esc1_amplifier_inputs: crate::emu::boards::Esc1Sense,
 }

@@ -69,7 +69,7 @@ pub async fn start(spawner: Spawner) {
     defmt::info!("board profile: {}", cfg.board.name);
     let mut board = pins::split(p);
     let a = &mut board.analog;
-    HW.init(hw_protection::init(
+    let (hw, trim) = hw_protection::init(
         board.protection,
         cfg.board,
         (
@@ -78,14 +78,23 @@ pub async fn start(spawner: Spawner) {
             a.dc_link.reborrow(),
         ),
         app.core().comparator_dacs(),
-    ));
+    );
+    HW.init(hw);
+    // The thresholds from the trimmed zeros (a failed trim ends BOOT in `BOOT`).
+    app.set_comparator_trim(trim);
+    hw_protection::write_dacs(app.core().comparator_dacs());
     // Below TIM1 (review D13), as everything else is (`board_common::boot`).
     for irq in [interrupt::COMP1_2_3, interrupt::COMP4] {
         irq.set_priority(board_common::boot::BACKGROUND);
     }
     ANALOG.init(analog::init(board.analog, &cfg.board.front_end));
     PWM.init(power_stage::init(board.power, timing, min_dead_counts));
-    let brake = Output::new(board.misc.brake, Level::Low, Speed::Low);
+    // PB5 is the chopper's gate only on a board that has one; on the ESC1 it is
+    // `GPIO_BEMF` and stays as reset leaves it (review N7).
+    let brake = cfg
+        .board
+        .brake_chopper
+        .then(|| Output::new(board.misc.brake, Level::Low, Speed::Low));
     shared::install(shared::Shared {
         app,
         brake,

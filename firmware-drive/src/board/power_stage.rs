@@ -310,7 +310,8 @@ fn clear_flags(mask: SrAdv) {
 /// TIM1 and the brake chopper's gate as the core's [`PowerPort`]: one register access per
 /// method, no decisions (the order is `PeriodAction::apply`'s).
 pub struct Tim1Port<'a> {
-    pub brake: &'a mut Output<'static>,
+    /// `None` on a board without a chopper (the pin is not touched).
+    pub brake: &'a mut Option<Output<'static>>,
     /// Fewest dead-time counts the power stage accepts (checked on every timing write).
     pub min_dead_counts: u32,
 }
@@ -373,7 +374,9 @@ impl PowerPort for Tim1Port<'_> {
 
     #[inline(always)]
     fn set_brake(&mut self, on: bool) {
-        self.brake.set_level(Level::from(on));
+        if let Some(b) = self.brake.as_mut() {
+            b.set_level(Level::from(on));
+        }
     }
 }
 

@@ -21,8 +21,9 @@ use static_cell::StaticCell;
 pub struct Shared {
     /// The drive application (core + link endpoint), in its own static ([`app_in_place`]).
     pub app: &'static mut DriveApp,
-    /// Brake chopper gate, written by the PWM interrupt.
-    pub brake: Output<'static>,
+    /// Brake chopper gate, written by the PWM interrupt; `None` on a board without one
+    /// (`BoardProfile::brake_chopper`: on the ESC1 PB5 enables the BEMF dividers).
+    pub brake: Option<Output<'static>>,
     /// Fewest dead-time counts the power stage accepts.
     pub min_dead_counts: u32,
 }

@@ -59,10 +59,10 @@ pub enum Esc1Sense {
     /// pins of each leg at the network's bias.
     #[default]
     Documented,
-    /// The voltages today's drive image assumes (its ESC1 scaling: 0.103 V at 0 A on VINP,
-    /// -1.714 mV/A, VINM0 pins at 0 V): **not the board**. Only for the emulator tests of
-    /// everything else while the image's amplifier mode is wrong for the documented board
-    /// (board review N5, issue 29): with the documented network the image stops at boot.
+    /// The voltages the drive image before issue 29 assumed (0.103 V at 0 A on VINP,
+    /// -1.714 mV/A, VINM0 pins at 0 V): **not the board**. A what-if only: the emulator
+    /// tests ran on it while the image's amplifier mode was wrong for the documented board
+    /// (board review N5); since the fix they run on the documented network.
     AsImageAssumes,
 }
 

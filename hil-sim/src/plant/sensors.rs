@@ -13,6 +13,7 @@
 //! PGA inputs, before the gain).
 //! The simulator trips exactly where the board does, not on |i|.
 
+use firmware_drive::comparator_trim::TrimmedZeros;
 use firmware_drive::comparators::{dac_values, BoardProfile, DacValues, HwThresholds, Signal};
 use firmware_drive::power_port::ComparatorLevels;
 use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
@@ -107,7 +108,13 @@ impl Comparators {
     pub fn new(board: &'static BoardProfile, t: HwThresholds) -> Self {
         Comparators {
             board,
-            dacs: dac_values(board, t, &FrontEnd::new(board.scaling)),
+            // Ideal sensors: the nominal zero is the trimmed one.
+            dacs: dac_values(
+                board,
+                t,
+                &FrontEnd::new(board.scaling),
+                &TrimmedZeros::default(),
+            ),
         }
     }
 
@@ -135,8 +142,11 @@ impl Comparators {
                 Signal::CurrentC => current_signal_counts(sc, i_abc[2]),
                 Signal::DcLink => udc_signal_counts(sc, u_dc),
             };
-            // A comparator on a PGA's input sees the signal before the gain.
-            let counts = adc_counts / f64::from(spec.input_divider.max(1));
+            // A comparator on a PGA's input sees the signal's change before the gain,
+            // around the same zero (the ESC1's PGA subtracts the bias its VINM0 carries).
+            let div = f64::from(spec.input_divider.max(1));
+            let zero = f64::from(sc.current_zero_counts);
+            let counts = zero + (adc_counts - zero) / div;
             if let Some(l) = out.0.get_mut(usize::from(spec.comp.saturating_sub(1))) {
                 *l = spec.trips(counts, dac);
             }
@@ -171,12 +181,14 @@ mod tests {
     }
 
     #[test]
-    fn the_esc1_front_end_inverts_and_spans_60_amps_and_34_volts() {
+    fn the_esc1_front_end_inverts_and_spans_about_50_amps_and_34_volts() {
         let sc = &ESC1_SCALING;
-        assert_eq!(current_counts(sc, 0.0), 2048);
-        // -34.03 counts per ampere: +2 A reads 68 counts below the zero.
-        assert_eq!(current_counts(sc, 2.0), 2048 - 68);
-        assert_eq!(current_counts(sc, -60.2), 4095);
+        // The bias of the VINM0-biased PGA: 1755 counts at 0 A.
+        assert_eq!(current_counts(sc, 0.0), 1755);
+        // -34.05 counts per ampere: +2 A reads 68 counts below the zero.
+        assert_eq!(current_counts(sc, 2.0), 1755 - 68);
+        assert_eq!(current_counts(sc, 51.6), 0);
+        assert_eq!(current_counts(sc, -68.8), 4095);
         assert_eq!(udc_counts(sc, 34.3), 4095);
         assert!((counts_to_udc(sc, udc_counts(sc, 24.0)) - 24.0).abs() < 0.005);
         assert!((counts_to_current(sc, current_counts(sc, 5.0)) - 5.0).abs() < 0.02);
@@ -190,17 +202,17 @@ mod tests {
         }
         .thresholds();
         let c = Comparators::new(&B_G431B_ESC1, t);
-        // The PGA input: 2048/16 = 128 counts at 0 A, -2.13 counts per ampere; 3 A is
-        // 6.4 counts below: the DAC holds 122 (2.8 A), the trip is below it.
+        // The PGA input: the bias (1755 counts) at 0 A, -2.13 counts per ampere; 3 A is
+        // 6.4 counts below: the DAC holds 7 below the zero, the step that brackets 3 A.
         assert_eq!(
             c.dacs.get(firmware_drive::comparators::DacChannel::Dac3Ch1),
-            Some(122)
+            Some(1748)
         );
         for phase in 0..3 {
             let mut i = [-1.0; 3];
-            i[phase] = 3.0;
+            i[phase] = 3.3;
             assert_eq!(c.levels(i, 24.0).causes(c.board), [true, false], "{phase}");
-            i[phase] = 2.6;
+            i[phase] = 2.8;
             assert_eq!(c.levels(i, 24.0).causes(c.board), [false, false], "{phase}");
         }
         // Negative currents raise the signal: no trip.

@@ -5,9 +5,8 @@
 //! current sensing") and are ignored until then (run them with `--ignored`); N1 and N2 are
 //! fixed (STO_IN on PA15, the STO break latched by the core).
 //!
-//! N1, N2 and N7 run the image with `common::emu` (the ESC1's amplifier pins as the image
-//! assumes them) so that each shows its own finding, not N5's boot fault; N5 runs on the
-//! documented network.
+//! All run on the documented boards (`common::emu`, since issue 29 put the ESC1's
+//! amplifiers in the mode the board is wired for: N5).
 
 use g431_emu::boards::b_g431b_esc1::DC_LINK_MAX_VOLTS;
 use g431_emu::boards::ExternalWire;
@@ -128,7 +127,6 @@ fn n1_a_broken_sto_wire_requests_sto() {
 /// 3V3), the image calibrates its current zeros at boot and runs the motor: no `BOOT`
 /// fault, IDLE, then RUN at speed with a measured current that is the plant's.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N5, the shunt amplifiers are in the grounded-input PGA mode, which rails on the ESC1's biased network: the boot zero check fails"]
 fn n5_the_image_measures_current_on_the_documented_amplifier_network() {
     use g431_emu::periph::adc::AdcId;
     let mut sim = emu_on_documented_boards(MOTOR_PLC, START_50HZ);
@@ -169,8 +167,10 @@ fn n5_the_image_measures_current_on_the_documented_amplifier_network() {
 /// supply; the ESC1 has no brake chopper, PB5 enables its BEMF dividers) must not pump
 /// the DC link above the board's rating: the drive stops at 0 Hz with the DC link at
 /// most [`DC_LINK_MAX_VOLTS`], without a trip (issue 29: an overvoltage controller).
+/// Without a chopper only the motor's losses take the energy: the stop lengthens from
+/// the program's 5.4 s to about 19 s (hil-sim's host test of the same stop), so the run
+/// lasts 30 s.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N7, no overvoltage protection on the bare ESC1 (U>> above the 34.3 V range, no software trip, PB5 is no chopper): braking pumps the DC link unchecked"]
 fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     // 20 V: inside the ESC1's 25 V rating with room for an overvoltage controller; six
     // times the rig's inertia, as the regen_brake scenario. The example's `U<` (25 V, for
@@ -184,7 +184,7 @@ fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     let mut peak = (0.0f64, 0u64);
     let mut f_at_stop = 0.0;
     let mut last: Option<Sample> = None;
-    sim.run_until(ns(12.0), |s: &Sample| {
+    sim.run_until(ns(30.0), |s: &Sample| {
         if s.u_dc_v > peak.0 {
             peak = (s.u_dc_v, s.t_ns);
         }
@@ -206,7 +206,7 @@ fn n7_stopping_from_50hz_keeps_the_dc_link_within_the_esc1_rating() {
     assert!(
         peak.0 <= DC_LINK_MAX_VOLTS && sim.faults().is_empty() && last.f_cmd_hz == 0.0,
         "stop from {f_at_stop:.1} Hz at 7.0 s on a 20 V supply: DC link peak {:.1} V at {:.3} s \
-         (ESC1 rating {DC_LINK_MAX_VOLTS} V), faults {:?}, f {:.1} Hz and DC link {:.1} V at 12 s",
+         (ESC1 rating {DC_LINK_MAX_VOLTS} V), faults {:?}, f {:.1} Hz and DC link {:.1} V at 30 s",
         peak.0,
         peak.1 as f64 * 1e-9,
         sim.faults(),

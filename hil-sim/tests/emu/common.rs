@@ -3,7 +3,6 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use hil_sim::emu::boards::Esc1Sense;
 use hil_sim::emu::images::build_both;
 use hil_sim::emu::sim::EmuSim;
 use hil_sim::run::parse_program;
@@ -130,15 +129,12 @@ impl Drop for Checked {
     }
 }
 
-/// [`emu_on_documented_boards`], except that the bare ESC1's amplifier pins carry what
-/// today's drive image assumes (`Esc1Sense::AsImageAssumes`), not the documented network:
-/// with the documented network the image stops at boot (board review N5, shown by
-/// `board_findings::n5_*`), and every other test of the image would show only that. When
-/// issue 29 fixes the amplifier mode, this becomes [`emu_on_documented_boards`].
+/// The emulated pair on the boards as documented ([`emu_on_documented_boards`]). Until
+/// issue 29 fixed the ESC1's amplifier mode (review N5) this put on the amplifier pins
+/// what the image assumed (`Esc1Sense::AsImageAssumes`), because on the documented network
+/// the image stopped at boot; no test needs that any more.
 pub fn emu(program: &str, scenario: &str) -> Checked {
-    let sim = emu_on_documented_boards(program, scenario);
-    sim.rig_mut().esc1_sense = Esc1Sense::AsImageAssumes;
-    sim
+    emu_on_documented_boards(program, scenario)
 }
 
 /// Seconds to ns.

@@ -112,7 +112,6 @@ fn staircase(phase: usize, sign: f64) -> Outcome {
 }
 
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N6, the OC comparators watch the PGA inputs (1.71 mV/A) with a 20 mV hysteresis (~12 A) on the trip edge"]
 fn oc_hw_trips_within_10_percent_of_i_hw_and_never_at_0_a() {
     let (low, high) = (0.9 * I_HW_A, 1.1 * I_HW_A);
     let mut report = Vec::new();

@@ -121,3 +121,49 @@ press = "D01"
     assert_eq!(a.lines().count(), 6002);
     assert!(a == b, "two runs differ");
 }
+
+/// Review N7 on the bare ESC1 (the default board: no chopper, `OV_HW` 28 V by default):
+/// stopping from 50 Hz on a supply that cannot absorb energy (the rig's rectified 20 V
+/// supply) with six times the rig's inertia. The overvoltage controller lengthens the
+/// deceleration while the DC link is above its level (1 V above the supply): the
+/// motor's losses alone take the energy, so the stop takes about 19 s instead of the
+/// program's 5.4 s; the applied frequency ends at 0 Hz, the DC link stays below the
+/// board's 25 V and `OV_HW`, and nothing trips.
+#[test]
+fn without_a_chopper_the_overvoltage_controller_stops_under_ov_hw() {
+    let program = MOTOR_PLC.replace("015 U<  K10 0025", "015 U<  K10 0015");
+    let scen = r#"
+[plant]
+dc_link_v = 20.0
+inertia_kgm2 = 0.003
+
+[[event]]
+at_s = 0.0
+set = { A00 = 980, A01 = 500 }
+
+[[event]]
+at_s = 0.3
+press = "D00"
+
+[[event]]
+at_s = 7.0
+press = "D00"
+"#;
+    let r = run_text(&program, scen, 30.0);
+    let s = &r.samples;
+    assert!(at(s, 6.99).f_cmd_hz > 45.0, "{}", at(s, 6.99).f_cmd_hz);
+    let peak = s.iter().map(|x| x.u_dc_v).fold(0.0, f64::max);
+    let last = s.last().expect("samples");
+    assert!(
+        r.faults.is_empty() && peak < 25.0 && last.f_cmd_hz == 0.0,
+        "faults {:?}, DC link peak {peak:.2} V, f {} Hz at 30 s",
+        r.faults,
+        last.f_cmd_hz
+    );
+    // The controller acted: the DC link rose to its level (21 V) and the applied frequency
+    // fell more slowly than the program's ramp (below fmn, 5 Hz, within 5.4 s of the
+    // stop), and nothing switched a chopper.
+    assert!(peak > 20.9, "DC link peak {peak:.2} V");
+    assert!(at(s, 13.0).f_cmd_hz > 5.0, "{}", at(s, 13.0).f_cmd_hz);
+    assert!(s.iter().all(|x| !x.brake));
+}

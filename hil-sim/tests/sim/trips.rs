@@ -57,7 +57,8 @@ fn hardware_comparator_below_the_software_limit_trips_oc_hw() {
     let r = run_text(MOTOR_PLC, &scen, 3.0);
     let t = single_trip(&r, 2);
     let before: Vec<_> = r.samples.iter().filter(|x| t_s(x) < t).cloned().collect();
-    assert!(peak_current(&before) < 1.3);
+    // The ESC1's trimmed comparator trips in the 0.47 A step that holds 1.2 A (review N6).
+    assert!(peak_current(&before) < 1.5);
 }
 
 #[test]
