@@ -104,12 +104,11 @@ fn both_images_boot_to_idle_and_stop() {
     );
 }
 
-/// Review D4: the image users flash is for the bare B-G431B-ESC1. It puts OPAMP1-3 in PGA
-/// mode (gain 16, VINP0 = PA1, PA7, PB0, output to the ADC internally), the ADCs read the
-/// amplifier outputs (ADC1 IN13, ADC2 IN16), and with the plant at 0 A (about 0.103 V on
-/// the PGA inputs: what the image assumes, `common::emu`; on the documented network it
-/// stops at boot, `board_findings::n5_*`) the boot zero calibration passes: IDLE, no
-/// `BOOT` fault.
+/// Review D4/N5: the image users flash is for the bare B-G431B-ESC1. It puts OPAMP1-3 in
+/// the VINM0-biased PGA mode (gain 16, VINP0 = PA1, PA7, PB0, VINM0 = PA3, PA5, PB2,
+/// output to the ADC internally), the ADCs read the amplifier outputs (ADC1 IN13, ADC2
+/// IN16), and with the plant at 0 A on the documented network the boot zero calibration
+/// passes: IDLE, no `BOOT` fault.
 #[test]
 fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current() {
     use firmware_drive::comparators::B_G431B_ESC1;
@@ -140,18 +139,28 @@ fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current()
             .collect::<Vec<_>>()
     );
     let amps = sim.drive().soc().opamps().expect("OPAMP model");
-    for (n, pin) in [(1, "PA1"), (2, "PA7"), (3, "PB0")] {
+    // UM2516 / the public ESC1 ports: each shunt's network on VINP (PA1, PA7, PB0) and its
+    // foot on VINM0 (PA3, PA5, PB2), the PGA in the VINM0-biased mode (review N5).
+    for (n, pin, foot) in [(1, "PA1", "PA3"), (2, "PA7", "PA5"), (3, "PB0", "PB2")] {
         let c = amps.config(n).expect("OPAMPn");
         assert!(c.enabled && c.internal_only && !c.calibrating, "{c:?}");
         assert_eq!(c.vinp, OpampInput::Pin(pin));
-        assert_eq!(c.mode, OpampMode::Pga { gain: 16 });
+        assert_eq!(
+            c.mode,
+            OpampMode::PgaVinm0 {
+                gain: 16,
+                vinm0: foot,
+                filter_vinm1: None
+            }
+        );
     }
-    // 0.103 V x 16 = 1.65 V: mid-scale on both current channels (the pins themselves
-    // would read about 128 counts, review D4's "-9.4 A").
+    // At 0 A both ends of the network sit at its bias (3/7 of 3.3 V, 1.414 V): the PGA
+    // output is the bias, about 1755 counts on both current channels (in the grounded
+    // mode it rails at 4095, review N5).
     let adc = sim.drive().soc().adc12().expect("ADC model");
     for (id, what) in [(AdcId::Adc1, "i_a"), (AdcId::Adc2, "i_b")] {
         let c = adc.jdr(id, 1);
-        assert!((2000..=2100).contains(&c), "{what}: {c} counts");
+        assert!((1700..=1810).contains(&c), "{what}: {c} counts");
     }
     assert_eq!(sim.status().map(|s| s.state), Some(DriveState::Idle));
     assert!(sim.faults().is_empty(), "{:?}", sim.faults());

@@ -311,7 +311,6 @@ fn l7_a_drive_trip_applies_the_brake() {
 }
 
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N7, the bare ESC1 (the rig's default board) has no chopper since issue 29: the overhauling run needs the source-sensors board or the overvoltage controller's expectations"]
 fn l8_overhauling_init_run_is_held_by_the_chopper() {
     let s = run_lift("l8_overhauling", 20.0);
     assert!(s.iter().all(|x| x.u_dc_v <= 38.0 && x.fault == 0));
