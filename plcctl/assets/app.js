@@ -1,7 +1,9 @@
 // plcctl serve: the monitor page (service.md 12). Plain JavaScript, no library, no build
 // step. Data: /api/profile once, /api/trend once, then the /api/stream events (status and
-// samples at 10 Hz); /api/faults when the newest log position changes, /api/counters
-// every 5 s. Tests read the state from the `data-*` attributes and `window.monitor`.
+// samples at 10 Hz, the counters when they change); /api/faults when the newest log
+// position changes. Tests read the state from the `data-*` attributes and
+// `window.monitor`. The server's Content-Security-Policy allows no inline script or
+// style attribute: styles are set through the CSSOM (`style.setProperty`).
 "use strict";
 
 const TREND_S = 60;
@@ -12,6 +14,7 @@ const monitor = {
   columns: [],
   rows: [],            // trend rows (arrays in `columns` order), oldest first
   status: null,        // the last status event
+  statusAt: 0,         // page clock (ms) when it arrived
   values: {},          // operand name -> value (D00, O00, A00, lcd0, Q04, ...)
   faults: [],
   newestLog: undefined,
@@ -96,6 +99,23 @@ function renderBanner() {
     remote ? "" : "Run, Ack and Clear log need remote service: keys * 7 on the PLC";
 }
 
+// ---------------------------------------------------------------- age of the values
+/** Values older than this are greyed out with their age. */
+const STALE_MS = 2000;
+/** How old the shown PLC values are (ms): the server's age when the status came plus the
+ * time since, or null before the first. */
+function valuesAge() {
+  const ev = monitor.status;
+  if (!ev || ev.age_ms === null || ev.age_ms === undefined) return null;
+  return ev.age_ms + (Date.now() - monitor.statusAt);
+}
+function renderAge() {
+  const age = valuesAge();
+  const stale = age !== null && age > STALE_MS;
+  for (const id of ["values-block", "mimic-block"]) $(id).dataset.stale = stale ? "1" : "0";
+  $("values-age").textContent = stale ? `values ${(age / 1000).toFixed(1)} s old` : "";
+}
+
 // ---------------------------------------------------------------- live values
 function lampsInto(box, kind, count, bits) {
   if (box.childElementCount !== count) {
@@ -140,6 +160,8 @@ function renderValues() {
     analog.push([name ? `${op} ${name}` : op, v === null ? "—" : String(v)]);
   });
   kvInto($("analog"), analog);
+  const rows = Array.isArray(ev.lcd_text) ? ev.lcd_text : null;
+  $("lcd").textContent = rows ? rows.join("\n") : "—";
   const id = ev.identity || {};
   kvInto($("plc-values"), [
     ["state", `${s.plc.toUpperCase()}${s.remote ? ", remote service ON" : ""}`],
@@ -271,13 +293,14 @@ function series() {
   const idx = (name) => c.indexOf(name);
   const f = idx("f_cmd_hz"), dir = idx("dir"), u = idx("u_dc_v");
   const top = [
-    { label: "f_cmd_hz * dir", get: (r) => (r[f] === null ? null : r[f] * (r[dir] || 1)) },
-    { label: "u_dc_v", get: (r) => r[u] },
+    { label: "f_cmd_hz × dir (Hz)", unit: "Hz", get: (r) => (r[f] === null ? null : r[f] * (r[dir] || 1)) },
+    { label: "u_dc_v (V)", unit: "V", get: (r) => r[u] },
   ];
   const named = Object.entries(monitor.profile.vars).filter(([, o]) => /^Q\d\d$/.test(o));
   const qs = named.length ? named.map(([n, o]) => [`${o} ${n}`, o]) :
     c.filter((x) => /^Q\d\d$/.test(x)).map((o) => [o, o]);
-  const qser = qs.filter(([, o]) => idx(o) >= 0).map(([label, o]) => ({ label, get: (r) => r[idx(o)] }));
+  // Q variables are the program's integers (floors, states, setpoints): no unit.
+  const qser = qs.filter(([, o]) => idx(o) >= 0).map(([label, o]) => ({ label, unit: "", get: (r) => r[idx(o)] }));
   // Codes and counts (a floor, a state: 0..31 in the window) in one pane, larger
   // values (a setpoint) in another, so that neither flattens the other.
   const rows = visibleRows();
@@ -295,6 +318,21 @@ function viewWindow() {
   const last = monitor.rows.length ? monitor.rows[monitor.rows.length - 1][0] : 0;
   return [last - TREND_S, last];
 }
+/** About `n` round values covering lo..hi (1, 2 or 5 times a power of ten apart). */
+function niceTicks(lo, hi, n) {
+  const raw = (hi - lo) / Math.max(1, n);
+  const p = Math.pow(10, Math.floor(Math.log10(raw)));
+  const step = [1, 2, 5, 10].map((m) => m * p).find((s) => s >= raw) || 10 * p;
+  const out = [];
+  for (let v = Math.ceil(lo / step) * step; v <= hi + step * 1e-9; v += step) out.push(v);
+  return { step, ticks: out };
+}
+/** A tick's text: as many decimals as the step needs, never "-0". */
+function tickText(v, step) {
+  const d = Math.max(0, -Math.floor(Math.log10(step) + 1e-9));
+  const t = v.toFixed(d);
+  return /^-0(\.0*)?$/.test(t) ? t.slice(1) : t;
+}
 function drawTrend() {
   const cv = $("trend");
   const dpr = window.devicePixelRatio || 1;
@@ -310,8 +348,9 @@ function drawTrend() {
   const panes = series();
   const legend = $("trend-legend");
   legend.textContent = "";
-  const L = 48, R = 8, gap = 18;
-  const paneH = (Hh - gap * panes.length) / panes.length;
+  const L = 48, R = 8, gap = 18, B = 30;
+  const paneH = (Hh - B - gap * panes.length) / panes.length;
+  const allTicks = [];
   let colourAt = 0;
   panes.forEach((ser, p) => {
     const py = 6 + p * (paneH + gap);
@@ -327,8 +366,16 @@ function drawTrend() {
     g.strokeStyle = "#dadce0"; g.lineWidth = 1;
     g.strokeRect(L, py, W - L - R, paneH);
     g.fillStyle = "#5f6368"; g.font = "11px system-ui, sans-serif";
-    g.fillText(hi.toFixed(1), 2, py + 10);
-    g.fillText(lo.toFixed(1), 2, py + paneH);
+    // Value ticks with grid lines; the pane's units in its corner.
+    const vt = niceTicks(lo, hi, Math.max(2, Math.floor(paneH / 40)));
+    for (const v of vt.ticks) {
+      const yy = y(v);
+      g.strokeStyle = "#f1f3f4"; g.beginPath(); g.moveTo(L, yy); g.lineTo(W - R, yy); g.stroke();
+      g.fillText(tickText(v, vt.step), 2, Math.min(py + paneH, Math.max(py + 10, yy + 4)));
+    }
+    const units = [...new Set(ser.map((s) => s.unit).filter((u) => u))].join(", ");
+    if (units) g.fillText(units, L + 4, py + 12);
+    allTicks.push(units || "-");
     ser.forEach((s, k) => {
       const colour = COLOURS[(colourAt + k) % COLOURS.length];
       g.strokeStyle = colour; g.lineWidth = 1.5; g.beginPath();
@@ -339,11 +386,31 @@ function drawTrend() {
         if (pen) g.lineTo(x(r[0]), y(v)); else { g.moveTo(x(r[0]), y(v)); pen = true; }
       }
       g.stroke();
-      const item = el("span", { style: `--c:${colour}` }, s.label);
+      const item = el("span", {}, s.label);
+      item.style.setProperty("--c", colour);
       legend.appendChild(item);
     });
     colourAt += ser.length;
   });
+  // Time ticks on the PLC's uptime (t_s), the newest sample at the right.
+  const span = Math.max(1e-9, t1 - t0);
+  const tt = niceTicks(t0, t1, Math.max(2, Math.floor((W - L - R) / 90)));
+  const tx = (t) => L + (t - t0) / span * (W - L - R);
+  const axisY = Hh - B + 4;
+  g.fillStyle = "#5f6368"; g.font = "11px system-ui, sans-serif"; g.textAlign = "center";
+  const timeTicks = [];
+  for (const t of tt.ticks) {
+    const xx = tx(t);
+    g.strokeStyle = "#dadce0"; g.beginPath(); g.moveTo(xx, axisY - 4); g.lineTo(xx, axisY); g.stroke();
+    const text = tickText(t, tt.step) + " s";
+    g.fillText(text, xx, axisY + 12);
+    timeTicks.push(text);
+  }
+  g.textAlign = "right";
+  g.fillText("PLC uptime t_s", W - R, axisY + 25);
+  g.textAlign = "left";
+  cv.dataset.timeTicks = timeTicks.join("|");
+  cv.dataset.units = allTicks.join("|");
   legend.appendChild(el("span", { class: "window" },
     `t_s ${t0.toFixed(1)} … ${t1.toFixed(1)}${monitor.paused ? " (paused)" : ""}`));
   if (drag) {
@@ -432,6 +499,9 @@ function faultsCsv() {
 async function loadCounters() {
   let k;
   try { k = await getJson("/api/counters"); } catch (e) { return; }
+  renderCounters(k);
+}
+function renderCounters(k) {
   const box = $("counters");
   // A PLC without counters (or before the first read) refuses GetCounters: say so.
   if (!k || k.error) {
@@ -464,8 +534,20 @@ function confirmBox(text) {
     $("confirm-no").onclick = () => done(false);
   });
 }
+/** What a STOP means for the application (a STOP from here needs no keypad consent). */
+function stopWords() {
+  const again = "Only the PLC's keypad can start RUN again (RUN there, or * 7 for remote " +
+    "service and then Run here).";
+  if (monitor.profile.kind === "lift") {
+    return "Stop the PLC? The program stops at once and every output goes off: the lift " +
+      "stops where it is, also between floors, with the brake on; anyone in the car stays " +
+      "there until RUN. " + again;
+  }
+  return "Stop the PLC? The program stops at once and every output goes off: the machine " +
+    "stops wherever it is. " + again;
+}
 async function act(action) {
-  const words = { stop: "Stop the PLC?", run: "Start RUN?", ack: "Acknowledge the drive fault?",
+  const words = { stop: stopWords(), run: "Start RUN?", ack: "Acknowledge the drive fault?",
     "clear-faults": "Erase the fault log?" };
   if (!(await confirmBox(words[action]))) return;
   $("action-note").textContent = action + "…";
@@ -477,6 +559,7 @@ async function act(action) {
 // ---------------------------------------------------------------- data flow
 function onStatus(ev) {
   monitor.status = ev;
+  monitor.statusAt = Date.now();
   const s = ev.status;
   if (ev.connected && s) {
     for (let n = 0; n < 16; n++) monitor.values[opName("D", n)] = (s.d >> n) & 1;
@@ -490,6 +573,7 @@ function onStatus(ev) {
   renderBanner();
   renderValues();
   renderMimic();
+  renderAge();
 }
 function onSample(row) {
   monitor.rows.push(row);
@@ -524,12 +608,13 @@ async function start() {
   const es = new EventSource("/api/stream");
   es.addEventListener("status", (e) => { monitor.serverLost = false; onStatus(JSON.parse(e.data)); });
   es.addEventListener("sample", (e) => { onSample(JSON.parse(e.data).row); });
+  es.addEventListener("counters", (e) => { renderCounters(JSON.parse(e.data)); });
   es.addEventListener("error", () => { monitor.serverLost = true; renderBanner(); });
   es.addEventListener("open", () => { monitor.serverLost = false; });
   loadCounters();
-  setInterval(loadCounters, 5000);
-  // Redraw at 10 Hz (the door's stroke time runs on the page's clock).
+  // Redraw at 10 Hz (the door's stroke time and the values' age run on the page's clock).
   setInterval(() => {
+    renderAge();
     if (!monitor.paused) drawTrend();
     if (monitor.profile.kind === "lift") { trackDoor(); renderMimic(); }
   }, 100);

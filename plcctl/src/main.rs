@@ -114,9 +114,21 @@ enum Cmd {
         /// The application profile (TOML): names, lift mimic, state texts, counters.
         #[arg(long)]
         profile: Option<PathBuf>,
-        /// The access token (default off loopback: a random one, printed).
+        /// A file holding the access token (at least 32 characters; default off
+        /// loopback: a random one, printed). Also `PLCCTL_TOKEN` in the environment.
         #[arg(long)]
+        token_file: Option<PathBuf>,
+        /// Refused: a token on the command line is visible to every user in `ps`.
+        #[arg(long, hide = true)]
         token: Option<String>,
+        /// Another name the server answers to (its `Host`), e.g. the machine's DNS
+        /// name off loopback; repeatable. Always: localhost, 127.0.0.1, [::1], the bind
+        /// address.
+        #[arg(long = "host")]
+        hosts: Vec<String>,
+        /// Append the access and action log to this file too (always on stderr).
+        #[arg(long)]
+        log: Option<PathBuf>,
     },
 }
 
@@ -166,16 +178,50 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Serve {
             bind,
             profile,
+            token_file,
             token,
-        } => serve::serve(
-            move || Client::connect(&port, baud),
-            serve::ServeArgs {
-                bind,
-                profile,
-                token,
-            },
-        ),
+            hosts,
+            log,
+        } => {
+            let token = serve_token(token_file.as_deref(), token.is_some())?;
+            serve::serve(
+                move || Client::connect(&port, baud),
+                serve::ServeArgs {
+                    bind,
+                    profile,
+                    token,
+                    hosts,
+                    log,
+                },
+            )
+        }
     }
+}
+
+/// `serve`'s token: from `--token-file` (its first line), else `PLCCTL_TOKEN`, never from
+/// the command line; checked by [`serve::access::check_token`].
+fn serve_token(file: Option<&std::path::Path>, on_command_line: bool) -> Result<Option<String>> {
+    if on_command_line {
+        return Err(usage(
+            "--token is refused: the command line is visible to every user (ps); \
+             put the token in a file (--token-file F) or in PLCCTL_TOKEN",
+        ));
+    }
+    let (token, source) = match file {
+        Some(f) => {
+            let text = std::fs::read_to_string(f)
+                .map_err(|e| usage(format!("cannot read the token file {}: {e}", f.display())))?;
+            let first = text.lines().next().unwrap_or("").trim().to_string();
+            (first, format!("{}", f.display()))
+        }
+        None => match std::env::var("PLCCTL_TOKEN") {
+            Ok(t) => (t, "PLCCTL_TOKEN".to_string()),
+            Err(std::env::VarError::NotPresent) => return Ok(None),
+            Err(e) => return Err(usage(format!("PLCCTL_TOKEN: {e}"))),
+        },
+    };
+    serve::access::check_token(&token).map_err(|e| usage(format!("{source}: {e}")))?;
+    Ok(Some(token))
 }
 
 /// A request answered `Done` (refusals: exit 5).

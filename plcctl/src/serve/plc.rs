@@ -1,8 +1,10 @@
 //! The one connection to the PLC behind `serve`: a thread that owns the [`Client`]
 //! (one outstanding request, service.md 2), polls the status at 10 Hz, keeps a trend of
 //! samples, re-reads the fault log when its newest position changes and the counters
-//! every few seconds, and executes the page's actions between polls. It reconnects
-//! every second like `watch` (service.md 8). The HTTP side only reads [`Shared`].
+//! every few seconds and whenever the PLC's state changes, reads the LCD's rows, and
+//! executes the page's actions between polls. It reconnects every second like `watch`
+//! (service.md 8); a panic in it is reported as a lost connection and the thread's work
+//! starts again ([`keep_running`]). The HTTP side only reads [`Shared`].
 
 use std::collections::VecDeque;
 use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender};
@@ -22,13 +24,24 @@ pub const PERIOD: Duration = Duration::from_millis(100);
 const TREND_KEEP: usize = 6000;
 /// Counters are read this often (they change by the minute).
 const COUNTERS_EVERY: Duration = Duration::from_secs(5);
+/// The LCD's rows are read this often.
+const SCREEN_EVERY: Duration = Duration::from_millis(200);
 /// How long a reconnection waits after a failure.
 const RECONNECT: Duration = Duration::from_secs(1);
+
+/// Why an action was not done.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ActionError {
+    /// The PLC answered and refused (HTTP 409).
+    Refused(String),
+    /// There is no PLC to ask, or it stopped answering (HTTP 503).
+    NoPlc(String),
+}
 
 /// An action from the page, with where its answer goes.
 pub struct Action {
     pub request: Request,
-    pub reply: Sender<std::result::Result<(), String>>,
+    pub reply: Sender<std::result::Result<(), ActionError>>,
 }
 
 /// What the HTTP side reads.
@@ -38,6 +51,10 @@ pub struct State {
     pub error: Option<String>,
     pub identity: Value,
     pub status: Value,
+    /// When `status` last came from the PLC (its age is shown; older than 2 s: greyed).
+    pub status_at: Option<Instant>,
+    /// The LCD's rows as shown (`GetScreen`), `null` before the first or when refused.
+    pub screen: Value,
     /// `faults --json` rows, newest first.
     pub faults: Value,
     pub counters: Value,
@@ -64,6 +81,8 @@ impl Shared {
                 error: Some("connecting".into()),
                 identity: Value::Null,
                 status: Value::Null,
+                status_at: None,
+                screen: Value::Null,
                 faults: json!([]),
                 counters: Value::Null,
                 columns: trend::header(q).split(',').map(String::from).collect(),
@@ -104,22 +123,51 @@ pub fn sample_row(s: &Sample) -> Value {
         .collect()
 }
 
-/// Runs the connection for ever (a thread).
-pub fn run(
+/// Runs [`run`] for ever (a thread): a panic in it (a bug, e.g. on data it did not
+/// expect) shows as a lost connection with the panic's message, and the work starts
+/// again after [`RECONNECT`] with the same actions channel.
+pub fn keep_running(
     connect: impl Fn() -> Result<Client>,
     q: Vec<u8>,
     shared: Arc<Shared>,
     actions: Receiver<Action>,
 ) {
     loop {
-        let mut c = match connect().and_then(|mut c| subscribe(&mut c, &q).map(|_| c)) {
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            run(&connect, &q, &shared, &actions)
+        }));
+        if let Err(panic) = r {
+            let text = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "panic".into());
+            shared.update(|s| {
+                s.connected = false;
+                s.error = Some(format!("internal error, restarting: {text}"));
+            });
+            refuse_waiting(&actions, &format!("internal error: {text}"));
+            std::thread::sleep(RECONNECT);
+        }
+    }
+}
+
+/// Runs the connection for ever; returns only by a panic.
+fn run(
+    connect: &impl Fn() -> Result<Client>,
+    q: &[u8],
+    shared: &Shared,
+    actions: &Receiver<Action>,
+) {
+    loop {
+        let mut c = match connect().and_then(|mut c| subscribe(&mut c, q).map(|_| c)) {
             Ok(c) => c,
             Err(e) => {
                 shared.update(|s| {
                     s.connected = false;
                     s.error = Some(e.to_string());
                 });
-                refuse_waiting(&actions, &e);
+                refuse_waiting(actions, &format!("no PLC: {e}"));
                 std::thread::sleep(RECONNECT);
                 continue;
             }
@@ -130,7 +178,7 @@ pub fn run(
             s.error = None;
             s.identity = identity;
         });
-        let e = serve_connection(&mut c, &shared, &actions);
+        let e = serve_connection(&mut c, shared, actions);
         shared.update(|s| {
             s.connected = false;
             s.error = Some(e.to_string());
@@ -152,9 +200,9 @@ fn subscribe(c: &mut Client, q: &[u8]) -> Result<()> {
 }
 
 /// Actions that arrive while there is no PLC are answered at once.
-fn refuse_waiting(actions: &Receiver<Action>, e: &Fail) {
+fn refuse_waiting(actions: &Receiver<Action>, why: &str) {
     while let Ok(a) = actions.try_recv() {
-        let _ = a.reply.send(Err(format!("no PLC: {e}")));
+        let _ = a.reply.send(Err(ActionError::NoPlc(why.to_string())));
     }
 }
 
@@ -162,6 +210,9 @@ fn refuse_waiting(actions: &Receiver<Action>, e: &Fail) {
 fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>) -> Fail {
     let mut newest_log: Option<Option<(u8, u8)>> = None;
     let mut counters_at: Option<Instant> = None;
+    let mut plc_state = None;
+    let mut screen_at: Option<Instant> = None;
+    let mut screen_refused = false;
     loop {
         let tick = Instant::now();
         let status = match c.ask(Request::GetStatus) {
@@ -169,7 +220,8 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
             Ok(other) => return crate::client::unexpected("GetStatus", &other),
             Err(e) => return e,
         };
-        if newest_log != Some(status.newest_log) {
+        let log_changed = newest_log != Some(status.newest_log);
+        if log_changed {
             match crate::faults::rows(c) {
                 Ok(rows) => {
                     let rows = serde_json::to_value(rows).unwrap_or(Value::Null);
@@ -179,7 +231,11 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
                 Err(e) => return e,
             }
         }
-        if counters_at.is_none_or(|t| t.elapsed() >= COUNTERS_EVERY) {
+        // The counters change with the PLC's state (a RUN start) and its log (a trip):
+        // read them then, not only on the clock.
+        let state_changed = plc_state != Some(status.plc) || log_changed;
+        plc_state = Some(status.plc);
+        if state_changed || counters_at.is_none_or(|t| t.elapsed() >= COUNTERS_EVERY) {
             let v = match c.request(Request::GetCounters) {
                 Ok(Answer::Counters(k)) => crate::status::counters_json(&k),
                 Ok(Answer::Refused(r)) => json!({ "error": r.text() }),
@@ -189,6 +245,20 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
             shared.update(|s| s.counters = v);
             counters_at = Some(Instant::now());
         }
+        if !screen_refused && screen_at.is_none_or(|t| t.elapsed() >= SCREEN_EVERY) {
+            let rows = match c.request(Request::GetScreen) {
+                Ok(Answer::Screen(s)) => {
+                    json!(s.rows.iter().map(|r| r.as_str()).collect::<Vec<_>>())
+                }
+                Ok(_) => {
+                    screen_refused = true;
+                    Value::Null
+                }
+                Err(e) => return e,
+            };
+            shared.update(|s| s.screen = rows);
+            screen_at = Some(Instant::now());
+        }
         let status = serde_json::to_value(status).unwrap_or(Value::Null);
         let samples = match c.samples(Duration::ZERO) {
             Ok(v) => v,
@@ -196,6 +266,7 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
         };
         shared.update(|s| {
             s.status = status;
+            s.status_at = Some(Instant::now());
             for x in samples {
                 let n = s.next_serial;
                 s.next_serial += 1;
@@ -211,10 +282,15 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
             Ok(a) => {
                 let r = match c.request(a.request) {
                     Ok(Answer::Done) => Ok(()),
-                    Ok(Answer::Refused(r)) => Err(format!("refused by the PLC: {}", r.text())),
-                    Ok(other) => Err(format!("unexpected answer: {other:?}")),
+                    Ok(Answer::Refused(r)) => Err(ActionError::Refused(format!(
+                        "refused by the PLC: {}",
+                        r.text()
+                    ))),
+                    Ok(other) => Err(ActionError::Refused(format!(
+                        "unexpected answer: {other:?}"
+                    ))),
                     Err(e) => {
-                        let _ = a.reply.send(Err(e.to_string()));
+                        let _ = a.reply.send(Err(ActionError::NoPlc(e.to_string())));
                         return e;
                     }
                 };
@@ -224,5 +300,68 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
             // The server is gone: nothing more to serve.
             Err(RecvTimeoutError::Disconnected) => std::thread::sleep(left),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Waits (at most 10 s) until the state's error satisfies `f`; the error seen.
+    fn wait_error(shared: &Shared, f: impl Fn(&str) -> bool) -> String {
+        let end = Instant::now() + Duration::from_secs(10);
+        loop {
+            let e = shared.lock().error.clone().unwrap_or_default();
+            if f(&e) {
+                return e;
+            }
+            assert!(Instant::now() < end, "error never as expected: {e:?}");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    #[test]
+    fn a_panic_in_the_plc_thread_shows_as_disconnected_and_the_work_restarts() {
+        let shared = Shared::new(&[0, 1]);
+        // A connection up with frozen data, as the issue saw it.
+        shared.update(|s| {
+            s.connected = true;
+            s.error = None;
+        });
+        let calls = Arc::new(AtomicUsize::new(0));
+        let (tx, rx) = std::sync::mpsc::channel::<Action>();
+        {
+            let shared = Arc::clone(&shared);
+            let calls = Arc::clone(&calls);
+            std::thread::spawn(move || {
+                keep_running(
+                    move || {
+                        if calls.fetch_add(1, Ordering::SeqCst) == 0 {
+                            panic!("DateTime + TimeDelta overflowed");
+                        }
+                        Err(Fail::NoDevice("no PLC in this test".into()))
+                    },
+                    vec![0, 1],
+                    shared,
+                    rx,
+                )
+            });
+        }
+        let e = wait_error(&shared, |e| e.contains("internal error"));
+        assert!(e.contains("DateTime + TimeDelta overflowed"), "{e}");
+        assert!(!shared.lock().connected);
+        // Restarted: the next connection attempt's failure replaces the panic's.
+        let e = wait_error(&shared, |e| e.contains("no PLC in this test"));
+        assert!(calls.load(Ordering::SeqCst) >= 2, "{e}");
+        // And the actions channel still works: an action is answered "no PLC".
+        let (reply, answer) = std::sync::mpsc::channel();
+        tx.send(Action {
+            request: Request::Stop,
+            reply,
+        })
+        .unwrap();
+        let r = answer.recv_timeout(Duration::from_secs(10)).unwrap();
+        assert!(matches!(r, Err(ActionError::NoPlc(_))), "{r:?}");
     }
 }
