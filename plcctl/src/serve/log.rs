@@ -34,7 +34,15 @@ impl Log {
     /// header value cannot forge a line).
     pub fn line(&self, peer: Option<SocketAddr>, what: &str) {
         let peer = peer.map_or_else(|| "-".to_string(), |p| p.to_string());
-        let what: String = what.escape_debug().collect();
+        let what: String = what
+            .chars()
+            .flat_map(|c| {
+                let esc = c.is_control().then(|| c.escape_default());
+                esc.into_iter()
+                    .flatten()
+                    .chain((!c.is_control()).then_some(c))
+            })
+            .collect();
         let line = format!(
             "{} {peer} {what}\n",
             chrono::Utc::now().format("%Y-%m-%dT%H:%M:%S%.3fZ")

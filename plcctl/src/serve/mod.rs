@@ -125,18 +125,27 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
         actions: tx,
         profile: serde_json::to_value(&profile).map_err(anyhow::Error::from)?,
     });
+    // Connections over the cap are answered 503 by one thread, in turn; when even its
+    // queue is full they are closed unanswered.
+    let (over, over_rx) = mpsc::sync_channel::<(TcpStream, Option<SocketAddr>)>(MAX_CONNECTIONS);
+    {
+        let ctx = Arc::clone(&ctx);
+        std::thread::spawn(move || {
+            for (stream, peer) in over_rx {
+                let _ = stream.set_write_timeout(Some(Duration::from_secs(1)));
+                let resp = Response::error(503, "too many connections")
+                    .with_header("Retry-After", "1".into());
+                refuse(stream, &ctx, peer, "connection refused:", resp);
+            }
+        });
+    }
     let active = Arc::new(AtomicUsize::new(0));
     for stream in listener.incoming() {
-        let Ok(mut stream) = stream else { continue };
+        let Ok(stream) = stream else { continue };
         let peer = stream.peer_addr().ok();
         if active.fetch_add(1, Ordering::SeqCst) >= MAX_CONNECTIONS {
             active.fetch_sub(1, Ordering::SeqCst);
-            ctx.log
-                .line(peer, "connection refused: 503 too many connections");
-            let _ = stream.set_write_timeout(Some(Duration::from_millis(100)));
-            let _ = Response::error(503, "too many connections")
-                .with_header("Retry-After", "1".into())
-                .write_to(&mut stream);
+            let _ = over.try_send((stream, peer));
             continue;
         }
         let slot = Slot(Arc::clone(&active));
