@@ -1,18 +1,18 @@
 //! `plcctl serve` (service.md part B): the web monitor. One page with embedded assets,
 //! a JSON API and a Server-Sent Events stream over the PLC connection of
-//! [`plc`], access by [`access`], HTTP by [`http`]. Usage and decisions:
-//! `plcctl/docs/serve.md`.
+//! [`plc`], access by [`access`] (Host, Origin, token), HTTP by [`http`], the access
+//! log by [`log`]. Usage, decisions and the threat model: `plcctl/docs/serve.md`.
 //!
 //! | route | answer |
 //! | --- | --- |
 //! | `GET /` | the page (`assets/index.html`), its `app.js` and `app.css` |
 //! | `GET /api/profile` | the profile (`--profile`, else a table without names) |
-//! | `GET /api/status` | `{connected, error, identity, status, service_version, drive_fault_text}`: `status --json` plus the connection |
+//! | `GET /api/status` | `{connected, error, identity, status, age_ms, lcd_text, service_version, drive_fault_text}`: `status --json` plus the connection, the status's age and the LCD's rows |
 //! | `GET /api/faults` | `faults --json` |
 //! | `GET /api/counters` | `counters --json` (`{error}` while the PLC has none) |
 //! | `GET /api/trend?s=60` | `{columns, rows}`: `trend --csv`'s columns and rows of the last `s` seconds |
-//! | `GET /api/stream` | SSE: `status` (as `/api/status`) and `sample` (`{serial, row}`) events, 10 Hz |
-//! | `POST /api/stop`, `run`, `ack`, `clear-faults` | `{ok}` or `{error}` (409); `Content-Type: application/json` required (415) |
+//! | `GET /api/stream` | SSE: `status` (as `/api/status`), `sample` (`{serial, row}`, 10 Hz) and `counters` events |
+//! | `POST /api/stop`, `run`, `ack`, `clear-faults` | `{ok}`, or `{error}`: 409 refused by the PLC, 503 no PLC; `Content-Type: application/json` required (415); same origin only (403) |
 
 pub mod access;
 pub mod http;

@@ -59,6 +59,14 @@ const OBSERVE: &str = r##"(() => {
     rows: [...document.querySelectorAll("#faults tbody tr[data-pos]")]
       .map((tr) => [tr.dataset.pos, ...[...tr.cells].map((c) => c.textContent)]),
     counters: $("counters").textContent,
+    lcd: $("lcd").textContent,
+    stale: $("values-block").dataset.stale || null, age: $("values-age").textContent,
+    time_ticks: t.dataset.timeTicks || "", units: t.dataset.units || "",
+    legend: $("trend-legend").textContent,
+    lamps_cut: [...document.querySelectorAll(".lamp")]
+      .filter((l) => l.scrollWidth > l.clientWidth + 1 || l.scrollHeight > l.clientHeight + 1)
+      .map((l) => l.textContent),
+    lamps: [...document.querySelectorAll(".lamp")].map((l) => l.textContent),
     bx: Math.round(r.left + 4), by: Math.round(r.top + r.height / 2),
   };
 })()"##;
@@ -234,9 +242,36 @@ fn the_page_in_headless_chromium_follows_the_lift() {
         );
         assert!(o["title"].as_str().unwrap().starts_with("PLC RUN"), "{o}");
     }
+    // Lamp names wrap, none is cut off ("O05 fault / overload lamp").
+    for o in &o {
+        assert_eq!(o["lamps_cut"], serde_json::json!([]), "{o}");
+        let lamps = o["lamps"].as_array().unwrap();
+        assert!(
+            lamps.iter().any(|l| l == "O05 fault / overload lamp"),
+            "{lamps:?}"
+        );
+    }
+    // The LCD's rows as the PLC shows them (GetScreen), as the server has them.
+    let end = Instant::now() + Duration::from_secs(5);
+    loop {
+        let st = run.serve.as_ref().unwrap().get("/api/status");
+        let rows: Vec<&str> = st["lcd_text"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{st}"))
+            .iter()
+            .map(|r| r.as_str().unwrap())
+            .collect();
+        let want = rows.join("\n");
+        let obs: Vec<Value> = (0..run.pages.len()).map(|i| run.observe(i)).collect();
+        if !want.trim().is_empty() && obs.iter().all(|o| o["lcd"] == want.as_str()) {
+            break;
+        }
+        assert!(Instant::now() < end, "LCD {want:?}, pages {obs:#?}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
     // The counters block shows the PLC's counters (service.md 7), named by the profile.
-    // It refreshes from serve's 5 s cache on the page's 5 s poll, so the RUN start can take
-    // up to about 10 s to appear (issue 35 item 6 makes it follow the events).
+    // serve reads them when the PLC's state changes (the RUN start) and the stream
+    // brings them: no poll against a cache, nothing here races.
     // (textContent runs the cells together: "RUN starts1minutes in RUN0...")
     let o = run.until("the counters show the RUN start", 15.0, |o| {
         o["counters"]
@@ -284,6 +319,21 @@ fn the_page_in_headless_chromium_follows_the_lift() {
             .as_array()
             .is_some_and(|r| !r.is_empty() && r[0][3] == "4")
     });
+    // The trend's time ticks (seconds of PLC uptime) and units.
+    for o in &o {
+        let ticks: Vec<&str> = o["time_ticks"].as_str().unwrap().split('|').collect();
+        assert!(
+            ticks.len() >= 3 && ticks.iter().all(|t| t.ends_with(" s")),
+            "{o}"
+        );
+        assert!(o["units"].as_str().unwrap().starts_with("Hz, V"), "{o}");
+        let legend = o["legend"].as_str().unwrap();
+        assert!(
+            legend.contains("(Hz)") && legend.contains("(V)"),
+            "{legend}"
+        );
+        assert!(!o["time_ticks"].as_str().unwrap().contains("-0 "), "{o}");
+    }
     for p in &run.pages {
         assert!(
             p.max_span_s >= 10.0,
@@ -313,13 +363,25 @@ fn the_page_in_headless_chromium_follows_the_lift() {
         "lcd0 changed {} times",
         run.floor_changes
     );
-    // Stop (confirmed in the page's dialog) puts the PLC in STOP.
+    // Stop asks first, saying what it means for the lift; confirmed, it puts the PLC in
+    // STOP.
     let s = run.pages[0].session.clone();
-    run.browser.eval(
+    let asked = run.browser.eval(
         &s,
         r#"document.getElementById("act-stop").click();
            document.getElementById("confirm").hidden === false
-             && (document.getElementById("confirm-yes").click(), true)"#,
+             ? document.getElementById("confirm-text").textContent : null"#,
+    );
+    let asked = asked
+        .as_str()
+        .unwrap_or_else(|| panic!("no dialog: {asked}"));
+    assert!(
+        asked.contains("between floors") && asked.contains("keypad"),
+        "{asked}"
+    );
+    run.browser.eval(
+        &s,
+        r#"document.getElementById("confirm-yes").click(); true"#,
     );
     run.serve
         .as_ref()
@@ -367,8 +429,19 @@ fn the_page_in_headless_chromium_follows_the_lift() {
     drop(hold);
     let summary = sim.finish();
     assert!(summary.contains("LCD"), "{summary}");
-    let o = run.until("red, hil-sim gone", 10.0, |o| {
-        o["colour"] == "red" && o["title"] == "no answer from the PLC"
-    });
+    let o = run.until(
+        "red, hil-sim gone, values greyed with their age",
+        10.0,
+        |o| o["colour"] == "red" && o["title"] == "no answer from the PLC" && o["stale"] == "1",
+    );
+    for o in &o {
+        let age = o["age"].as_str().unwrap();
+        let secs: f64 = age
+            .strip_prefix("values ")
+            .and_then(|a| a.strip_suffix(" s old"))
+            .and_then(|a| a.parse().ok())
+            .unwrap_or_else(|| panic!("{age:?}"));
+        assert!(secs > 2.0, "{age}");
+    }
     run.screens("no-answer", RED, &o);
 }
