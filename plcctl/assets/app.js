@@ -348,7 +348,7 @@ function drawTrend() {
   const panes = series();
   const legend = $("trend-legend");
   legend.textContent = "";
-  const L = 48, R = 8, gap = 18, B = 30;
+  const L = 48, R = 8, gap = 18, B = 22;
   const paneH = (Hh - B - gap * panes.length) / panes.length;
   const allTicks = [];
   let colourAt = 0;
@@ -406,13 +406,11 @@ function drawTrend() {
     g.fillText(text, xx, axisY + 12);
     timeTicks.push(text);
   }
-  g.textAlign = "right";
-  g.fillText("PLC uptime t_s", W - R, axisY + 25);
   g.textAlign = "left";
   cv.dataset.timeTicks = timeTicks.join("|");
   cv.dataset.units = allTicks.join("|");
   legend.appendChild(el("span", { class: "window" },
-    `t_s ${t0.toFixed(1)} … ${t1.toFixed(1)}${monitor.paused ? " (paused)" : ""}`));
+    `time: PLC uptime t_s ${t0.toFixed(1)} … ${t1.toFixed(1)} s${monitor.paused ? " (paused)" : ""}`));
   if (drag) {
     g.fillStyle = "#1a73e833";
     g.fillRect(Math.min(drag.x0, drag.x1), 0, Math.abs(drag.x1 - drag.x0), Hh);
