@@ -367,7 +367,7 @@ function drawTrend() {
     g.strokeRect(L, py, W - L - R, paneH);
     g.fillStyle = "#5f6368"; g.font = "11px system-ui, sans-serif";
     // Value ticks with grid lines; the pane's units in its corner.
-    const vt = niceTicks(lo, hi, Math.max(2, Math.floor(paneH / 40)));
+    const vt = niceTicks(lo, hi, Math.max(3, Math.floor(paneH / 30)));
     for (const v of vt.ticks) {
       const yy = y(v);
       g.strokeStyle = "#f1f3f4"; g.beginPath(); g.moveTo(L, yy); g.lineTo(W - R, yy); g.stroke();
