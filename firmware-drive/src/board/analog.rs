@@ -63,7 +63,9 @@ pub struct Converters {
 }
 
 /// The ADC channel of the front end's input `input` on ADC `adc` (the table's choice; a
-/// profile whose input is on the other ADC cannot be bound).
+/// profile whose input is on the other ADC cannot be bound). A pin input's channel is the
+/// bound pin's by the table (PA1 = ADC1_IN2, PA7 = ADC2_IN4: the core's
+/// `direct_pins_read_the_sensor_pins`); checking it here again cost 64 B.
 fn channel(fe: &FrontEndSpec, input: AdcInput, adc: u8) -> u8 {
     match fe.adc_channel(input) {
         Some((a, ch)) if a == adc => ch,
