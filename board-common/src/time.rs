@@ -3,7 +3,10 @@
 use embassy_time::Instant;
 use shared_protocol::units::Micros;
 
-/// Microseconds since boot.
+/// Microseconds since boot. Not inlined: link-time optimisation otherwise copies the time
+/// driver's read (TIM4's counter and period, the 64-bit merge) into every call site
+/// (`docs/size.md`).
+#[inline(never)]
 pub fn now() -> Micros {
     Micros(Instant::now().as_micros())
 }

@@ -16,33 +16,35 @@
 //! `I>>`/`U>>` or the board's defaults, in ADC counts of the same signals); this module
 //! only writes them to the DACs, at start-up and whenever the core's values change (a
 //! download).
+//!
+//! Register level through the PAC (RM0440 "Digital-to-analog converter (DAC)",
+//! "Comparator (COMP)"), with the values embassy-stm32 0.6's `Dac::new_internal` and
+//! `Comp::new` wrote (~1.1 KiB of generic driver code, `docs/size.md`), except that the
+//! comparators' NVIC lines (COMP1_2_3, COMP4) stay masked: `Comp::new` unmasked them for
+//! its async edge waits, which the image never used (their EXTI lines stay masked, so they
+//! never fired).
 
-use embassy_stm32::comp::{self, Comp, Config, Hysteresis, InvertingInput, OutputPolarity};
-use embassy_stm32::dac::{Dac, DacChannel as Channel, Value};
-use embassy_stm32::mode::Blocking;
-use embassy_stm32::peripherals::{COMP1, COMP2, COMP3, COMP4, PA0, PA1, PA7};
-use embassy_stm32::{bind_interrupts, pac, Peri};
+use embassy_stm32::pac::comp::vals::{Blanking, Hysteresis, Inm, Polarity};
+use embassy_stm32::pac::dac::vals::Mode;
+use embassy_stm32::peripherals::{COMP1, COMP2, COMP3, COMP4, DAC1, DAC3, PB0};
+use embassy_stm32::{pac, Peri};
 use firmware_drive::comparator_trim::{ComparatorTrim, TrimFailed, TrimmedZeros, SETTLE_US};
 use firmware_drive::comparators::{BoardProfile, ComparatorSpec, DacChannel, DacValues};
 use firmware_drive::power_port::ComparatorLevels;
 
 use crate::pins::Protection;
 
-bind_interrupts!(struct Irqs {
-    COMP1_2_3 => comp::InterruptHandler<COMP1>, comp::InterruptHandler<COMP2>, comp::InterruptHandler<COMP3>;
-    COMP4 => comp::InterruptHandler<COMP4>;
-});
-
-/// The running comparators and threshold DACs.
+/// The comparators, the threshold DACs and the comparators' input pins, owned so that
+/// nothing else claims them; they run from [`init`] on.
 pub struct HwProtection {
     _comps: (
-        Comp<'static, COMP1>,
-        Comp<'static, COMP2>,
-        Comp<'static, COMP3>,
-        Comp<'static, COMP4>,
+        Peri<'static, COMP1>,
+        Peri<'static, COMP2>,
+        Peri<'static, COMP3>,
+        Peri<'static, COMP4>,
     ),
-    _dac_current: (Channel<'static, Blocking>, Channel<'static, Blocking>),
-    _dac_voltage: Dac<'static, Blocking>,
+    _dacs: (Peri<'static, DAC3>, Peri<'static, DAC1>),
+    _pin_c: Peri<'static, PB0>,
 }
 
 /// The table entry of comparator `comp` (a profile without it is a build mistake; its
@@ -54,44 +56,69 @@ fn spec(board: &BoardProfile, comp: u8) -> ComparatorSpec {
     *s
 }
 
-/// COMPx configuration from its table entry: inverting input (INMSEL 0b100 = DACA,
-/// 0b101 = DACB), hysteresis, output polarity from the trip direction.
-fn config(s: &ComparatorSpec) -> Config {
-    let inverting_input = match s.inmsel() {
-        Some(0b100) => InvertingInput::Dac1,
-        Some(0b101) => InvertingInput::Dac2,
+/// COMPx_CSR from its table entry, enabled, not yet blanked: non-inverting input INP0 (the
+/// pins [`init`] is given: PA1, PA7, PA0, PB0 are COMP1-4's INP0, RM0440 "COMP
+/// non-inverting input"), inverting input (INMSEL 0b100 = DACA, 0b101 = DACB), hysteresis
+/// (HYST: 10 mV steps), output polarity from the trip direction; the VREFINT scaler and
+/// bridge off (no VREFINT input).
+fn write_csr(regs: pac::comp::Comp, s: &ComparatorSpec) {
+    let inmsel = match s.inmsel() {
+        Some(code @ (0b100 | 0b101)) => Inm::from_bits(code),
         _ => super::fault::fatal("a comparator's DAC cannot reach it"),
     };
-    let hysteresis = match s.hysteresis_mv {
-        0 => Hysteresis::None,
-        10 => Hysteresis::Hyst10M,
-        20 => Hysteresis::Hyst20M,
+    let hyst = match s.hysteresis_mv {
+        mv @ (0 | 10 | 20) => Hysteresis::from_bits(mv / 10),
         _ => super::fault::fatal(super::fault::UNBINDABLE_PROFILE),
     };
-    Config {
-        hysteresis,
-        output_polarity: if s.inverted() {
-            OutputPolarity::Inverted
+    regs.csr().modify(|w| {
+        w.set_inpsel(false);
+        w.set_inmsel(inmsel);
+        w.set_hyst(hyst);
+        w.set_polarity(if s.inverted() {
+            Polarity::INVERTED
         } else {
-            OutputPolarity::NotInverted
-        },
-        inverting_input,
-        ..Config::default()
-    }
+            Polarity::NOT_INVERTED
+        });
+        w.set_blanksel(Blanking::NO_BLANKING);
+        w.set_scalen(false);
+        w.set_brgen(false);
+        w.set_en(true);
+    });
+}
+
+/// DAC `dac` reset and clocked, both channels in normal mode, internal output, buffer off
+/// (MODE 011: PA5, the ESC1's OPAMP2 VINM0, is not driven), HFSEL for a 170 MHz AHB
+/// (0b10: above 160 MHz, RM0440 "DAC_MCR"), then enabled.
+fn dac_on(dac: pac::dac::Dac) {
+    dac.mcr().modify(|w| {
+        w.set_hfsel(0b10);
+        w.set_mode(0, Mode::NORMAL_INT_BUFDIS);
+        w.set_mode(1, Mode::NORMAL_INT_BUFDIS);
+    });
+    dac.cr().modify(|w| {
+        w.set_en(0, true);
+        w.set_en(1, true);
+    });
 }
 
 /// Writes the DAC channels the core's values name (12-bit right-aligned).
 pub fn write_dacs(v: DacValues) {
     for ch in DacChannel::ALL {
-        let Some(counts) = v.get(ch) else { continue };
-        let (dac, idx) = match ch {
-            DacChannel::Dac1Ch1 => (pac::DAC1, 0),
-            DacChannel::Dac1Ch2 => (pac::DAC1, 1),
-            DacChannel::Dac3Ch1 => (pac::DAC3, 0),
-            DacChannel::Dac3Ch2 => (pac::DAC3, 1),
-        };
-        dac.dhr12r(idx).write(|w| w.set_dhr(counts));
+        if let Some(counts) = v.get(ch) {
+            write_dac(ch, counts);
+        }
     }
+}
+
+/// Writes `counts` to DAC channel `ch` (DHR12Rx).
+fn write_dac(ch: DacChannel, counts: u16) {
+    let (dac, idx) = match ch {
+        DacChannel::Dac1Ch1 => (pac::DAC1, 0),
+        DacChannel::Dac1Ch2 => (pac::DAC1, 1),
+        DacChannel::Dac3Ch1 => (pac::DAC3, 0),
+        DacChannel::Dac3Ch2 => (pac::DAC3, 1),
+    };
+    dac.dhr12r(idx).write(|w| w.set_dhr(counts));
 }
 
 /// Sets the thresholds `dacs`, enables the comparators of `board` (not yet routed to the
@@ -101,40 +128,39 @@ pub fn write_dacs(v: DacValues) {
 pub fn init(
     p: Protection,
     board: &'static BoardProfile,
-    pins: (Peri<'_, PA1>, Peri<'_, PA7>, Peri<'_, PA0>),
     dacs: DacValues,
 ) -> (HwProtection, Result<TrimmedZeros, TrimFailed>) {
-    let (ia, ib, udc) = pins;
-    let ic = p.current_c;
-    let (mut dac_a, mut dac_b) = Dac::<Blocking>::new_internal(p.dac_current).split();
-    let mut dac_v = Dac::<Blocking>::new_internal(p.dac_voltage);
-    dac_a.set(Value::Bit12Right(
-        dacs.get(DacChannel::Dac3Ch1).unwrap_or(4095),
-    ));
-    dac_b.set(Value::Bit12Right(
-        dacs.get(DacChannel::Dac3Ch2).unwrap_or(4095),
-    ));
-    dac_v.ch1().set(Value::Bit12Right(
-        dacs.get(DacChannel::Dac1Ch1).unwrap_or(4095),
-    ));
-    dac_v.ch2().set(Value::Bit12Right(
-        dacs.get(DacChannel::Dac1Ch2).unwrap_or(4095),
-    ));
-    dac_a.enable();
-    dac_b.enable();
-    dac_v.ch1().enable();
-    // Internal mode (embassy `new_internal`: MODE 011): PA5, the ESC1's OPAMP2 VINM0, is
-    // not driven.
-    dac_v.ch2().enable();
-
-    let mut c1 = Comp::new(p.comp_ia, ia, Irqs, config(&spec(board, 1)));
-    let mut c2 = Comp::new(p.comp_ib, ib, Irqs, config(&spec(board, 2)));
-    let mut c3 = Comp::new(p.comp_udc, udc, Irqs, config(&spec(board, 3)));
-    let mut c4 = Comp::new(p.comp_ic, ic, Irqs, config(&spec(board, 4)));
-    c1.enable();
-    c2.enable();
-    c3.enable();
-    c4.enable();
+    // DAC1 and DAC3 reset and clocked (AHB2), SYSCFG (the comparators' APB2 clock) on.
+    pac::RCC.ahb2rstr().modify(|w| {
+        w.set_dac1rst(true);
+        w.set_dac3rst(true);
+    });
+    pac::RCC.ahb2enr().modify(|w| {
+        w.set_dac1en(true);
+        w.set_dac3en(true);
+    });
+    let _ = pac::RCC.ahb2enr().read();
+    cortex_m::asm::dsb();
+    pac::RCC.ahb2rstr().modify(|w| {
+        w.set_dac1rst(false);
+        w.set_dac3rst(false);
+    });
+    pac::RCC.apb2enr().modify(|w| w.set_syscfgen(true));
+    dac_on(pac::DAC3);
+    dac_on(pac::DAC1);
+    // Before the trim, every channel the core does not name at full scale.
+    for ch in DacChannel::ALL {
+        write_dac(ch, dacs.get(ch).unwrap_or(4095));
+    }
+    super::analog_pins(&[
+        (pac::GPIOA, 0),
+        (pac::GPIOA, 1),
+        (pac::GPIOA, 7),
+        (pac::GPIOB, 0),
+    ]);
+    for (regs, n) in COMPS {
+        write_csr(regs, &spec(board, n));
+    }
     // The trim, unblanked: the core's search, one probe per DAC write.
     let mut trim = ComparatorTrim::new(board);
     while let Some(probe) = trim.probe() {
@@ -144,30 +170,32 @@ pub fn init(
     }
     let trimmed = trim.result();
     write_dacs(dacs);
-    // BLANKSEL from the table (embassy's `BlankingSource` stops at code 3; COMP4's
-    // TIM1_OC5 is 100). TIM1 does not run yet and the break is not armed: no window and
-    // no trip depend on it before this write.
-    for (regs, n) in [
-        (pac::COMP1, 1),
-        (pac::COMP2, 2),
-        (pac::COMP3, 3),
-        (pac::COMP4, 4),
-    ] {
+    // BLANKSEL from the table (COMP4's TIM1_OC5 is 100). TIM1 does not run yet and the
+    // break is not armed: no window and no trip depend on it before this write.
+    for (regs, n) in COMPS {
         let Some(code) = spec(board, n).blanksel() else {
             super::fault::fatal(super::fault::UNBINDABLE_PROFILE);
         };
         regs.csr()
-            .modify(|w| w.set_blanksel(pac::comp::vals::Blanking::from_bits(code)));
+            .modify(|w| w.set_blanksel(Blanking::from_bits(code)));
     }
     (
         HwProtection {
-            _comps: (c1, c2, c3, c4),
-            _dac_current: (dac_a, dac_b),
-            _dac_voltage: dac_v,
+            _comps: (p.comp_ia, p.comp_ib, p.comp_udc, p.comp_ic),
+            _dacs: (p.dac_current, p.dac_voltage),
+            _pin_c: p.current_c,
         },
         trimmed,
     )
 }
+
+/// COMP1-COMP4 with their numbers.
+const COMPS: [(pac::comp::Comp, u8); 4] = [
+    (pac::COMP1, 1),
+    (pac::COMP2, 2),
+    (pac::COMP3, 3),
+    (pac::COMP4, 4),
+];
 
 /// TIM1 break-input comparator indices (AF2.BK2CMPxE since issue 29: break 2; 0-based) of the profile.
 pub fn break_comparators(board: &BoardProfile) -> heapless::Vec<usize, 7> {

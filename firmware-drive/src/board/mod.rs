@@ -31,7 +31,6 @@ use board_common::clocks;
 
 use embassy_executor::{SpawnError, SpawnToken, Spawner};
 use embassy_stm32::gpio::{Level, Output, Speed};
-use embassy_stm32::interrupt::{self, InterruptExt};
 use firmware_drive::config::DriveConfig;
 use shared_protocol::link::LinkConfig;
 use static_cell::StaticCell;
@@ -67,26 +66,12 @@ pub async fn start(spawner: Spawner) {
         power_stage::min_dead_time_counts(cfg.timer_clock_hz, cfg.min_dead_time_ns);
 
     defmt::info!("board profile: {}", cfg.board.name);
-    let mut board = pins::split(p);
-    let a = &mut board.analog;
-    let (hw, trim) = hw_protection::init(
-        board.protection,
-        cfg.board,
-        (
-            a.current_a.reborrow(),
-            a.current_b.reborrow(),
-            a.dc_link.reborrow(),
-        ),
-        app.core().comparator_dacs(),
-    );
+    let board = pins::split(p);
+    let (hw, trim) = hw_protection::init(board.protection, cfg.board, app.core().comparator_dacs());
     HW.init(hw);
     // The thresholds from the trimmed zeros (a failed trim ends BOOT in `BOOT`).
     app.set_comparator_trim(trim);
     hw_protection::write_dacs(app.core().comparator_dacs());
-    // Below TIM1 (review D13), as everything else is (`board_common::boot`).
-    for irq in [interrupt::COMP1_2_3, interrupt::COMP4] {
-        irq.set_priority(board_common::boot::BACKGROUND);
-    }
     ANALOG.init(analog::init(board.analog, &cfg.board.front_end));
     PWM.init(power_stage::init(board.power, timing, min_dead_counts));
     // PB5 is the chopper's gate only on a board that has one; on the ESC1 it is
@@ -122,6 +107,15 @@ pub async fn start(spawner: Spawner) {
     ));
     spawner.spawn(spawned(link::run(port), "spawn link"));
     spawner.spawn(spawned(control::run(), "spawn control"));
+}
+
+/// Puts each `(port, pin)` in analog mode (GPIOx_MODER = 11; the pulls stay off as reset
+/// leaves them): the converters', amplifiers' and comparators' inputs.
+fn analog_pins(pins: &[(embassy_stm32::pac::gpio::Gpio, usize)]) {
+    for &(port, n) in pins {
+        port.moder()
+            .modify(|w| w.set_moder(n, embassy_stm32::pac::gpio::vals::Moder::ANALOG));
+    }
 }
 
 /// A task's spawn token, or [`fault::fatal`] with `what` (its pool is full: a start-up

@@ -3,10 +3,9 @@
 //! amplifier, input pin and gain; this module writes OPAMPx_CSR from it and decides nothing.
 //!
 //! Through the PAC, not embassy-stm32 0.6's `OpAmp::pga_int`: that driver takes the input
-//! pin's type (the table's pin cannot select it) and its `OpAmpInternalOutput` disables the
-//! amplifier when dropped, which `degrade_adc` (needed for the injected sequence) does. The
-//! ADC channel tokens still come from that driver ([`super::analog`]); [`apply`] runs after
-//! them and leaves the amplifiers on.
+//! pin's type (the table's pin cannot select it), and its output token disables the
+//! amplifier when dropped. [`apply`] runs after the ADCs' injected sequences are armed
+//! ([`super::analog`]) and leaves the amplifiers on.
 //!
 //! The factory offset trim is kept (USERTRIM = 0): the boot zero calibration of the core
 //! measures the whole chain's offset (bias network, amplifier, ADC) at 0 A.

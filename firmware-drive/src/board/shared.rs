@@ -10,7 +10,6 @@ use core::cell::RefCell;
 
 use embassy_stm32::gpio::Output;
 use embassy_sync::blocking_mutex::CriticalSectionMutex;
-use embassy_time::Instant;
 use firmware_drive::app::DriveApp;
 use firmware_drive::config::{DriveConfig, ResetCause};
 use shared_protocol::link::LinkConfig;
@@ -33,9 +32,10 @@ pub struct Shared {
 static SHARED: CriticalSectionMutex<RefCell<Option<&'static mut Shared>>> =
     CriticalSectionMutex::new(RefCell::new(None));
 
-/// The application's clock: microseconds since boot.
+/// The application's clock: microseconds since boot (`board_common::time::now`, one
+/// out-of-line copy).
 pub fn now() -> Micros {
-    Micros(Instant::now().as_micros())
+    board_common::time::now()
 }
 
 /// The application, built in its static ([`DriveApp::new_in`]): it is ~6 KiB, and built on the stack
