@@ -313,6 +313,13 @@ pub fn run_with(
             Some(svc) => svc.run_until(&mut sim, t, &mut each),
             None => sim.run_until(t, each),
         }
+        if let Some(at) = sim.unstable_at_ns() {
+            bail!(
+                "model unstable at t = {:.3} s: the plant's state left physics (NaN or beyond \
+                 10 kA / 10^5 rad/s / 100 kV); check the scenario's plant values",
+                at as f64 * 1e-9
+            );
+        }
         progress(t as f64 * 1e-9);
     }
     let st = firmware_drive_status(&sim);

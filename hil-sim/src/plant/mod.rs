@@ -163,6 +163,11 @@ pub struct UdcSenseSpike {
 
 /// The rig's state and the command it is under.
 #[derive(Debug, Clone)]
+/// Where the model is taken to have diverged: phase current 10 kA, speed 10^5 rad/s
+/// (~955 000 rpm), DC link 100 kV: each 100x or more beyond the scenario ranges
+/// (`scenario::physics`), so a valid run never comes near.
+pub const DIVERGED: (f64, f64, f64) = (1e4, 1e5, 1e5);
+
 pub struct Plant {
     params: RigParams,
     x: State,
@@ -395,6 +400,18 @@ impl Plant {
             duty_abc: self.period_avg.0,
             u_ab_v: self.period_avg.1,
         }
+    }
+
+    /// Whether the model has left physics: a state that is not a finite number, or a
+    /// phase current, speed or DC-link voltage beyond [`DIVERGED`] (far beyond anything
+    /// a rig of this class can reach, so only a diverging integration gets there).
+    pub fn diverged(&self) -> bool {
+        let o = self.outputs();
+        let (i_a, w_rad_s, u_v) = DIVERGED;
+        self.x.iter().any(|v| !v.is_finite())
+            || o.i_abc_a.iter().any(|i| !(i.abs() < i_a))
+            || !(o.speed_rad_s.abs() < w_rad_s)
+            || !(o.u_dc_v.abs() < u_v)
     }
 
     /// What the drive's ADC converts now.
