@@ -50,7 +50,7 @@ pub fn sample_ms(s: &str) -> Result<f64, String> {
     let v = number(s)?;
     if !(v.is_finite() && (MIN_SAMPLE_MS..=MAX_SAMPLE_MS).contains(&v)) {
         return Err(format!(
-            "--sample-ms must be {MIN_SAMPLE_MS} (1 us, the simulation's time step) to {MAX_SAMPLE_MS}, got {s}"
+            "--sample-ms must be at least {MIN_SAMPLE_MS} (1 us, the simulation's time step) and at most {MAX_SAMPLE_MS}, got {s}"
         ));
     }
     Ok(v)

@@ -161,13 +161,13 @@ pub struct UdcSenseSpike {
     pub to_ns: u64,
 }
 
-/// The rig's state and the command it is under.
-#[derive(Debug, Clone)]
 /// Where the model is taken to have diverged: phase current 10 kA, speed 10^5 rad/s
 /// (~955 000 rpm), DC link 100 kV: each 100x or more beyond the scenario ranges
 /// (`scenario::physics`), so a valid run never comes near.
 pub const DIVERGED: (f64, f64, f64) = (1e4, 1e5, 1e5);
 
+/// The rig's state and the command it is under.
+#[derive(Debug, Clone)]
 pub struct Plant {
     params: RigParams,
     x: State,
