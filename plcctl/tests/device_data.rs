@@ -56,10 +56,8 @@ impl FakePlc {
             let mut reader = ServiceReader::new();
             let mut buf = [0u8; 256];
             while !s.load(Ordering::Relaxed) {
-                let n = match master.read(&mut buf) {
-                    Ok(n) => n,
-                    Err(_) => 0,
-                };
+                // WouldBlock (nothing yet) reads as nothing.
+                let n: usize = master.read(&mut buf).unwrap_or_default();
                 if n == 0 {
                     std::thread::sleep(Duration::from_millis(1));
                 }

@@ -408,10 +408,12 @@ impl Plant {
     pub fn diverged(&self) -> bool {
         let o = self.outputs();
         let (i_a, w_rad_s, u_v) = DIVERGED;
+        // NaN is beyond every limit.
+        let beyond = |v: f64, limit: f64| v.is_nan() || v.abs() >= limit;
         self.x.iter().any(|v| !v.is_finite())
-            || o.i_abc_a.iter().any(|i| !(i.abs() < i_a))
-            || !(o.speed_rad_s.abs() < w_rad_s)
-            || !(o.u_dc_v.abs() < u_v)
+            || o.i_abc_a.iter().any(|&i| beyond(i, i_a))
+            || beyond(o.speed_rad_s, w_rad_s)
+            || beyond(o.u_dc_v, u_v)
     }
 
     /// What the drive's ADC converts now.
