@@ -12,6 +12,7 @@
 //!
 //! Decisions and model equations: `hil-sim/docs/`.
 
+pub mod args;
 pub mod decimate;
 pub mod emu;
 pub mod lab;

@@ -1,7 +1,6 @@
 //! `hil-sim` command line (hil-sim.md "Commands"). Everything it does lives in the library.
 
-use std::fs::File;
-use std::io::{BufWriter, IsTerminal, Write};
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -11,6 +10,7 @@ use hil_sim::record::CsvWriter;
 use hil_sim::run::{load_program, run_with};
 use hil_sim::scenario::Scenario;
 use hil_sim::sim::RunOptions;
+use trend_plot::atomic::AtomicFile;
 
 #[derive(Parser)]
 #[command(
@@ -82,8 +82,8 @@ struct RecordArgs {
     /// Scenario file (TOML); without it all inputs stay 0.
     #[arg(long)]
     scenario: Option<PathBuf>,
-    /// Simulated seconds (default: the scenario's duration_s, else 10).
-    #[arg(long)]
+    /// Simulated seconds (default: the scenario's duration_s, else 10; at most 1e6).
+    #[arg(long, value_parser = hil_sim::args::duration_s)]
     duration: Option<f64>,
     /// Write the record as CSV.
     #[arg(long)]
@@ -92,10 +92,10 @@ struct RecordArgs {
     #[arg(long)]
     plot: Option<PathBuf>,
     /// End of the plot's phase-current zoom (a few periods), s; default: the end.
-    #[arg(long)]
+    #[arg(long, value_parser = hil_sim::args::time_s)]
     zoom_at: Option<f64>,
-    /// CSV sampling period, ms.
-    #[arg(long, default_value_t = 1.0)]
+    /// CSV sampling period, ms (0.001-60000).
+    #[arg(long, default_value_t = 1.0, value_parser = hil_sim::args::sample_ms)]
     sample_ms: f64,
     /// Seed of the link's bit errors.
     #[arg(long, default_value_t = 1)]
@@ -106,12 +106,12 @@ struct RecordArgs {
 #[derive(clap::Args)]
 struct ServiceArgs {
     /// Serve the PLC's service port on a new pty; its path is the first stderr line,
-    /// `service: <path>`. The run waits for a client at t = 0 and follows the wall clock
-    /// while the client keeps the pty open.
+    /// `service: <path>`. The run waits for a first client at t = 0, then follows the wall
+    /// clock to the end of the linger; clients may come and go (one at a time).
     #[arg(long)]
     service_pty: bool,
-    /// After the duration, keep serving the client (inputs held) this long, s.
-    #[arg(long, default_value_t = 5.0, requires = "service_pty")]
+    /// After the duration, keep serving clients (inputs held) this long, s (at most 1e6).
+    #[arg(long, default_value_t = 5.0, requires = "service_pty", value_parser = hil_sim::args::time_s)]
     service_linger: f64,
     /// The service version the simulated PLC announces (tests of version mismatch).
     #[arg(long, default_value_t = shared_protocol::service::SERVICE_VERSION)]
@@ -137,9 +137,6 @@ impl ServiceArgs {
         }
         if cfg!(not(unix)) {
             anyhow::bail!("--service-pty needs Linux or macOS");
-        }
-        if !(self.service_linger.is_finite() && self.service_linger >= 0.0) {
-            anyhow::bail!("--service-linger must be >= 0 s");
         }
         let pty = hil_sim::service::pty::Pty::open()?;
         eprintln!("service: {}", pty.path().display());
@@ -174,9 +171,7 @@ impl RecordArgs {
             None => Scenario::default(),
         };
         let duration_s = scen.duration_s(self.duration);
-        if !(duration_s.is_finite() && duration_s > 0.0) {
-            anyhow::bail!("--duration must be a positive number of seconds, got {duration_s}");
-        }
+        hil_sim::args::check_duration_s(duration_s)?;
         let sample_ns = sample_period_ns(self.sample_ms)?;
         if let Some(p) = &self.plot {
             hil_sim::plot::check_target(p)?;
@@ -193,16 +188,17 @@ impl RecordArgs {
     }
 
     /// The CSV file, if asked for, starting with `# board: <drive board>`.
-    fn csv_writer(&self, board: &str) -> Result<Option<CsvWriter<BufWriter<File>>>> {
+    /// Written under a temporary name and renamed when the run succeeded: a failed run
+    /// leaves the user's file as it was.
+    fn csv_writer(&self, board: &str) -> Result<Option<CsvWriter<AtomicFile>>> {
         let Some(p) = &self.csv else {
             return Ok(None);
         };
-        let file = File::create(p).with_context(|| format!("cannot create {}", p.display()))?;
+        let file = AtomicFile::create(p)?;
         let comment = format!("board: {board}");
-        Ok(Some(
-            CsvWriter::with_comment(BufWriter::new(file), &comment)
-                .with_context(|| format!("cannot write {}", p.display()))?,
-        ))
+        Ok(Some(CsvWriter::with_comment(file, &comment).with_context(
+            || format!("cannot write {}", p.display()),
+        )?))
     }
 
     fn keep_samples(&self) -> hil_sim::decimate::KeepSamples {
@@ -213,7 +209,7 @@ impl RecordArgs {
     /// leaves the run's result on screen), then the plot.
     fn finish(
         &self,
-        csv: (Option<CsvWriter<BufWriter<File>>>, Option<std::io::Error>),
+        csv: (Option<CsvWriter<AtomicFile>>, Option<std::io::Error>),
         summary: &str,
         samples: &[hil_sim::sim::Sample],
         title: &str,
@@ -227,7 +223,7 @@ impl RecordArgs {
             return Err(e).context("writing the CSV");
         }
         if let Some(w) = writer {
-            w.finish().context("writing the CSV")?;
+            w.finish().context("writing the CSV")?.commit()?;
         }
         print!("{summary}");
         if let Some(p) = &self.plot {
@@ -254,7 +250,16 @@ impl RecordArgs {
 const EXIT_IMAGE_TROUBLE: u8 = 2;
 
 fn main() -> ExitCode {
-    match real_main() {
+    // A bad argument exits 1 like any bad input (clap's own 2 is `emu`'s image trouble);
+    // `--help` and `--version` exit 0.
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(u8::from(e.use_stderr()));
+        }
+    };
+    match real_main(cli) {
         Ok(code) => code,
         Err(e) => {
             eprintln!("hil-sim: {e:#}");
@@ -263,9 +268,9 @@ fn main() -> ExitCode {
     }
 }
 
-fn real_main() -> Result<ExitCode> {
+fn real_main(cli: Cli) -> Result<ExitCode> {
     let done = |r: Result<()>| r.map(|()| ExitCode::SUCCESS);
-    match Cli::parse().cmd {
+    match cli.cmd {
         Cmd::Run { record, service } => done(cmd_run(&record, &service)),
         Cmd::Asm { program, output } => done(cmd_asm(&program, output.as_deref())),
         Cmd::Disasm { program } => done(cmd_disasm(&program)),
@@ -292,17 +297,11 @@ fn real_main() -> Result<ExitCode> {
 
 /// `--sample-ms` in ns. The co-simulation's clock is the cores' (`Micros`): nothing in it
 /// happens on a finer grid than 1 us, so a finer record only repeats values (at 0.0001 ms
-/// one simulated second was a 1.2 GB CSV). Refused below [`MIN_SAMPLE_MS`].
+/// one simulated second was a 1.2 GB CSV). Refused below [`hil_sim::args::MIN_SAMPLE_MS`].
 fn sample_period_ns(sample_ms: f64) -> Result<u64> {
-    if !(sample_ms.is_finite() && sample_ms >= MIN_SAMPLE_MS) {
-        anyhow::bail!(
-            "--sample-ms must be at least {MIN_SAMPLE_MS} (1 us, the simulation's time step), got {sample_ms}"
-        );
-    }
+    hil_sim::args::sample_ms(&sample_ms.to_string()).map_err(anyhow::Error::msg)?;
     Ok((sample_ms * 1e6).round() as u64)
 }
-
-const MIN_SAMPLE_MS: f64 = 0.001;
 
 fn cmd_run(a: &RecordArgs, svc: &ServiceArgs) -> Result<()> {
     let Prepared {
@@ -453,8 +452,7 @@ fn cmd_asm(program: &Path, output: Option<&Path>) -> Result<()> {
     match output {
         Some(out) => {
             let image = hil_sim::image_bytes(&p)?;
-            std::fs::write(out, image)
-                .with_context(|| format!("cannot write {}", out.display()))?;
+            trend_plot::atomic::write(out, &image)?;
             println!(
                 "{}: {} lines, EEPROM image ({} bytes) written to {}",
                 program.display(),

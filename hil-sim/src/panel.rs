@@ -20,7 +20,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use firmware_plc::storage::image::{is_image, program_from_image};
+use firmware_plc::storage::image::program_from_image;
 use ratatui::crossterm::event::{self, Event, KeyEventKind};
 use shared_protocol::program::{assemble, Program};
 
@@ -30,9 +30,14 @@ pub use sim_backend::{RigStatus, SimBackend};
 /// Read a program from a `.plc` text or an EEPROM image.
 pub fn read_program(path: &Path) -> Result<Program> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    if is_image(&bytes) {
-        return program_from_image(&bytes)
-            .map_err(|e| anyhow::anyhow!("{}: not a valid EEPROM image: {e:?}", path.display()));
+    if crate::run::is_eeprom_image(&bytes) {
+        return program_from_image(&bytes).map_err(|e| {
+            anyhow::anyhow!(
+                "{}: an EEPROM image without a program to load: {}",
+                path.display(),
+                crate::run::storage_error_text(e)
+            )
+        });
     }
     let text = String::from_utf8(bytes)
         .with_context(|| format!("{}: neither text nor an EEPROM image", path.display()))?;

@@ -5,6 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{bail, Context, Result};
 use firmware_plc::storage::image::{is_image, program_from_image};
+use firmware_plc::storage::StorageError;
 use shared_protocol::fault::fault_name;
 use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
@@ -20,7 +21,7 @@ use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
 /// line for an image).
 pub fn load_program(path: &Path) -> Result<Program> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    if is_image(&bytes) {
+    if is_eeprom_image(&bytes) {
         let p = load_any(path)?;
         verify(&p).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
         return Ok(p);
@@ -34,9 +35,14 @@ pub fn load_program(path: &Path) -> Result<Program> {
 /// Reads any program the text format or an image holds, runnable or not (for `disasm`).
 pub fn load_any(path: &Path) -> Result<Program> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
-    if is_image(&bytes) {
-        return program_from_image(&bytes)
-            .map_err(|e| anyhow::anyhow!("{}: not a valid EEPROM image: {e:?}", path.display()));
+    if is_eeprom_image(&bytes) {
+        return program_from_image(&bytes).map_err(|e| {
+            anyhow::anyhow!(
+                "{}: an EEPROM image without a program to load: {}",
+                path.display(),
+                storage_error_text(e)
+            )
+        });
     }
     let Ok(text) = String::from_utf8(bytes) else {
         bail!(
@@ -45,6 +51,26 @@ pub fn load_any(path: &Path) -> Result<Program> {
         );
     };
     assemble(&text).map_err(|e| anyhow::anyhow!("{}:{e}", path.display()))
+}
+
+/// Whether `bytes` are a whole-EEPROM image (32 KiB) rather than `.plc` text of the
+/// same length: text is UTF-8 without NUL, while an image has erased (0xFF) or zero
+/// bytes.
+pub fn is_eeprom_image(bytes: &[u8]) -> bool {
+    is_image(bytes) && (bytes.contains(&0) || std::str::from_utf8(bytes).is_err())
+}
+
+/// A storage error in words (for messages; `{:?}` printed `Empty(1)`).
+pub fn storage_error_text(e: StorageError) -> String {
+    match e {
+        StorageError::NoSuchSlot(n) => format!("there is no slot {n}"),
+        StorageError::Empty(n) => format!("slot {n} was never saved (no slot holds a program)"),
+        StorageError::Damaged(n) => format!("both copies of slot {n} are damaged"),
+        StorageError::TooBig => "the program does not fit a slot".into(),
+        StorageError::VerifyFailed => "a copy did not read back as written".into(),
+        StorageError::Eeprom(e) => format!("EEPROM error {e:?}"),
+        StorageError::Busy => "the EEPROM is busy".into(),
+    }
 }
 
 /// Assembles `.plc` text into a program the PLC would start (line rules and the
@@ -286,6 +312,13 @@ pub fn run_with(
         match service.as_deref_mut() {
             Some(svc) => svc.run_until(&mut sim, t, &mut each),
             None => sim.run_until(t, each),
+        }
+        if let Some(at) = sim.unstable_at_ns() {
+            bail!(
+                "model unstable at t = {:.3} s: the plant's state left physics (NaN or beyond \
+                 10 kA / 10^5 rad/s / 100 kV); check the scenario's plant values",
+                at as f64 * 1e-9
+            );
         }
         progress(t as f64 * 1e-9);
     }

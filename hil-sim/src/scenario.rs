@@ -17,6 +17,7 @@ use crate::plant::lift::{
 };
 use crate::plant::{Load, PwmMode, RigParams};
 
+pub mod physics;
 pub mod silicon;
 use silicon::{EventSiliconKeys, McuSide, SiliconEvent, SiliconKeys, SiliconParams};
 
@@ -608,6 +609,39 @@ impl Scenario {
             ..Scenario::default()
         };
         let p = &f.plant;
+        for (key, v) in [
+            ("dc_link_v", p.dc_link_v),
+            ("load_torque_nm", p.load_torque_nm),
+            ("inertia_kgm2", p.inertia_kgm2),
+            ("oc_hw_a", p.oc_hw_a),
+            ("ov_hw_v", p.ov_hw_v),
+            ("dc_capacitor_uf", p.dc_capacitor_uf),
+            ("brake_resistor_ohm", p.brake_resistor_ohm),
+            ("supply_r_ohm", p.supply_r_ohm),
+            ("friction_nms", p.friction_nms),
+            ("rs_ohm", p.rs_ohm),
+            ("rr_ohm", p.rr_ohm),
+            ("lls_h", p.lls_h),
+            ("llr_h", p.llr_h),
+            ("lm_h", p.lm_h),
+            ("load_r_ohm", p.load_r_ohm),
+            ("load_l_h", p.load_l_h),
+        ] {
+            physics::check(physics::PLANT_RANGES, "plant", key, v)?;
+        }
+        if let Some(l) = &f.lift {
+            for (key, v) in [
+                ("unbalance_kg", l.unbalance_kg),
+                ("load_kg", l.load_kg),
+                ("moving_mass_kg", l.moving_mass_kg),
+                ("start_mm", l.start_mm),
+                ("limit_low_mm", l.limit_low_mm),
+                ("limit_high_mm", l.limit_high_mm),
+                ("floor_pitch_mm", l.floor_pitch_mm),
+            ] {
+                physics::check(physics::LIFT_RANGES, "lift", key, v)?;
+            }
+        }
         let rig = &mut s.rig;
         if let Some(v) = non_negative("plant.dc_link_v", p.dc_link_v)? {
             rig.supply_v = v;
@@ -771,6 +805,14 @@ impl Scenario {
                 }
             }
             any = true;
+        }
+        for (key, v) in [
+            ("dc_link_v", e.dc_link_v),
+            ("load_torque_nm", e.load_torque_nm),
+            ("inertia_kgm2", e.inertia_kgm2),
+            ("brake_resistor_ohm", e.brake_resistor_ohm),
+        ] {
+            physics::check(physics::PLANT_RANGES, "event", key, v)?;
         }
         let changes = [
             non_negative("dc_link_v", e.dc_link_v)?.map(PlantChange::DcLinkV),

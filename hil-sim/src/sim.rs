@@ -124,6 +124,8 @@ pub struct Simulation {
     sample_ns: u64,
     faults: Vec<FaultRecord>,
     last_fault: u8,
+    /// When the plant left physics ([`Plant::diverged`]): the run stops there.
+    unstable_at_ns: Option<u64>,
     /// The drive's state changes (time, state name), for the run summary's RUN/ACK history.
     states: Vec<(u64, &'static str)>,
     /// Added to the drive's ADC reading of phase 1's current, counts (a sensor fault the
@@ -287,6 +289,7 @@ impl Simulation {
             sample_ns: opts.sample_ns.max(1),
             faults: Vec::new(),
             last_fault: 0,
+            unstable_at_ns: None,
             states: Vec::new(),
             i_a_offset_counts: 0,
             garble_download: false,
@@ -414,8 +417,14 @@ impl Simulation {
     }
 
     /// Runs until `end_ns` (inclusive), calling `on_sample` at every sample time.
+    /// A plant that diverged ([`Simulation::unstable_at_ns`]) is not stepped further:
+    /// the clock jumps to `end_ns` and the caller reports the divergence.
     pub fn run_until(&mut self, end_ns: u64, mut on_sample: impl FnMut(&Sample)) {
         loop {
+            if self.unstable_at_ns.is_some() {
+                self.now_ns = self.now_ns.max(end_ns);
+                return;
+            }
             let t = self.next_event_ns();
             if t > end_ns {
                 break;
@@ -426,6 +435,13 @@ impl Simulation {
         }
         self.advance_plant(end_ns);
         self.now_ns = self.now_ns.max(end_ns);
+    }
+
+    /// When the plant model left physics (NaN, or values no rig of this class reaches):
+    /// checked every 1 ms, before the drive's tick, so that the divergence is never
+    /// reported as a trip.
+    pub fn unstable_at_ns(&self) -> Option<u64> {
+        self.unstable_at_ns
     }
 
     fn advance_plant(&mut self, t: u64) {
@@ -483,6 +499,10 @@ impl Simulation {
             self.pwm_event(t);
         }
         let mut app_ran = [false; 2];
+        if t >= self.next_drive_tick_ns && self.plant.diverged() {
+            self.unstable_at_ns = Some(t);
+            return;
+        }
         if t >= self.next_drive_tick_ns {
             // The lift moves on with the outputs of the PLC's last scan.
             self.lift_step();

@@ -77,8 +77,13 @@ impl Client {
             Answer::Identity(id) => {
                 c.identified_at = chrono::Utc::now();
                 c.power_ups = crate::clock::PowerUps::load(&id.uid);
-                let start = c.identified_at.timestamp_millis() - id.uptime_ms as i64;
-                c.power_ups.record(id.power_ups as u16, start);
+                let start = crate::clock::power_up_start_ms(
+                    c.identified_at.timestamp_millis(),
+                    id.uptime_ms,
+                );
+                if let Some(start) = start {
+                    c.power_ups.record(id.power_ups as u16, start);
+                }
                 c.identity = id;
             }
             other => return Err(unexpected("Identify", &other)),

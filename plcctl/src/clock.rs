@@ -10,6 +10,27 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+/// When the current power-up began (Unix ms): `at_ms`, the host's clock when the PLC
+/// said it had been up `uptime_ms`, minus that uptime; `None` when the PLC's number is
+/// beyond what a clock can hold (device data is never trusted to be sane).
+pub fn power_up_start_ms(at_ms: i64, uptime_ms: u64) -> Option<i64> {
+    at_ms.checked_sub(i64::try_from(uptime_ms).ok()?)
+}
+
+/// The last millisecond of the year 9999: dates beyond it (or before 1970) come from a
+/// PLC or a cache that is wrong, and are not shown as dates.
+const LAST_DATE_MS: i64 = 253_402_300_799_999;
+
+/// The wall-clock time `uptime_s` into a power-up that began at `start_ms`; `None`
+/// outside 1970-9999.
+pub fn date_of(start_ms: i64, uptime_s: u32) -> Option<chrono::DateTime<chrono::Utc>> {
+    let ms = start_ms.checked_add(i64::from(uptime_s).checked_mul(1000)?)?;
+    if !(0..=LAST_DATE_MS).contains(&ms) {
+        return None;
+    }
+    chrono::DateTime::from_timestamp_millis(ms)
+}
+
 /// Power-up starts of one PLC.
 #[derive(Debug, Default)]
 pub struct PowerUps {
@@ -51,7 +72,7 @@ impl PowerUps {
     /// by more than a second (the host's and the PLC's clocks drift apart).
     pub fn record(&mut self, n: u16, start_ms: i64) {
         let known = self.starts.get(&n).copied();
-        if known.is_some_and(|k| (k - start_ms).abs() <= 1000) {
+        if known.is_some_and(|k| k.abs_diff(start_ms) <= 1000) {
             return;
         }
         self.starts.insert(n, start_ms);
@@ -76,6 +97,28 @@ impl PowerUps {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn absurd_uptimes_give_no_date_and_no_panic() {
+        let now = 1_800_000_000_000;
+        assert_eq!(power_up_start_ms(now, 5_000), Some(now - 5_000));
+        for up in [u64::MAX, i64::MAX as u64, 1 << 62] {
+            if let Some(start) = power_up_start_ms(now, up) {
+                for s in [0, 1, u32::MAX] {
+                    let _ = date_of(start, s);
+                }
+            }
+        }
+        assert_eq!(power_up_start_ms(i64::MIN, 1), None);
+        assert_eq!(date_of(i64::MAX, 1), None);
+        assert_eq!(date_of(i64::MIN + 1, 0), None);
+        let d = date_of(now - 5_000, 2).unwrap();
+        assert_eq!(d.timestamp_millis(), now - 3_000);
+        let mut p = PowerUps::default();
+        p.record(1, i64::MIN);
+        p.record(1, i64::MAX);
+        assert_eq!(p.start_of(1), Some(i64::MAX));
+    }
 
     #[test]
     fn lines_parse_and_bad_ones_are_skipped() {

@@ -8,6 +8,7 @@ use shared_protocol::service::{
 };
 
 use crate::client::{unexpected, Client};
+use crate::clock::{date_of, power_up_start_ms};
 use crate::fail::Result;
 
 /// Ring positions of the log.
@@ -61,28 +62,23 @@ fn time_of(c: &Client, e: &LogEntry) -> String {
             format!("{:02}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
         }
     };
-    if e.power_up == id.power_ups as u16 && e.uptime_s < UPTIME_LIMIT_S {
-        // Signed: a long-lived connection (`serve`, `watch`) reads entries written
-        // after its `Identify`.
-        let after_ms = i64::from(e.uptime_s) * 1000 - id.uptime_ms as i64;
-        let t = c.identified_at + chrono::Duration::milliseconds(after_ms);
-        return t
-            .with_timezone(&chrono::Local)
+    let local = |t: chrono::DateTime<chrono::Utc>| {
+        t.with_timezone(&chrono::Local)
             .format("%Y-%m-%d %H:%M:%S")
-            .to_string();
-    }
-    if let Some(start) = c
-        .power_ups
-        .start_of(e.power_up)
+            .to_string()
+    };
+    // Every step checked: a PLC's uptime or a cache line can be anything.
+    let current = (e.power_up == id.power_ups as u16)
+        .then(|| power_up_start_ms(c.identified_at.timestamp_millis(), id.uptime_ms))
+        .flatten();
+    // A long-lived connection (`serve`, `watch`) reads entries written after its
+    // `Identify`: they are simply later in the same power-up.
+    let start = current.or_else(|| c.power_ups.start_of(e.power_up));
+    if let Some(t) = start
         .filter(|_| e.uptime_s < UPTIME_LIMIT_S)
+        .and_then(|s| date_of(s, e.uptime_s))
     {
-        let t = chrono::DateTime::from_timestamp_millis(start + i64::from(e.uptime_s) * 1000);
-        if let Some(t) = t {
-            return t
-                .with_timezone(&chrono::Local)
-                .format("%Y-%m-%d %H:%M:%S")
-                .to_string();
-        }
+        return local(t);
     }
     format!("power-up #{} + {}", e.power_up, hms(e.uptime_s))
 }

@@ -1,6 +1,7 @@
 //! `plcctl`: the PLC's service port from a PC (shared/spec/service.md part A, usage in
 //! `shared-protocol/docs/service.md` "plcctl"). Exit codes: [`fail::Fail`].
 
+mod args;
 mod client;
 mod clock;
 mod detect;
@@ -29,8 +30,8 @@ struct Cli {
     /// Serial port (default: the one ST-LINK/V3 virtual COM port).
     #[arg(long, global = true)]
     port: Option<String>,
-    /// Line rate; must match the PLC's (115200).
-    #[arg(long, global = true, default_value_t = SERVICE_BAUD)]
+    /// Line rate; must match the PLC's (115200); 300-4000000.
+    #[arg(long, global = true, default_value_t = SERVICE_BAUD, value_parser = args::baud)]
     baud: u32,
     #[command(subcommand)]
     cmd: Cmd,
@@ -45,8 +46,8 @@ enum Cmd {
     },
     /// Terminal view at 10 Hz: LCD, values, I/O, newest faults (Ctrl-C ends).
     Watch {
-        /// Stop after this many seconds (default: never).
-        #[arg(long)]
+        /// Stop after this many seconds (default: never; at most a year).
+        #[arg(long, value_parser = args::duration_s)]
         duration: Option<f64>,
     },
     /// Record samples as CSV with hil-sim's column names (Ctrl-C ends it like --duration).
@@ -59,8 +60,8 @@ enum Cmd {
         /// Sample period, 10-100 ms.
         #[arg(long, default_value_t = 10)]
         period_ms: u16,
-        /// Seconds to record (default: until Ctrl-C).
-        #[arg(long)]
+        /// Seconds to record (default: until Ctrl-C; at most a year).
+        #[arg(long, value_parser = args::duration_s)]
         duration: Option<f64>,
         /// Up to 8 Q variables, e.g. Q04,Q05 (default Q00-Q07).
         #[arg(long, value_delimiter = ',')]
@@ -80,6 +81,7 @@ enum Cmd {
     },
     /// A program in canonical text; slot 0 = the program in RAM.
     Pull {
+        #[arg(value_parser = args::any_slot)]
         slot: u8,
         /// Output file (default: stdout).
         #[arg(short = 'o', long = "output")]
@@ -89,7 +91,8 @@ enum Cmd {
     /// PLC in STOP).
     Push {
         file: PathBuf,
-        #[arg(long)]
+        /// 1-4.
+        #[arg(long, value_parser = args::stored_slot)]
         slot: u8,
         /// Write without asking.
         #[arg(long)]
@@ -97,7 +100,7 @@ enum Cmd {
     },
     /// RUN (remote service on): the program in RAM, or slot n loaded first.
     Run {
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, default_value_t = 0, value_parser = args::any_slot)]
         slot: u8,
     },
     /// STOP (always allowed).
@@ -133,7 +136,15 @@ enum Cmd {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    // A bad argument is a usage error, exit 1 (clap's own code, 2, means "no device"
+    // here); `--help` and `--version` exit 0.
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return ExitCode::from(u8::from(e.use_stderr()));
+        }
+    };
     match real_main(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

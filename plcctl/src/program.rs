@@ -57,8 +57,8 @@ pub fn pull(c: &mut Client, slot: u8, output: Option<&Path>) -> Result<()> {
     let mut text = String::new();
     disassemble(&program, &mut text).map_err(|_| usage("cannot format the program"))?;
     match output {
-        Some(p) => std::fs::write(p, text)
-            .map_err(|e| usage(format!("cannot write {}: {e}", p.display())))?,
+        // Under a temporary name, renamed when whole: a failed write keeps the user's file.
+        Some(p) => trend_plot::atomic::write(p, text.as_bytes()).map_err(usage)?,
         None => print!("{text}"),
     }
     Ok(())

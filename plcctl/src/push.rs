@@ -1,7 +1,8 @@
 //! `push x.plc --slot n [--yes]` (service.md 8): assemble and verify the file, show a
 //! unified diff of the canonical texts against what the slot holds, ask (unless `--yes`;
 //! refused when stdin is not a terminal), write it (`WriteBegin`, chunks, `WriteCommit`),
-//! then pull the slot back and compare byte for byte.
+//! then pull the slot back and compare byte for byte. Without remote service, or with the
+//! PLC not in STOP, it stops before the diff (exit 5).
 
 use std::io::{BufRead, IsTerminal, Write};
 use std::path::Path;
@@ -9,7 +10,9 @@ use std::path::Path;
 use firmware_plc::storage::slot::{for_each_payload_byte, program_from_payload};
 use shared_protocol::link::frame::CRC as CRC32C;
 use shared_protocol::program::{assemble_runnable, disassemble, Program};
-use shared_protocol::service::{Answer, RefuseReason, Request, WriteResult, CHUNK_BYTES};
+use shared_protocol::service::{
+    Answer, InvalidReason, PlcState, RefuseReason, Request, WriteResult, CHUNK_BYTES,
+};
 
 use crate::client::{unexpected, Client};
 use crate::diff::unified;
@@ -62,6 +65,18 @@ pub fn push(connect: impl Fn() -> Result<Client>, file: &Path, slot: u8, yes: bo
     for_each_payload_byte(&program, |b| payload.push(b));
 
     let mut c = connect()?;
+    // What the PLC would refuse is said before a diff the user would read for nothing
+    // (the PLC checks again at `WriteBegin`).
+    let status = match c.ask(Request::GetStatus)? {
+        Answer::Status(s) => s,
+        other => return Err(unexpected("GetStatus", &other)),
+    };
+    if !status.remote {
+        return Err(Fail::Refused(RefuseReason::Locked));
+    }
+    if status.plc != PlcState::Stop {
+        return Err(Fail::Refused(RefuseReason::InRun));
+    }
     let old = current_text(&mut c, slot)?;
     let new = canonical(&program)?;
     let diff = unified(
@@ -102,15 +117,20 @@ pub fn push(connect: impl Fn() -> Result<Client>, file: &Path, slot: u8, yes: bo
         Answer::WriteResult(WriteResult::Saved { generation }) => generation,
         Answer::WriteResult(WriteResult::Invalid { line, reason }) => {
             return Err(usage(format!(
-                "the PLC refused the program at line {line:03}: {reason:?}"
+                "the PLC refused the program at line {line:03}: {}",
+                invalid_text(reason)
             )))
         }
         // The PLC's own check of what arrived (CRC-32C, completeness) failed: what it
         // holds differs from what was sent, as a read-back that differs (exit 6).
         Answer::WriteResult(w) => {
+            let why = match w {
+                WriteResult::Crc => "its CRC-32C differs",
+                _ => "a chunk is missing",
+            };
             return Err(Fail::ReadBack(format!(
-                "the PLC did not receive the program whole ({w:?}): nothing was written"
-            )))
+                "the PLC did not receive the program whole ({why}): nothing was written"
+            )));
         }
         other => return Err(unexpected("WriteCommit", &other)),
     };
@@ -124,4 +144,31 @@ pub fn push(connect: impl Fn() -> Result<Client>, file: &Path, slot: u8, yes: bo
     }
     println!("written into slot {slot} (generation {generation}), read back: identical");
     Ok(())
+}
+
+/// Why the PLC's verifier refused a line, in words.
+fn invalid_text(r: InvalidReason) -> String {
+    match r {
+        InvalidReason::Verify(code) => {
+            // `shared_protocol::link::message::verify_kind_code`'s numbers.
+            let what = match code {
+                1 => "line number out of range",
+                2 => "instruction of the other section",
+                3 => "operand missing",
+                4 => "operand not allowed",
+                5 => "operand of the wrong kind",
+                6 => "LDC on an integer operand",
+                7 => "operand out of range",
+                8 => "constant out of range",
+                9 => "constant without K",
+                10 => "stack underflow",
+                11 => "setting given twice",
+                12 | 13 => "safety function without what it needs",
+                _ => "refused by the verifier",
+            };
+            format!("{what} (verifier check {code})")
+        }
+        InvalidReason::Decode => "its bytes are not an instruction".into(),
+        InvalidReason::Layout => "the program's lines are out of order or overlap".into(),
+    }
 }

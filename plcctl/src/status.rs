@@ -121,7 +121,10 @@ const WATCH_FAULTS: u8 = 4;
 /// `watch`: the screen, the status and the newest log entries at 10 Hz; reconnects every second when the PLC
 /// goes away.
 pub fn watch(connect: impl Fn() -> Result<Client>, duration: Option<f64>) -> Result<()> {
-    let end = duration.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
+    // `--duration` is at most a year (crate::args): the sum cannot overflow, checked anyway.
+    let end = duration
+        .and_then(|s| Duration::try_from_secs_f64(s).ok())
+        .and_then(|d| Instant::now().checked_add(d));
     let mut client: Option<Client> = None;
     let mut out = std::io::stdout();
     // The newest log entries, read again when the newest position changes.

@@ -1,22 +1,27 @@
 //! `trend --csv [--plot]`: samples as CSV with hil-sim's column names and number formats
 //! (service.md 8), reconnecting every second when the PLC goes away (a gap is missing
-//! rows). `--plot` draws them with hil-sim's plotting code (the `trend-plot` crate) for
+//! rows; each step is said on stderr, and only the PLC with the first connection's UID
+//! continues the recording). The CSV replaces an existing file only at the end. `--plot` draws them with hil-sim's plotting code (the `trend-plot` crate) for
 //! the columns the PLC knows. Ctrl-C ends the recording like the end of `--duration`:
 //! the CSV is complete and the plot is drawn.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
 use shared_protocol::service::{Answer, Request, Sample, MAX_SUBSCRIBED_Q};
 
+use trend_plot::atomic::AtomicFile;
 use trend_plot::{Column, Marks};
 
 use crate::client::{unexpected, Client};
 use crate::fail::{Fail, Result};
 use crate::status::{hundredths, tenths};
 use crate::usage;
+
+fn hex(uid: &[u8]) -> String {
+    uid.iter().map(|b| format!("{b:02x}")).collect()
+}
 
 /// `--q Q04,Q05` as register numbers (default Q00-Q07).
 pub fn parse_q(q: &[String]) -> Result<Vec<u8>> {
@@ -187,12 +192,23 @@ pub fn trend(connect: impl Fn() -> Result<Client>, args: &TrendArgs<'_>) -> Resu
     }
     let interrupted = crate::interrupt::on_ctrl_c()?;
     let mut plot_rows: Vec<PlotRow> = Vec::new();
-    let file =
-        File::create(csv).map_err(|e| usage(format!("cannot create {}: {e}", csv.display())))?;
-    let mut w = BufWriter::new(file);
+    // The CSV is written under a temporary name and renamed at the end: a port that does
+    // not open or a PLC that refuses leaves the user's file as it was.
+    let mut w = AtomicFile::create(csv).map_err(usage)?;
     writeln!(w, "{}", header(&q))?;
-    let end = duration.map(|s| Instant::now() + Duration::from_secs_f64(s.max(0.0)));
+    let end = match duration {
+        Some(s) => Some(
+            Instant::now()
+                .checked_add(
+                    Duration::try_from_secs_f64(s)
+                        .map_err(|e| usage(format!("--duration: {e}")))?,
+                )
+                .ok_or_else(|| usage("--duration: too long"))?,
+        ),
+        None => None,
+    };
     let mut client = Some(connect()?);
+    let uid = client.as_ref().map(|c| c.identity.uid);
     if let Some(c) = client.as_mut() {
         subscribe(c, period_ms, &q)?;
     }
@@ -201,9 +217,33 @@ pub fn trend(connect: impl Fn() -> Result<Client>, args: &TrendArgs<'_>) -> Resu
         let Some(c) = client.as_mut() else {
             std::thread::sleep(Duration::from_secs(1));
             client = match connect() {
-                Ok(mut c) => subscribe(&mut c, period_ms, &q).ok().map(|_| c),
+                // Only the PLC this recording began with continues it.
+                Ok(c) if Some(c.identity.uid) != uid => {
+                    eprintln!(
+                        "trend: another PLC (UID {}) answers on {port}: not recorded, waiting for UID {}",
+                        hex(&c.identity.uid),
+                        uid.map_or_else(String::new, |u| hex(&u))
+                    );
+                    None
+                }
+                Ok(mut c) => match subscribe(&mut c, period_ms, &q) {
+                    Ok(()) => {
+                        eprintln!(
+                            "trend: reconnected (power-up #{}), recording again",
+                            c.identity.power_ups
+                        );
+                        Some(c)
+                    }
+                    Err(e) => {
+                        eprintln!("trend: {e}; trying again every second");
+                        None
+                    }
+                },
                 Err(v @ Fail::Version { .. }) => return Err(v),
-                Err(_) => None,
+                Err(e) => {
+                    eprintln!("trend: {e}; trying again every second");
+                    None
+                }
             };
             continue;
         };
@@ -218,7 +258,10 @@ pub fn trend(connect: impl Fn() -> Result<Client>, args: &TrendArgs<'_>) -> Resu
                 }
                 w.flush()?;
             }
-            Err(_) => client = None,
+            Err(e) => {
+                eprintln!("trend: the PLC stopped answering ({e}); reconnecting every second (the gap is missing rows)");
+                client = None;
+            }
         }
     }
     if let Some(c) = client.as_mut() {
@@ -227,7 +270,7 @@ pub fn trend(connect: impl Fn() -> Result<Client>, args: &TrendArgs<'_>) -> Resu
             q: heapless::Vec::new(),
         });
     }
-    w.flush()?;
+    w.commit().map_err(usage)?;
     eprintln!("{rows} samples written to {}", csv.display());
     if let Some(p) = plot {
         trend_plot::plot(

@@ -63,10 +63,18 @@ struct Sim {
 }
 
 impl Sim {
+    /// Without `--service-linger` in `args`, no linger (the run follows the wall clock
+    /// to the end of the linger, with or without a client).
     fn start(args: &[&str]) -> Sim {
+        let linger: &[&str] = if args.contains(&"--service-linger") {
+            &[]
+        } else {
+            &["--service-linger", "0"]
+        };
         let mut child = Command::new(hil_sim())
             .arg("run")
             .args(args)
+            .args(linger)
             .arg("--service-pty")
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -100,8 +108,7 @@ impl Sim {
         (sim, hold)
     }
 
-    /// Holds the pty open (virtual time follows the wall clock, the run lingers after
-    /// its duration while this is open).
+    /// Holds the pty open (a client for the whole of a step of a test).
     fn hold(&self) -> std::fs::File {
         std::fs::OpenOptions::new()
             .read(true)
@@ -399,7 +406,7 @@ fn trend_csv_has_hil_sims_names_and_agrees_with_its_record() {
 fn ctrl_c_ends_a_trend_with_the_csv_complete_and_the_plot_drawn() {
     let csv = temp("ctrlc.csv");
     let png = temp("ctrlc.png");
-    let sim = Sim::start(&[motor().to_str().unwrap(), "--duration", "20"]);
+    let sim = Sim::start(&[motor().to_str().unwrap(), "--duration", "6"]);
     let trend = Command::new(PLCCTL)
         .args(["--port", &sim.path, "trend", "--csv"])
         .arg(&csv)
@@ -408,10 +415,12 @@ fn ctrl_c_ends_a_trend_with_the_csv_complete_and_the_plot_drawn() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    // Until a second of samples is in the file.
+    // Until a second of samples is recorded (the CSV is written under a temporary
+    // name next to it until the end).
     let t0 = std::time::Instant::now();
-    while std::fs::read_to_string(&csv).map_or(0, |t| t.lines().count()) < 100 {
-        assert!(t0.elapsed().as_secs() < 20, "no samples");
+    let partial = csv.with_file_name(format!(".ctrlc.csv.{}.partial", trend.id()));
+    while std::fs::read_to_string(&partial).map_or(0, |t| t.lines().count()) < 100 {
+        assert!(t0.elapsed().as_secs() < 60, "no samples (hang guard)");
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
     let kill = Command::new("kill")
@@ -501,6 +510,8 @@ fn push_writes_reads_back_and_pull_round_trips() {
     let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2", "--yes"]);
     assert_eq!(code(&o), 5, "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("remote service is off"));
+    // Said before any diff: nothing on stdout.
+    assert_eq!(text(&o), "");
     drop(hold);
     sim.finish();
 
@@ -511,6 +522,7 @@ fn push_writes_reads_back_and_pull_round_trips() {
     let o = sim.plcctl(&["push", lift.to_str().unwrap(), "--slot", "2", "--yes"]);
     assert_eq!(code(&o), 5, "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stderr).contains("RUN"));
+    assert_eq!(text(&o), "", "the diff before the refusal");
     assert_eq!(code(&sim.plcctl(&["stop"])), 0);
 
     // An assembler error: file:line:col: message, exit 1.
@@ -618,9 +630,8 @@ fn counters_after_lift_l3_equal_the_arrivals_in_the_csv() {
         "--service-linger",
         "30",
     ]);
-    // Full speed while nobody holds the pty; real time while held. Look now and then,
-    // and stay once the run is near its end (50 s), so that a client is there at the
-    // end and the run lingers.
+    // Real time, held or not. Look now and then, and stay once the run is near its end
+    // (50 s).
     let hold = loop {
         let hold = sim.hold();
         let o = sim.plcctl(&["status", "--json"]);
@@ -680,3 +691,130 @@ fn counters_after_lift_l3_equal_the_arrivals_in_the_csv() {
 
 /// `plcctl serve` (service.md part B), on the helpers above.
 mod serve;
+
+/// README "Connect a PC": its commands one after another, each a new client of one
+/// `hil-sim run --service-pty`, none holding the pty in between (issue 31: after one
+/// short client the run raced to its end and the second command found no device). The
+/// run's duration ends during the sequence: the linger takes the later clients.
+#[test]
+fn the_readmes_commands_run_one_after_another_against_one_simulator() {
+    let toml = "duration_s = 3.0\n[[event]]\nat_s = 0.05\nkeys = \"*7\"\n";
+    // Whole seconds: the fault log's times have no fraction.
+    let started = chrono::Local::now().naive_local() - chrono::Duration::seconds(1);
+    let sim = Sim::with_scenario("readme.toml", toml, "120");
+    let (csv, png, pulled) = (temp("readme.csv"), temp("readme.png"), temp("readme1.plc"));
+    let motor = motor();
+    let steps: Vec<Vec<&str>> = vec![
+        vec!["status"],
+        vec!["watch", "--duration", "0.3"],
+        vec![
+            "trend",
+            "--csv",
+            csv.to_str().unwrap(),
+            "--plot",
+            png.to_str().unwrap(),
+            "--duration",
+            "0.5",
+            "--q",
+            "Q04,Q05",
+        ],
+        vec!["faults", "--json"],
+        vec!["counters", "--json"],
+        vec!["pull", "1", "-o", pulled.to_str().unwrap()],
+        vec!["stop"],
+        vec!["clear-faults"],
+        vec!["push", motor.to_str().unwrap(), "--slot", "1", "--yes"],
+        vec!["run", "--slot", "1"],
+        vec!["ack"],
+        vec!["status", "--json"],
+    ];
+    // Remote service comes on at 0.05 s of virtual time; the guarded steps come later.
+    sim.wait_status("remote service on", |s| s["status"]["remote"] == true);
+    for args in &steps {
+        let o = sim.plcctl(args);
+        assert_eq!(
+            code(&o),
+            0,
+            "plcctl {args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    assert!(std::fs::read_to_string(&csv).unwrap().starts_with("t_s,"));
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
+    assert!(std::fs::read_to_string(&pulled).unwrap().contains("000 "));
+    // The log's wall-clock times (LOGCLR, PGMSVC of this sequence) fall within the run,
+    // never before the simulation started (issue 31: virtual time raced ahead of the
+    // wall clock between clients).
+    let o = sim.plcctl(&["faults", "--json"]);
+    let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
+    let names: Vec<&str> = rows.iter().map(|r| r["name"].as_str().unwrap()).collect();
+    assert_eq!(names, ["PGMSVC", "LOGCLR"], "{rows:?}");
+    let now = chrono::Local::now().naive_local() + chrono::Duration::seconds(1);
+    for r in &rows {
+        let t =
+            chrono::NaiveDateTime::parse_from_str(r["time"].as_str().unwrap(), "%Y-%m-%d %H:%M:%S")
+                .unwrap();
+        assert!(t >= started && t <= now, "{t} outside {started} .. {now}");
+    }
+    let mut child = sim.child;
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
+/// Bad numbers are usage errors (exit 1) before any port is opened, NaN and infinity
+/// included; nothing panics.
+#[test]
+fn bad_numbers_are_refused_with_exit_1() {
+    let cases: &[&[&str]] = &[
+        &["--baud", "0", "status"],
+        &["watch", "--duration", "nan"],
+        &["trend", "--csv", "x.csv", "--duration", "nan"],
+        &["trend", "--csv", "x.csv", "--duration", "inf"],
+        &["trend", "--csv", "x.csv", "--duration", "1e20"],
+        &["pull", "9"],
+        &["push", "x.plc", "--slot", "0"],
+        &["push", "x.plc", "--slot", "5"],
+        &["run", "--slot", "7"],
+    ];
+    for args in cases {
+        let o = Command::new(PLCCTL)
+            .args(["--port", "/nonexistent/tty"])
+            .args(*args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(code(&o), 1, "{args:?}: {err}");
+        assert!(err.contains("invalid value"), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+/// `trend --csv keep.csv` on a port that does not open leaves `keep.csv` as it was
+/// (issue 31: it was replaced by a header line), and no temporary file.
+#[test]
+fn a_failed_trend_or_pull_keeps_the_users_file() {
+    let dir = temp("keep");
+    std::fs::create_dir_all(&dir).unwrap();
+    let keep = dir.join("keep.csv");
+    let plc = dir.join("keep.plc");
+    std::fs::write(&keep, "mine\n").unwrap();
+    std::fs::write(&plc, "mine\n").unwrap();
+    for args in [
+        vec!["trend", "--csv", keep.to_str().unwrap(), "--duration", "1"],
+        vec!["pull", "1", "-o", plc.to_str().unwrap()],
+    ] {
+        let o = Command::new(PLCCTL)
+            .args(["--port", "/nonexistent/tty"])
+            .args(&args)
+            .output()
+            .unwrap();
+        assert_eq!(code(&o), 2, "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    assert_eq!(std::fs::read_to_string(&keep).unwrap(), "mine\n");
+    assert_eq!(std::fs::read_to_string(&plc).unwrap(), "mine\n");
+    let names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+}

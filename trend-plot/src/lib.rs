@@ -14,6 +14,11 @@
 //!
 //! Text is drawn with a font shipped in the crate (DejaVu Sans Mono, `assets/`), through
 //! plotters' `ab_glyph` backend: no fontconfig or FreeType needed on the machine.
+//!
+//! [`atomic`]: the same rule for the other output files of both tools (CSV, images):
+//! a file the user had is replaced only when the new one is complete.
+
+pub mod atomic;
 
 use std::path::Path;
 use std::sync::Once;
@@ -445,9 +450,13 @@ impl Panel<'_> {
             .y_label_area_size(60)
             .build_cartesian_2d(t_start..t_end, lo..hi)
             .map_err(|e| err(&e))?;
+        let x_fmt = |v: &f64| axis_label(*v, t_end - t_start);
+        let y_fmt = |v: &f64| axis_label(*v, hi - lo);
         chart
             .configure_mesh()
             .x_desc("t [s]")
+            .x_label_formatter(&x_fmt)
+            .y_label_formatter(&y_fmt)
             .label_style(("sans-serif", 12))
             .draw()
             .map_err(|e| err(&e))?;
@@ -516,8 +525,43 @@ impl Panel<'_> {
     }
 }
 
+/// An axis label: as many decimals as a tenth of the axis's `span` needs (the mesh has
+/// about ten labels), never `-0.0`, never more than 6 decimals.
+pub fn axis_label(v: f64, span: f64) -> String {
+    if !v.is_finite() {
+        return String::new();
+    }
+    let step = if span.is_finite() && span > 0.0 {
+        span / 10.0
+    } else {
+        1.0
+    };
+    let decimals = (-step.log10().floor()).clamp(0.0, 6.0) as usize;
+    let text = format!("{v:.decimals$}");
+    // A value that rounds to zero is zero, whatever its sign.
+    match text.strip_prefix('-') {
+        Some(rest) if rest.chars().all(|c| c == '0' || c == '.') => rest.to_string(),
+        _ => text,
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn axis_labels_have_no_negative_zero_and_decimals_by_the_span() {
+        use super::axis_label;
+        assert_eq!(axis_label(-0.0, 10.0), "0");
+        assert_eq!(axis_label(-0.004, 1.0), "0.0");
+        assert_eq!(axis_label(-1e-12, 0.5), "0.00");
+        assert_eq!(axis_label(24.94, 10.0), "25");
+        assert_eq!(axis_label(24.94, 1.0), "24.9");
+        assert_eq!(axis_label(24.94, 0.2), "24.94");
+        assert_eq!(axis_label(-3.5, 100.0), "-4");
+        assert_eq!(axis_label(1500.0, 3000.0), "1500");
+        assert!(!axis_label(0.123_456_789, 1e-12).contains(' '));
+        assert_eq!(axis_label(f64::NAN, 1.0), "");
+    }
+
     use super::*;
 
     /// A row with the given columns (all other columns absent).

@@ -89,6 +89,30 @@ pub fn existing(fw: Firmware) -> Result<PathBuf> {
     Ok(p)
 }
 
+/// The step a machine without the firmware target must take (README "The two commands").
+pub const TARGET_STEP: &str = "rustup target add thumbv7em-none-eabihf";
+
+/// Whether the toolchain that builds the images has [`TARGET`]'s standard library: a
+/// fresh machine that skipped the step gets one line naming it, instead of a page of
+/// "can't find crate for `core`" per image.
+fn target_installed() -> Result<()> {
+    let rustc = std::env::var_os("RUSTC").unwrap_or_else(|| "rustc".into());
+    let out = Command::new(&rustc)
+        .current_dir(workspace_root())
+        .args(["--print", "sysroot"])
+        .output()
+        .with_context(|| "cannot run `rustc --print sysroot`".to_string())?;
+    let sysroot = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+    if !sysroot.join("lib/rustlib").join(TARGET).is_dir() {
+        bail!(
+            "the firmware target {TARGET} is not installed in {}: run `{TARGET_STEP}` (or \
+             `rustup toolchain install` in the workspace, which reads rust-toolchain.toml)",
+            sysroot.display()
+        );
+    }
+    Ok(())
+}
+
 /// Builds both release images (a no-op when they are up to date) and returns their paths
 /// (drive, PLC). Used by the emulator tests so that `cargo test` alone exercises what is
 /// flashed. Serialised within the process.
@@ -97,6 +121,7 @@ pub fn build_both() -> Result<(PathBuf, PathBuf)> {
     let _guard = LOCK
         .lock()
         .map_err(|_| anyhow::anyhow!("image build lock poisoned"))?;
+    target_installed()?;
     for fw in [Firmware::Drive, Firmware::Plc] {
         let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
         let status = Command::new(cargo)

@@ -418,9 +418,11 @@ impl SimBackend {
             drive_state: d.state.name().to_string(),
             fault: d.fault.map_or(0, |f| f.code()),
             reverse: d.reverse,
-            digital_in: self.pins.digital,
+            // The pins as the PLC reads them: the keys' toggles and, with the lift, the
+            // plant's vanes, door switch, safety chain and load sensor.
+            digital_in: self.sim.pins().digital,
             digital_out: self.sim.plc().outputs(),
-            analog: self.pins.analog,
+            analog: self.sim.pins().analog,
             lift: self.sim.lift().map(|l| l.sample()),
             ..RigStatus::default()
         };

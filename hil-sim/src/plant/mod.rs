@@ -161,6 +161,11 @@ pub struct UdcSenseSpike {
     pub to_ns: u64,
 }
 
+/// Where the model is taken to have diverged: phase current 10 kA, speed 10^5 rad/s
+/// (~955 000 rpm), DC link 100 kV: each 100x or more beyond the scenario ranges
+/// (`scenario::physics`), so a valid run never comes near.
+pub const DIVERGED: (f64, f64, f64) = (1e4, 1e5, 1e5);
+
 /// The rig's state and the command it is under.
 #[derive(Debug, Clone)]
 pub struct Plant {
@@ -395,6 +400,20 @@ impl Plant {
             duty_abc: self.period_avg.0,
             u_ab_v: self.period_avg.1,
         }
+    }
+
+    /// Whether the model has left physics: a state that is not a finite number, or a
+    /// phase current, speed or DC-link voltage beyond [`DIVERGED`] (far beyond anything
+    /// a rig of this class can reach, so only a diverging integration gets there).
+    pub fn diverged(&self) -> bool {
+        let o = self.outputs();
+        let (i_a, w_rad_s, u_v) = DIVERGED;
+        // NaN is beyond every limit.
+        let beyond = |v: f64, limit: f64| v.is_nan() || v.abs() >= limit;
+        self.x.iter().any(|v| !v.is_finite())
+            || o.i_abc_a.iter().any(|&i| beyond(i, i_a))
+            || beyond(o.speed_rad_s, w_rad_s)
+            || beyond(o.u_dc_v, u_v)
     }
 
     /// What the drive's ADC converts now.

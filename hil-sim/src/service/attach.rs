@@ -1,6 +1,9 @@
 //! The service line attached to a run (service.md 9): stepped after each PLC tick, its
-//! host end on a pty or (tests, the flood) on nothing; virtual time follows the wall
-//! clock while a client has the pty open, and runs at full speed otherwise.
+//! host end on a pty or (tests, the flood) on nothing. On a pty (`run --service-pty`),
+//! virtual time follows the wall clock from the first client's arrival to the end of the
+//! linger, whether a client has the pty open or not: a user runs several `plcctl`
+//! commands in a row, and each finds the PLC where the clock says it is. Clients come
+//! and go; the pty takes one after another.
 
 use std::time::{Duration, Instant};
 
@@ -16,10 +19,9 @@ use crate::sim::{Sample, Simulation};
 pub struct PtyOptions {
     /// Wait at t = 0 until a client opens the pty.
     pub wait_for_client: bool,
-    /// After the duration, keep serving (inputs held) this long while the client stays.
+    /// After the duration, keep serving (inputs held) this long, clients coming and going.
     pub linger: Duration,
-    /// Follow the wall clock while a client is connected (`run`; the panel runs in real
-    /// time by itself).
+    /// Follow the wall clock (`run`; the panel runs in real time by itself).
     pub pace: bool,
 }
 
@@ -27,8 +29,7 @@ pub struct PtyOptions {
 pub struct Attached {
     line: ServiceLine,
     pty: Option<(Pty, PtyOptions)>,
-    /// (wall clock, virtual ns) when the client was last seen arriving: the pacing's
-    /// reference.
+    /// (wall clock, virtual ns) at the first paced step: the pacing's reference.
     paced_since: Option<(Instant, u64)>,
     /// The simulation after the run's duration, for [`Attached::linger`]. Boxed: a
     /// `Simulation` is ~90 KiB, and the panel's backend holds an `Attached` inline.
@@ -87,26 +88,21 @@ impl Attached {
     /// One service step at the simulation's time, with the pty's bytes and pacing.
     fn step(&mut self, sim: &mut Simulation) {
         let now_ns = sim.now_ns();
-        let client = match &mut self.pty {
-            Some((pty, _)) => {
-                let c = pty.client();
-                let bytes = pty.read_available();
-                self.line.host_write(&bytes);
-                c
-            }
-            None => false,
-        };
+        if let Some((pty, _)) = &mut self.pty {
+            let bytes = pty.read_available();
+            self.line.host_write(&bytes);
+        }
         let out = self.line.step(sim.plc_mut(), Micros(now_ns / 1000));
         if let Some((pty, _)) = &mut self.pty {
             pty.write(&out);
         }
-        self.pace(client, now_ns);
+        self.pace(now_ns);
     }
 
-    /// While a client is connected, virtual time follows the wall clock.
-    fn pace(&mut self, client: bool, now_ns: u64) {
-        if !client || !self.pty.as_ref().is_some_and(|(_, o)| o.pace) {
-            self.paced_since = None;
+    /// Virtual time follows the wall clock, with or without a client (a run that raced
+    /// ahead while nobody was attached left the next command without a device).
+    fn pace(&mut self, now_ns: u64) {
+        if !self.pty.as_ref().is_some_and(|(_, o)| o.pace) {
             return;
         }
         let (wall0, virt0) = *self
@@ -124,28 +120,25 @@ impl Attached {
         self.parked = Some(Box::new(sim));
     }
 
-    /// After the duration: keep serving, inputs held, until the client closes or the
-    /// linger time passes (nothing is recorded).
+    /// After the duration: keep serving, inputs held, until the linger time passes,
+    /// clients coming and going (nothing is recorded).
     pub fn linger(&mut self) -> Result<()> {
         let Some(mut sim) = self.parked.take() else {
             return Ok(());
         };
         let sim: &mut Simulation = &mut sim;
-        let Some((pty, opts)) = &self.pty else {
+        let Some((_, opts)) = &self.pty else {
             return Ok(());
         };
-        let until = Instant::now() + opts.linger;
-        if !pty.client() {
-            return Ok(());
-        }
+        // `--service-linger` is bounded (crate::args): the sum cannot overflow.
+        let Some(until) = Instant::now().checked_add(opts.linger) else {
+            anyhow::bail!("--service-linger too long");
+        };
         sim.hold_inputs();
-        loop {
+        while Instant::now() < until {
             let end = sim.now_ns() + 10 * STEP_NS;
             self.run_until(sim, end, &mut |_| {});
-            let gone = self.pty.as_ref().is_none_or(|(p, _)| !p.client());
-            if gone || Instant::now() >= until {
-                return Ok(());
-            }
         }
+        Ok(())
     }
 }

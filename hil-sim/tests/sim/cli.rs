@@ -319,3 +319,86 @@ fn an_image_the_plc_would_refuse_is_reported_by_every_command() {
     let out = bin().arg("disasm").arg(&img).output().unwrap();
     assert!(String::from_utf8_lossy(&out.stdout).contains("000 NOT"));
 }
+
+/// Issue 31: NaN, infinity and huge numbers are refused with a message naming the option
+/// (exit 1), never a panic (`--service-linger 1e20` panicked converting to a Duration).
+#[test]
+fn bad_numbers_on_the_command_line_are_refused_without_a_panic() {
+    let motor = repo("shared-protocol/programs/motor.plc");
+    for args in [
+        &["--service-pty", "--service-linger", "1e20"][..],
+        &["--service-pty", "--service-linger", "nan"],
+        &["--duration", "nan"],
+        &["--duration", "inf"],
+        &["--duration", "1e20"],
+        &["--zoom-at", "nan"],
+        &["--sample-ms", "1e9"],
+        &["--sample-ms", "nan"],
+    ] {
+        let out = bin().arg("run").arg(&motor).args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("invalid value") && err.contains(args[args.len() - 2]),
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
+
+/// Issue 31 item 4: plant values outside physics are refused, naming the key and its
+/// range, before anything runs; a failed run leaves the user's CSV as it was.
+#[test]
+fn scenario_values_outside_physics_are_refused_and_the_csv_is_kept() {
+    let csv = tmp("keep.csv");
+    std::fs::write(&csv, "mine\n").unwrap();
+    for (toml, key) in [
+        ("[plant]\nfriction_nms = 100.0\n", "plant.friction_nms"),
+        ("[plant]\ndc_link_v = 1e8\n", "plant.dc_link_v"),
+        ("[lift]\nlimit_high_mm = inf\n", "lift.limit_high_mm"),
+        ("[lift]\nunbalance_kg = 1e30\n", "lift.unbalance_kg"),
+    ] {
+        let scen = tmp("physics.toml");
+        std::fs::write(&scen, toml).unwrap();
+        let out = bin()
+            .arg("run")
+            .arg(repo("shared-protocol/programs/motor.plc"))
+            .arg("--scenario")
+            .arg(&scen)
+            .arg("--csv")
+            .arg(&csv)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{toml}: {err}");
+        assert!(err.contains(key) && err.contains("physical range"), "{err}");
+        assert_eq!(std::fs::read_to_string(&csv).unwrap(), "mine\n");
+    }
+}
+
+/// Issue 31 item 4: a plant that diverges stops the simulation at the first 1 ms check
+/// (`model unstable`), before the drive's tick could latch a trip from it.
+#[test]
+fn a_diverging_plant_is_caught_before_any_trip() {
+    use hil_sim::scenario::Scenario;
+    use hil_sim::sim::{RunOptions, Simulation};
+    let program = hil_sim::run::load_program(&repo("shared-protocol/programs/motor.plc")).unwrap();
+    let scen =
+        Scenario::parse(&std::fs::read_to_string(repo("hil-sim/scenarios/motor.toml")).unwrap())
+            .unwrap();
+    let mut sim = Simulation::new(&program, scen, RunOptions::default()).unwrap();
+    sim.run_until(500_000_000, |_| {});
+    assert_eq!(sim.unstable_at_ns(), None, "a valid run stays in physics");
+    // What the scenario's ranges now refuse: the explicit integrator cannot follow it.
+    sim.plant_mut().params_mut().motor.friction_nms = 100.0;
+    sim.plant_mut().params_mut().supply_v = 1e8;
+    let faults_before = sim.faults().len();
+    sim.run_until(2_000_000_000, |_| {});
+    let at = sim.unstable_at_ns().expect("model unstable");
+    assert!(at > 500_000_000 && at <= 2_000_000_000, "{at}");
+    assert_eq!(
+        sim.faults().len(),
+        faults_before,
+        "the divergence was reported as a trip"
+    );
+}
