@@ -209,6 +209,16 @@ pub trait Board: PinReader {
     fn comparator_above(&mut self, config: &CompConfig, level: f64, at: Cycles) -> bool {
         self.pin_volts(config.inp, at) > level
     }
+
+    /// The first cycle after `after` at which the board's analog inputs change by a step
+    /// (a disturbance that starts or ends), `None` when none is known. The SoC samples the
+    /// comparators there, as it does at TIM1's events: the silicon's comparator follows its
+    /// input continuously, so a step between two TIM1 events reaches its output tD after
+    /// the step, not at the next event (a spike that ended inside a blanking window does
+    /// not show when the window closes).
+    fn next_input_change(&self, _after: Cycles) -> Option<Cycles> {
+        None
+    }
 }
 
 /// VREFINT (DS12589 typical), for the comparators' scaled references and the ADC.
@@ -318,6 +328,8 @@ pub struct Soc {
     flash_slot: usize,
     /// SysTick has been brought up to this cycle.
     systick_checked: Cycles,
+    /// The board's input steps (`Board::next_input_change`) are sampled up to this cycle.
+    inputs_checked: Cycles,
     /// Start address of the block the CPU is executing (set by the CPU's block hook).
     pub block: u32,
     /// Where the wired models are.
@@ -442,6 +454,7 @@ impl Soc {
             cycles: crate::cycles::CycleModel::new(FLASH_BYTES),
             flash_slot: 0,
             systick_checked: 0,
+            inputs_checked: 0,
             block: 0,
             wired: Slots::default(),
             i2c_pins: [None; 3],
@@ -835,7 +848,12 @@ impl Soc {
 
     /// The earliest event of any model.
     pub fn next_event(&self) -> Option<Cycles> {
-        let models = self.slots.iter().filter_map(|s| s.next).min();
+        let slots = self.slots.iter().filter_map(|s| s.next).min();
+        let input = self.board.next_input_change(self.inputs_checked);
+        let models = match (slots, input) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
         let systick = self.scs.next_event(self.now);
         match (models, systick) {
             (Some(a), Some(b)) => Some(a.min(b)),
@@ -852,6 +870,15 @@ impl Soc {
                 .enumerate()
                 .filter_map(|(k, s)| s.next.filter(|t| *t <= now).map(|t| (t, k)))
                 .min();
+            let input = self
+                .board
+                .next_input_change(self.inputs_checked)
+                .filter(|t| *t <= now);
+            if let Some(t) = input.filter(|t| due.is_none_or(|(d, _)| *t < d)) {
+                self.inputs_checked = t;
+                self.sample_comparators(t);
+                continue;
+            }
             let Some((t, k)) = due else {
                 break;
             };
@@ -859,6 +886,7 @@ impl Soc {
             self.refresh(k);
             self.after_event(k, t);
         }
+        self.inputs_checked = self.inputs_checked.max(now);
         let last = self.systick_checked;
         self.scs.advance(now, last.min(now));
         self.systick_checked = now.max(last);
@@ -957,10 +985,10 @@ impl Soc {
                     self.refresh(a);
                 }
                 TimEvent::Blanking { at, active } => {
-                    // The comparators are sampled only at TIM1's events: take their inputs
-                    // at the window's edge first, so that a raw level left over from a
-                    // spike inside the window (gone on the silicon, whose comparator
-                    // follows its input continuously) does not show when it closes.
+                    // The comparators are sampled at TIM1's events and at the board's
+                    // input steps (`Board::next_input_change`): take their inputs at the
+                    // window's edge first, so that the window opens or closes on the
+                    // input of that moment.
                     self.sample_comparators(at);
                     let c = self.wired.comp;
                     for n in 1..=4 {
@@ -2078,6 +2106,70 @@ mod tests {
         let w = convert(&bank, 0.12, 0.1);
         let vio = AnalogErrors::worst(-1.0).opamp_offset_v;
         assert!((w - (16.0 * (0.12 + vio) - 1.5)).abs() < 1e-12, "{w}");
+    }
+
+    /// 1 V on PA1 (COMP1's INP) from `from` to `to` (cycles), 0 V otherwise.
+    struct Pulse {
+        from: Cycles,
+        to: Cycles,
+    }
+
+    impl PinReader for Pulse {
+        fn external(
+            &mut self,
+            _: u8,
+            _: u8,
+            _: Cycles,
+            _: &dyn Fn(u8, u8) -> Drive,
+        ) -> crate::periph::gpio::External {
+            crate::periph::gpio::External::Floating
+        }
+    }
+
+    impl Board for Pulse {
+        fn pin_volts(&mut self, pin: &str, at: Cycles) -> f64 {
+            if pin == "PA1" && (self.from..self.to).contains(&at) {
+                1.0
+            } else {
+                0.0
+            }
+        }
+
+        fn next_input_change(&self, after: Cycles) -> Option<Cycles> {
+            [self.from, self.to]
+                .into_iter()
+                .filter(|&t| t > after)
+                .min()
+        }
+    }
+
+    /// With no TIM1 running (no TIM1 event to sample at), a pulse the board announces
+    /// reaches COMP1's output when it starts and leaves it when it ends, as on the silicon
+    /// whose comparator follows its input continuously.
+    #[test]
+    fn a_board_input_step_reaches_the_comparator_when_it_happens() {
+        const APB2ENR: u32 = 0x4002_1060;
+        const COMP1_CSR: u32 = 0x4001_0200;
+        let mut s = Soc::new(
+            vec![0xFF; 16],
+            Box::new(Pulse {
+                from: 10_000,
+                to: 20_000,
+            }),
+        );
+        // SYSCFGEN; COMP1: EN, INP PA1, INM 1/2 VREFINT (INMSEL 001, BRGEN, SCALEN).
+        s.bus_write(APB2ENR, 4, 1);
+        s.bus_write(COMP1_CSR, 4, 1 | (1 << 4) | (1 << 22) | (1 << 23));
+        let out = |s: &Soc| s.comps().is_some_and(|b| b.output(1));
+        s.advance_to(9_000);
+        assert!(!out(&s), "0 V is below 0.6 V");
+        s.advance_to(15_000);
+        assert!(
+            out(&s),
+            "the pulse reached COMP1 within its propagation delay"
+        );
+        s.advance_to(30_000);
+        assert!(!out(&s), "and its end did too");
     }
 
     #[test]

@@ -29,7 +29,7 @@ use g431_emu::periph::comp::CompConfig;
 use g431_emu::periph::gpio::{Drive, External, PinReader, Pull};
 use g431_emu::periph::tim_adv::{GateState, PinDrive, TimEvent};
 use g431_emu::soc::Board;
-use g431_emu::time::{cycles_to_ns, Cycles};
+use g431_emu::time::{cycles_to_ns, ns_to_cycles, Cycles};
 
 use crate::plant::{Comparators, GateCommand, Leg, Plant};
 
@@ -145,6 +145,17 @@ impl Rig {
             }
         }
         i
+    }
+
+    /// The first cycle after `after` at which a sense spike starts or ends (the sensed
+    /// current steps there; the plant's own current is continuous between TIM1's events).
+    pub fn next_sense_step(&self, after: Cycles) -> Option<Cycles> {
+        self.sense_spikes
+            .iter()
+            .flat_map(|s| [s.from_ns, s.to_ns.saturating_add(1)])
+            .map(ns_to_cycles)
+            .filter(|&c| c > after)
+            .min()
     }
 
     /// What the board senses at `ns`.
@@ -375,6 +386,11 @@ impl Board for DriveBoard {
 
     fn comparator_above(&mut self, cfg: &CompConfig, inm_volts: f64, at: Cycles) -> bool {
         self.pin_volts(cfg.inp, at) > inm_volts
+    }
+
+    fn next_input_change(&self, after: Cycles) -> Option<Cycles> {
+        // Not borrowed while the SoC runs; a test holding the rig sees no steps.
+        self.rig.try_borrow().ok()?.next_sense_step(after)
     }
 }
 
