@@ -1,11 +1,16 @@
-//! I2C bus clear at boot (review D6).
+//! I2C bus clear, at boot (review D6) and after a broken transaction (review N12).
 //!
 //! A reset (watchdog, debugger, NRST) in the middle of an EEPROM read can leave the 24C256
 //! shifting out a 0 bit: it holds SDA low until it sees more SCL clocks, and every master
-//! transaction after boot fails. The I2C peripheral has no bus clear, so before it takes
-//! the pins the board drives SCL as an open-drain GPIO and this sequence (the usual one,
-//! as in the I2C specification's "bus clear") frees the bus: up to 9 SCL pulses while SDA
-//! reads low, then a STOP (SDA low to high while SCL is high).
+//! transaction after boot fails. The I2C peripheral has no bus clear, so the board drives
+//! the pins as open-drain GPIOs and this sequence (the usual one, as in the I2C
+//! specification's "bus clear") frees the bus: up to 9 SCL pulses while SDA reads low,
+//! then a STOP (SDA low to high while SCL is high).
+//!
+//! At run time a transaction can break the same way, or leave the peripheral itself in
+//! the middle of a transfer (a device holding SCL low past the board's transaction
+//! timeout, a bus error). [`after_failure`] is the rule for what the board does then:
+//! reset the peripheral and run this bus clear, for anything but a NACK.
 
 /// The bus pins as open-drain GPIOs, and a half-period delay. `true` = released (pulled
 /// up), `false` = driven low.
@@ -67,6 +72,46 @@ pub fn recover(p: &mut impl BusPins) -> Recovery {
         Recovery::Idle
     } else {
         Recovery::Freed { pulses }
+    }
+}
+
+/// How a transaction on the bus failed, as the board's I2C driver reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Failure {
+    /// The addressed device did not acknowledge: the 24C256 during its write cycle (its
+    /// ready poll lives on these), an absent LCD backpack. The peripheral ended the
+    /// transfer with a STOP by itself (RM0440 "I2C master mode": NACKF, automatic STOP).
+    Nack,
+    /// Nothing was sent (an empty transfer).
+    NotSent,
+    /// Anything else: a timeout (a device held SCL low, the bus never went idle), a bus
+    /// error, a lost arbitration. The peripheral may be left in the middle of a transfer
+    /// (embassy-stm32 0.6 returns a timeout without a STOP, with BUSY set and CR2.STOP
+    /// pending) and a device in the middle of a byte.
+    Broken,
+}
+
+/// What the board does after a failed transaction (review N12).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AfterFailure {
+    /// Nothing: the bus is idle and the peripheral ready.
+    Nothing,
+    /// Reset the peripheral (RM0440 "I2C software reset": PE = 0, read back 0, which
+    /// covers the 3 APB cycles, then PE = 1) and clear the bus from the pins with
+    /// [`recover`] in between, so that the next transaction starts on an idle bus.
+    ResetAndClear,
+}
+
+/// The run-time rule: a broken transaction resets the peripheral and clears the bus; a
+/// NACK never does (the EEPROM's write-cycle polls are NACKs, a reset per poll would
+/// clear the bus every millisecond of a save). The transaction is not repeated: the
+/// caller gets its error (a storage job fails with `EepromError::Bus` and says so; the
+/// LCD is initialised again by its retry timer), and its next transaction finds the bus
+/// idle.
+pub fn after_failure(f: Failure) -> AfterFailure {
+    match f {
+        Failure::Broken => AfterFailure::ResetAndClear,
+        Failure::Nack | Failure::NotSent => AfterFailure::Nothing,
     }
 }
 
@@ -135,6 +180,15 @@ mod tests {
             self.scl && !self.stuck_scl
         }
         fn half_period(&mut self) {}
+    }
+
+    #[test]
+    fn only_a_broken_transaction_resets_the_peripheral_and_clears_the_bus() {
+        assert_eq!(after_failure(Failure::Broken), AfterFailure::ResetAndClear);
+        assert_eq!(after_failure(Failure::NotSent), AfterFailure::Nothing);
+        // A save polls the busy 24C256 about every millisecond of each 5 ms write cycle;
+        // each poll is a NACK and must leave the bus alone.
+        assert_eq!(after_failure(Failure::Nack), AfterFailure::Nothing);
     }
 
     #[test]

@@ -36,6 +36,12 @@ struct Counting {
     polls: u32,
     /// Write cycles that never end (the chip is gone after a write).
     stuck: bool,
+    /// The page write with this number (0 = the first) breaks on the bus (an I2C timeout,
+    /// review N12): the chip has latched the first half of its bytes, the board's bus
+    /// clear ends it with a STOP (which starts the write cycle) and the call returns
+    /// `Bus`.
+    break_write: Option<u32>,
+    writes: u32,
 }
 
 impl Counting {
@@ -46,6 +52,8 @@ impl Counting {
             largest: 0,
             polls: 0,
             stuck: false,
+            break_write: None,
+            writes: 0,
         }
     }
 }
@@ -59,6 +67,11 @@ impl Eeprom for Counting {
     fn start_write(&mut self, addr: u16, data: &[u8]) -> Result<(), EepromError> {
         self.transfers += 1;
         self.largest = self.largest.max(data.len());
+        self.writes += 1;
+        if self.break_write == Some(self.writes - 1) {
+            self.inner.start_write(addr, &data[..data.len() / 2])?;
+            return Err(EepromError::Bus);
+        }
         self.inner.start_write(addr, data)
     }
     fn ready(&mut self) -> Result<bool, EepromError> {
@@ -171,6 +184,64 @@ fn a_write_cycle_that_never_ends_fails_the_job_after_the_limit_and_the_next_job_
             result: Ok(2)
         }]
     );
+}
+
+/// Review N12, the storage side of the run-time I2C recovery: a page write that breaks on
+/// the bus is not repeated; the save reports `Eeprom(Bus)` (the LCD shows it, the user
+/// saves again), the torn page's write cycle is waited for before any other access, the
+/// slot still loads the program saved before, and the next save works.
+#[test]
+fn a_page_write_broken_on_the_bus_fails_the_save_and_the_next_save_works() {
+    let mut mem = MemEeprom::new();
+    mem.set_busy_polls(3);
+    let mut s = Storage::new(Counting::new(mem));
+    let old = program(300, 3);
+    let mut p = old.clone();
+    let mut t = 0;
+    s.queue(Job::Save { slot: 3 }).unwrap();
+    let (done, _) = drain(&mut s, &mut p, &mut t);
+    assert!(
+        matches!(done[..], [JobDone::Saved { result: Ok(1), .. }]),
+        "{done:?}"
+    );
+    let mut p = program(300, 9);
+    // A page in the middle of the first copy the second save writes.
+    let writes = s.eeprom().writes;
+    s.eeprom().break_write = Some(writes + 5);
+    s.queue(Job::Save { slot: 3 }).unwrap();
+    let (done, _) = drain(&mut s, &mut p, &mut t);
+    assert_eq!(
+        done,
+        vec![JobDone::Saved {
+            slot: 3,
+            result: Err(StorageError::Eeprom(EepromError::Bus))
+        }]
+    );
+    assert_eq!(
+        s.eeprom().writes,
+        writes + 6,
+        "the broken write was not repeated"
+    );
+    s.eeprom().break_write = None;
+    let mut q = Program::default();
+    s.queue(Job::Load { slot: 3 }).unwrap();
+    let (done, _) = drain(&mut s, &mut q, &mut t);
+    assert!(
+        matches!(done[..], [JobDone::Loaded { result: Ok(r), .. }] if r.generation == 1),
+        "{done:?}"
+    );
+    assert_eq!(q, old);
+    s.queue(Job::Save { slot: 3 }).unwrap();
+    let (done, _) = drain(&mut s, &mut p, &mut t);
+    assert!(
+        matches!(done[..], [JobDone::Saved { result: Ok(2), .. }]),
+        "{done:?}"
+    );
+    s.queue(Job::Load { slot: 3 }).unwrap();
+    let (done, _) = drain(&mut s, &mut q, &mut t);
+    assert!(matches!(done[..], [JobDone::Loaded { .. }]), "{done:?}");
+    assert_eq!(q, p);
+    assert_eq!(s.eeprom().inner.busy_violations(), 0);
 }
 
 #[test]

@@ -181,7 +181,6 @@ const SMALL_PROGRAM: &str = "150 LD  D00\n151 WR  B00\n";
 /// the bus and times out. After the timed-out save the bus must be usable again: the
 /// second save reaches the EEPROM and the LCD shows it.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N12, an I2C timeout leaves I2C3 busy (no STOP, no peripheral reset): the later save and the LCD stay dead (the run-time recovery of branch review-rest passed this test but broke service::plcctl_push_then_pull_round_trips_on_the_image and was taken out)"]
 fn an_i2c_timeout_in_a_save_leaves_the_bus_usable_for_the_next_save_and_the_lcd() {
     let mut sim = emu(SMALL_PROGRAM, SAVE_WITH_A_STRETCH);
     sim.run_until(ns(2.5), |_| {});
