@@ -41,7 +41,8 @@ use shared_protocol::units::Micros;
 
 use crate::config::{DriveConfig, ResetCause};
 use crate::drive::{
-    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, PwmCommand, EVENT_QUEUE,
+    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, LoadStep, PwmCommand,
+    EVENT_QUEUE,
 };
 use crate::measure::AdcSample;
 use crate::power_port::{BreakMonitor, BreakReport, ComparatorLevels, PeriodAction};
@@ -81,6 +82,15 @@ const APP_EVENTS: usize = 32;
 /// Most events one [`DriveCore::tick_1ms`] delivers.
 const TICK_EVENTS: usize = EVENT_QUEUE + 1;
 
+/// The load of an accepted section, one step per [`DriveApp::poll_tx`] (review N8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Load {
+    Idle,
+    /// Accepted by the link, not begun ([`DriveCore::load_begin`] next).
+    Accepted,
+    Step(LoadStep),
+}
+
 /// The drive application.
 pub struct DriveApp {
     core: DriveCore,
@@ -92,9 +102,8 @@ pub struct DriveApp {
     /// The core's [`DriveCore::timing_changes`] when `programmed` last matched its timing.
     programmed_changes: u32,
     breaks: BreakMonitor,
-    /// The link accepted a section that the core has not loaded yet (the next `poll_tx`
-    /// or `on_rx` does).
-    load_pending: bool,
+    /// Where the load of a section the link accepted stands (one step per `poll_tx`).
+    load: Load,
 }
 
 impl DriveApp {
@@ -111,7 +120,7 @@ impl DriveApp {
             unreported: heapless::Deque::new(),
             events: heapless::Deque::new(),
             breaks: BreakMonitor::default(),
-            load_pending: false,
+            load: Load::Idle,
         }
     }
 
@@ -176,9 +185,9 @@ impl DriveApp {
         let _ = self.events.push_back(e);
     }
 
-    /// Bytes from the UART: commands are applied to the core at once.
+    /// Bytes from the UART: commands are applied to the core at once (after a load in
+    /// progress: [`DriveApp::poll_tx`]).
     pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.load_if_pending();
         self.link.receive(bytes, now);
         self.apply_link_events();
     }
@@ -187,9 +196,9 @@ impl DriveApp {
     /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes.
     #[must_use = "the frame in `out` must be sent"]
     pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        if self.load_if_pending() {
-            // This pass is the load's; the link's frames and timers wait for the next one,
-            // which is due at once (`poll_timeout`).
+        if self.load_next() {
+            // This pass is a load step's; the link's frames and timers wait for the next
+            // one, which is due at once (`poll_timeout`).
             return 0;
         }
         let n = self.link.poll_transmit(now, out);
@@ -340,27 +349,45 @@ impl DriveApp {
     /// When `poll_tx` must run next: at once while a load is pending, else the link's
     /// deadline.
     pub fn poll_timeout(&self) -> Option<Micros> {
-        if self.load_pending {
+        if self.load != Load::Idle {
             Some(AT_ONCE)
         } else {
             self.link.poll_timeout()
         }
     }
 
-    /// Loads the section the link accepted, if one waits; whether it did (or found none).
-    fn load_if_pending(&mut self) -> bool {
-        if !core::mem::take(&mut self.load_pending) {
-            return false;
-        }
-        match self.link.take_program() {
-            Some(p) => self.core.load_verified(&p),
-            None => self.push(AppEvent::LoadFailed),
+    /// The next step of loading the section the link accepted, if one waits; whether it
+    /// ran one (or found no section). The last step applies the link's events that
+    /// waited for the load.
+    fn load_next(&mut self) -> bool {
+        self.load = match self.load {
+            Load::Idle => return false,
+            Load::Accepted => match self.link.take_program() {
+                Some(p) => Load::Step(self.core.load_begin(p)),
+                None => {
+                    self.push(AppEvent::LoadFailed);
+                    Load::Idle
+                }
+            },
+            Load::Step(step) => match self.core.load_step(step) {
+                Some(next) => Load::Step(next),
+                None => Load::Idle,
+            },
+        };
+        if self.load == Load::Idle {
+            self.apply_link_events();
         }
         true
     }
 
+    /// The link's events to the core, in order. While a section loads they wait in the
+    /// link's queue (32 events, ~3 passes of load): every command from the PLC finds the
+    /// new section loaded.
     fn apply_link_events(&mut self) {
-        while let Some(e) = self.link.poll_event() {
+        while self.load == Load::Idle {
+            let Some(e) = self.link.poll_event() else {
+                break;
+            };
             self.push(AppEvent::Link(e));
             match e {
                 LinkEvent::Connected | LinkEvent::VersionMismatch { .. } => {}
@@ -382,7 +409,7 @@ impl DriveApp {
                 LinkEvent::SafetyRequest { requested } => {
                     self.command(DriveCommand::SafetyRequest { requested })
                 }
-                LinkEvent::ProgramAccepted => self.load_pending = true,
+                LinkEvent::ProgramAccepted => self.load = Load::Accepted,
                 LinkEvent::ProgramRejected { .. } => self.core.trip(FaultCode::Prog),
             }
         }

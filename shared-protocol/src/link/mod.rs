@@ -5,6 +5,7 @@
 //! * [`plc_decode`]: the drive's decoder of the PLC's frames, written out (postcard's
 //!   format, checked against postcard's decoder).
 //! * [`wire`]: postcard's format written by a serializer that is small in flash.
+//! * [`rx_ring`]: the reader's side of a DMA-filled receive ring (the boards' receiver).
 //! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.
 //! * [`pump`]: the loop between a UART and an endpoint (boards and hil-sim), with deadlines.
 //! * [`session`]: what both endpoints share (frame reader, transmit window, sequencing,
@@ -29,6 +30,7 @@ pub mod plc;
 pub mod plc_decode;
 pub mod pump;
 pub mod reliable;
+pub mod rx_ring;
 pub mod session;
 pub mod wire;
 
