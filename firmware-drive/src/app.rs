@@ -5,7 +5,7 @@
 //! | --- | --- |
 //! | UART bytes received (DMA/idle-line interrupt) | [`DriveApp::on_rx`] |
 //! | UART transmitter free, and at least every 1 ms | [`DriveApp::poll_tx`] |
-//! | every 1 ms | [`DriveApp::tick_1ms`] |
+//! | every 1 ms | [`DriveApp::tick_1ms`] (or each of [`TickStep::ALL`] with [`DriveApp::tick_step`]) |
 //! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`], then [`PeriodAction::apply`] |
 //! | TIM1 break interrupt | [`DriveApp::break_fired`] |
 //! | TIM1 break interrupt, `STO_IN` / system break | [`DriveApp::sto_break`] / [`DriveApp::system_break`] |
@@ -24,11 +24,14 @@
 //!   after the reconnection the PLC must ACK and send RUN again.
 //! * A download is checked by the link (CRC, decode, `verify_drive`, one step per
 //!   `poll_tx` so that no call holds the PWM interrupt off for long: review D13) and then
-//!   handed, as a `VerifiedDriveSection`, to [`DriveCore::load_verified`] in a `poll_tx`
-//!   of its own (the pass after the one that sent the result: the load copies the section
-//!   and costs ~3 000 instructions, too much on top of a check step and a frame in one
-//!   critical section); `on_rx` loads a pending section first, so every command from the
-//!   PLC finds it loaded. A reject trips `PROG`.
+//!   handed, as a `VerifiedDriveSection`, to the core in three `poll_tx` calls of their
+//!   own ([`DriveCore::load_begin`], then [`DriveCore::load_step`] twice: the whole load is
+//!   ~6 900 instructions, more than a PWM period at 20 kHz in one critical section, review
+//!   N8). The link's events wait in its queue while the load runs, so every command from
+//!   the PLC finds the new section loaded. A reject trips `PROG`.
+//! * The 1 ms tick is four steps ([`TickStep`]), each one call on the board (one critical
+//!   section): link supervision, the drive section's pass, the rest of the core's
+//!   millisecond, the reports (review N8).
 //! * Every fault the core latches is reported to the PLC (reliably, with the drive's
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
@@ -89,6 +92,29 @@ enum Load {
     /// Accepted by the link, not begun ([`DriveCore::load_begin`] next).
     Accepted,
     Step(LoadStep),
+}
+
+/// The steps of the 1 ms tick, in their order ([`DriveApp::tick_step`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TickStep {
+    /// Link supervision (a lost link stops the core).
+    Link,
+    /// The core's first half: the drive section's pass ([`DriveCore::tick_1ms_program`]).
+    Program,
+    /// The core's second half: monitor, settings, modulator, events
+    /// ([`DriveCore::tick_1ms_control`]).
+    Control,
+    /// Fault reports and the status frame to the link.
+    Report,
+}
+
+impl TickStep {
+    pub const ALL: [TickStep; 4] = [
+        TickStep::Link,
+        TickStep::Program,
+        TickStep::Control,
+        TickStep::Report,
+    ];
 }
 
 /// The drive application.
@@ -214,15 +240,36 @@ impl DriveApp {
     }
 
     /// The 1 ms tick: link supervision, the core's state machine and drive section,
-    /// fault reports and the status frame.
+    /// fault reports and the status frame; [`TickStep::ALL`] in order.
     pub fn tick_1ms(&mut self, now: Micros) {
-        self.link.tick(now);
-        self.apply_link_events();
+        for step in TickStep::ALL {
+            self.tick_step(step, now);
+        }
+    }
+
+    /// One step of the 1 ms tick ([`DriveApp::tick_1ms`] runs them all, in the order of
+    /// [`TickStep::ALL`]). The board runs each in a critical section of its own, so that
+    /// the PWM interrupt waits for one step at most (review N8).
+    pub fn tick_step(&mut self, step: TickStep, now: Micros) {
+        match step {
+            TickStep::Link => {
+                self.link.tick(now);
+                self.apply_link_events();
+            }
+            TickStep::Program => self.core.tick_1ms_program(),
+            TickStep::Control => self.tick_control(),
+            TickStep::Report => self.report(now),
+        }
+    }
+
+    /// [`TickStep::Control`]: the core's second half, its events and faults queued.
+    #[inline(never)]
+    fn tick_control(&mut self) {
         // A tick delivers at most its queue of EVENT_QUEUE events plus `EventsLost`: the
         // pushes below cannot fail.
         let mut faults: heapless::Vec<FaultCode, TICK_EVENTS> = heapless::Vec::new();
         let mut core_events: heapless::Vec<DriveEvent, TICK_EVENTS> = heapless::Vec::new();
-        self.core.tick_1ms(&mut |e| {
+        self.core.tick_1ms_control(&mut |e| {
             if let DriveEvent::Fault(f) = e {
                 let _ = faults.push(f);
             }
@@ -239,6 +286,11 @@ impl DriveApp {
                 let _ = self.unreported.push_back(code);
             }
         }
+    }
+
+    /// [`TickStep::Report`]: fault reports to the link, the status frame from the core.
+    #[inline(never)]
+    fn report(&mut self, now: Micros) {
         let ms = now.millis().0;
         while let Some(&code) = self.unreported.front() {
             if !self.link.report_fault(code, ms) {

@@ -658,11 +658,22 @@ impl DriveCore {
         &self.safety
     }
 
-    /// Every millisecond. Events (including those raised by the interrupt and by commands
-    /// since the last tick) come out through `events`.
+    /// Every millisecond: [`DriveCore::tick_1ms_program`], then
+    /// [`DriveCore::tick_1ms_control`]. Events (including those raised by the interrupt and
+    /// by commands since the last tick) come out through `events`.
+    pub fn tick_1ms(&mut self, events: &mut impl FnMut(DriveEvent)) {
+        self.tick_1ms_program();
+        self.tick_1ms_control(events);
+    }
+
+    /// The first half of the millisecond: the end of the boot, a pending reversal at
+    /// standstill and the drive section's pass. A call of its own so that the board can
+    /// run it in a critical section of its own (review N8: the whole tick at the start of
+    /// RUN held the PWM interrupt off for ~1.5 periods at 20 kHz). Between the halves the
+    /// PWM interrupt runs on the last millisecond's modulator, as before the tick.
     /// Not inlined into the board's 1 ms task (flash: 64 KiB budget; one call per ms).
     #[inline(never)]
-    pub fn tick_1ms(&mut self, events: &mut impl FnMut(DriveEvent)) {
+    pub fn tick_1ms_program(&mut self) {
         self.peak.next_ms();
         if self.state == DriveState::Boot {
             self.finish_boot();
@@ -688,6 +699,13 @@ impl DriveCore {
         } else {
             self.vm.stop_outputs();
         }
+    }
+
+    /// The second half of the millisecond (after [`DriveCore::tick_1ms_program`]): the
+    /// frequency command, the reversal, the safety monitor, the settings (a timing change)
+    /// and the modulator for the next millisecond; the events out through `events`.
+    #[inline(never)]
+    pub fn tick_1ms_control(&mut self, events: &mut impl FnMut(DriveEvent)) {
         let f = self.f_command();
         if let Some(dir) = self.reversal.cycle(f, self.vm.settings().frv) {
             self.push_event(DriveEvent::Reversed(dir));
