@@ -24,8 +24,8 @@
 //!   after the reconnection the PLC must ACK and send RUN again.
 //! * A download is checked by the link (CRC, decode, `verify_drive`, one step per
 //!   `poll_tx` so that no call holds the PWM interrupt off for long: review D13) and then
-//!   handed, as a `VerifiedDriveSection`, to the core in three `poll_tx` calls of their
-//!   own ([`DriveCore::load_begin`], then [`DriveCore::load_step`] twice: the whole load is
+//!   handed, as a `VerifiedDriveSection`, to the core in four `poll_tx` calls of their
+//!   own ([`DriveCore::load_begin`], then [`DriveCore::load_step`] three times: the whole load is
 //!   ~6 900 instructions, more than a PWM period at 20 kHz in one critical section, review
 //!   N8). The link's events wait in its queue while the load runs, so every command from
 //!   the PLC finds the new section loaded. A reject trips `PROG`.
@@ -433,7 +433,7 @@ impl DriveApp {
     }
 
     /// The link's events to the core, in order. While a section loads they wait in the
-    /// link's queue (32 events, ~3 passes of load): every command from the PLC finds the
+    /// link's queue (32 events, 4 passes of load): every command from the PLC finds the
     /// new section loaded.
     fn apply_link_events(&mut self) {
         while self.load == Load::Idle {

@@ -196,6 +196,8 @@ impl DriveStatus {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum LoadStep {
+    /// The VM's settings (`PWF`, limits, `fmn`...).
+    Vm,
     /// The safety settings and their signature.
     Safety,
     /// Limits, timing and comparator thresholds from the new settings.
@@ -462,19 +464,18 @@ impl DriveCore {
 
     /// [`Self::load_verified`] in steps, each a call of its own (review N8: the whole
     /// load, ~6 900 Cortex-M4 instructions, held the drive's PWM interrupt off for ~1.5
-    /// periods at 20 kHz). This first step stops a RUN, moves the section in and takes the
-    /// VM's settings; then [`LoadStep::Safety`] (the safety settings and their signature)
-    /// and [`LoadStep::Install`] (limits, timing, comparator thresholds) through
-    /// [`Self::load_step`]. Between the steps the core is out of RUN with its outputs off
+    /// periods at 20 kHz). This first step stops a RUN and moves the section in; then
+    /// [`LoadStep::Vm`] (the VM's settings), [`LoadStep::Safety`] (the safety settings and
+    /// their signature) and [`LoadStep::Install`] (limits, timing, comparator thresholds)
+    /// through [`Self::load_step`]. Between the steps the core is out of RUN with its outputs off
     /// and refuses RUN (`NoProgram`); the caller applies no command in between (the
     /// application holds the link's events back). Returns the next step.
     #[inline(never)]
     pub fn load_begin(&mut self, v: VerifiedDriveSection) -> LoadStep {
         self.stop_for_load();
         self.loading = true;
-        let s = self.program.insert(v.into_section());
-        self.vm.load(s);
-        LoadStep::Safety
+        self.program = Some(v.into_section());
+        LoadStep::Vm
     }
 
     /// The step `step` of a load begun with [`Self::load_begin`]; the next one, or `None`
@@ -482,6 +483,12 @@ impl DriveCore {
     #[inline(never)]
     pub fn load_step(&mut self, step: LoadStep) -> Option<LoadStep> {
         match step {
+            LoadStep::Vm => {
+                if let Some(s) = self.program.as_ref() {
+                    self.vm.load(s);
+                }
+                Some(LoadStep::Safety)
+            }
             LoadStep::Safety => {
                 if let Some(s) = self.program.as_ref() {
                     let settings = safety_settings(s.lines.iter());

@@ -152,9 +152,9 @@ fn accepted_section_runs_and_stops() {
 }
 
 /// Review D13/N8: the core's load (~6 900 instructions) is neither in the critical section
-/// of the pass that sends the result nor in one of its own: it runs in three passes of its
-/// own (`load_begin`, the safety settings, the limits), each due at once and sending no
-/// frame.
+/// of the pass that sends the result nor in one of its own: it runs in four passes of its
+/// own (`load_begin`, the VM's settings, the safety settings, the limits), each due at
+/// once and sending no frame.
 #[test]
 fn an_accepted_section_is_loaded_in_passes_of_its_own() {
     let mut r = connected();
