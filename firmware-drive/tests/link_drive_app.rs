@@ -172,8 +172,8 @@ fn an_accepted_section_is_loaded_in_passes_of_its_own() {
         .expect("the section was loaded in a poll_tx call");
     assert_eq!(
         loaded - accepted,
-        3,
-        "three load passes after the accepting one"
+        4,
+        "four load passes after the accepting one"
     );
     for &(n, _, _, accepted_here) in &r.tx_calls[accepted + 1..=loaded] {
         assert_eq!(n, 0, "a loading pass sends no frame");
