@@ -14,6 +14,7 @@
 //!   of both images' panic and fault handlers.
 //! * `supervisor`: the task that feeds the IWDG while every task reports alive.
 //! * `link`: the link USART (pull-up on RX, line-error recovery) and the pump task.
+//! * `link_rx`: the link's receiver, a DMA ring that a line error never stops (N13).
 //! * `cycles`: DWT cycle counters (feature `dwt-cycles`).
 //! * `time`: the monotonic clock the cores take.
 //!
@@ -33,6 +34,8 @@ pub mod cycles;
 pub mod debug;
 #[cfg(target_os = "none")]
 pub mod link;
+#[cfg(target_os = "none")]
+pub mod link_rx;
 #[cfg(target_os = "none")]
 pub mod reset_cause;
 #[cfg(target_os = "none")]

@@ -13,13 +13,11 @@
 //! Review D12:
 //! * RX has the internal pull-up: with the peer unplugged or unpowered a floating RX pin
 //!   would read a storm of framing and noise errors.
-//! * A line error (framing, noise, overrun, parity) restarts reception at once. In
-//!   embassy-stm32 0.6 the USART interrupt stops the RX DMA on an error and the pending
-//!   `read()` returns the error after `stop_uart()`; the next `read()` only restarts when
-//!   it finds the status flags clean, and returns `Overrun` without restarting if a byte
-//!   arrived meanwhile, so every byte until a clean check was lost. `start_uart()` right
-//!   after the error clears the ring and re-enables the DMA request and the error
-//!   interrupt, so reception goes on with the next byte.
+//! * A line error (framing, noise, overrun, parity) never stops reception. The link
+//!   receives into a DMA ring of its own ([`crate::link_rx`], review N13) that a line
+//!   error never stops. The PLC's service port keeps embassy's `RingBufferedUartRx`,
+//!   restarted with `start_uart()` right after an error (its channel is restarted by EN
+//!   only, review N13: not the link's).
 //! * Errors are counted by the endpoint (`LinkStats::line_errors`) and logged at most
 //!   once a second with the count (`Pump::line_error`).
 
@@ -28,28 +26,27 @@ use embassy_stm32::interrupt::typelevel::{Binding, Interrupt};
 use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::mode::Async;
 use embassy_stm32::usart::{
-    self, Config, DataBits, Parity, RingBufferedUartRx, RxDma, StopBits, TxDma, Uart, UartTx,
+    self, Config, DataBits, Parity, RingBufferedUartRx, RxDma, StopBits, TxDma, Uart, UartRx,
+    UartTx,
 };
 use embassy_stm32::{bind_interrupts, dma, peripherals, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::with_deadline;
-use shared_protocol::link::pump::{LinkEndpoint, Pump, MAX_IDLE_US};
+use shared_protocol::link::pump::{frame_pieces, LinkEndpoint, Pump, MAX_IDLE_US};
 use shared_protocol::link::MAX_WIRE_FRAME;
 use shared_protocol::units::Micros;
-use static_cell::StaticCell;
 
+use crate::link_rx::{self, RingRx};
 use crate::supervisor;
 use crate::time::{instant, now};
 
-/// RX ring size: 22 ms of line time at 115200 baud, more than a frame's write (the task
-/// awaits it) plus a pass.
-const RX_RING_BYTES: usize = 256;
-
+// The receiver's handlers first: they take the IDLE and half-transfer flags they use
+// (`link_rx`); embassy's then find nothing of theirs (the link's RX is not embassy's).
 bind_interrupts!(struct Irqs {
-    USART1 => usart::InterruptHandler<peripherals::USART1>;
+    USART1 => link_rx::IdleHandler, usart::InterruptHandler<peripherals::USART1>;
     DMA1_CHANNEL1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
-    DMA1_CHANNEL2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
+    DMA1_CHANNEL2 => link_rx::HalfHandler, dma::InterruptHandler<peripherals::DMA1_CH2>;
 });
 
 /// The link's peripherals (pins are the board's: `pins.rs`).
@@ -61,35 +58,41 @@ pub struct LinkPins<Tx, Rx> {
     pub rx_dma: Peri<'static, peripherals::DMA1_CH2>,
 }
 
-/// Opened link halves.
-pub struct LinkPort {
+/// An opened port: embassy's DMA transmitter and a receiver `R`.
+pub struct Port<R> {
     pub tx: UartTx<'static, Async>,
-    pub rx: RingBufferedUartRx<'static>,
+    pub rx: R,
+    /// embassy's receiver half, never read: kept so that the USART's RX (RE, the pin, the
+    /// DMA channel's ownership) stays as embassy set it up (dropped, it would turn RX off).
+    _embassy_rx: Option<UartRx<'static, Async>>,
 }
 
-/// Opens the link USART 8N1 at `baud` with the RX pull-up ([`open_port`]).
+/// The link's port: its receiver is [`link_rx::RingRx`].
+pub type LinkPort = Port<RingRx>;
+
+/// A port on embassy's ring-buffered receiver (the PLC's service port).
+pub type ServicePort = Port<RingBufferedUartRx<'static>>;
+
+/// Opens the link USART 8N1 at `baud` with the RX pull-up and starts its ring receiver
+/// ([`link_rx`], review N13).
 pub fn open<Tx, Rx>(l: LinkPins<Peri<'static, Tx>, Peri<'static, Rx>>, baud: u32) -> LinkPort
 where
     Tx: usart::TxPin<peripherals::USART1>,
     Rx: usart::RxPin<peripherals::USART1>,
 {
-    static RX_RING: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
-    open_port(
-        l.usart,
-        l.tx,
-        l.rx,
-        l.tx_dma,
-        l.rx_dma,
-        Irqs,
-        RX_RING.init([0; RX_RING_BYTES]),
-        baud,
-    )
+    let request = usart::RxDma::<peripherals::USART1>::request(&*l.rx_dma);
+    let (tx, rx) = open_uart(l.usart, l.tx, l.rx, l.tx_dma, l.rx_dma, Irqs, baud);
+    Port {
+        tx,
+        rx: link_rx::start(request),
+        _embassy_rx: Some(rx),
+    }
 }
 
 /// Opens any U(S)ART `T` 8N1 at `baud` with the RX pull-up, TX and RX on the DMA channels
-/// `D1`/`D2` (RX into the ring `rx_ring`), and puts its interrupt and its DMA channels'
-/// below TIM1 ([`crate::boot::BACKGROUND`]). The link's USART1 and the PLC's service
-/// LPUART1 are opened here.
+/// `D1`/`D2` (RX into embassy's ring `rx_ring`), and puts its interrupt and its DMA
+/// channels' below TIM1 ([`crate::boot::BACKGROUND`]). The PLC's service LPUART1 is
+/// opened here.
 #[allow(clippy::too_many_arguments)]
 pub fn open_port<T, D1, D2>(
     usart: Peri<'static, T>,
@@ -103,7 +106,33 @@ pub fn open_port<T, D1, D2>(
         + 'static,
     rx_ring: &'static mut [u8],
     baud: u32,
-) -> LinkPort
+) -> ServicePort
+where
+    T: usart::Instance,
+    D1: TxDma<T>,
+    D2: RxDma<T>,
+{
+    let (tx, rx) = open_uart(usart, tx, rx, tx_dma, rx_dma, irqs, baud);
+    Port {
+        tx,
+        rx: rx.into_ring_buffered(rx_ring),
+        _embassy_rx: None,
+    }
+}
+
+/// embassy's UART `T` 8N1 at `baud`, RX pull-up, interrupts below TIM1.
+fn open_uart<T, D1, D2>(
+    usart: Peri<'static, T>,
+    tx: Peri<'static, impl usart::TxPin<T>>,
+    rx: Peri<'static, impl usart::RxPin<T>>,
+    tx_dma: Peri<'static, D1>,
+    rx_dma: Peri<'static, D2>,
+    irqs: impl Binding<T::Interrupt, usart::InterruptHandler<T>>
+        + Binding<D1::Interrupt, dma::InterruptHandler<D1>>
+        + Binding<D2::Interrupt, dma::InterruptHandler<D2>>
+        + 'static,
+    baud: u32,
+) -> (UartTx<'static, Async>, UartRx<'static, Async>)
 where
     T: usart::Instance,
     D1: TxDma<T>,
@@ -122,10 +151,33 @@ where
     for irq in [T::Interrupt::IRQ, D1::Interrupt::IRQ, D2::Interrupt::IRQ] {
         irq.set_priority(crate::boot::BACKGROUND);
     }
-    let (tx, rx) = uart.split();
-    LinkPort {
-        tx,
-        rx: rx.into_ring_buffered(rx_ring),
+    uart.split()
+}
+
+/// A receiver the pump task reads: waits for bytes or a line error.
+#[allow(async_fn_in_trait)]
+pub trait ByteRx {
+    type Error: defmt::Format;
+    /// Bytes into `buf` (at least one), or the error that was flagged (reception goes on).
+    async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error>;
+}
+
+impl ByteRx for RingRx {
+    type Error = link_rx::LineError;
+    async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        self.read(buf).await
+    }
+}
+
+impl ByteRx for RingBufferedUartRx<'static> {
+    type Error = usart::Error;
+    async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        let r = self.read(buf).await;
+        if r.is_err() {
+            // embassy stopped the ring on the error: reception goes on with the next byte.
+            self.start_uart();
+        }
+        r
     }
 }
 
@@ -193,18 +245,21 @@ pub async fn run<S: SharedEndpoint>(port: LinkPort, shared: S) -> ! {
 
 /// [`run`] for any pump task: the same loop with `task`'s kick signal, watchdog bit and
 /// cycle figures.
-pub async fn run_task<S: SharedEndpoint>(mut port: LinkPort, shared: S, task: &Task) -> ! {
+pub async fn run_task<S: SharedEndpoint, R: ByteRx>(
+    mut port: Port<R>,
+    shared: S,
+    task: &Task,
+) -> ! {
     let mut pump = Pump::new(MAX_IDLE_US);
     let mut rx_buf = [0u8; 64];
     let mut wake = now();
     loop {
         supervisor::alive(task.alive);
-        let read = with_deadline(instant(wake), port.rx.read(&mut rx_buf));
+        let read = with_deadline(instant(wake), port.rx.read_bytes(&mut rx_buf));
         let n = match select(read, task.kick.wait()).await {
             Either::First(Ok(Ok(n))) => n,
             Either::First(Ok(Err(e))) => {
                 // Reception goes on with the next byte (see the module doc).
-                port.rx.start_uart();
                 let t = now();
                 if let Some(Some(count)) = shared.with(|ep| pump.line_error(ep, t)) {
                     defmt::warn!(
@@ -219,11 +274,12 @@ pub async fn run_task<S: SharedEndpoint>(mut port: LinkPort, shared: S, task: &T
             Either::First(Err(_)) | Either::Second(()) => 0,
         };
         let rx = rx_buf.get(..n).unwrap_or(&[]);
-        if !rx.is_empty() {
+        // One frame at most per call (one critical section on the drive, review N8).
+        for piece in frame_pieces(rx) {
             let t = now();
             #[cfg(feature = "dwt-cycles")]
             let start = crate::cycles::now();
-            shared.with(|ep| pump.receive(ep, rx, t));
+            shared.with(|ep| pump.receive(ep, piece, t));
             #[cfg(feature = "dwt-cycles")]
             task.rx_cycles.record(start);
         }

@@ -5,7 +5,7 @@
 //! | --- | --- |
 //! | UART bytes received (DMA/idle-line interrupt) | [`DriveApp::on_rx`] |
 //! | UART transmitter free, and at least every 1 ms | [`DriveApp::poll_tx`] |
-//! | every 1 ms | [`DriveApp::tick_1ms`] |
+//! | every 1 ms | [`DriveApp::tick_1ms`] (or each of [`TickStep::ALL`] with [`DriveApp::tick_step`]) |
 //! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`], then [`PeriodAction::apply`] |
 //! | TIM1 break interrupt | [`DriveApp::break_fired`] |
 //! | TIM1 break interrupt, `STO_IN` / system break | [`DriveApp::sto_break`] / [`DriveApp::system_break`] |
@@ -24,11 +24,14 @@
 //!   after the reconnection the PLC must ACK and send RUN again.
 //! * A download is checked by the link (CRC, decode, `verify_drive`, one step per
 //!   `poll_tx` so that no call holds the PWM interrupt off for long: review D13) and then
-//!   handed, as a `VerifiedDriveSection`, to [`DriveCore::load_verified`] in a `poll_tx`
-//!   of its own (the pass after the one that sent the result: the load copies the section
-//!   and costs ~3 000 instructions, too much on top of a check step and a frame in one
-//!   critical section); `on_rx` loads a pending section first, so every command from the
-//!   PLC finds it loaded. A reject trips `PROG`.
+//!   handed, as a `VerifiedDriveSection`, to the core in four `poll_tx` calls of their
+//!   own ([`DriveCore::load_begin`], then [`DriveCore::load_step`] three times: the whole load is
+//!   ~6 900 instructions, more than a PWM period at 20 kHz in one critical section, review
+//!   N8). The link's events wait in its queue while the load runs, so every command from
+//!   the PLC finds the new section loaded. A reject trips `PROG`.
+//! * The 1 ms tick is four steps ([`TickStep`]), each one call on the board (one critical
+//!   section): link supervision, the drive section's pass, the rest of the core's
+//!   millisecond, the reports (review N8).
 //! * Every fault the core latches is reported to the PLC (reliably, with the drive's
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
@@ -41,7 +44,8 @@ use shared_protocol::units::Micros;
 
 use crate::config::{DriveConfig, ResetCause};
 use crate::drive::{
-    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, PwmCommand, EVENT_QUEUE,
+    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, LoadStep, PwmCommand,
+    EVENT_QUEUE,
 };
 use crate::measure::AdcSample;
 use crate::power_port::{BreakMonitor, BreakReport, ComparatorLevels, PeriodAction};
@@ -81,6 +85,38 @@ const APP_EVENTS: usize = 32;
 /// Most events one [`DriveCore::tick_1ms`] delivers.
 const TICK_EVENTS: usize = EVENT_QUEUE + 1;
 
+/// The load of an accepted section, one step per [`DriveApp::poll_tx`] (review N8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Load {
+    Idle,
+    /// Accepted by the link, not begun ([`DriveCore::load_begin`] next).
+    Accepted,
+    Step(LoadStep),
+}
+
+/// The steps of the 1 ms tick, in their order ([`DriveApp::tick_step`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TickStep {
+    /// Link supervision (a lost link stops the core).
+    Link,
+    /// The core's first half: the drive section's pass ([`DriveCore::tick_1ms_program`]).
+    Program,
+    /// The core's second half: monitor, settings, modulator, events
+    /// ([`DriveCore::tick_1ms_control`]).
+    Control,
+    /// Fault reports and the status frame to the link.
+    Report,
+}
+
+impl TickStep {
+    pub const ALL: [TickStep; 4] = [
+        TickStep::Link,
+        TickStep::Program,
+        TickStep::Control,
+        TickStep::Report,
+    ];
+}
+
 /// The drive application.
 pub struct DriveApp {
     core: DriveCore,
@@ -92,9 +128,8 @@ pub struct DriveApp {
     /// The core's [`DriveCore::timing_changes`] when `programmed` last matched its timing.
     programmed_changes: u32,
     breaks: BreakMonitor,
-    /// The link accepted a section that the core has not loaded yet (the next `poll_tx`
-    /// or `on_rx` does).
-    load_pending: bool,
+    /// Where the load of a section the link accepted stands (one step per `poll_tx`).
+    load: Load,
 }
 
 impl DriveApp {
@@ -111,7 +146,7 @@ impl DriveApp {
             unreported: heapless::Deque::new(),
             events: heapless::Deque::new(),
             breaks: BreakMonitor::default(),
-            load_pending: false,
+            load: Load::Idle,
         }
     }
 
@@ -176,9 +211,9 @@ impl DriveApp {
         let _ = self.events.push_back(e);
     }
 
-    /// Bytes from the UART: commands are applied to the core at once.
+    /// Bytes from the UART: commands are applied to the core at once (after a load in
+    /// progress: [`DriveApp::poll_tx`]).
     pub fn on_rx(&mut self, bytes: &[u8], now: Micros) {
-        self.load_if_pending();
         self.link.receive(bytes, now);
         self.apply_link_events();
     }
@@ -187,9 +222,9 @@ impl DriveApp {
     /// [`shared_protocol::link::MAX_WIRE_FRAME`] bytes.
     #[must_use = "the frame in `out` must be sent"]
     pub fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
-        if self.load_if_pending() {
-            // This pass is the load's; the link's frames and timers wait for the next one,
-            // which is due at once (`poll_timeout`).
+        if self.load_next() {
+            // This pass is a load step's; the link's frames and timers wait for the next
+            // one, which is due at once (`poll_timeout`).
             return 0;
         }
         let n = self.link.poll_transmit(now, out);
@@ -205,15 +240,36 @@ impl DriveApp {
     }
 
     /// The 1 ms tick: link supervision, the core's state machine and drive section,
-    /// fault reports and the status frame.
+    /// fault reports and the status frame; [`TickStep::ALL`] in order.
     pub fn tick_1ms(&mut self, now: Micros) {
-        self.link.tick(now);
-        self.apply_link_events();
+        for step in TickStep::ALL {
+            self.tick_step(step, now);
+        }
+    }
+
+    /// One step of the 1 ms tick ([`DriveApp::tick_1ms`] runs them all, in the order of
+    /// [`TickStep::ALL`]). The board runs each in a critical section of its own, so that
+    /// the PWM interrupt waits for one step at most (review N8).
+    pub fn tick_step(&mut self, step: TickStep, now: Micros) {
+        match step {
+            TickStep::Link => {
+                self.link.tick(now);
+                self.apply_link_events();
+            }
+            TickStep::Program => self.core.tick_1ms_program(),
+            TickStep::Control => self.tick_control(),
+            TickStep::Report => self.report(now),
+        }
+    }
+
+    /// [`TickStep::Control`]: the core's second half, its events and faults queued.
+    #[inline(never)]
+    fn tick_control(&mut self) {
         // A tick delivers at most its queue of EVENT_QUEUE events plus `EventsLost`: the
         // pushes below cannot fail.
         let mut faults: heapless::Vec<FaultCode, TICK_EVENTS> = heapless::Vec::new();
         let mut core_events: heapless::Vec<DriveEvent, TICK_EVENTS> = heapless::Vec::new();
-        self.core.tick_1ms(&mut |e| {
+        self.core.tick_1ms_control(&mut |e| {
             if let DriveEvent::Fault(f) = e {
                 let _ = faults.push(f);
             }
@@ -230,6 +286,11 @@ impl DriveApp {
                 let _ = self.unreported.push_back(code);
             }
         }
+    }
+
+    /// [`TickStep::Report`]: fault reports to the link, the status frame from the core.
+    #[inline(never)]
+    fn report(&mut self, now: Micros) {
         let ms = now.millis().0;
         while let Some(&code) = self.unreported.front() {
             if !self.link.report_fault(code, ms) {
@@ -340,27 +401,45 @@ impl DriveApp {
     /// When `poll_tx` must run next: at once while a load is pending, else the link's
     /// deadline.
     pub fn poll_timeout(&self) -> Option<Micros> {
-        if self.load_pending {
+        if self.load != Load::Idle {
             Some(AT_ONCE)
         } else {
             self.link.poll_timeout()
         }
     }
 
-    /// Loads the section the link accepted, if one waits; whether it did (or found none).
-    fn load_if_pending(&mut self) -> bool {
-        if !core::mem::take(&mut self.load_pending) {
-            return false;
-        }
-        match self.link.take_program() {
-            Some(p) => self.core.load_verified(&p),
-            None => self.push(AppEvent::LoadFailed),
+    /// The next step of loading the section the link accepted, if one waits; whether it
+    /// ran one (or found no section). The last step applies the link's events that
+    /// waited for the load.
+    fn load_next(&mut self) -> bool {
+        self.load = match self.load {
+            Load::Idle => return false,
+            Load::Accepted => match self.link.take_program() {
+                Some(p) => Load::Step(self.core.load_begin(p)),
+                None => {
+                    self.push(AppEvent::LoadFailed);
+                    Load::Idle
+                }
+            },
+            Load::Step(step) => match self.core.load_step(step) {
+                Some(next) => Load::Step(next),
+                None => Load::Idle,
+            },
+        };
+        if self.load == Load::Idle {
+            self.apply_link_events();
         }
         true
     }
 
+    /// The link's events to the core, in order. While a section loads they wait in the
+    /// link's queue (32 events, 4 passes of load): every command from the PLC finds the
+    /// new section loaded.
     fn apply_link_events(&mut self) {
-        while let Some(e) = self.link.poll_event() {
+        while self.load == Load::Idle {
+            let Some(e) = self.link.poll_event() else {
+                break;
+            };
             self.push(AppEvent::Link(e));
             match e {
                 LinkEvent::Connected | LinkEvent::VersionMismatch { .. } => {}
@@ -382,7 +461,7 @@ impl DriveApp {
                 LinkEvent::SafetyRequest { requested } => {
                     self.command(DriveCommand::SafetyRequest { requested })
                 }
-                LinkEvent::ProgramAccepted => self.load_pending = true,
+                LinkEvent::ProgramAccepted => self.load = Load::Accepted,
                 LinkEvent::ProgramRejected { .. } => self.core.trip(FaultCode::Prog),
             }
         }

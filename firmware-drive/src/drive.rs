@@ -192,6 +192,18 @@ impl DriveStatus {
     }
 }
 
+/// The steps of a load after [`DriveCore::load_begin`] ([`DriveCore::load_step`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum LoadStep {
+    /// The VM's settings (`PWF`, limits, `fmn`...).
+    Vm,
+    /// The safety settings and their signature.
+    Safety,
+    /// Limits, timing and comparator thresholds from the new settings.
+    Install,
+}
+
 /// The drive (see the module docs for how to drive it).
 pub struct DriveCore {
     cfg: DriveConfig,
@@ -240,6 +252,8 @@ pub struct DriveCore {
     safety: Monitor,
     /// The signature of the accepted section's safety settings.
     signature: u16,
+    /// A load in steps ([`DriveCore::load_begin`]) has not finished.
+    loading: bool,
     /// The frequency the modulator takes: the section's, under the monitor's `asr` cap
     /// and the overvoltage controller's hold.
     f_out: i16,
@@ -318,6 +332,7 @@ impl DriveCore {
             sto_in_low: false,
             safety: Monitor::default(),
             signature: shared_protocol::safety::SafetySettings::default().signature(),
+            loading: false,
             f_out: 0,
             trim: TrimmedZeros::default(),
             trim_failed: false,
@@ -447,7 +462,52 @@ impl DriveCore {
         self.load_checked(v.section());
     }
 
+    /// [`Self::load_verified`] in steps, each a call of its own (review N8: the whole
+    /// load, ~6 900 Cortex-M4 instructions, held the drive's PWM interrupt off for ~1.5
+    /// periods at 20 kHz). This first step stops a RUN and moves the section in; then
+    /// [`LoadStep::Vm`] (the VM's settings), [`LoadStep::Safety`] (the safety settings and
+    /// their signature) and [`LoadStep::Install`] (limits, timing, comparator thresholds)
+    /// through [`Self::load_step`]. Between the steps the core is out of RUN with its outputs off
+    /// and refuses RUN (`NoProgram`); the caller applies no command in between (the
+    /// application holds the link's events back). Returns the next step.
+    #[inline(never)]
+    pub fn load_begin(&mut self, v: VerifiedDriveSection) -> LoadStep {
+        self.stop_for_load();
+        self.loading = true;
+        self.program = Some(v.into_section());
+        LoadStep::Vm
+    }
+
+    /// The step `step` of a load begun with [`Self::load_begin`]; the next one, or `None`
+    /// when the section is loaded.
+    #[inline(never)]
+    pub fn load_step(&mut self, step: LoadStep) -> Option<LoadStep> {
+        match step {
+            LoadStep::Vm => {
+                if let Some(s) = self.program.as_ref() {
+                    self.vm.load(s);
+                }
+                Some(LoadStep::Safety)
+            }
+            LoadStep::Safety => {
+                if let Some(s) = self.program.as_ref() {
+                    let settings = safety_settings(s.lines.iter());
+                    self.safety.load(&settings);
+                    self.signature = settings.signature();
+                }
+                Some(LoadStep::Install)
+            }
+            LoadStep::Install => {
+                self.apply_settings();
+                self.update_hw_thresholds();
+                self.loading = false;
+                None
+            }
+        }
+    }
+
     fn load_checked(&mut self, s: &DriveSection) {
+        self.loading = false;
         self.vm.load(s);
         let settings = safety_settings(s.lines.iter());
         self.safety.load(&settings);
@@ -510,7 +570,7 @@ impl DriveCore {
                 DriveState::Fault => Err(CommandError::Faulted),
                 DriveState::Run => Ok(()),
                 DriveState::Idle => {
-                    if self.program.is_none() {
+                    if self.program.is_none() || self.loading {
                         return Err(CommandError::NoProgram);
                     }
                     if self.sto_in_low {
@@ -605,11 +665,22 @@ impl DriveCore {
         &self.safety
     }
 
-    /// Every millisecond. Events (including those raised by the interrupt and by commands
-    /// since the last tick) come out through `events`.
+    /// Every millisecond: [`DriveCore::tick_1ms_program`], then
+    /// [`DriveCore::tick_1ms_control`]. Events (including those raised by the interrupt and
+    /// by commands since the last tick) come out through `events`.
+    pub fn tick_1ms(&mut self, events: &mut impl FnMut(DriveEvent)) {
+        self.tick_1ms_program();
+        self.tick_1ms_control(events);
+    }
+
+    /// The first half of the millisecond: the end of the boot, a pending reversal at
+    /// standstill and the drive section's pass. A call of its own so that the board can
+    /// run it in a critical section of its own (review N8: the whole tick at the start of
+    /// RUN held the PWM interrupt off for ~1.5 periods at 20 kHz). Between the halves the
+    /// PWM interrupt runs on the last millisecond's modulator, as before the tick.
     /// Not inlined into the board's 1 ms task (flash: 64 KiB budget; one call per ms).
     #[inline(never)]
-    pub fn tick_1ms(&mut self, events: &mut impl FnMut(DriveEvent)) {
+    pub fn tick_1ms_program(&mut self) {
         self.peak.next_ms();
         if self.state == DriveState::Boot {
             self.finish_boot();
@@ -635,6 +706,13 @@ impl DriveCore {
         } else {
             self.vm.stop_outputs();
         }
+    }
+
+    /// The second half of the millisecond (after [`DriveCore::tick_1ms_program`]): the
+    /// frequency command, the reversal, the safety monitor, the settings (a timing change)
+    /// and the modulator for the next millisecond; the events out through `events`.
+    #[inline(never)]
+    pub fn tick_1ms_control(&mut self, events: &mut impl FnMut(DriveEvent)) {
         let f = self.f_command();
         if let Some(dir) = self.reversal.cycle(f, self.vm.settings().frv) {
             self.push_event(DriveEvent::Reversed(dir));
@@ -740,7 +818,7 @@ impl DriveCore {
             modulation_permille: m as u16,
             brake: self.brake,
             pwm_millihertz: self.timing.pwm_millihertz,
-            program_loaded: self.program.is_some(),
+            program_loaded: self.program.is_some() && !self.loading,
             hw: self.hw,
             // Only while switching: the switching frequency of an idle drive does not
             // matter (and the PLC's first Q write may still be on its way after RUN).

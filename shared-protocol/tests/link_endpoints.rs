@@ -718,12 +718,15 @@ fn a_plc_with_another_version_ends_a_running_session() {
 /// calls can be counted.
 #[test]
 fn the_drive_checks_a_download_one_step_per_transmit_call() {
+    use shared_protocol::link::drive::{DECODE_LINES_PER_STEP, VERIFY_USED_LINES_PER_STEP};
     use shared_protocol::link::message::CHUNK_BYTES;
     use shared_protocol::link::plc::section_crc;
     use shared_protocol::program::{encode_slot, LINE_BYTES};
 
+    let steps = usize::from(DECODE_LINES_PER_STEP);
+
     // (CRC corrupted, a line that does not decode): a good download, a bad CRC, and
-    // line 120 erased (FF FF FF FF), found by the third decode step.
+    // line 120 erased (FF FF FF FF), found by the 13th decode step.
     for (corrupt, erased) in [(false, None), (true, None), (false, Some(120usize))] {
         let section = ramp_section();
         let mut bytes: Vec<u8> = section
@@ -773,10 +776,10 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
             if let Some(e) = drive.poll_event() {
                 break e;
             }
-            assert!(calls < 10, "no result");
+            assert!(calls < 60, "no result");
         };
         if let Some(line) = erased {
-            // CRC, decode up to the third step, then the result.
+            // CRC, decode up to the step of line 120, then the result.
             assert_eq!(
                 result,
                 DriveEvent::ProgramRejected {
@@ -784,7 +787,7 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
                     reason: RejectReason::Decode
                 }
             );
-            assert_eq!(calls, 5);
+            assert_eq!(calls, 1 + (120 / steps + 1) + 1);
             assert!(drive.take_program().is_none());
         } else if corrupt {
             // CRC, then the result.
@@ -798,9 +801,13 @@ fn the_drive_checks_a_download_one_step_per_transmit_call() {
             assert_eq!(calls, 2);
             assert!(drive.take_program().is_none());
         } else {
-            // CRC, decode (three steps of 50 lines), verifier, then the result.
+            // CRC, decode (150 lines in steps), verifier, then the result.
             assert_eq!(result, DriveEvent::ProgramAccepted);
-            assert_eq!(calls, 6);
+            // The verifier: steps of VERIFY_USED_LINES_PER_STEP used lines, the last one
+            // also over the empty lines after them.
+            let used = section.lines.iter().flatten().count();
+            let verify_steps = used / usize::from(VERIFY_USED_LINES_PER_STEP) + 1;
+            assert_eq!(calls, 1 + 150usize.div_ceil(steps) + verify_steps + 1);
             assert_eq!(
                 drive.take_program().map(|v| v.section().clone()),
                 Some(section)

@@ -4,7 +4,7 @@
 //! log of the application's events.
 
 use embassy_time::{Duration, Ticker};
-use firmware_drive::app::AppEvent;
+use firmware_drive::app::{AppEvent, TickStep};
 use firmware_drive::drive::DriveEvent;
 use heapless::Vec;
 
@@ -33,8 +33,16 @@ pub async fn run() {
             // safety.md 6: the STO input's level, every tick, before the break monitor
             // (no re-arming while it is low) and the tick.
             s.app.set_sto_input(power_stage::sto_input_low());
-            let rearm = s.app.break_poll(levels).rearm;
-            s.app.tick_1ms(shared::now());
+            s.app.break_poll(levels).rearm
+        });
+        // Each step of the tick in a critical section of its own (review N8: the whole
+        // tick at the start of RUN held the PWM interrupt off for ~1.5 periods at 20 kHz).
+        // No await in between: no other task runs between the steps, only interrupts.
+        let t = shared::now();
+        for step in TickStep::ALL {
+            shared::with(|s| s.app.tick_step(step, t));
+        }
+        shared::with(|s| {
             // A download may have changed I>>/U>>: write the core's new DAC values.
             let now = s.app.core().comparator_dacs();
             if Some(now) != dacs {
@@ -49,7 +57,6 @@ pub async fn run() {
                     None => break,
                 }
             }
-            rearm
         });
         #[cfg(feature = "dwt-cycles")]
         super::cycles::record_tick(start);

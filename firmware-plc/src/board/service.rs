@@ -18,7 +18,7 @@
 
 use core::cell::RefCell;
 
-use board_common::link::{self as common, LinkPort, SharedEndpoint, Task};
+use board_common::link::{self as common, ServicePort, SharedEndpoint, Task};
 use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
 use embassy_sync::blocking_mutex::ThreadModeMutex;
 use embassy_sync::signal::Signal;
@@ -70,7 +70,7 @@ fn build_info() -> BuildInfo {
 }
 
 /// Opens LPUART1 and builds the service endpoint in its static.
-pub fn open(s: pins::Service) -> (LinkPort, SharedService) {
+pub fn open(s: pins::Service) -> (ServicePort, SharedService) {
     static RX_RING: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
     static SERVICE: StaticCell<ThreadModeMutex<RefCell<Service>>> = StaticCell::new();
     let port = common::open_port(
@@ -107,7 +107,7 @@ impl SharedEndpoint for Shared {
 
 /// Moves bytes between LPUART1 and the service endpoint.
 #[embassy_executor::task]
-pub async fn run(port: LinkPort, svc: SharedService, app: SharedApp) {
+pub async fn run(port: ServicePort, svc: SharedService, app: SharedApp) {
     common::run_task(port, Shared { svc, app }, &TASK).await
 }
 

@@ -40,20 +40,14 @@ fn the_download_completes_and_the_drive_runs() {
     assert!(gap_ms < 50, "PLC watchdog feed gap {gap_ms} ms");
 }
 
-/// Review D12: a line error (here a framing error: a stop bit read low) is counted and
-/// logged by both link tasks, reception goes on with the next character (embassy's
-/// ring-buffered RX stops on an error until restarted), and the link stays up: no LINK
-/// trip, the drive keeps running.
+/// Review D12/N13: a line error (here a framing error: a stop bit read low) is counted and
+/// logged by both link tasks, reception goes on with the next character (the link's own
+/// DMA ring never stops: `board_common::link_rx`; embassy's stopped and re-enabled its
+/// channel by EN only, which the emulator rejects as RM0440 does), and the link stays up:
+/// no LINK trip, the drive keeps running.
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: N13, after a line error embassy restarts the RX DMA channel by setting EN only (dma_bdma.rs start), which RM0440 does not support; g431-emu now stops the channel and the link is lost (LinkLost 45 ms later)"]
 fn a_framing_error_is_counted_and_reception_goes_on() {
     let mut sim = emu(MOTOR_PLC, MOTOR_TOML);
-    sim.allow(
-        "DMA1.CCR2: channel re-enabled without reprogramming",
-        "finding N13 (board-review-2): after a line error both images restart the ring-buffered \
-         RX by toggling the DMA channel's EN (embassy dma_bdma.rs); RM0440 does not support \
-         re-enabling a channel without reprogramming it",
-    );
     sim.run_until(ns(1.0), |_| {});
     assert_eq!(sim.status().map(|s| s.state), Some(DriveState::Run));
     let faults_before = sim.faults().len();

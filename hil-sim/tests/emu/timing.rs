@@ -57,7 +57,6 @@ fn measure(acr: Option<u32>) -> (Stretch, Stretch, String) {
 }
 
 #[test]
-#[ignore = "The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage, current sensing: in cycles, with the prefetch on (FLASH_ACR 0x704), the 1 ms tick's critical section at the start of RUN takes ~12 500 cycles and the link's ~12 400, 1.5 PWM periods at 20 kHz: the sections must be split in the application (review N8)"]
 fn no_critical_section_or_pwm_interrupt_is_longer_than_a_pwm_period() {
     let (pwm, section, report) = measure(None);
     assert!(

@@ -7,18 +7,19 @@
 //! after each `receive`.
 
 use super::config::LinkConfig;
+use super::frame::CRC;
 use super::frame::{Frame, MAX_WIRE_FRAME};
 use super::message::{
     verify_kind_code, AckRefusal, DownloadResult, DriveMsg, DriveStatus, PlcMsg, RejectReason,
     MAX_Q_PER_FRAME, PROTOCOL_VERSION,
 };
-use super::plc::section_crc;
 use super::plc_decode::plc_frame;
 use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::LinkStats;
+use crate::crc32::Digest;
 use crate::fault::FaultCode;
 use crate::program::{
-    decode_slot, verify_drive, DriveSection, VerifiedDriveSection, DRIVE_LINES, LINE_BYTES,
+    decode_slot, DriveSection, VerifiedDriveSection, Verifier, VerifyError, DRIVE_LINES, LINE_BYTES,
 };
 use crate::units::Micros;
 
@@ -79,6 +80,10 @@ pub enum DriveEvent {
 struct DownloadRx {
     buf: [u8; SECTION_BYTES],
     crc: u32,
+    /// The CRC of the chunks received so far, in order: a complete download's is the
+    /// section's (`section_crc` of `buf`), computed one chunk per receive call instead
+    /// of ~4 200 instructions in one check step (review N8).
+    running: Digest<256>,
     next_line: usize,
     /// Set when a chunk was out of place: the download will be refused at its end.
     broken: bool,
@@ -99,16 +104,28 @@ enum Check {
     Decode {
         from: u16,
     },
-    Verify,
+    /// Verify the lines from this one on, [`VERIFY_USED_LINES_PER_STEP`] used lines per
+    /// step, with the verifier's state so far.
+    Verify {
+        from: u16,
+        v: Verifier<false>,
+    },
     /// The result goes out (and the event to the application) in the next step, so the
     /// application's load of the section never shares a call with the verifier.
     Done(DownloadResult),
 }
 
+/// Used lines verified per check step: `verify_drive` of the motor example took ~4 900
+/// instructions in one step (m4bench), ~190 per used line (review N8).
+pub const VERIFY_USED_LINES_PER_STEP: u16 = 10;
+
 /// Lines decoded per check step: the 150 lines in one step took ~7 600 instructions with
 /// the safety settings' mnemonics (m4bench), and the link's critical section around it
-/// ~9 900 in the emulator, over the 8 500-cycle budget (review D13). Three steps of 50.
-const DECODE_LINES_PER_STEP: u16 = 50;
+/// ~9 900 in the emulator, over the 8 500-cycle budget (review D13). In steps of 50, the
+/// first step of the motor example (its 26 used lines are 000-025) still took 6 771
+/// instructions, 9 187 cycles in the emulator's cycle model (review N8): a used line costs
+/// ~250 instructions, an empty one ~20. Fifteen steps of 10 (~2 600 at most each).
+pub const DECODE_LINES_PER_STEP: u16 = 10;
 
 /// The drive endpoint.
 pub struct DriveLink {
@@ -145,6 +162,7 @@ impl DriveLink {
             download: DownloadRx {
                 buf: [0; SECTION_BYTES],
                 crc: 0,
+                running: CRC.digest(),
                 next_line: 0,
                 broken: false,
                 active: false,
@@ -273,6 +291,7 @@ impl DriveLink {
             }
             PlcMsg::DownloadBegin { crc } => {
                 self.download.crc = crc;
+                self.download.running = CRC.digest();
                 self.download.next_line = 0;
                 self.download.broken = false;
                 self.download.active = true;
@@ -349,6 +368,7 @@ impl DriveLink {
         }
         if let Some(dst) = d.buf.get_mut(start..end) {
             dst.copy_from_slice(data);
+            d.running.update(data);
             d.next_line += data.len() / LINE_BYTES;
         } else {
             d.broken = true;
@@ -377,7 +397,7 @@ impl DriveLink {
     fn check_step(&mut self) {
         self.download.check = match self.download.check {
             Check::Idle => Check::Idle,
-            Check::Crc if section_crc(&self.download.buf) != self.download.crc => {
+            Check::Crc if self.download.running.clone().finalize() != self.download.crc => {
                 Check::Done(DownloadResult::Rejected {
                     line: 0,
                     reason: RejectReason::Crc,
@@ -388,22 +408,30 @@ impl DriveLink {
                 Check::Decode { from: 0 }
             }
             Check::Decode { from } => match self.decode_download(from) {
-                Ok(next) if usize::from(next) >= DRIVE_LINES => Check::Verify,
+                Ok(next) if usize::from(next) >= DRIVE_LINES => Check::Verify {
+                    from: 0,
+                    v: Verifier::new(),
+                },
                 Ok(next) => Check::Decode { from: next },
                 Err(line) => Check::Done(DownloadResult::Rejected {
                     line,
                     reason: RejectReason::Decode,
                 }),
             },
-            Check::Verify => match self.program.as_ref().map(verify_drive) {
-                Some(Ok(())) => Check::Done(DownloadResult::Accepted),
-                Some(Err(e)) => Check::Done(DownloadResult::Rejected {
-                    line: e.line,
-                    reason: RejectReason::Verify(verify_kind_code(&e.kind)),
-                }),
-                None => Check::Done(DownloadResult::Rejected {
+            Check::Verify { .. } if self.program.is_none() => {
+                Check::Done(DownloadResult::Rejected {
                     line: 0,
                     reason: RejectReason::Incomplete,
+                })
+            }
+            Check::Verify { from, mut v } => match self.verify_download(from, &mut v) {
+                Ok(next) if usize::from(next) >= DRIVE_LINES => {
+                    Check::Done(DownloadResult::Accepted)
+                }
+                Ok(next) => Check::Verify { from: next, v },
+                Err(e) => Check::Done(DownloadResult::Rejected {
+                    line: e.line,
+                    reason: RejectReason::Verify(verify_kind_code(&e.kind)),
                 }),
             },
             Check::Done(result) => {
@@ -433,6 +461,33 @@ impl DriveLink {
         for (n, (slot, bytes)) in lines {
             *slot = decode_slot(bytes).map_err(|_| n as u16)?;
             next = n as u16 + 1;
+        }
+        Ok(next)
+    }
+
+    /// Runs the verifier `v` over the decoded lines from line `from` on, up to
+    /// [`VERIFY_USED_LINES_PER_STEP`] used lines; the next line to verify. The verifier in
+    /// steps is `verify_drive` (its loop over the lines, `Verifier`), minus the first
+    /// line of a `SettingTwice`, which the drive does not report.
+    fn verify_download(&self, from: u16, v: &mut Verifier<false>) -> Result<u16, VerifyError> {
+        let Some(section) = self.program.as_ref() else {
+            return Ok(DRIVE_LINES as u16);
+        };
+        let mut used = 0;
+        let mut next = from;
+        for (line, slot) in (0u16..).zip(section.lines.iter()).skip(usize::from(from)) {
+            if used == VERIFY_USED_LINES_PER_STEP {
+                break;
+            }
+            next = line + 1;
+            if let Some(i) = slot {
+                v.line(line, i)?;
+                used += 1;
+            }
+        }
+        if next == from {
+            // Nothing left: the end.
+            next = DRIVE_LINES as u16;
         }
         Ok(next)
     }

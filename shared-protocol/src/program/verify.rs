@@ -713,6 +713,11 @@ impl VerifiedDriveSection {
     pub fn section(&self) -> &DriveSection {
         &self.0
     }
+
+    /// The section, moved out (the drive core keeps it).
+    pub fn into_section(self) -> DriveSection {
+        self.0
+    }
 }
 
 #[cfg(test)]

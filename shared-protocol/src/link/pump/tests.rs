@@ -347,3 +347,15 @@ fn the_reaction_runs_after_the_frame_is_handed_out_and_moves_the_deadline() {
     // What the reaction queued is due at once, not at the idle bound.
     assert_eq!(p.wake_at, Micros(500));
 }
+
+#[test]
+fn frame_pieces_end_at_most_one_frame_each_and_keep_every_byte() {
+    let rx = [0, 5, 6, 0, 7, 0, 8, 9];
+    let pieces: Vec<&[u8]> = frame_pieces(&rx).collect();
+    assert_eq!(pieces, [&[0][..], &[5, 6, 0], &[7, 0], &[8, 9]]);
+    for p in &pieces {
+        assert!(p.iter().filter(|&&b| b == 0).count() <= 1);
+    }
+    assert_eq!(pieces.concat(), rx);
+    assert_eq!(frame_pieces(&[]).count(), 0);
+}
