@@ -252,7 +252,11 @@ pub(crate) unsafe fn init(config: Config) {
         // 1. The system clock must be divided by 2 using the AHB prescaler before switching to a higher system frequency.
         RCC.cfgr().modify(|w| w.set_hpre(AHBPrescaler::DIV2));
         // 2. Clear the R1MODE bit in the PWR_CR5 register. (enables boost mode)
-        PWR.cr5().modify(|w| w.set_r1mode(false));
+        // PATCHED (drive-plc project, vendor/README.md): stm32-metapac 21 places R1MODE at
+        // bit 0; RM0440 "PWR control register 5 (PWR_CR5)" and ST's CMSIS header
+        // (PWR_CR5_R1MODE_Pos 8) place it at bit 8, the register's only field (reset value
+        // 0x0000_0100). Written whole: 0 = range 1 boost mode.
+        PWR.cr5().write_value(crate::pac::pwr::regs::Cr5(0));
 
         // Below:
         // 3. Adjust wait states according to new freq target
@@ -281,19 +285,28 @@ pub(crate) unsafe fn init(config: Config) {
     // Spin until the effective flash latency is set.
     while FLASH.acr().read().latency() != latency {}
 
-    if config.boost {
-        // 5. Wait for at least 1us and then reconfigure the AHB prescaler to get the needed HCLK clock frequency.
-        cortex_m::asm::delay(16);
-    }
-
-    // Now that boost mode and flash read access latency are configured, set up SYSCLK
+    // Now that boost mode and flash read access latency are configured, set up SYSCLK.
+    // PATCHED (drive-plc project, vendor/README.md): in boost mode the switch keeps the
+    // AHB prescaler at /2 (set above) and HPRE takes its configured value only after at
+    // least 1 us at the new clock: RM0440 6.1.5 steps 4 and 5, as ST's HAL_RCC_ClockConfig
+    // does above 80 MHz. Upstream wrote SW and HPRE = /1 in one write (HCLK 8 -> 170 MHz).
     RCC.cfgr().modify(|w| {
         w.set_sw(config.sys);
-        w.set_hpre(config.ahb_pre);
+        if !config.boost {
+            w.set_hpre(config.ahb_pre);
+        }
         w.set_ppre1(config.apb1_pre);
         w.set_ppre2(config.apb2_pre);
     });
     while RCC.cfgr().read().sws() != config.sys {}
+
+    if config.boost {
+        // 5. Wait for at least 1us and then reconfigure the AHB prescaler to get the needed
+        // HCLK clock frequency: HCLK is at most 85 MHz here, so 170 core cycles last at
+        // least 2 us.
+        cortex_m::asm::delay(170);
+        RCC.cfgr().modify(|w| w.set_hpre(config.ahb_pre));
+    }
 
     // Disable HSI if not used
     if !config.hsi {
