@@ -11,11 +11,11 @@
 //! the switch and for 1 us after it (review N9). One `embassy_stm32::init` with
 //! [`config`] does both.
 
+use embassy_stm32::pac;
 use embassy_stm32::rcc::{
     self, mux, AHBPrescaler, APBPrescaler, Pll, PllMul, PllPDiv, PllPreDiv, PllRDiv, PllSource,
     Sysclk,
 };
-use embassy_stm32::pac;
 
 /// Core clock both board layers assume (the drive's TIM1 counts at this rate: APB2 prescaler 1).
 pub const SYSCLK_HZ: u32 = 170_000_000;
