@@ -12,19 +12,18 @@ use crate::{banner, clocks, reset_cause};
 /// priorities there cost nothing.
 pub const BACKGROUND: Priority = Priority::P2;
 
-/// Reads the reset cause, starts embassy on HSI16 with the DMA interrupts (the G4's
-/// DMA1/DMA2 are embassy's `bdma`) at [`BACKGROUND`], enters range 1 boost mode
-/// ([`clocks::enter_boost_mode`]), raises the clock to 170 MHz ([`clocks::raise`]), turns
-/// the flash prefetch on ([`clocks::enable_prefetch`]), lowers the time driver's TIM4 to [`BACKGROUND`] (embassy-stm32 0.6
-/// enables it at P0 and has no setting for it), prints the boot line and, with
-/// `dwt-cycles`, starts the cycle counter.
+/// Reads the reset cause, starts embassy at 170 MHz in range 1 boost mode with the DMA
+/// interrupts (the G4's DMA1/DMA2 are embassy's `bdma`) at [`BACKGROUND`] (one clock set-up:
+/// [`clocks::config`], through the vendored embassy-stm32's fixed G4 sequence), turns the
+/// flash prefetch on ([`clocks::enable_prefetch`]), lowers the time driver's TIM4 to
+/// [`BACKGROUND`] (embassy-stm32 0.6 enables it at P0 and has no setting for it), prints
+/// the boot line and, with `dwt-cycles`, starts the cycle counter.
 pub fn init(image: &str, version: &str) -> (Peripherals, ResetCause) {
     let cause = reset_cause::take();
     let mut config = embassy_stm32::Config::default();
     config.bdma_interrupt_priority = BACKGROUND;
-    let mut p = embassy_stm32::init(config);
-    clocks::enter_boost_mode();
-    clocks::raise(&mut p.RCC);
+    config.rcc = clocks::config();
+    let p = embassy_stm32::init(config);
     clocks::enable_prefetch();
     interrupt::TIM4.set_priority(BACKGROUND);
     banner::boot(image, version, cause);

@@ -38,15 +38,6 @@ pub fn emu_on_documented_boards(program: &str, scenario: &str) -> Checked {
 /// there; the allowance goes when the fix lands).
 pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
     (
-        "HCLK jumps from 16 to 170 MHz in boost mode with the AHB prescaler at /1",
-        "finding N9 (board-review-2, issue 29): embassy-stm32 0.6's G4 clock set-up \
-         (`rcc/g4.rs`) writes SW = PLL and HPRE = /1 in one CFGR write, where RM0440 6.1.5 \
-         (and ST's HAL_RCC_ClockConfig above 80 MHz) keeps HPRE = /2 across the switch and \
-         for 1 us after it; the images cannot interpose in that write without a change to \
-         embassy (firmware-drive/docs/board.md, N9). Reported since boost mode is entered \
-         (E7)",
-    ),
-    (
         "PWR.CR3 set to 0x0000c000",
         "model limit: embassy's clock init sets UCPD1_DBDIS, which removes the USB-C \
          dead-battery pull-downs of PB4/PB6 (RM0440 PWR_CR3); the model never had them, so \

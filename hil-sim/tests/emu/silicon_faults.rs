@@ -218,11 +218,10 @@ fn an_i2c_timeout_in_a_save_leaves_the_bus_usable_for_the_next_save_and_the_lcd(
 /// (generated from ST's SVD, like the `stm32g4` PAC) puts R1MODE at bit 0, where RM0440's
 /// PWR_CR5 description and ST's CMSIS header (`PWR_CR5_R1MODE_Pos` = 8, reset value
 /// 0x0000_0100) put it at bit 8. The write clears a reserved bit and leaves R1MODE at 1:
-/// both images ran 170 MHz in range 1 normal mode, out of specification, until
-/// `board_common::clocks::enter_boost_mode` wrote PWR_CR5 itself. The model follows
-/// RM0440 (bit 8) and reports it at the switch. (With boost on, review N9's missing AHB /2
-/// step across the switch is reported: embassy writes SW = PLL and HPRE = /1 in one
-/// write; allowed by name in `common.rs` until embassy changes.)
+/// both images ran 170 MHz in range 1 normal mode, out of specification. The images now
+/// use a vendored embassy-stm32 whose G4 set-up writes PWR_CR5 whole (and keeps the AHB /2
+/// step across the switch, review N9: `vendor/README.md`). The model follows RM0440
+/// (bit 8) and reports a switch above 150 MHz in normal mode.
 #[test]
 fn both_images_run_170_mhz_in_boost_mode_with_4_wait_states_and_the_prefetch() {
     use g431_emu::soc::Diagnostic;
