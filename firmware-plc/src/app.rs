@@ -59,6 +59,7 @@ use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 mod service;
 
 pub(crate) use service::checked_slot;
+pub(crate) use service::up_to;
 pub use service::{BuildInfo, Outcome};
 
 /// Where RUN stands.

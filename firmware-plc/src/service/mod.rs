@@ -127,10 +127,12 @@ impl Service {
                     }
                 }
             };
-            return encode(id, answer, out).unwrap_or(0);
+            // By reference: the answer (up to ~120 B) is serialised where it is, not
+            // moved into the frame.
+            return encode(id, &answer, out).unwrap_or(0);
         }
         match self.port.take_sample() {
-            Some(s) => encode(0, Answer::Sample(s), out).unwrap_or(0),
+            Some(s) => encode(0, &Answer::Sample(s), out).unwrap_or(0),
             None => 0,
         }
     }
