@@ -43,6 +43,7 @@ use shared_protocol::link::{
 use shared_protocol::program::{
     safety_settings, uses_safety, verify, Mnemonic, Operand, Program, Section, ShortText,
 };
+use shared_protocol::shift;
 use shared_protocol::units::{CentiAmps, Decihertz, Decivolts, Micros, Volts};
 
 use crate::debounce::{Debouncer, KeyMatrix};
@@ -58,6 +59,7 @@ use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 mod service;
 
 pub(crate) use service::checked_slot;
+pub(crate) use service::up_to;
 pub use service::{BuildInfo, Outcome};
 
 /// Where RUN stands.
@@ -807,7 +809,7 @@ impl<E: Eeprom> PlcApp<E> {
                         let _ = self.fault_log.pop();
                     }
                     // Cannot fail: there is room now.
-                    let _ = self.fault_log.insert(0, entry);
+                    let _ = shift::insert_front(&mut self.fault_log, entry);
                     self.observed.logged();
                 }
                 Err(_) => self.editor.notify(Notice::Text("FAULT LOG ERROR")),

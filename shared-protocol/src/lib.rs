@@ -32,5 +32,6 @@ pub mod program;
 pub mod rate_limit;
 pub mod safety;
 pub mod service;
+pub mod shift;
 pub mod supervision;
 pub mod units;

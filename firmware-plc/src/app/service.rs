@@ -127,13 +127,28 @@ fn plc_state(run: RunState) -> PlcState {
     }
 }
 
-fn short<const N: usize>(s: &str) -> heapless::String<N> {
-    let mut out = heapless::String::new();
-    for c in s.chars() {
-        if out.push(c).is_err() {
+/// What `.collect()` into a `heapless::Vec` does, cut at the capacity instead of
+/// panicking past it (heapless's `FromIterator` has an `expect`; every use here fits, and
+/// the panic path was code in the image for each of them).
+pub(crate) fn up_to<T, const N: usize>(items: impl Iterator<Item = T>) -> Vec<T, N> {
+    let mut v = Vec::new();
+    for x in items {
+        if v.push(x).is_err() {
             break;
         }
     }
+    v
+}
+
+/// `s` cut to at most `N` bytes at a character boundary (one copy, no per-character
+/// decoding and encoding).
+fn short<const N: usize>(s: &str) -> heapless::String<N> {
+    let mut n = s.len().min(N);
+    while !s.is_char_boundary(n) {
+        n -= 1;
+    }
+    let mut out = heapless::String::new();
+    let _ = out.push_str(s.get(..n).unwrap_or(""));
     out
 }
 
@@ -244,7 +259,7 @@ impl<E: Eeprom> PlcApp<E> {
             o: self.out.outputs,
             a: self.observed.a,
             lcd: self.out.lcd,
-            q: q.iter().map(|&n| self.vm.q(n)).collect(),
+            q: up_to(q.iter().map(|&n| self.vm.q(n))),
             dropped: 0,
         }
     }
@@ -258,19 +273,19 @@ impl<E: Eeprom> PlcApp<E> {
             (_, LOG_FROM_NEWEST) | (None, _) => 0,
             (Some(h), f) => usize::from((h + ring - f % ring) % ring),
         };
-        let entries = self
-            .fault_log
-            .iter()
-            .enumerate()
-            .skip(skip)
-            .take(usize::from(count).min(LOG_ENTRIES_PER_ANSWER))
-            .map(|(k, e)| LogEntry {
-                pos: head.map_or(0, |h| (h + ring - (k as u8 % ring)) % ring),
-                code: e.code,
-                power_up: e.power_cycle,
-                uptime_s: e.uptime_s,
-            })
-            .collect();
+        let entries = up_to(
+            self.fault_log
+                .iter()
+                .enumerate()
+                .skip(skip)
+                .take(usize::from(count).min(LOG_ENTRIES_PER_ANSWER))
+                .map(|(k, e)| LogEntry {
+                    pos: head.map_or(0, |h| (h + ring - (k as u8 % ring)) % ring),
+                    code: e.code,
+                    power_up: e.power_cycle,
+                    uptime_s: e.uptime_s,
+                }),
+        );
         FaultLog {
             total: self.fault_log.len() as u8,
             newest: head,
@@ -293,10 +308,10 @@ impl<E: Eeprom> PlcApp<E> {
     fn service_screen(&self, now: Micros) -> ScreenRows {
         let mut screen = self.editor.screen();
         self.render(now, &mut screen);
+        // Blank cells are spaces (`Screen::clear`): trimming them alone spares the image
+        // `trim_end`'s Unicode white-space table.
         ScreenRows {
-            rows: (0..screen.rows())
-                .map(|r| short(screen.row(r).trim_end()))
-                .collect(),
+            rows: up_to((0..screen.rows()).map(|r| short(screen.row(r).trim_end_matches(' ')))),
         }
     }
 

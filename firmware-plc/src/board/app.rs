@@ -72,7 +72,14 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp, svc: super::service::Sha
             defmt::info!("plc: {} -> {}", from, to);
         }
         if let Some(done) = tick.storage {
-            defmt::info!("storage: {}", done);
+            let s = done.summary();
+            defmt::info!(
+                "storage: {} {=u8}: {} {=u32}",
+                s.kind,
+                s.slot,
+                s.outcome,
+                s.value
+            );
         }
         match io.lcd.as_mut() {
             Some(l) => {

@@ -23,6 +23,8 @@ use shared_protocol::service::{
 };
 use shared_protocol::units::Micros;
 
+use crate::app::up_to;
+
 /// The answer kept for a repeat of the last guarded request (they are all small).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stored {
@@ -291,10 +293,9 @@ impl ServicePort {
             return 0;
         }
         let period_ms = period_ms.clamp(SAMPLE_PERIOD_MIN_MS, SAMPLE_PERIOD_MAX_MS);
-        let mut list: Vec<u8, MAX_SUBSCRIBED_Q> =
-            q.iter().copied().take(MAX_SUBSCRIBED_Q).collect();
+        let mut list: Vec<u8, MAX_SUBSCRIBED_Q> = up_to(q.iter().copied());
         if list.is_empty() {
-            list = (0..MAX_SUBSCRIBED_Q as u8).collect();
+            list = up_to(0..MAX_SUBSCRIBED_Q as u8);
         }
         let p = u64::from(period_ms);
         self.subscription = Some(Subscription {

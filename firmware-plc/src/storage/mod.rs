@@ -32,7 +32,10 @@ pub mod staged;
 pub use boot::BootRecord;
 pub use eeprom::{Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES};
 pub use fault_log::FaultEntry;
-pub use job::{BootChange, Job, JobDone, ProgramUse, Step, WRITE_CYCLE_LIMIT_US};
+pub use job::{
+    BootChange, Job, JobDone, JobKind, JobOutcome, JobSummary, ProgramUse, Step,
+    WRITE_CYCLE_LIMIT_US,
+};
 pub use layout::{FAULT_LOG_ENTRIES, SLOTS};
 #[cfg(any(test, feature = "sim"))]
 pub use mem_eeprom::MemEeprom;

@@ -14,6 +14,7 @@ use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::{LinkStats, Q_COUNT};
 use crate::fault::FaultCode;
 use crate::program::{encode_slot, DriveSection, DRIVE_LINES, LINE_BYTES};
+use crate::shift;
 use crate::units::Micros;
 
 /// Wire bytes of a heartbeat frame.
@@ -225,7 +226,7 @@ impl PlcLink {
             .skip(tail)
             .position(|p| matches!(p, Pending::Q(o) if o.addr == q.addr));
         if let Some(i) = old {
-            self.pending.remove(tail + i);
+            shift::remove_at(&mut self.pending, tail + i);
         }
         self.push_pending(Pending::Q(q))
     }
@@ -272,9 +273,7 @@ impl PlcLink {
         self.pending
             .retain(|p| !matches!(p, Pending::Q(_) | Pending::Run | Pending::Stop));
         // Cannot fail: other commands leave the last place free (`PENDING_NOT_STOP`).
-        self.pending
-            .insert(0, Pending::Stop)
-            .map_err(|_| CommandError::QueueFull)
+        shift::insert_front(&mut self.pending, Pending::Stop).map_err(|_| CommandError::QueueFull)
     }
 
     pub fn ack_fault(&mut self) -> Result<(), CommandError> {
@@ -562,10 +561,9 @@ impl PlcLink {
     /// of `pending`) the next new frame, and lets Q writes coalesce until then.
     fn fill_window(&mut self) {
         if !self.s.window_full() && !self.s.has_unsent() {
-            if self.pending.is_empty() {
+            let Some(first) = shift::remove_at(&mut self.pending, 0) else {
                 return;
-            }
-            let first = self.pending.remove(0);
+            };
             let msg = match first {
                 Pending::Q(q) => {
                     let mut v = heapless::Vec::<QValue, MAX_Q_PER_FRAME>::new();
@@ -576,7 +574,7 @@ impl PlcLink {
                         match self.pending.first() {
                             Some(Pending::Q(next)) => {
                                 let _ = v.push(*next);
-                                self.pending.remove(0);
+                                shift::remove_at(&mut self.pending, 0);
                             }
                             _ => break,
                         }
