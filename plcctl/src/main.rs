@@ -125,7 +125,7 @@ enum Cmd {
         #[arg(long, hide = true)]
         token: Option<String>,
         /// Another name the server answers to (its `Host`), e.g. the machine's DNS
-        /// name off loopback; repeatable. Always: localhost, 127.0.0.1, [::1], the bind
+        /// name off loopback; repeatable. Always: `localhost`, `127.0.0.1`, `[::1]`, the bind
         /// address.
         #[arg(long = "host")]
         hosts: Vec<String>,
