@@ -422,6 +422,14 @@ impl Usart {
         self.rx_incoming.insert(pos, (at, byte));
     }
 
+    /// The cycle at which the receiver will detect an idle line (one idle frame after the
+    /// last character) unless a start bit comes first, if it is waiting for one. A
+    /// co-simulation runs the sending side up to this cycle before this side passes it, so
+    /// that a start bit inside the idle frame cancels the detection as on the line.
+    pub fn idle_deadline(&self) -> Option<Cycles> {
+        self.idle_at
+    }
+
     /// Bit time and character format as programmed, or `None` while BRR is below the minimum
     /// RM0440 allows (16, or 0x300 for LPUART1), in which case nothing is transmitted.
     pub fn line_config(&self) -> Option<LineConfig> {

@@ -465,9 +465,23 @@ impl EmuSim {
             if !self.cut {
                 t = t.min(self.scenario.cut_at_ns.max(self.now_ns + 1));
             }
+            // Each side runs its slice alone; a character that starts in it reaches the
+            // other side only after the sender ran. A receiver that will detect an idle
+            // line inside the slice runs second, with the slice cut at that cycle, and
+            // gets the sender's characters first: a start bit inside its idle frame then
+            // cancels the detection, as on the line (RM0440 USART "IDLE").
+            let (t, plc_first) = self.slice_order(t);
             let until = ns_to_cycles(t);
-            self.drive.run_until(until);
-            self.plc.run_until(until);
+            let cut = self.cut || t >= self.scenario.cut_at_ns;
+            if plc_first {
+                self.plc.run_until(until);
+                self.plc_to_drive(cut);
+                self.drive.run_until(until);
+            } else {
+                self.drive.run_until(until);
+                self.drive_to_plc(cut);
+                self.plc.run_until(until);
+            }
             self.rig.borrow_mut().advance_to(t);
             self.now_ns = t;
             self.exchange();
@@ -481,13 +495,31 @@ impl EmuSim {
         }
     }
 
-    /// Hands the characters each side started sending in this slice to the other side.
-    fn exchange(&mut self) {
-        let cut = self.cut || self.now_ns >= self.scenario.cut_at_ns;
-        if cut && !self.cut {
-            self.cut = true;
+    /// The slice's end (`t`, or earlier) and whether the PLC runs first in it: the side
+    /// whose link receiver has the first idle-line deadline before `t` runs second, and
+    /// the slice ends at that deadline.
+    fn slice_order(&mut self, t: u64) -> (u64, bool) {
+        let now = ns_to_cycles(self.now_ns);
+        let until = ns_to_cycles(t);
+        let deadline = |m: &mut Mcu, pin| {
+            usart_on_pin(m.soc(), pin, "RX")
+                .and_then(|rx| m.soc_mut().usart_mut(rx).and_then(|u| u.idle_deadline()))
+                .filter(|&d| d > now && d <= until)
+        };
+        let drive = deadline(&mut self.drive, drive_pins::LINK_RX);
+        let plc = deadline(&mut self.plc, plc_pins::LINK_RX);
+        // The first nanosecond whose first cycle is at or after the deadline.
+        let end_at = |d: u64| (cycles_to_ns(d) + 1).min(t);
+        match (drive, plc) {
+            (Some(d), Some(p)) if p < d => (end_at(p), false),
+            (Some(d), _) => (end_at(d), true),
+            (None, Some(p)) => (end_at(p), false),
+            (None, None) => (t, false),
         }
-        // PLC → drive.
+    }
+
+    /// The PLC's link characters that started so far, to the drive.
+    fn plc_to_drive(&mut self, cut: bool) {
         move_chars(
             &mut self.plc,
             plc_pins::LINK_TX,
@@ -498,6 +530,10 @@ impl EmuSim {
             &mut |_m: PlcMsg| {},
             &mut self.q,
         );
+    }
+
+    /// The drive's link characters that started so far, to the PLC (decoding its status).
+    fn drive_to_plc(&mut self, cut: bool) {
         let mut status = self.status;
         move_drive_chars(
             &mut self.drive,
@@ -507,6 +543,17 @@ impl EmuSim {
             &mut status,
         );
         self.status = status;
+    }
+
+    /// Hands the characters each side started sending in this slice (and not yet handed
+    /// over) to the other side.
+    fn exchange(&mut self) {
+        let cut = self.cut || self.now_ns >= self.scenario.cut_at_ns;
+        if cut && !self.cut {
+            self.cut = true;
+        }
+        self.plc_to_drive(cut);
+        self.drive_to_plc(cut);
         self.exchange_service();
     }
 
