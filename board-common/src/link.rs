@@ -36,7 +36,7 @@ use shared_protocol::link::MAX_WIRE_FRAME;
 use shared_protocol::units::Micros;
 use static_cell::StaticCell;
 
-use crate::link_rx::{self, RingRx, RxHw, RING_BYTES};
+use crate::link_rx::{self, Link, RingRx, RxHw, Service, RING_BYTES};
 use crate::supervisor;
 use crate::time::{instant, now};
 
@@ -53,7 +53,7 @@ struct LinkIdle;
 
 impl Handler<USART1> for LinkIdle {
     unsafe fn on_interrupt() {
-        link_rx::on_idle(&link_rx::LINK);
+        link_rx::on_idle::<Link>();
     }
 }
 
@@ -62,7 +62,7 @@ struct LinkHalf;
 
 impl Handler<DMA1_CHANNEL2> for LinkHalf {
     unsafe fn on_interrupt() {
-        link_rx::on_half(&link_rx::LINK);
+        link_rx::on_half::<Link>();
     }
 }
 
@@ -85,10 +85,10 @@ pub struct Port<R> {
 }
 
 /// The link's port: its receiver is [`link_rx::RingRx`].
-pub type LinkPort = Port<RingRx>;
+pub type LinkPort = Port<RingRx<Link>>;
 
 /// The PLC's service port: the same ring receiver on its own U(S)ART and channel.
-pub type ServicePort = Port<RingRx>;
+pub type ServicePort = Port<RingRx<Service>>;
 
 /// Opens the link USART 8N1 at `baud` with the RX pull-up and starts its ring receiver
 /// ([`link_rx`], review N13).
@@ -102,13 +102,13 @@ where
     let (tx, rx) = open_uart(l.usart, l.tx, l.rx, l.tx_dma, l.rx_dma, Irqs, baud);
     Port {
         tx,
-        rx: link_rx::start(&link_rx::LINK, RING.init([0; RING_BYTES]), request),
+        rx: link_rx::start(RING.init([0; RING_BYTES]), request),
         _embassy_rx: Some(rx),
     }
 }
 
 /// Opens any U(S)ART `T` 8N1 at `baud` with the RX pull-up, TX and RX on the DMA channels
-/// `D1`/`D2` (RX into the ring receiver `hw`, whose handlers `irqs` binds before
+/// `D1`/`D2` (RX into the ring receiver [`Service`], whose handlers `irqs` binds before
 /// embassy's, into `rx_ring`), and puts its interrupt and its DMA channels' below TIM1
 /// ([`crate::boot::BACKGROUND`]). The PLC's service LPUART1 is opened here.
 #[allow(clippy::too_many_arguments)]
@@ -122,7 +122,6 @@ pub fn open_port<T, D1, D2>(
         + Binding<D1::Interrupt, dma::InterruptHandler<D1>>
         + Binding<D2::Interrupt, dma::InterruptHandler<D2>>
         + 'static,
-    hw: &'static RxHw,
     rx_ring: &'static mut [u8; RING_BYTES],
     baud: u32,
 ) -> ServicePort
@@ -135,7 +134,7 @@ where
     let (tx, rx) = open_uart(usart, tx, rx, tx_dma, rx_dma, irqs, baud);
     Port {
         tx,
-        rx: link_rx::start(hw, rx_ring, request),
+        rx: link_rx::start(rx_ring, request),
         _embassy_rx: Some(rx),
     }
 }
@@ -182,7 +181,7 @@ pub trait ByteRx {
     async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error>;
 }
 
-impl ByteRx for RingRx {
+impl<H: RxHw> ByteRx for RingRx<H> {
     type Error = link_rx::LineError;
     async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
         self.read(buf).await

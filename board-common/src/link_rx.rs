@@ -1,6 +1,6 @@
 //! A U(S)ART receiver into a DMA ring that never stops, register bindings only (review
-//! N13): the link's (USART1 RX on DMA1 channel 2, both images, [`LINK`]) and the PLC's
-//! service port's (LPUART1 RX on DMA1 channel 4, [`SERVICE`]). Each is an [`RxHw`]: the
+//! N13): the link's (USART1 RX on DMA1 channel 2, both images, [`Link`]) and the PLC's
+//! service port's (LPUART1 RX on DMA1 channel 4, [`Service`]). Each is an [`RxHw`]: the
 //! peripheral, the channel and the state its interrupts share with its task.
 //!
 //! Why not embassy's `RingBufferedUartRx`: after a line error it stops the channel (EN = 0)
@@ -25,6 +25,7 @@
 //! register block.
 
 use core::future::poll_fn;
+use core::marker::PhantomData;
 use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
 use core::task::Poll;
 
@@ -63,33 +64,43 @@ impl RxState {
     }
 }
 
-/// One receiver's hardware: its U(S)ART, its DMA1 channel and its shared state.
-pub struct RxHw {
-    usart: Usart,
+/// One receiver's hardware: its U(S)ART, its DMA1 channel and its shared state (a type,
+/// so each receiver's code is built with its constants).
+pub trait RxHw: 'static {
+    /// The U(S)ART's register block.
+    const USART: Usart;
     /// DMA1 channel index (channel n is index n - 1); DMA1's channels 1-6 are DMAMUX1's
     /// channels 0-5 (RM0440 "DMAMUX mapping"), so it is also the DMAMUX channel.
-    ch: usize,
-    state: RxState,
+    const CH: usize;
+    /// What its interrupts share with its task.
+    fn state() -> &'static RxState;
 }
 
-// SAFETY: the register block is an address; the state is atomics.
-unsafe impl Sync for RxHw {}
-
 /// The link: USART1 RX on DMA1 channel 2.
-pub static LINK: RxHw = RxHw {
-    usart: pac::USART1,
-    ch: 1,
-    state: RxState::new(),
-};
+pub struct Link;
+
+impl RxHw for Link {
+    const USART: Usart = pac::USART1;
+    const CH: usize = 1;
+    fn state() -> &'static RxState {
+        static STATE: RxState = RxState::new();
+        &STATE
+    }
+}
 
 /// The PLC's service port: LPUART1 RX on DMA1 channel 4 (same register layout as
 /// USART1's for what is used here, see the module doc).
-// SAFETY: LPUART1's address; only registers with USART1's offsets and bits are used.
-pub static SERVICE: RxHw = RxHw {
-    usart: unsafe { Usart::from_ptr(pac::LPUART1.as_ptr()) },
-    ch: 3,
-    state: RxState::new(),
-};
+pub struct Service;
+
+impl RxHw for Service {
+    // SAFETY: LPUART1's address; only registers with USART1's offsets and bits are used.
+    const USART: Usart = unsafe { Usart::from_ptr(pac::LPUART1.as_ptr()) };
+    const CH: usize = 3;
+    fn state() -> &'static RxState {
+        static STATE: RxState = RxState::new();
+        &STATE
+    }
+}
 
 /// A line error the USART flagged (the first of the flags set, in this order).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -103,26 +114,26 @@ pub enum LineError {
 }
 
 /// The receiver: the ring and the reader's position.
-pub struct RingRx {
-    hw: &'static RxHw,
+pub struct RingRx<H: RxHw> {
     ring: *const u8,
     reader: RingReader,
+    _hw: PhantomData<H>,
 }
 
 /// Programs the channel (circular, peripheral to memory, bytes, half and complete
 /// interrupts) of `hw` into `ring` on `request` (DMAMUX request of its U(S)ART's RX), then
 /// enables the U(S)ART's DMA request and IDLE interrupt. Called once per receiver, after
 /// embassy opened the U(S)ART (RE, baud, pin).
-pub fn start(hw: &'static RxHw, ring: &'static mut [u8; RING_BYTES], request: u8) -> RingRx {
+pub fn start<H: RxHw>(ring: &'static mut [u8; RING_BYTES], request: u8) -> RingRx<H> {
     let ring = ring.as_mut_ptr();
-    let usart = hw.usart;
-    let ch = pac::DMA1.ch(hw.ch);
+    let usart = H::USART;
+    let ch = pac::DMA1.ch(H::CH);
     // RM0440 "Channel configuration procedure": addresses, count, request, then CCR with EN.
     ch.cr().write(|w| w.set_en(false));
     ch.par().write_value(usart.rdr().as_ptr() as u32);
     ch.mar().write_value(ring as u32);
     ch.ndtr().write(|w| w.set_ndt(RING_BYTES as u16));
-    pac::DMAMUX1.ccr(hw.ch).write(|w| w.set_dmareq_id(request));
+    pac::DMAMUX1.ccr(H::CH).write(|w| w.set_dmareq_id(request));
     ch.cr().write(|w| {
         w.set_dir(Dir::FROM_PERIPHERAL);
         w.set_minc(true);
@@ -141,18 +152,18 @@ pub fn start(hw: &'static RxHw, ring: &'static mut [u8; RING_BYTES], request: u8
         w.set_dmar(true);
     });
     RingRx {
-        hw,
         ring,
         reader: RingReader::new(RING_BYTES as u16),
+        _hw: PhantomData,
     }
 }
 
-impl RingRx {
+impl<H: RxHw> RingRx<H> {
     /// Waits until bytes arrived or a line error was flagged; the bytes into `buf` (as
     /// many as fit; the rest stay for the next call).
     pub async fn read(&mut self, buf: &mut [u8]) -> Result<usize, LineError> {
         poll_fn(|cx| {
-            self.hw.state.waker.register(cx.waker());
+            H::state().waker.register(cx.waker());
             match self.poll(buf) {
                 Ok(0) => Poll::Pending,
                 r => Poll::Ready(r),
@@ -163,7 +174,7 @@ impl RingRx {
 
     /// Error flags first (read and cleared), then the new bytes.
     fn poll(&mut self, buf: &mut [u8]) -> Result<usize, LineError> {
-        let usart = self.hw.usart;
+        let usart = H::USART;
         let flags = usart.isr().read().0 & (PE | FE | NE | ORE);
         if flags != 0 {
             usart.icr().write(|w| w.0 = flags);
@@ -179,9 +190,9 @@ impl RingRx {
         }
         // The count and the position read as a pair: again if an event came in between.
         let (remaining, halves) = loop {
-            let halves = self.hw.state.halves.load(Ordering::Acquire);
-            let remaining = pac::DMA1.ch(self.hw.ch).ndtr().read().ndt();
-            if self.hw.state.halves.load(Ordering::Acquire) == halves {
+            let halves = H::state().halves.load(Ordering::Acquire);
+            let remaining = pac::DMA1.ch(H::CH).ndtr().read().ndt();
+            if H::state().halves.load(Ordering::Acquire) == halves {
                 break (remaining, halves);
             }
         };
@@ -203,27 +214,27 @@ impl RingRx {
 
 /// The U(S)ART's interrupt, before embassy's: the IDLE flag (a frame's end) wakes the
 /// task.
-pub fn on_idle(hw: &RxHw) {
-    if hw.usart.isr().read().0 & IDLE != 0 {
-        hw.usart.icr().write(|w| w.0 = IDLE);
-        hw.state.waker.wake();
+pub fn on_idle<H: RxHw>() {
+    if H::USART.isr().read().0 & IDLE != 0 {
+        H::USART.icr().write(|w| w.0 = IDLE);
+        H::state().waker.wake();
     }
 }
 
 /// The DMA channel's interrupt, before embassy's: counts the half events and wakes the
 /// task.
-pub fn on_half(hw: &RxHw) {
+pub fn on_half<H: RxHw>() {
     let dma = pac::DMA1;
     let isr = dma.isr().read();
-    let (ht, tc) = (isr.htif(hw.ch), isr.tcif(hw.ch));
+    let (ht, tc) = (isr.htif(H::CH), isr.tcif(H::CH));
     if ht || tc {
         dma.ifcr().write(|w| {
-            w.set_htif(hw.ch, ht);
-            w.set_tcif(hw.ch, tc);
+            w.set_htif(H::CH, ht);
+            w.set_tcif(H::CH, tc);
         });
-        hw.state
+        H::state()
             .halves
             .fetch_add(u32::from(ht) + u32::from(tc), Ordering::Release);
-        hw.state.waker.wake();
+        H::state().waker.wake();
     }
 }

@@ -1,6 +1,6 @@
 //! The service port (service.md 1-2): LPUART1 on PA2/PA3, the NUCLEO-G431RB's ST-LINK/V3
 //! virtual COM port, 8N1 at [`SERVICE_BAUD`], TX and RX on DMA1 CH3/CH4 (RX into the
-//! ring receiver `board_common::link_rx::SERVICE`, which a line error never stops: review
+//! ring receiver `board_common::link_rx::Service`, which a line error never stops: review
 //! N13). The bytes move
 //! through the link's machinery (`board_common::link::open_port` and `run_task`, the core's
 //! pump) into the core's service endpoint ([`firmware_plc::service::endpoint`]). Nothing
@@ -49,7 +49,7 @@ struct RxIdle;
 
 impl Handler<LPUART1> for RxIdle {
     unsafe fn on_interrupt() {
-        link_rx::on_idle(&link_rx::SERVICE);
+        link_rx::on_idle::<link_rx::Service>();
     }
 }
 
@@ -58,7 +58,7 @@ struct RxHalf;
 
 impl Handler<DMA1_CHANNEL4> for RxHalf {
     unsafe fn on_interrupt() {
-        link_rx::on_half(&link_rx::SERVICE);
+        link_rx::on_half::<link_rx::Service>();
     }
 }
 
@@ -100,7 +100,6 @@ pub fn open(s: pins::Service) -> (ServicePort, SharedService) {
         s.tx_dma,
         s.rx_dma,
         Irqs,
-        &link_rx::SERVICE,
         RX_RING.init([0; RING_BYTES]),
         SERVICE_BAUD,
     );
