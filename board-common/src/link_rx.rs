@@ -6,12 +6,12 @@
 //! Why not embassy's `RingBufferedUartRx`: after a line error it stops the channel (EN = 0)
 //! and restarts it by setting EN again without reprogramming CNDTR/CMAR, which RM0440
 //! ("DMA channel state and disabling a channel") does not support; g431-emu models that
-//! and the link (and the service port) was lost. Here the USART keeps CR3.DDRE = 0 (its reset value, which embassy
-//! never changes; RM0440 USART CR3 "DDRE": "DMA is not disabled in case of reception
-//! error. The corresponding error flag is set but RXNE is kept 0 ... the erroneous data is
-//! not transferred, but next correct received data is transferred"), and CR3.EIE = 0, so a
-//! line error never interrupts and never stops anything: the task reads the error flags
-//! (FE, NE, ORE, PE) when it polls the ring and clears them.
+//! and the link (and the service port) was lost. Here the USART keeps CR3.DDRE = 0 (its
+//! reset value, which embassy never changes; RM0440 USART CR3 "DDRE": "DMA is not disabled
+//! in case of reception error. The corresponding error flag is set but RXNE is kept 0 ...
+//! the erroneous data is not transferred, but next correct received data is transferred"),
+//! and CR3.EIE = 0, so a line error never interrupts and never stops anything: the task
+//! reads the error flags (FE, NE, ORE, PE) when it polls the ring and clears them.
 //!
 //! What it decides is core code with host tests: where the new bytes are and whether the
 //! DMA lapped the reader (`shared_protocol::link::rx_ring`); how errors are counted and
@@ -121,7 +121,7 @@ pub struct RingRx<H: RxHw> {
 }
 
 /// Programs the channel (circular, peripheral to memory, bytes, half and complete
-/// interrupts) of `hw` into `ring` on `request` (DMAMUX request of its U(S)ART's RX), then
+/// interrupts) of `H` into `ring` on `request` (DMAMUX request of its U(S)ART's RX), then
 /// enables the U(S)ART's DMA request and IDLE interrupt. Called once per receiver, after
 /// embassy opened the U(S)ART (RE, baud, pin).
 pub fn start<H: RxHw>(ring: &'static mut [u8; RING_BYTES], request: u8) -> RingRx<H> {
