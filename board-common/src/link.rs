@@ -14,20 +14,18 @@
 //! * RX has the internal pull-up: with the peer unplugged or unpowered a floating RX pin
 //!   would read a storm of framing and noise errors.
 //! * A line error (framing, noise, overrun, parity) never stops reception. The link
-//!   receives into a DMA ring of its own ([`crate::link_rx`], review N13) that a line
-//!   error never stops. The PLC's service port keeps embassy's `RingBufferedUartRx`,
-//!   restarted with `start_uart()` right after an error (its channel is restarted by EN
-//!   only, review N13: not the link's).
+//!   and the PLC's service port receive into DMA rings of their own
+//!   ([`crate::link_rx`], review N13) that a line error never stops.
 //! * Errors are counted by the endpoint (`LinkStats::line_errors`) and logged at most
 //!   once a second with the count (`Pump::line_error`).
 
 use embassy_futures::select::{select, Either};
 use embassy_stm32::interrupt::typelevel::{Binding, Interrupt};
+use embassy_stm32::interrupt::typelevel::{Handler, DMA1_CHANNEL2, USART1};
 use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::mode::Async;
 use embassy_stm32::usart::{
-    self, Config, DataBits, Parity, RingBufferedUartRx, RxDma, StopBits, TxDma, Uart, UartRx,
-    UartTx,
+    self, Config, DataBits, Parity, RxDma, StopBits, TxDma, Uart, UartRx, UartTx,
 };
 use embassy_stm32::{bind_interrupts, dma, peripherals, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
@@ -36,18 +34,37 @@ use embassy_time::with_deadline;
 use shared_protocol::link::pump::{frame_pieces, LinkEndpoint, Pump, MAX_IDLE_US};
 use shared_protocol::link::MAX_WIRE_FRAME;
 use shared_protocol::units::Micros;
+use static_cell::StaticCell;
 
-use crate::link_rx::{self, RingRx};
+use crate::link_rx::{self, Link, RingRx, RxHw, Service, RING_BYTES};
 use crate::supervisor;
 use crate::time::{instant, now};
 
 // The receiver's handlers first: they take the IDLE and half-transfer flags they use
 // (`link_rx`); embassy's then find nothing of theirs (the link's RX is not embassy's).
 bind_interrupts!(struct Irqs {
-    USART1 => link_rx::IdleHandler, usart::InterruptHandler<peripherals::USART1>;
+    USART1 => LinkIdle, usart::InterruptHandler<peripherals::USART1>;
     DMA1_CHANNEL1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
-    DMA1_CHANNEL2 => link_rx::HalfHandler, dma::InterruptHandler<peripherals::DMA1_CH2>;
+    DMA1_CHANNEL2 => LinkHalf, dma::InterruptHandler<peripherals::DMA1_CH2>;
 });
+
+/// USART1's interrupt, before embassy's: the link ring's IDLE wake-up.
+struct LinkIdle;
+
+impl Handler<USART1> for LinkIdle {
+    unsafe fn on_interrupt() {
+        link_rx::on_idle::<Link>();
+    }
+}
+
+/// DMA1 channel 2's interrupt, before embassy's: the link ring's half events.
+struct LinkHalf;
+
+impl Handler<DMA1_CHANNEL2> for LinkHalf {
+    unsafe fn on_interrupt() {
+        link_rx::on_half::<Link>();
+    }
+}
 
 /// The link's peripherals (pins are the board's: `pins.rs`).
 pub struct LinkPins<Tx, Rx> {
@@ -68,10 +85,10 @@ pub struct Port<R> {
 }
 
 /// The link's port: its receiver is [`link_rx::RingRx`].
-pub type LinkPort = Port<RingRx>;
+pub type LinkPort = Port<RingRx<Link>>;
 
-/// A port on embassy's ring-buffered receiver (the PLC's service port).
-pub type ServicePort = Port<RingBufferedUartRx<'static>>;
+/// The PLC's service port: the same ring receiver on its own U(S)ART and channel.
+pub type ServicePort = Port<RingRx<Service>>;
 
 /// Opens the link USART 8N1 at `baud` with the RX pull-up and starts its ring receiver
 /// ([`link_rx`], review N13).
@@ -80,19 +97,20 @@ where
     Tx: usart::TxPin<peripherals::USART1>,
     Rx: usart::RxPin<peripherals::USART1>,
 {
+    static RING: StaticCell<[u8; RING_BYTES]> = StaticCell::new();
     let request = usart::RxDma::<peripherals::USART1>::request(&*l.rx_dma);
     let (tx, rx) = open_uart(l.usart, l.tx, l.rx, l.tx_dma, l.rx_dma, Irqs, baud);
     Port {
         tx,
-        rx: link_rx::start(request),
+        rx: link_rx::start(RING.init([0; RING_BYTES]), request),
         _embassy_rx: Some(rx),
     }
 }
 
 /// Opens any U(S)ART `T` 8N1 at `baud` with the RX pull-up, TX and RX on the DMA channels
-/// `D1`/`D2` (RX into embassy's ring `rx_ring`), and puts its interrupt and its DMA
-/// channels' below TIM1 ([`crate::boot::BACKGROUND`]). The PLC's service LPUART1 is
-/// opened here.
+/// `D1`/`D2` (RX into the ring receiver [`Service`], whose handlers `irqs` binds before
+/// embassy's, into `rx_ring`), and puts its interrupt and its DMA channels' below TIM1
+/// ([`crate::boot::BACKGROUND`]). The PLC's service LPUART1 is opened here.
 #[allow(clippy::too_many_arguments)]
 pub fn open_port<T, D1, D2>(
     usart: Peri<'static, T>,
@@ -104,7 +122,7 @@ pub fn open_port<T, D1, D2>(
         + Binding<D1::Interrupt, dma::InterruptHandler<D1>>
         + Binding<D2::Interrupt, dma::InterruptHandler<D2>>
         + 'static,
-    rx_ring: &'static mut [u8],
+    rx_ring: &'static mut [u8; RING_BYTES],
     baud: u32,
 ) -> ServicePort
 where
@@ -112,11 +130,12 @@ where
     D1: TxDma<T>,
     D2: RxDma<T>,
 {
+    let request = D2::request(&*rx_dma);
     let (tx, rx) = open_uart(usart, tx, rx, tx_dma, rx_dma, irqs, baud);
     Port {
         tx,
-        rx: rx.into_ring_buffered(rx_ring),
-        _embassy_rx: None,
+        rx: link_rx::start(rx_ring, request),
+        _embassy_rx: Some(rx),
     }
 }
 
@@ -162,22 +181,10 @@ pub trait ByteRx {
     async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error>;
 }
 
-impl ByteRx for RingRx {
+impl<H: RxHw> ByteRx for RingRx<H> {
     type Error = link_rx::LineError;
     async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
         self.read(buf).await
-    }
-}
-
-impl ByteRx for RingBufferedUartRx<'static> {
-    type Error = usart::Error;
-    async fn read_bytes(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
-        let r = self.read(buf).await;
-        if r.is_err() {
-            // embassy stopped the ring on the error: reception goes on with the next byte.
-            self.start_uart();
-        }
-        r
     }
 }
 

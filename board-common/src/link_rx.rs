@@ -1,40 +1,43 @@
-//! The link's receiver (USART1 RX, both images): DMA1 channel 2 in circular mode into a
-//! ring that never stops, register bindings only (review N13).
+//! A U(S)ART receiver into a DMA ring that never stops, register bindings only (review
+//! N13): the link's (USART1 RX on DMA1 channel 2, both images, [`Link`]) and the PLC's
+//! service port's (LPUART1 RX on DMA1 channel 4, [`Service`]). Each is an [`RxHw`]: the
+//! peripheral, the channel and the state its interrupts share with its task.
 //!
 //! Why not embassy's `RingBufferedUartRx`: after a line error it stops the channel (EN = 0)
 //! and restarts it by setting EN again without reprogramming CNDTR/CMAR, which RM0440
 //! ("DMA channel state and disabling a channel") does not support; g431-emu models that
-//! and the link was lost. Here the USART keeps CR3.DDRE = 0 (its reset value, which embassy
-//! never changes; RM0440 USART CR3 "DDRE": "DMA is not disabled in case of reception
-//! error. The corresponding error flag is set but RXNE is kept 0 ... the erroneous data is
-//! not transferred, but next correct received data is transferred"), and CR3.EIE = 0, so a
-//! line error never interrupts and never stops anything: the task reads the error flags
-//! (FE, NE, ORE, PE) when it polls the ring and clears them.
+//! and the link (and the service port) was lost. Here the USART keeps CR3.DDRE = 0 (its
+//! reset value, which embassy never changes; RM0440 USART CR3 "DDRE": "DMA is not disabled
+//! in case of reception error. The corresponding error flag is set but RXNE is kept 0 ...
+//! the erroneous data is not transferred, but next correct received data is transferred"),
+//! and CR3.EIE = 0, so a line error never interrupts and never stops anything: the task
+//! reads the error flags (FE, NE, ORE, PE) when it polls the ring and clears them.
 //!
 //! What it decides is core code with host tests: where the new bytes are and whether the
 //! DMA lapped the reader (`shared_protocol::link::rx_ring`); how errors are counted and
 //! logged (the pump). The task is woken by the USART's IDLE interrupt (a frame's end) and
 //! the channel's half-transfer and transfer-complete interrupts (a long burst), both
-//! handled here before embassy's handlers, which find nothing left to do.
+//! handled here ([`on_idle`], [`on_half`], called from handlers bound before embassy's,
+//! which find nothing left to do).
+//!
+//! LPUART1's ISR, ICR, RDR, CR1 (IDLEIE) and CR3 (EIE, DMAR) have USART1's offsets and
+//! bits (RM0440 LPUART and USART register maps), so both are driven through the USART
+//! register block.
 
 use core::future::poll_fn;
+use core::marker::PhantomData;
 use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
 use core::task::Poll;
 
-use embassy_stm32::interrupt::typelevel::{Handler, DMA1_CHANNEL2, USART1};
 use embassy_stm32::pac;
 use embassy_stm32::pac::bdma::vals::{Dir, Size};
+use embassy_stm32::pac::usart::Usart;
 use embassy_sync::waitqueue::AtomicWaker;
 use shared_protocol::link::rx_ring::{RingRead, RingReader};
-use static_cell::StaticCell;
 
 /// Ring size: 22 ms of line time at 115200 baud, more than a frame's write (the task
 /// awaits it) plus a pass. Even (the half events split it).
 pub const RING_BYTES: usize = 256;
-
-/// DMA1 channel 2 (index 1); DMA1's channels 1-6 are DMAMUX1's channels 0-5 (RM0440
-/// "DMAMUX mapping").
-const CH: usize = 1;
 
 /// USART ISR/ICR bits: PE, FE, NE, ORE (RM0440 USART ISR, ICR: the clear bits are at the
 /// same positions).
@@ -44,10 +47,60 @@ const NE: u32 = 1 << 2;
 const ORE: u32 = 1 << 3;
 const IDLE: u32 = 1 << 4;
 
-/// Half events (half transfer, transfer complete) the channel's interrupt counted.
-static HALVES: AtomicU32 = AtomicU32::new(0);
-/// The task waiting for bytes.
-static WAKER: AtomicWaker = AtomicWaker::new();
+/// What a receiver's interrupts share with its task.
+pub struct RxState {
+    /// Half events (half transfer, transfer complete) the channel's interrupt counted.
+    halves: AtomicU32,
+    /// The task waiting for bytes.
+    waker: AtomicWaker,
+}
+
+impl RxState {
+    const fn new() -> Self {
+        RxState {
+            halves: AtomicU32::new(0),
+            waker: AtomicWaker::new(),
+        }
+    }
+}
+
+/// One receiver's hardware: its U(S)ART, its DMA1 channel and its shared state (a type,
+/// so each receiver's code is built with its constants).
+pub trait RxHw: 'static {
+    /// The U(S)ART's register block.
+    const USART: Usart;
+    /// DMA1 channel index (channel n is index n - 1); DMA1's channels 1-6 are DMAMUX1's
+    /// channels 0-5 (RM0440 "DMAMUX mapping"), so it is also the DMAMUX channel.
+    const CH: usize;
+    /// What its interrupts share with its task.
+    fn state() -> &'static RxState;
+}
+
+/// The link: USART1 RX on DMA1 channel 2.
+pub struct Link;
+
+impl RxHw for Link {
+    const USART: Usart = pac::USART1;
+    const CH: usize = 1;
+    fn state() -> &'static RxState {
+        static STATE: RxState = RxState::new();
+        &STATE
+    }
+}
+
+/// The PLC's service port: LPUART1 RX on DMA1 channel 4 (same register layout as
+/// USART1's for what is used here, see the module doc).
+pub struct Service;
+
+impl RxHw for Service {
+    // SAFETY: LPUART1's address; only registers with USART1's offsets and bits are used.
+    const USART: Usart = unsafe { Usart::from_ptr(pac::LPUART1.as_ptr()) };
+    const CH: usize = 3;
+    fn state() -> &'static RxState {
+        static STATE: RxState = RxState::new();
+        &STATE
+    }
+}
 
 /// A line error the USART flagged (the first of the flags set, in this order).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -61,25 +114,26 @@ pub enum LineError {
 }
 
 /// The receiver: the ring and the reader's position.
-pub struct RingRx {
+pub struct RingRx<H: RxHw> {
     ring: *const u8,
     reader: RingReader,
+    _hw: PhantomData<H>,
 }
 
 /// Programs the channel (circular, peripheral to memory, bytes, half and complete
-/// interrupts) on `request` (DMAMUX request of USART1 RX), then enables the USART's DMA
-/// request and IDLE interrupt. Called once, after embassy opened the USART (RE, baud, pin).
-pub fn start(request: u8) -> RingRx {
-    static RING: StaticCell<[u8; RING_BYTES]> = StaticCell::new();
-    let ring = RING.init([0; RING_BYTES]).as_mut_ptr();
-    let usart = pac::USART1;
-    let ch = pac::DMA1.ch(CH);
+/// interrupts) of `H` into `ring` on `request` (DMAMUX request of its U(S)ART's RX), then
+/// enables the U(S)ART's DMA request and IDLE interrupt. Called once per receiver, after
+/// embassy opened the U(S)ART (RE, baud, pin).
+pub fn start<H: RxHw>(ring: &'static mut [u8; RING_BYTES], request: u8) -> RingRx<H> {
+    let ring = ring.as_mut_ptr();
+    let usart = H::USART;
+    let ch = pac::DMA1.ch(H::CH);
     // RM0440 "Channel configuration procedure": addresses, count, request, then CCR with EN.
     ch.cr().write(|w| w.set_en(false));
     ch.par().write_value(usart.rdr().as_ptr() as u32);
     ch.mar().write_value(ring as u32);
     ch.ndtr().write(|w| w.set_ndt(RING_BYTES as u16));
-    pac::DMAMUX1.ccr(CH).write(|w| w.set_dmareq_id(request));
+    pac::DMAMUX1.ccr(H::CH).write(|w| w.set_dmareq_id(request));
     ch.cr().write(|w| {
         w.set_dir(Dir::FROM_PERIPHERAL);
         w.set_minc(true);
@@ -100,15 +154,16 @@ pub fn start(request: u8) -> RingRx {
     RingRx {
         ring,
         reader: RingReader::new(RING_BYTES as u16),
+        _hw: PhantomData,
     }
 }
 
-impl RingRx {
+impl<H: RxHw> RingRx<H> {
     /// Waits until bytes arrived or a line error was flagged; the bytes into `buf` (as
     /// many as fit; the rest stay for the next call).
     pub async fn read(&mut self, buf: &mut [u8]) -> Result<usize, LineError> {
         poll_fn(|cx| {
-            WAKER.register(cx.waker());
+            H::state().waker.register(cx.waker());
             match self.poll(buf) {
                 Ok(0) => Poll::Pending,
                 r => Poll::Ready(r),
@@ -119,7 +174,7 @@ impl RingRx {
 
     /// Error flags first (read and cleared), then the new bytes.
     fn poll(&mut self, buf: &mut [u8]) -> Result<usize, LineError> {
-        let usart = pac::USART1;
+        let usart = H::USART;
         let flags = usart.isr().read().0 & (PE | FE | NE | ORE);
         if flags != 0 {
             usart.icr().write(|w| w.0 = flags);
@@ -135,9 +190,9 @@ impl RingRx {
         }
         // The count and the position read as a pair: again if an event came in between.
         let (remaining, halves) = loop {
-            let halves = HALVES.load(Ordering::Acquire);
-            let remaining = pac::DMA1.ch(CH).ndtr().read().ndt();
-            if HALVES.load(Ordering::Acquire) == halves {
+            let halves = H::state().halves.load(Ordering::Acquire);
+            let remaining = pac::DMA1.ch(H::CH).ndtr().read().ndt();
+            if H::state().halves.load(Ordering::Acquire) == halves {
                 break (remaining, halves);
             }
         };
@@ -157,35 +212,29 @@ impl RingRx {
     }
 }
 
-/// USART1's interrupt, before embassy's: the IDLE flag (a frame's end) wakes the task.
-pub struct IdleHandler;
-
-impl Handler<USART1> for IdleHandler {
-    unsafe fn on_interrupt() {
-        let usart = pac::USART1;
-        if usart.isr().read().0 & IDLE != 0 {
-            usart.icr().write(|w| w.0 = IDLE);
-            WAKER.wake();
-        }
+/// The U(S)ART's interrupt, before embassy's: the IDLE flag (a frame's end) wakes the
+/// task.
+pub fn on_idle<H: RxHw>() {
+    if H::USART.isr().read().0 & IDLE != 0 {
+        H::USART.icr().write(|w| w.0 = IDLE);
+        H::state().waker.wake();
     }
 }
 
-/// DMA1 channel 2's interrupt, before embassy's: counts the half events and wakes the
+/// The DMA channel's interrupt, before embassy's: counts the half events and wakes the
 /// task.
-pub struct HalfHandler;
-
-impl Handler<DMA1_CHANNEL2> for HalfHandler {
-    unsafe fn on_interrupt() {
-        let dma = pac::DMA1;
-        let isr = dma.isr().read();
-        let (ht, tc) = (isr.htif(CH), isr.tcif(CH));
-        if ht || tc {
-            dma.ifcr().write(|w| {
-                w.set_htif(CH, ht);
-                w.set_tcif(CH, tc);
-            });
-            HALVES.fetch_add(u32::from(ht) + u32::from(tc), Ordering::Release);
-            WAKER.wake();
-        }
+pub fn on_half<H: RxHw>() {
+    let dma = pac::DMA1;
+    let isr = dma.isr().read();
+    let (ht, tc) = (isr.htif(H::CH), isr.tcif(H::CH));
+    if ht || tc {
+        dma.ifcr().write(|w| {
+            w.set_htif(H::CH, ht);
+            w.set_tcif(H::CH, tc);
+        });
+        H::state()
+            .halves
+            .fetch_add(u32::from(ht) + u32::from(tc), Ordering::Release);
+        H::state().waker.wake();
     }
 }

@@ -1,5 +1,7 @@
 //! The service port (service.md 1-2): LPUART1 on PA2/PA3, the NUCLEO-G431RB's ST-LINK/V3
-//! virtual COM port, 8N1 at [`SERVICE_BAUD`], TX and RX on DMA1 CH3/CH4. The bytes move
+//! virtual COM port, 8N1 at [`SERVICE_BAUD`], TX and RX on DMA1 CH3/CH4 (RX into the
+//! ring receiver `board_common::link_rx::Service`, which a line error never stops: review
+//! N13). The bytes move
 //! through the link's machinery (`board_common::link::open_port` and `run_task`, the core's
 //! pump) into the core's service endpoint ([`firmware_plc::service::endpoint`]). Nothing
 //! here decides anything: what runs when, and who touches the EEPROM, is the endpoint's.
@@ -19,6 +21,8 @@
 use core::cell::RefCell;
 
 use board_common::link::{self as common, ServicePort, SharedEndpoint, Task};
+use board_common::link_rx::{self, RING_BYTES};
+use embassy_stm32::interrupt::typelevel::{Handler, DMA1_CHANNEL4, LPUART1};
 use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
 use embassy_sync::blocking_mutex::ThreadModeMutex;
 use embassy_sync::signal::Signal;
@@ -32,15 +36,31 @@ use super::eeprom::I2cEeprom;
 use super::shared::{self, SharedApp};
 use crate::pins;
 
-/// RX ring: 22 ms of line time at 115200 baud, more than a frame's write (the task awaits
-/// it) plus a pass.
-const RX_RING_BYTES: usize = 256;
-
+// The ring receiver's handlers first (`board_common::link_rx`, review N13): they take the
+// IDLE and half-transfer flags they use; embassy's then find nothing of theirs.
 bind_interrupts!(struct Irqs {
-    LPUART1 => usart::InterruptHandler<peripherals::LPUART1>;
+    LPUART1 => RxIdle, usart::InterruptHandler<peripherals::LPUART1>;
     DMA1_CHANNEL3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
-    DMA1_CHANNEL4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
+    DMA1_CHANNEL4 => RxHalf, dma::InterruptHandler<peripherals::DMA1_CH4>;
 });
+
+/// LPUART1's interrupt, before embassy's: the service ring's IDLE wake-up.
+struct RxIdle;
+
+impl Handler<LPUART1> for RxIdle {
+    unsafe fn on_interrupt() {
+        link_rx::on_idle::<link_rx::Service>();
+    }
+}
+
+/// DMA1 channel 4's interrupt, before embassy's: the service ring's half events.
+struct RxHalf;
+
+impl Handler<DMA1_CHANNEL4> for RxHalf {
+    unsafe fn on_interrupt() {
+        link_rx::on_half::<link_rx::Service>();
+    }
+}
 
 /// The service endpoint, shared by the service task and the application task.
 pub type SharedService = &'static ThreadModeMutex<RefCell<Service>>;
@@ -71,7 +91,7 @@ fn build_info() -> BuildInfo {
 
 /// Opens LPUART1 and builds the service endpoint in its static.
 pub fn open(s: pins::Service) -> (ServicePort, SharedService) {
-    static RX_RING: StaticCell<[u8; RX_RING_BYTES]> = StaticCell::new();
+    static RX_RING: StaticCell<[u8; RING_BYTES]> = StaticCell::new();
     static SERVICE: StaticCell<ThreadModeMutex<RefCell<Service>>> = StaticCell::new();
     let port = common::open_port(
         s.lpuart,
@@ -80,7 +100,7 @@ pub fn open(s: pins::Service) -> (ServicePort, SharedService) {
         s.tx_dma,
         s.rx_dma,
         Irqs,
-        RX_RING.init([0; RX_RING_BYTES]),
+        RX_RING.init([0; RING_BYTES]),
         SERVICE_BAUD,
     );
     let svc = SERVICE.init(ThreadModeMutex::new(RefCell::new(Service::new(

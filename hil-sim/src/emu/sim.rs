@@ -213,6 +213,8 @@ struct ServiceHost {
     from_plc: Vec<u8>,
     /// Host bytes dropped: the PLC had no receiver on PA3.
     pub lost: u64,
+    /// The next this many host characters arrive with a framing error.
+    force_framing: u32,
 }
 
 impl EmuSim {
@@ -412,6 +414,12 @@ impl EmuSim {
         wire.force_framing = chars;
     }
 
+    /// The next `chars` characters the host writes to the PLC's service port arrive with a
+    /// framing error (a stop bit read low: a cable plugged in mid-character, noise).
+    pub fn inject_service_framing_errors(&mut self, chars: u32) {
+        self.service.force_framing = chars;
+    }
+
     /// Bytes from the host to the PLC's service port: they go on the wire after what is
     /// queued, back to back at the line rate of the PLC's LPUART1.
     pub fn service_write(&mut self, bytes: &[u8]) {
@@ -595,8 +603,13 @@ impl EmuSim {
                 break;
             };
             let end = start + frame;
+            let mut byte = RxByte::clean(u16::from(b));
+            if self.service.force_framing > 0 {
+                self.service.force_framing -= 1;
+                byte.framing_error = true;
+            }
             if let Some(u) = self.plc.soc_mut().usart_mut(rx) {
-                u.push_rx(end, RxByte::clean(u16::from(b)));
+                u.push_rx(end, byte);
             }
             self.service.free_at = end;
             start = end;
