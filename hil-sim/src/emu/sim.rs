@@ -6,8 +6,11 @@
 //! Time advances in slices no longer than [`QUANTUM_NS`], shorter than one UART character
 //! (86.8 µs at 115200 baud), so a character that starts on one side within a slice always
 //! ends after it: each side can run its slice alone and the wire hands the character over
-//! at the slice's end, exactly on time. The drive runs first in each slice; the plant is
-//! advanced inside it, at every TIM1 event and ADC sample.
+//! after the sender ran, before the receiver passes its end. A start bit also cancels the
+//! receiver's idle-line detection when it falls inside the idle frame, so a receiver that
+//! will detect an idle line inside a slice runs second, with the slice cut at that cycle;
+//! otherwise the drive runs first. The plant is advanced inside the drive's run, at every
+//! TIM1 event and ADC sample.
 //!
 //! The record observes each image directly, never through the other one: the drive's
 //! outputs are its TIM1 (the gate state the board follows), its fault is what the drive
