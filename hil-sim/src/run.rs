@@ -402,3 +402,52 @@ fn firmware_drive_status(sim: &Simulation) -> (&'static str, f64) {
     let s = sim.drive().status();
     (s.state.name(), f64::from(s.f_applied.0) / 10.0)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIFT_PLC: &str = include_str!("../../shared-protocol/programs/lift.plc");
+
+    /// A valid `.plc` text padded with a comment line to exactly `IMAGE_BYTES` bytes (the
+    /// EEPROM image's size): issue 31 saw such a text taken for an image.
+    fn text_of_image_size() -> String {
+        let mut text = LIFT_PLC.to_string();
+        if !text.ends_with('\n') {
+            text.push('\n');
+        }
+        let pad = crate::IMAGE_BYTES - text.len() - 2;
+        text.push(';');
+        text.push_str(&"x".repeat(pad));
+        text.push('\n');
+        assert_eq!(text.len(), crate::IMAGE_BYTES);
+        text
+    }
+
+    #[test]
+    fn a_valid_plc_text_of_the_image_size_is_read_as_text() {
+        let text = text_of_image_size();
+        assert!(!is_eeprom_image(text.as_bytes()));
+        let path =
+            std::env::temp_dir().join(format!("hil-sim-run-{}-image-size.plc", std::process::id()));
+        std::fs::write(&path, &text).unwrap();
+        let read = load_program(&path);
+        let any = load_any(&path);
+        std::fs::remove_file(&path).unwrap();
+        let want = assemble(&text).unwrap();
+        assert!(
+            read.unwrap() == want,
+            "load_program: not the text's program"
+        );
+        assert!(any.unwrap() == want, "load_any: not the text's program");
+    }
+
+    #[test]
+    fn an_image_is_still_read_as_an_image() {
+        let program = assemble(LIFT_PLC).unwrap();
+        let image = crate::image_bytes(&program).unwrap();
+        assert_eq!(image.len(), crate::IMAGE_BYTES);
+        assert!(is_eeprom_image(&image));
+        assert!(program_from_image(&image).unwrap() == program);
+    }
+}
