@@ -19,6 +19,7 @@ const monitor = {
   faults: [],
   newestLog: undefined,
   doorCmdSince: null,  // wall-clock ms when the door command went on
+  lastDir: 0,          // the lift's last travel direction seen (1 up, -1 down)
   paused: false,
   zoom: null,          // [t0, t1] in t_s, or null = the last 60 s
   serverLost: false,
@@ -204,13 +205,27 @@ function renderLift() {
   const door = doorState();
   const load = val(v.load);
   const y = (f) => top + (N - f) * H;  // top edge of floor f's band
-  // Between floors while moving, in the direction of travel.
+  if (moving) monitor.lastDir = up ? 1 : -1;
+  // Level at `floor` only while every level input (the vanes) is on; without level
+  // inputs in the profile, while not moving.
+  const levelIns = l.level_inputs || [];
+  const level = levelIns.length > 0 ? levelIns.every((op) => val(op) === 1) : !moving;
+  // Between floors while moving or stopped off level (a trip mid-shaft): half a floor
+  // towards the travel direction, else towards the target, else the last direction seen.
   let pos = floor >= 1 ? floor : 1;
-  if (floor >= 1 && moving) pos = Math.min(N, Math.max(1, floor + (up ? 0.5 : -0.5)));
+  if (floor >= 1 && (moving || !level)) {
+    let dir = moving ? (up ? 1 : -1) : 0;
+    if (dir === 0 && target !== null && target >= 1 && target !== floor) dir = target > floor ? 1 : -1;
+    if (dir === 0) dir = monitor.lastDir || (floor < N ? 1 : -1);
+    if ((floor === N && dir > 0) || (floor === 1 && dir < 0)) dir = -dir;
+    pos = floor + dir * 0.5;
+  }
   box.dataset.floor = floor === null ? "" : String(floor);
   box.dataset.target = target === null ? "" : String(target);
   box.dataset.door = door;
   box.dataset.moving = moving ? (up ? "up" : "down") : "";
+  box.dataset.pos = String(pos);
+  box.dataset.level = level ? "1" : "0";
   const s = svg("svg", { viewBox: `0 0 ${w} ${N * H + 2 * top}`, role: "img" });
   s.appendChild(svg("rect", { x: 70, y: top, width: 110, height: N * H, fill: "#eceff1", stroke: "#90a4ae" }));
   for (let f = 1; f <= N; f++) {
@@ -255,7 +270,7 @@ function renderLift() {
   box.appendChild(s);
   const st = stateInfo();
   box.appendChild(el("div", { class: "mimic-info" },
-    `floor ${known ? floor : "unknown"} · target ${target || "—"} · door ${door} · ` +
+    `floor ${known ? floor : "unknown"}${known && !level && !moving ? " (stopped between floors)" : ""} · target ${target || "—"} · door ${door} · ` +
     `load ${load === null ? "—" : LOAD_TEXT[load] || load}${st ? " · " + st.text : ""}`));
 }
 

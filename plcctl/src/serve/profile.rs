@@ -84,6 +84,10 @@ pub struct Lift {
     pub door_stroke_s: f64,
     pub door_fault_states: Vec<i64>,
     pub call_buttons: Vec<Operand>,
+    /// D inputs that are all on only while the car is level at a floor (the vanes); the
+    /// mimic draws the car between floors when it stands with one of them off (a trip
+    /// mid-shaft). Empty: level whenever it is not moving.
+    pub level_inputs: Vec<Operand>,
 }
 
 /// A parsed profile (sent to the page as JSON).
@@ -280,6 +284,7 @@ fn lift(file: &str, t: &Table) -> Result<Lift> {
         door_stroke_s: 2.0,
         door_fault_states: Vec::new(),
         call_buttons: Vec::new(),
+        level_inputs: Vec::new(),
     };
     for (k, v) in t {
         let kk = format!("lift.{k}");
@@ -304,22 +309,8 @@ fn lift(file: &str, t: &Table) -> Result<Lift> {
                     .and_then(|a| a.iter().map(Value::as_integer).collect::<Option<Vec<_>>>())
                     .ok_or_else(|| err(file, &kk, "must be a list of integers"))?
             }
-            "call_buttons" => {
-                let a = v
-                    .as_array()
-                    .ok_or_else(|| err(file, &kk, "must be a list of D inputs"))?;
-                for (i, b) in a.iter().enumerate() {
-                    let o = operand(file, &format!("{kk}[{i}]"), b)?;
-                    if !matches!(o, Operand::D(_)) {
-                        return Err(err(
-                            file,
-                            &format!("{kk}[{i}]"),
-                            "a call button is a D input",
-                        ));
-                    }
-                    l.call_buttons.push(o);
-                }
-            }
+            "call_buttons" => l.call_buttons = d_inputs(file, &kk, v, "a call button")?,
+            "level_inputs" => l.level_inputs = d_inputs(file, &kk, v, "a level input")?,
             _ => return Err(err(file, &kk, "unknown key")),
         }
     }
@@ -327,6 +318,26 @@ fn lift(file: &str, t: &Table) -> Result<Lift> {
         return Err(err(file, "lift.floors", "missing"));
     }
     Ok(l)
+}
+
+/// A list of D inputs (`what` names one in the error).
+fn d_inputs(file: &str, key: &str, v: &Value, what: &str) -> Result<Vec<Operand>> {
+    let a = v
+        .as_array()
+        .ok_or_else(|| err(file, key, "must be a list of D inputs"))?;
+    let mut out = Vec::new();
+    for (i, b) in a.iter().enumerate() {
+        let o = operand(file, &format!("{key}[{i}]"), b)?;
+        if !matches!(o, Operand::D(_)) {
+            return Err(err(
+                file,
+                &format!("{key}[{i}]"),
+                format!("{what} is a D input"),
+            ));
+        }
+        out.push(o);
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -367,6 +378,7 @@ mod tests {
         let l = p.lift.unwrap();
         assert_eq!(l.floors, 4);
         assert_eq!(l.door_fault_states, [10]);
+        assert_eq!(l.level_inputs, [Operand::D(10), Operand::D(11)]);
         assert_eq!(p.counters.len(), 4);
         assert_eq!(p.states[&12].level, Level::Fault);
         assert_eq!(p.states[&7].level, Level::Warning);

@@ -54,6 +54,8 @@ const OBSERVE: &str = r##"(() => {
     detail: $("banner-detail").textContent,
     floor: m.dataset.floor === undefined ? null : m.dataset.floor,
     door: m.dataset.door === undefined ? null : m.dataset.door,
+    car_y: (() => { const c = m.querySelector("[data-car] rect");
+                    return c ? Number(c.getAttribute("y")) : null; })(),
     stop: $("act-stop").disabled, run: $("act-run").disabled, ack: $("act-ack").disabled,
     clear: $("act-clear-faults").disabled, note: $("action-note").textContent,
     span: Number(t.dataset.span || 0),
@@ -321,6 +323,19 @@ fn the_page_in_headless_chromium_follows_the_lift() {
         o["colour"] == "red" && o["detail"].as_str().unwrap_or("").contains("drive fault 4")
     });
     run.screens("trip", RED, &o);
+    // The trip left the car mid-shaft, off both vanes (D10, D11): the mimic draws it
+    // between two floors, not level at the floor it passed last.
+    let st = run.serve.as_ref().unwrap().get("/api/status");
+    let d = st["status"]["d"].as_u64().unwrap_or_else(|| panic!("{st}"));
+    assert_ne!(d >> 10 & 3, 3, "the car stopped level at a floor: {st}");
+    run.until("the car drawn between floors after the trip", 5.0, |o| {
+        // app.js: the car's rect is at y = 20 + (4 - pos) * 90 + 6.
+        let pos = o["car_y"]
+            .as_f64()
+            .map(|y| 4.0 - (y - 26.0) / 90.0)
+            .unwrap_or(0.0);
+        pos > 1.0 && pos < 4.0 && pos.fract() != 0.0
+    });
     let o = run.until("the trip in the fault archive", 5.0, |o| {
         o["rows"]
             .as_array()
