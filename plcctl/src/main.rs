@@ -195,14 +195,16 @@ fn real_main(cli: Cli) -> Result<()> {
             log,
         } => {
             let token = serve_token(token_file.as_deref(), token.is_some())?;
+            let plc_port = port.clone();
             serve::serve(
-                move || Client::connect(&port, baud),
+                move || Client::connect(&plc_port, baud),
                 serve::ServeArgs {
                     bind,
                     profile,
                     token,
                     hosts,
                     log,
+                    port,
                 },
             )
         }

@@ -71,6 +71,8 @@ pub struct ServeArgs {
     pub hosts: Vec<String>,
     /// The access log's file (`--log`), besides stderr.
     pub log: Option<std::path::PathBuf>,
+    /// The PLC's port (in the message when another PLC answers there).
+    pub port: String,
 }
 
 /// Everything a connection's thread needs.
@@ -115,7 +117,8 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
     let (tx, rx) = mpsc::channel();
     {
         let shared = Arc::clone(&shared);
-        std::thread::spawn(move || plc::keep_running(connect, q, shared, rx));
+        let port = args.port.clone();
+        std::thread::spawn(move || plc::keep_running(connect, port, q, shared, rx));
     }
     let ctx = Arc::new(Ctx {
         shared,

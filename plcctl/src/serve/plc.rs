@@ -50,6 +50,9 @@ pub struct State {
     /// Why the PLC does not answer (shown on the banner).
     pub error: Option<String>,
     pub identity: Value,
+    /// The UID of the PLC this server monitors: the first that answered. Another PLC at
+    /// the same port is refused (never two PLCs' data mixed).
+    pub plc_uid: Option<[u8; 12]>,
     pub status: Value,
     /// When `status` last came from the PLC (its age is shown; older than 2 s: greyed).
     pub status_at: Option<Instant>,
@@ -80,6 +83,7 @@ impl Shared {
                 connected: false,
                 error: Some("connecting".into()),
                 identity: Value::Null,
+                plc_uid: None,
                 status: Value::Null,
                 status_at: None,
                 screen: Value::Null,
@@ -128,13 +132,14 @@ pub fn sample_row(s: &Sample) -> Value {
 /// again after [`RECONNECT`] with the same actions channel.
 pub fn keep_running(
     connect: impl Fn() -> Result<Client>,
+    port: String,
     q: Vec<u8>,
     shared: Arc<Shared>,
     actions: Receiver<Action>,
 ) {
     loop {
         let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            run(&connect, &q, &shared, &actions)
+            run(&connect, &port, &q, &shared, &actions)
         }));
         if let Err(panic) = r {
             let text = panic
@@ -155,12 +160,18 @@ pub fn keep_running(
 /// Runs the connection for ever; returns only by a panic.
 fn run(
     connect: &impl Fn() -> Result<Client>,
+    port: &str,
     q: &[u8],
     shared: &Shared,
     actions: &Receiver<Action>,
 ) {
     loop {
-        let mut c = match connect().and_then(|mut c| subscribe(&mut c, q).map(|_| c)) {
+        let attempt = connect().and_then(|mut c| {
+            let mine = check_identity(&mut shared.lock().plc_uid, c.identity.uid, port);
+            mine.map_err(|m| Fail::Usage(anyhow::anyhow!(m)))?;
+            subscribe(&mut c, q).map(|_| c)
+        });
+        let mut c = match attempt {
             Ok(c) => c,
             Err(e) => {
                 shared.update(|s| {
@@ -185,6 +196,33 @@ fn run(
         });
         std::thread::sleep(RECONNECT);
     }
+}
+
+/// Whether the PLC with `uid` at `port` is the one this server monitors: the first
+/// that answered (`first`, set here), like `trend` (a different board plugged in at the
+/// same port). Else the banner's message.
+pub fn check_identity(
+    first: &mut Option<[u8; 12]>,
+    uid: [u8; 12],
+    port: &str,
+) -> std::result::Result<(), String> {
+    match first {
+        None => {
+            *first = Some(uid);
+            Ok(())
+        }
+        Some(f) if *f == uid => Ok(()),
+        Some(f) => Err(format!(
+            "a different PLC (uid {}) answers at {port}, not the one monitored (uid {}); \
+             restart serve to monitor it",
+            hex(&uid),
+            hex(f)
+        )),
+    }
+}
+
+fn hex(uid: &[u8]) -> String {
+    uid.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 fn subscribe(c: &mut Client, q: &[u8]) -> Result<()> {
@@ -342,6 +380,7 @@ mod tests {
                         }
                         Err(Fail::NoDevice("no PLC in this test".into()))
                     },
+                    "/dev/test".into(),
                     vec![0, 1],
                     shared,
                     rx,
@@ -363,5 +402,26 @@ mod tests {
         .unwrap();
         let r = answer.recv_timeout(Duration::from_secs(10)).unwrap();
         assert!(matches!(r, Err(ActionError::NoPlc(_))), "{r:?}");
+    }
+
+    #[test]
+    fn only_the_first_plc_is_monitored_another_at_the_port_is_refused() {
+        let a = [1u8; 12];
+        let mut b = [1u8; 12];
+        b[11] = 2;
+        let mut first = None;
+        assert_eq!(check_identity(&mut first, a, "/dev/ttyACM0"), Ok(()));
+        assert_eq!(first, Some(a));
+        // The same PLC after a reconnect (a reset, the cable): monitored again.
+        assert_eq!(check_identity(&mut first, a, "/dev/ttyACM0"), Ok(()));
+        // Another board at the same port: refused, named, and the first stays.
+        let e = check_identity(&mut first, b, "/dev/ttyACM0").unwrap_err();
+        assert!(
+            e.contains("a different PLC (uid 010101010101010101010102) answers at /dev/ttyACM0")
+                && e.contains("(uid 010101010101010101010101)")
+                && e.contains("restart serve"),
+            "{e}"
+        );
+        assert_eq!(first, Some(a));
     }
 }
