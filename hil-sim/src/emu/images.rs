@@ -103,6 +103,11 @@ fn target_installed() -> Result<()> {
         .output()
         .with_context(|| "cannot run `rustc --print sysroot`".to_string())?;
     let sysroot = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+    target_in(&sysroot)
+}
+
+/// [`TARGET`]'s standard library is in `sysroot`, or the one-line error naming the step.
+fn target_in(sysroot: &Path) -> Result<()> {
     if !sysroot.join("lib/rustlib").join(TARGET).is_dir() {
         bail!(
             "the firmware target {TARGET} is not installed in {}: run `{TARGET_STEP}` (or \
@@ -148,4 +153,22 @@ pub fn build_both() -> Result<(PathBuf, PathBuf)> {
         }
     }
     Ok((release_elf(Firmware::Drive), release_elf(Firmware::Plc)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sysroot_without_the_firmware_target_gives_one_line_naming_the_step() {
+        let dir = std::env::temp_dir().join(format!("hil-sim-sysroot-{}", std::process::id()));
+        let libs = dir.join("lib/rustlib");
+        std::fs::create_dir_all(libs.join("x86_64-unknown-linux-gnu")).unwrap();
+        let err = target_in(&dir).unwrap_err().to_string();
+        assert!(err.contains(TARGET_STEP), "{err}");
+        assert_eq!(err.lines().count(), 1, "{err}");
+        std::fs::create_dir_all(libs.join(TARGET)).unwrap();
+        assert!(target_in(&dir).is_ok());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
