@@ -270,7 +270,7 @@ fn motor_program_save_costs_eight_page_writes() {
     let text = include_str!("../../shared-protocol/programs/motor.plc");
     let p = shared_protocol::program::assemble(text).unwrap();
     assert_eq!(
-        firmware_plc::storage::slot::payload_size(&p),
+        shared_protocol::program::payload::payload_size(&p),
         (2 * 3 + 52 * 4, 52),
         "two runs of 26 lines (docs/eeprom-image.md)"
     );

@@ -2,7 +2,7 @@
 //! usage error, exit 1, before any port is opened): no NaN, no infinity, nothing that
 //! would overflow a time computation, no slot the PLC does not have.
 
-use firmware_plc::storage::layout::SLOTS;
+use shared_protocol::service::SLOTS;
 
 /// The longest `--duration` (one year, s): far beyond any recording, and small enough that
 /// `now + duration` never overflows a clock.

@@ -3,8 +3,8 @@
 
 use std::path::Path;
 
-use firmware_plc::storage::slot::program_from_payload;
 use shared_protocol::link::frame::CRC as CRC32C;
+use shared_protocol::program::payload::program_from_payload;
 use shared_protocol::program::{disassemble, Program};
 use shared_protocol::service::{Answer, Request, CHUNK_BYTES};
 

@@ -7,8 +7,8 @@
 use std::io::{BufRead, IsTerminal, Write};
 use std::path::Path;
 
-use firmware_plc::storage::slot::{for_each_payload_byte, program_from_payload};
 use shared_protocol::link::frame::CRC as CRC32C;
+use shared_protocol::program::payload::{for_each_payload_byte, program_from_payload};
 use shared_protocol::program::{assemble_runnable, disassemble, Program};
 use shared_protocol::service::{
     Answer, InvalidReason, PlcState, RefuseReason, Request, WriteResult, CHUNK_BYTES,

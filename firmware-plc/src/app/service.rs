@@ -23,9 +23,9 @@ use super::{PlcApp, RunState};
 use crate::editor::Notice;
 use crate::service::{SlotReads, SlotRecord};
 use crate::storage::layout::SLOTS;
-use crate::storage::slot::for_each_payload_byte;
 use crate::storage::{Eeprom, Job, StorageError, FAULT_LOG_ENTRIES};
 use crate::vm;
+use shared_protocol::program::payload::for_each_payload_byte;
 
 /// What the service reports that the rest of the application does not keep.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -16,7 +16,8 @@ use shared_protocol::service::{SlotState, SlotSummary, CHUNK_BYTES};
 
 use crate::storage::eeprom::{Eeprom, EepromError};
 use crate::storage::layout::{copy_addr, COPY_HEADER_BYTES, SLOTS};
-use crate::storage::slot::{CopyError, CopyHeader, PayloadParser, CRC32 as ISO};
+use crate::storage::slot::{CopyError, CopyHeader, CRC32 as ISO};
+use shared_protocol::program::payload::PayloadParser;
 
 /// A slot as the service reports it, and the address of the copy a load would use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -357,7 +358,7 @@ mod tests {
         s.save(2, &p).unwrap();
         s.save(2, &p).unwrap();
         let mut payload = std::vec::Vec::new();
-        crate::storage::slot::for_each_payload_byte(&p, |b| payload.push(b));
+        shared_protocol::program::payload::for_each_payload_byte(&p, |b| payload.push(b));
         let mut e = s.into_eeprom();
         let mut r = SlotReads::new();
         for budget in [4, 64] {

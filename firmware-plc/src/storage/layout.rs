@@ -5,8 +5,9 @@
 
 use super::eeprom::PAGE_BYTES;
 
-/// Program slots, numbered 1..=SLOTS on the keypad, the LCD and in this API.
-pub const SLOTS: u8 = 4;
+/// Program slots, numbered 1..=SLOTS on the keypad, the LCD, the service port and in
+/// this API (the service protocol's constant).
+pub use shared_protocol::service::SLOTS;
 /// The two copies of a slot.
 pub const COPIES: u8 = 2;
 

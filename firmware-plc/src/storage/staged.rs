@@ -23,7 +23,8 @@ use shared_protocol::service::{InvalidReason, WriteResult};
 
 use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::COPY_HEADER_BYTES;
-use super::slot::{CopyHeader, PayloadParser, CRC32};
+use super::slot::{CopyHeader, CRC32};
+use shared_protocol::program::payload::PayloadParser;
 
 /// EEPROM address of payload byte `offset` of the copy at `copy_addr`.
 pub fn payload_addr(copy_addr: u16, offset: u16) -> Option<u16> {

@@ -6,10 +6,10 @@
 pub use firmware_plc::app::{BuildInfo, PlcApp, RawIo, RunState};
 pub use firmware_plc::editor::{Key, Screen};
 pub use firmware_plc::service::Service;
-pub use firmware_plc::storage::slot::for_each_payload_byte;
 pub use firmware_plc::storage::{MemEeprom, Storage};
 pub use shared_protocol::link::frame::CRC as CRC32C;
 pub use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
+pub use shared_protocol::program::payload::for_each_payload_byte;
 pub use shared_protocol::program::{assemble, Program};
 pub use shared_protocol::service::{
     encode, Answer, LinkView, PlcState, RefuseReason, Request, Sample, ServiceReader, SlotState,

@@ -5,6 +5,8 @@
 //! * [`verify()`]: what may run, and the valid choices the keypad editor offers
 //!   ([`mnemonics_for`], [`operands_for`], [`constant_range`]).
 //! * [`assemble`]/[`disassemble`]: the `.plc` text format.
+//! * [`payload`]: a whole program's stored form (EEPROM copies, the service port's
+//!   program transfers).
 //! * `testing` (feature `testing`): proptest strategies for valid programs.
 //!
 //! The format decisions are collected in `docs/program-format.md`.
@@ -14,6 +16,7 @@ mod disasm;
 mod encode;
 mod model;
 mod operand;
+pub mod payload;
 mod verify;
 
 #[cfg(test)]

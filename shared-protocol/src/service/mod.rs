@@ -20,6 +20,9 @@ use serde::Serialize;
 
 use crate::link::frame::{encode_frame, Frame, FrameError, FrameReader};
 
+/// EEPROM program slots, numbered 1..=SLOTS on the keypad, the LCD and in the requests
+/// (slot 0 is the program in RAM).
+pub const SLOTS: u8 = 4;
 /// The service protocol's version (`Hello`), independent of the link's.
 pub const SERVICE_VERSION: u16 = 1;
 /// Default line rate (a firmware constant; `plcctl --baud` must match).
