@@ -1,9 +1,8 @@
 //! Build script.
 //!
-//! * Generates the modulator's quarter-period sine table into `OUT_DIR/sine_table.rs` (host and target):
-//!   the firmware never evaluates trigonometry at run time, and a table computed here in
-//!   `f64` is exact to the last bit of its Q15 format.
-//! * Links the target binaries against the workspace's `memory.x`; host builds are untouched.
+//! Generates the modulator's quarter-period sine table into `OUT_DIR/sine_table.rs`: the
+//! firmware never evaluates trigonometry at run time, and a table computed here in `f64` is
+//! exact to the last bit of its Q15 format. (Linking the image is `drive-image`'s.)
 use std::{env, fmt::Write as _, fs, path::PathBuf};
 
 /// Points per full sine period; must match `sine::TABLE_BITS` (2^10). The table holds the
@@ -39,17 +38,7 @@ fn sine_table() -> String {
 }
 
 fn main() {
-    let target = env::var("TARGET").unwrap_or_default();
-    println!("cargo:rerun-if-changed=../memory.x");
     println!("cargo:rerun-if-changed=build.rs");
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     fs::write(out.join("sine_table.rs"), sine_table()).expect("write OUT_DIR/sine_table.rs");
-    if !target.starts_with("thumb") {
-        return;
-    }
-    fs::copy("../memory.x", out.join("memory.x")).expect("copy ../memory.x to OUT_DIR");
-    println!("cargo:rustc-link-search={}", out.display());
-    println!("cargo:rustc-link-arg-bins=--nmagic");
-    println!("cargo:rustc-link-arg-bins=-Tlink.x");
-    println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
 }

@@ -60,7 +60,7 @@ const UNREPORTED: usize = 8;
 /// What the application reports to the board (for logging over defmt, a debug LED, or
 /// hil-sim's trace). Nothing needs to be done with them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AppEvent {
     /// From the core (state changes, faults, warnings, reversals).
     Core(DriveEvent),

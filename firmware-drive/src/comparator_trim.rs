@@ -29,7 +29,7 @@ const DAC_MAX: u16 = 4095;
 /// The search of one comparator: `lo` never tripped, `hi` tripped (in the direction of
 /// [`Direction`]: a `Below` comparator trips for high DAC codes, an `Above` one for low).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 struct Search {
     comp: u8,
     below: bool,
@@ -52,7 +52,7 @@ impl Search {
 /// 0 A (`Below`: the lowest code that trips; `Above`: the highest), `None` for a
 /// comparator not trimmed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TrimmedZeros(pub [Option<u16>; 4]);
 
 impl TrimmedZeros {
@@ -68,7 +68,7 @@ impl TrimmedZeros {
 /// rail: a missing bias, a broken shunt network), or its zero is further than the
 /// profile's tolerance from the nominal one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TrimFailed {
     pub comp: u8,
     pub code: u16,
@@ -76,7 +76,7 @@ pub struct TrimFailed {
 
 /// The search of every comparator the profile trims.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ComparatorTrim {
     profile: &'static BoardProfile,
     searches: [Option<Search>; 4],

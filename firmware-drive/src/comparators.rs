@@ -30,7 +30,7 @@ use crate::protection::HwBreak;
 
 /// The analog signal at a comparator's non-inverting input.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Signal {
     /// Phase current of inverter leg 1 (a), 2 (b), 3 (c), in the ADC scale of
     /// `measure` (2048 = 0 A, +-10 A full scale).
@@ -43,7 +43,7 @@ pub enum Signal {
 
 /// When the comparator output is high (trip).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Direction {
     /// Signal above the threshold (output polarity not inverted).
     Above,
@@ -53,7 +53,7 @@ pub enum Direction {
 
 /// Which setting sets the threshold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Threshold {
     /// `I>>`: +threshold for [`Direction::Above`], -threshold for [`Direction::Below`].
     OcHw,
@@ -63,7 +63,7 @@ pub enum Threshold {
 
 /// A DAC output the comparators can take as their inverting input.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DacChannel {
     Dac1Ch1,
     Dac1Ch2,
@@ -86,7 +86,7 @@ impl DacChannel {
 
 /// One comparator of the board.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ComparatorSpec {
     /// COMP instance, 1..=4.
     pub comp: u8,
@@ -212,7 +212,7 @@ impl ComparatorSpec {
 
 /// A drive board's comparators.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BoardProfile {
     pub name: &'static str,
     /// Short name: hil-sim's `[plant] board` value, and the image's `DRIVE_BOARD_PROFILE`
@@ -391,7 +391,7 @@ pub const B_G431B_ESC1: BoardProfile = BoardProfile {
 
 /// The hardware thresholds in effect.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct HwThresholds {
     /// `I>>`, 0.01 A.
     pub oc_hw: CentiAmps,
@@ -402,7 +402,7 @@ pub struct HwThresholds {
 /// The value of each DAC channel ([`DacChannel::index`]); `None` for a channel no
 /// comparator uses.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DacValues(pub [Option<u16>; 4]);
 
 impl DacValues {

@@ -9,7 +9,7 @@ pub use shared_protocol::supervision::ResetCause;
 
 /// Board and safety parameters. `Default` is the B-G431B-ESC1 / NUCLEO-G431RB setup.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveConfig {
     /// TIM1 kernel clock (CK_INT), Hz.
     pub timer_clock_hz: u32,

@@ -41,7 +41,7 @@ pub const EVENT_QUEUE: usize = 16;
 
 /// Commands from the PLC (through the link layer).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveCommand {
     /// Start executing the loaded drive section (IDLE -> RUN).
     Run,
@@ -59,7 +59,7 @@ pub enum DriveCommand {
 
 /// Why a command was not carried out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CommandError {
     /// Still in BOOT.
     Booting,
@@ -79,14 +79,14 @@ pub enum CommandError {
 
 /// Warnings: reported, nothing latched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveWarning {
     Vm(VmWarning),
 }
 
 /// What the core reports (never logs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveEvent {
     State {
         from: DriveState,
@@ -103,7 +103,7 @@ pub enum DriveEvent {
 
 /// What the PWM interrupt writes to TIM1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PwmCommand {
     /// Main output enable (MOE): false = all six switches open.
     pub enable: bool,
@@ -143,7 +143,7 @@ impl PwmCommand {
 
 /// Snapshot for the link's status frame and the PLC's extension operands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveStatus {
     pub state: DriveState,
     pub fault: Option<FaultCode>,
@@ -194,7 +194,7 @@ impl DriveStatus {
 
 /// The steps of a load after [`DriveCore::load_begin`] ([`DriveCore::load_step`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum LoadStep {
     /// The VM's settings (`PWF`, limits, `fmn`...).
     Vm,

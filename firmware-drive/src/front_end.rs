@@ -22,7 +22,7 @@ use crate::comparators::Signal;
 
 /// One on-chip amplifier in PGA mode.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OpampSpec {
     /// OPAMP instance, 1..=3.
     pub opamp: u8,
@@ -83,7 +83,7 @@ impl OpampSpec {
 
 /// What the ADC converts for a sampled phase current.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AdcInput {
     /// The sensor's pin directly (ADC `adc`, channel `channel`).
     Pin {
@@ -97,7 +97,7 @@ pub enum AdcInput {
 
 /// A board's analog front end: the amplifiers it enables and what the ADC reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FrontEndSpec {
     /// Amplifiers to enable (PGA mode, output to the ADC internally), in any order.
     pub opamps: &'static [OpampSpec],

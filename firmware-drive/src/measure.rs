@@ -21,7 +21,7 @@ pub const CURRENT_FULL_CENTIAMPS: i32 = 1000;
 
 /// One conversion of every channel, taken in the PWM period's sampling window.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct AdcSample {
     pub i_a: u16,
     pub i_b: u16,
@@ -86,7 +86,7 @@ pub fn com_of(counts: u16) -> u16 {
 /// it once per PWM period, so limits, `IMX`, `UDC` and the program's units are the same on
 /// every board.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SensorScaling {
     /// Nominal reading at 0 A (the boot calibration measures the real one).
     pub current_zero_counts: u16,
@@ -132,7 +132,7 @@ const CANONICAL_MILLICOUNTS_PER_AMP: i64 = 204_800;
 
 /// A board's front end with its zero-current readings as calibrated at boot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FrontEnd {
     scaling: SensorScaling,
     /// Zero-current reading of channel a and b (raw counts).
@@ -220,7 +220,7 @@ fn div_round(a: i64, b: i64) -> i64 {
 /// The boot self-test and calibration of the zero-current readings: every PWM-off sample
 /// of BOOT must lie within the tolerance of the nominal zero; their mean becomes the zero.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ZeroCalibration {
     sum: [u32; 2],
     samples: u32,

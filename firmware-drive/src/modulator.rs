@@ -31,7 +31,7 @@ pub const M_LIMIT_Q16: u32 = 8 << 16;
 
 /// What one leg (phase pair PW0/PW1, PW2/PW3, PW4/PW5) outputs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum LegMode {
     /// Not set by the program: duty 0 (low switch on), as the source's reset PDC value.
     #[default]

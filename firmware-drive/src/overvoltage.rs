@@ -50,7 +50,7 @@ pub const SUPPLY_RISE_TICKS: u8 = 16;
 
 /// The controller's state.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OvController {
     /// The highest level, canonical counts; `None`: off (a board with a chopper).
     cap: Option<u32>,

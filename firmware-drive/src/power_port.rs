@@ -48,7 +48,7 @@ pub trait PowerPort {
 
 /// The power stage for one PWM period.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PeriodAction {
     /// Outputs on (MOE) this period.
     pub enable: bool,
@@ -112,7 +112,7 @@ impl PeriodAction {
 /// The comparator outputs as the board reads them (COMPx value after polarity),
 /// index = comparator number - 1 (COMP1..COMP7).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ComparatorLevels(pub [bool; 7]);
 
 impl ComparatorLevels {
@@ -138,7 +138,7 @@ impl ComparatorLevels {
 
 /// What the break monitor tells the core and the board.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BreakReport {
     /// Causes to latch now (a break fired): [overcurrent, overvoltage].
     pub fired: [bool; 2],

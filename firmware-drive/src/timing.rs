@@ -12,7 +12,7 @@ const ARR_MAX: u64 = 65_534;
 
 /// What the board programs into TIM1 (and the core uses for the phase step).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PwmTiming {
     /// TIM1_PSC (the counter runs at f_tim / (psc + 1)).
     pub psc: u16,

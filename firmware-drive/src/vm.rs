@@ -37,7 +37,7 @@ pub const FRV_DEFAULT: i16 = 1;
 
 /// The program's drive parameters (units as in program.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Settings {
     /// `Rs=`, 0.01 ohm.
     pub rs_centiohm: u16,
@@ -103,7 +103,7 @@ impl Settings {
 
 /// What the section commands, read by the core after each cycle.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Outputs {
     /// Commanded frequency f from `SN1`, 0.1 Hz, already clamped to 0..=fmx.
     pub f: i16,
@@ -116,7 +116,7 @@ pub struct Outputs {
 
 /// Run-time warnings of the drive section.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum VmWarning {
     /// `PWF Qxx` outside 488..=20000 Hz: `applied` is the clamped value. Reported when the
     /// clamping starts, not every millisecond.

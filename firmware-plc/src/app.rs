@@ -64,7 +64,7 @@ pub use service::{BuildInfo, Outcome};
 
 /// Where RUN stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RunState {
     Stopped,
     /// RUN requested, program verified: waiting for the link to come up.

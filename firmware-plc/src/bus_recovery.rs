@@ -30,7 +30,7 @@ pub const MAX_PULSES: u8 = 9;
 
 /// What the bus clear found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Recovery {
     /// SDA was high: only the STOP was sent.
     Idle,

@@ -70,7 +70,7 @@ pub struct KeyMatrix {
 
 /// A debounced key transition.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct KeyEvent {
     pub key: Key,
     /// `true` = pressed, `false` = released.

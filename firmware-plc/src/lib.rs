@@ -1,6 +1,6 @@
 //! PLC MCU core: everything the PLC does, as synchronous sans-IO state machines.
 #![cfg_attr(not(test), no_std)]
-// The cores touch no registers: `unsafe` belongs to the board binaries only.
+// The cores touch no registers: `unsafe` belongs to the image crates only.
 #![forbid(unsafe_code)]
 #![cfg_attr(
     not(test),

@@ -1,6 +1,7 @@
-//! The m4bench binary (target only) scans `lift.plc` from `src/bin/data/lift.slots`: every
-//! program line's 4 stored bytes (`encode_slot`), 1000 lines. This test keeps the file
-//! equal to the program; `BLESS=1 cargo test -p firmware-plc --test m4bench_data` rewrites it.
+//! The m4bench binary (plc-image, target only) scans `lift.plc` from
+//! `plc-image/src/bin/data/lift.slots`: every program line's 4 stored bytes (`encode_slot`),
+//! 1000 lines. This test keeps the file equal to the program; `BLESS=1 cargo test -p
+//! firmware-plc --test m4bench_data` rewrites it.
 
 use shared_protocol::program::{assemble, encode_slot, LINES, LINE_BYTES};
 
@@ -14,13 +15,14 @@ fn m4bench_lift_slots_are_lift_plc() {
     for line in &program.lines {
         bytes.extend_from_slice(&encode_slot(line.as_ref()));
     }
-    let path = format!("{dir}/src/bin/data/lift.slots");
+    let path = format!("{dir}/../plc-image/src/bin/data/lift.slots");
     if std::env::var_os("BLESS").is_some() {
         std::fs::write(&path, &bytes).expect("write lift.slots");
     }
-    let stored = std::fs::read(&path).expect("src/bin/data/lift.slots (BLESS=1 writes it)");
+    let stored =
+        std::fs::read(&path).expect("plc-image/src/bin/data/lift.slots (BLESS=1 writes it)");
     assert!(
         stored == bytes,
-        "src/bin/data/lift.slots differs from lift.plc: run with BLESS=1"
+        "plc-image/src/bin/data/lift.slots differs from lift.plc: run with BLESS=1"
     );
 }

@@ -21,7 +21,7 @@ const _: () = assert!(INPUTS >= 1 && INPUTS <= 16 && OUTPUTS >= 1 && OUTPUTS <= 
 /// The drive's status as last reported over the link: the source of `COM` and the
 /// extension operands (program.md 3.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveView {
     /// Aux ADC channel, 10-bit; larger values are clamped to 1023.
     pub com: u16,
@@ -54,7 +54,7 @@ pub struct DriveView {
 
 /// Everything one scan reads from the outside world.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ScanInputs {
     /// D00..D15, bit n = Dn; sampled by the caller once at the start of the scan.
     pub digital: u16,
@@ -65,7 +65,7 @@ pub struct ScanInputs {
 
 /// A run-time warning raised by a scan; the scan itself goes on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Warning {
     /// `DIV` by zero on this program line (shown as `DIV0 @ line`); P was set to 0.
     Div0 { line: u16 },
@@ -82,7 +82,7 @@ impl core::fmt::Display for Warning {
 
 /// Everything one scan produces. [`crate::PlcVm::scan`] overwrites all of it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ScanOutputs {
     /// Output image O00..O07 (bit n = On) to write to the pins now.
     pub outputs: u8,

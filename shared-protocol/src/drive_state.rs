@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 ///
 /// On the wire (the status's `state`) the variant order is the byte: never reorder.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveState {
     /// After reset, until the first 1 ms tick has run the self-test. Also what the PLC
     /// assumes before the first status.

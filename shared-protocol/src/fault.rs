@@ -9,7 +9,7 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 /// Latched fault codes (drive.md table; `Boot` is this project's addition, drive.md's
 /// code 8).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum FaultCode {
     /// Software overcurrent: |i_a| or |i_b| above `I>`.
@@ -50,7 +50,7 @@ pub enum FaultCode {
 /// A byte that is no [`FaultCode`] (0 is "no fault", 17.. are not defined by this
 /// protocol version).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct UnknownFaultCode(pub u8);
 
 impl core::fmt::Display for UnknownFaultCode {
@@ -239,7 +239,7 @@ pub mod wire_option {
 /// Causes of the drive's TIM1 break input: the G4's comparators, or hil-sim's model of
 /// the same comparators.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum HwBreak {
     Overcurrent,
     Overvoltage,

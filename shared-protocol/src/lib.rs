@@ -12,7 +12,7 @@
 //!
 //! `no_std`, no allocation, never panics on any input.
 #![cfg_attr(not(test), no_std)]
-// The cores touch no registers: `unsafe` belongs to the board binaries only.
+// The cores touch no registers: `unsafe` belongs to the image crates only.
 #![forbid(unsafe_code)]
 #![cfg_attr(
     not(test),

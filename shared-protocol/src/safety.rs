@@ -9,7 +9,7 @@
 /// The monitoring functions; the discriminant is the function's bit in every mask (the
 /// link's `SafetyRequest`, the status, hil-sim's CSV).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum SafetyFunction {
     Sto = 0,
@@ -123,7 +123,7 @@ impl SafetyFunction {
 /// The drive-section safety settings (safety.md 4); the discriminant is the position in
 /// the signature (safety.md 8) and in [`SafetySettings`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum SafetySetting {
     /// Standstill speed tolerance, 0.1 Hz.
@@ -240,7 +240,7 @@ pub const ABSENT: u16 = 0xFFFF;
 
 /// The 24 settings of one drive section, as written (0..=9999, or [`ABSENT`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SafetySettings {
     raw: [u16; SETTINGS],
 }

@@ -5,7 +5,7 @@
 
 /// Why the MCU last started, decoded from the reset flags (RCC_CSR on the G4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ResetCause {
     /// Power-on or brown-out (both set BORRSTF on the G4).
     PowerOn,

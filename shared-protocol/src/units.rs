@@ -4,7 +4,7 @@
 /// A monotonic millisecond clock reading. Wraps after ~49 days: compare with
 /// [`Millis::since`], never with `<`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Millis(pub u32);
 
 impl Millis {
@@ -19,7 +19,7 @@ impl Millis {
 
 /// A monotonic microsecond clock reading (64-bit: never wraps in practice).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Micros(pub u64);
 
 impl Micros {
@@ -30,20 +30,20 @@ impl Micros {
 
 /// Frequency in 0.1 Hz (the program's unit for f, fmn, fjm, fmx, frv).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Decihertz(pub i16);
 
 /// Voltage in 0.1 V (the PLC's `UDC`/`VLT` unit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Decivolts(pub i16);
 
 /// Voltage in whole volts (the program's `U>`/`U<`/`U>>`/`Uc=` unit and the PLC's `UHW`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Volts(pub i16);
 
 /// Current in 0.01 A (the program's `I>`/`Iz=` unit and the PLC's `IMX`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CentiAmps(pub i16);

@@ -3,7 +3,7 @@
 //! HAL is linked only for its vector table.
 //!
 //! ```text
-//! cargo build --profile firmware --target thumbv7em-none-eabihf --bin drive-m4bench -p firmware-drive
+//! cargo build --profile firmware --target thumbv7em-none-eabihf --bin drive-m4bench -p drive-image
 //! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/firmware/drive-m4bench
 //! ```
 //! Sections (m4count prints the instructions between `bench_mark(k)` and the next mark):
@@ -19,9 +19,9 @@
 //! the lab's settings, 2.0 Hz forward: every function evaluates, none trips; a mark 0x31
 //! after it confirms no trip, 0x32 that one did); 33 = one tick with STO requested too
 //! (0x0FFF: the trip).
-#![cfg_attr(target_os = "none", no_std, no_main)]
+#![no_std]
+#![no_main]
 
-#[cfg(target_os = "none")]
 mod target {
     use core::hint::black_box;
 
@@ -217,9 +217,4 @@ mod target {
             cortex_m::asm::nop();
         }
     }
-}
-
-#[cfg(not(target_os = "none"))]
-fn main() {
-    eprintln!("m4bench is a target binary: see its doc comment for the m4count.py command");
 }

@@ -2,7 +2,7 @@
 
 /// One key of the 4x4 matrix keypad: `0`-`9`, `A` `B` `C` `D`, `*`, `#`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Key {
     /// `0`..=`9` (values above 9 are never produced by [`Key::from_char`]).
     Digit(u8),

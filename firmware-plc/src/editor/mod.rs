@@ -43,7 +43,7 @@ use text::Text;
 
 /// What the application must do after a key.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Request {
     /// Save the program into slot 1..=4, then [`Editor::notify`] the outcome.
     Save(u8),
@@ -178,7 +178,7 @@ pub struct View<'a> {
 
 /// The three pages, cycled with `B`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Page {
     Listing,
     Run,
@@ -197,7 +197,7 @@ impl Page {
 
 /// The fields of a listing line the cursor can be on.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Field {
     Mnemonic,
     Operand,

@@ -16,7 +16,7 @@ const FLAG_RUN: u8 = 1;
 
 /// What the boot record holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BootRecord {
     /// Increases with every write; picks the newer copy.
     pub seq: u32,

@@ -1,5 +1,5 @@
 //! The EEPROM seen by the storage code (its RAM model for tests and hil-sim is
-//! `mem_eeprom`, feature `sim`).
+//! `mem_eeprom`).
 //!
 //! The trait is deliberately small (read anywhere, latch a write within one page, ask
 //! whether the write cycle has ended) so that the board layer can implement it over I2C
@@ -16,7 +16,7 @@ pub const PAGE_WRITE_MS: u32 = 5;
 
 /// Why an EEPROM access failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum EepromError {
     /// Address range outside the device.
     OutOfRange,

@@ -18,7 +18,7 @@ pub const UPTIME_MAX_S: u32 = 0x00FF_FFFF;
 
 /// One logged fault.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FaultEntry {
     /// Fault code (drive.md; 1..=254).
     pub code: u8,

@@ -33,7 +33,7 @@ pub const WRITE_CYCLE_LIMIT_US: u64 = 2 * PAGE_WRITE_MS as u64 * 1000;
 
 /// A change of the boot record.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum BootChange {
     /// Count this power-up: the record's power-up count becomes `count`.
     PowerUp { count: u32 },
@@ -44,7 +44,7 @@ pub enum BootChange {
 
 /// One storage operation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Job {
     /// Save the program into slot 1..=4 (power-fail safe). The program must not change
     /// until the job is done (the application refuses edits meanwhile).
@@ -81,7 +81,7 @@ impl Job {
 
 /// How a job holds the program.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ProgramUse {
     /// A save: the program must not change (RUN may start: it does not change it).
     Reads,
@@ -92,7 +92,7 @@ pub enum ProgramUse {
 /// A finished job and how it went. Dropping it loses the outcome the user must see.
 #[must_use]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum JobDone {
     /// The new generation of the slot.
     Saved {
@@ -219,7 +219,7 @@ pub struct JobSummary {
 
 /// Which job ended ([`JobDone`]'s variants).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum JobKind {
     Saved,
     Loaded,
@@ -231,7 +231,7 @@ pub enum JobKind {
 
 /// How a job went, flat: success, a staged program's rejection, or the storage error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum JobOutcome {
     Ok,
     Invalid,

@@ -13,18 +13,17 @@
 //! The firmware queues every operation as a [`Job`] and moves it on one EEPROM page per
 //! pass with [`Storage::step`] (see [`job`]); the synchronous methods ([`Storage::save`],
 //! [`Storage::load`], ...) run the same jobs to the end, for power-up (before the
-//! watchdog runs), tools and tests. `MemEeprom` (feature `sim`) is the RAM model used by
-//! tests and hil-sim; `image` (feature `sim`) builds EEPROM images with it.
+//! watchdog runs), tools and tests. `MemEeprom` is the RAM model used by tests and hil-sim;
+//! `image` builds EEPROM images with it (the image links neither: nothing on the board
+//! calls them).
 
 pub mod boot;
 pub mod counters;
 pub mod eeprom;
 pub mod fault_log;
-#[cfg(any(test, feature = "sim"))]
 pub mod image;
 pub mod job;
 pub mod layout;
-#[cfg(any(test, feature = "sim"))]
 pub mod mem_eeprom;
 pub mod slot;
 pub mod staged;
@@ -37,7 +36,6 @@ pub use job::{
     WRITE_CYCLE_LIMIT_US,
 };
 pub use layout::{FAULT_LOG_ENTRIES, SLOTS};
-#[cfg(any(test, feature = "sim"))]
 pub use mem_eeprom::MemEeprom;
 pub use slot::CopyError;
 
@@ -52,7 +50,7 @@ const SYNC_STEP_LIMIT: u32 = 100_000;
 
 /// Why a storage operation failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum StorageError {
     /// Slot number outside 1..=[`SLOTS`].
     NoSuchSlot(u8),
@@ -79,7 +77,7 @@ impl From<EepromError> for StorageError {
 
 /// Copy A or B of a slot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SlotCopy {
     A,
     B,
@@ -109,7 +107,7 @@ impl SlotCopy {
 
 /// State of the copy that was not used by a load.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum OtherCopy {
     /// Same generation: the normal state after a complete save.
     Same,
@@ -121,7 +119,7 @@ pub enum OtherCopy {
 
 /// How a load went.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LoadReport {
     pub slot: u8,
     pub used: SlotCopy,
@@ -131,7 +129,7 @@ pub struct LoadReport {
 
 /// Summary of one slot for the load/save prompts.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct SlotInfo {
     pub slot: u8,
     /// Newest valid generation and its used-line count; `None` when the slot is empty.
@@ -140,7 +138,7 @@ pub struct SlotInfo {
 
 /// What power-up found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PowerUp {
     /// This power-up's number (1 for a fresh EEPROM).
     pub power_cycle: u32,
@@ -152,7 +150,7 @@ pub struct PowerUp {
 
 /// Why a job was not queued.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct QueueFull;
 
 /// The storage facade the application calls: the EEPROM, the job queue and the job in

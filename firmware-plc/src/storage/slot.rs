@@ -29,7 +29,7 @@ const VERSION: u8 = 1;
 
 /// What a valid copy header says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CopyHeader {
     pub slot: u8,
     pub generation: u32,
@@ -75,7 +75,7 @@ impl CopyHeader {
 
 /// Why a copy is not a program.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CopyError {
     /// Never written, or the header is damaged (erased EEPROM reads `FF`).
     NoHeader,

@@ -3,7 +3,7 @@
 //! One [`CompBank`] covers the four COMPx_CSR registers (offsets 0x0, 0x4, 0x8, 0xC from
 //! COMP1's base 0x4001_0200, inside SYSCFG's page).
 //!
-//! The drive (`firmware-drive/src/board/hw_protection.rs`, embassy-stm32 0.6 `comp.rs`) writes
+//! The drive (`drive-image/src/board/hw_protection.rs`, embassy-stm32 0.6 `comp.rs`) writes
 //! each CSR once with INPSEL = 0 (COMP1 PA1, COMP2 PA7, COMP3 PA0), INMSEL = DAC (100 for
 //! COMP1/2 = DAC3 CH1/CH2, 101 for COMP3 = DAC1 CH1), HYST = 20 mV, the polarity of its board
 //! profile (inverted on the bare ESC1), BLANKSEL = 0 and EN, then sets EN again; the board then

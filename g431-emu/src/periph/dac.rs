@@ -1,7 +1,7 @@
 //! DAC1 and DAC3 (RM0440 §22 "Digital-to-analog converter (DAC)"; DAC3 is internal-only and
 //! feeds the comparators and OPAMP inputs).
 //!
-//! The drive (`firmware-drive/src/board/hw_protection.rs`) uses them as comparator thresholds:
+//! The drive (`drive-image/src/board/hw_protection.rs`) uses them as comparator thresholds:
 //! `Dac::new_internal` (embassy-stm32 0.6 `dac/mod.rs`) sets MCR.HFSEL = 10 (AHB above
 //! 160 MHz), clears EN and writes MODE = 011 (normal, internal, unbuffered) for each channel,
 //! then sets EN; the board writes DHR12Rx. Nothing waits on DACxRDY.

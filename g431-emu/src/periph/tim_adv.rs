@@ -1,6 +1,6 @@
 //! Advanced-control timers TIM1/TIM8 (RM0440 §29 "Advanced-control timers (TIM1/TIM8/TIM20)").
 //!
-//! TIM1 is the drive's power stage (`firmware-drive/src/board/power_stage.rs`): centre-aligned
+//! TIM1 is the drive's power stage (`drive-image/src/board/power_stage.rs`): centre-aligned
 //! mode 1 with ARPE and RCR = 1 written before CEN (one update per period, at the valley),
 //! CH1-3 in PWM mode 1 with preload and complementary outputs with dead time (DTG), CH4 in PWM
 //! mode 2 at ARR-1 as TRGO2 (MMS2 = OC4REF) for the ADCs' injected sequences, break input 1

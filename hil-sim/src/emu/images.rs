@@ -1,6 +1,7 @@
-//! Where the firmware images are: the ELFs of `firmware-drive` and `firmware-plc` built
-//! with the workspace's `firmware` profile for `thumbv7em-none-eabihf`, in the workspace's
-//! target directory: exactly what CI builds and `probe-rs` flashes.
+//! Where the firmware images are: the ELFs `firmware-drive` and `firmware-plc` of the image
+//! crates `drive-image` and `plc-image`, built with the workspace's `firmware` profile for
+//! `thumbv7em-none-eabihf`, in the workspace's target directory: exactly what CI builds
+//! and `probe-rs` flashes.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -24,10 +25,19 @@ pub enum Firmware {
 }
 
 impl Firmware {
-    pub fn crate_name(self) -> &'static str {
+    /// The image's binary (its ELF's file name).
+    pub fn bin_name(self) -> &'static str {
         match self {
             Firmware::Drive => "firmware-drive",
             Firmware::Plc => "firmware-plc",
+        }
+    }
+
+    /// The crate that builds the image (target only).
+    pub fn image_crate(self) -> &'static str {
+        match self {
+            Firmware::Drive => "drive-image",
+            Firmware::Plc => "plc-image",
         }
     }
 }
@@ -56,10 +66,7 @@ pub fn target_dir() -> PathBuf {
 
 /// Path of the flashed ELF of `fw`.
 pub fn release_elf(fw: Firmware) -> PathBuf {
-    target_dir()
-        .join(TARGET)
-        .join(PROFILE)
-        .join(fw.crate_name())
+    target_dir().join(TARGET).join(PROFILE).join(fw.bin_name())
 }
 
 /// The command that builds `fw`'s release image (each image alone: their embassy chip
@@ -67,8 +74,8 @@ pub fn release_elf(fw: Firmware) -> PathBuf {
 pub fn build_command(fw: Firmware) -> String {
     format!(
         "cargo build --profile {PROFILE} --target {TARGET} -p {} --bin {}",
-        fw.crate_name(),
-        fw.crate_name()
+        fw.image_crate(),
+        fw.bin_name()
     )
 }
 
@@ -138,9 +145,9 @@ pub fn build_both() -> Result<(PathBuf, PathBuf)> {
                 "--target",
                 TARGET,
                 "-p",
-                fw.crate_name(),
+                fw.image_crate(),
                 "--bin",
-                fw.crate_name(),
+                fw.bin_name(),
             ])
             .status()
             .with_context(|| format!("cannot run `{}`", build_command(fw)))?;

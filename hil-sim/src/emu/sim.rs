@@ -842,7 +842,7 @@ impl EmuSim {
 }
 
 /// The drive's fault latch, read from the drive image's own defmt log and resets (the
-/// lines `firmware-drive/src/board/control.rs` writes for the core's events).
+/// lines `drive-image/src/board/control.rs` writes for the core's events).
 #[derive(Debug, Default)]
 struct DriveLatch {
     /// The latched code (0: none; [`image_fault::WATCHDOG`] after a watchdog reset until

@@ -59,7 +59,7 @@ pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
 /// Why the PLC's keypad rows read as floating: not a defect.
 const KEYPAD_ROW_RELEASED: &str = "keypad rows R0-R3 (PA6, PA7, PB6, PB7) are open-drain \
     outputs released between scans; with no key down nothing on the NUCLEO drives them \
-    (firmware-plc/src/pins.rs): a read of GPIOA/GPIOB IDR for the port's other inputs \
+    (plc-image/src/pins.rs): a read of GPIOA/GPIOB IDR for the port's other inputs \
     samples them along, and the image ignores those bits";
 
 /// An [`EmuSim`] that fails the test when it is dropped (at the end of a test that passed

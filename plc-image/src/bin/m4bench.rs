@@ -2,7 +2,7 @@
 //! `/work/shared/tools/README.md` and `plc-vm/docs/vm.md`):
 //!
 //! ```text
-//! cargo build --profile firmware --target thumbv7em-none-eabihf --bin m4bench -p firmware-plc
+//! cargo build --profile firmware --target thumbv7em-none-eabihf --bin m4bench -p plc-image
 //! python3 ../shared/tools/m4count.py target/thumbv7em-none-eabihf/firmware/m4bench
 //! ```
 //!
@@ -19,17 +19,14 @@
 //! run (safety chain and door closed, no vane, no call: the car travels down to floor 1),
 //! from `data/lift.slots` (every line's 4 stored bytes; the host test
 //! `m4bench_lift_slots_are_lift_plc` keeps the file equal to the program).
-//! On the host this binary is a stub.
-#![cfg_attr(target_os = "none", no_std, no_main)]
+#![no_std]
+#![no_main]
 
 /// Scans per measured section.
-#[cfg_attr(not(target_os = "none"), allow(dead_code))]
 const SCANS: u32 = 4;
 /// Flood bytes in section 13.
-#[cfg_attr(not(target_os = "none"), allow(dead_code))]
 const SERVICE_BYTES: usize = 1000;
 
-#[cfg(target_os = "none")]
 mod target {
     use super::{SCANS, SERVICE_BYTES};
     use core::hint::black_box;
@@ -218,9 +215,4 @@ mod target {
             cortex_m::asm::nop();
         }
     }
-}
-
-#[cfg(not(target_os = "none"))]
-fn main() {
-    eprintln!("m4bench runs on the target: see plc-vm/docs/vm.md");
 }

@@ -1,5 +1,5 @@
 //! Panics and HardFault: the outputs Q0-Q5 go off before anything else, before any
-//! logging (review D7), as on the drive (`firmware-drive/src/board/fault.rs`).
+//! logging (review D7), as on the drive (`drive-image/src/board/fault.rs`).
 //!
 //! * `core::panic!` (an `expect`, an embassy/PAC assertion) reaches [`panic`], this image's
 //!   own `#[panic_handler]`: outputs off, then `panic` over defmt (no message or location:

@@ -2,7 +2,7 @@
 
 /// Timing parameters of one endpoint. Both ends should use the same values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LinkConfig {
     /// UART baud rate (8N1: 10 bit times per byte).
     pub baud: u32,

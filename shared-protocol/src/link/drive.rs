@@ -31,7 +31,7 @@ const SECTION_BYTES: usize = DRIVE_LINES * LINE_BYTES;
 
 /// The drive's view of the link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveLinkState {
     /// No handshake yet, or lost: only `Hello` is listened to.
     Down,
@@ -45,7 +45,7 @@ pub enum DriveLinkState {
 /// What the drive application hears from the link. Commands come exactly once, in the
 /// order the PLC issued them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveEvent {
     Connected,
     /// No valid frame for `drive_timeout_us` (the core trips `LINK` when in RUN).

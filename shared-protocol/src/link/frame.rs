@@ -39,7 +39,7 @@ pub struct Frame<M> {
 
 /// Why bytes did not make a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FrameError {
     /// More bytes than [`MAX_WIRE_FRAME`] before a delimiter.
     TooLong,

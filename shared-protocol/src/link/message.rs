@@ -24,7 +24,7 @@ pub const CHUNK_BYTES: usize = 64;
 
 /// One Q variable's new value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct QValue {
     /// Q00-Q63.
     #[serde(deserialize_with = "one_copy::de_u8")]
@@ -82,7 +82,7 @@ impl PlcMsg {
 
 /// The drive's periodic report. Units are in the field names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct DriveStatus {
     pub state: DriveState,
     /// Latched fault (drive.md table). On the wire one byte, 0 = none, as before the
@@ -191,7 +191,7 @@ pub(crate) mod one_copy {
 /// A run-time warning of the drive: nothing latched, the drive goes on. Sent in every
 /// status while it lasts; the PLC shows it on the LCD status line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveWarning {
     /// `PWF Qxx` on drive line `line` asks for `requested` Hz, outside the drive's range
     /// (488..=20000 Hz): the drive switches at `applied_hz`.
@@ -237,7 +237,7 @@ impl core::fmt::Display for DriveWarning {
 
 /// Why the drive refused a downloaded section.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RejectReason {
     /// The verifier refused the line; the code is [`verify_kind_code`] of its error.
     Verify(u8),
@@ -284,7 +284,7 @@ pub fn verify_kind_code(kind: &crate::program::VerifyErrorKind) -> u8 {
 
 /// The drive's answer to a download.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DownloadResult {
     Accepted,
     Rejected {
@@ -317,7 +317,7 @@ pub enum DriveMsg {
 
 /// Why the drive refused to acknowledge its latched fault (`*` `9`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum AckRefusal {
     /// The fault's cause is still present (e.g. the DC link still above `U>`).
     CauseActive(FaultCode),

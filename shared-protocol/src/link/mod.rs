@@ -49,7 +49,7 @@ pub use crate::program::Q_COUNT;
 
 /// Counters of one endpoint, for diagnostics and tests.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LinkStats {
     /// Frames that passed CRC and parsing.
     pub frames_ok: u32,

@@ -35,7 +35,7 @@ const CHUNK_LINES: usize = CHUNK_BYTES / LINE_BYTES;
 
 /// The PLC's view of the link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PlcLinkState {
     /// Sending `Hello`, waiting for the drive's answer.
     Connecting,
@@ -47,7 +47,7 @@ pub enum PlcLinkState {
 
 /// What the PLC application hears from the link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PlcEvent {
     /// Handshake completed (also after a reconnection).
     Connected,
@@ -67,7 +67,7 @@ pub enum PlcEvent {
 
 /// Why a command was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum CommandError {
     /// The handshake has not completed: the command would be meaningless later.
     NotConnected,

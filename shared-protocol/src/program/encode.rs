@@ -77,7 +77,7 @@ const NAMED: [Operand; 29] = [
 
 /// Why bytes are not a line.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DecodeError {
     /// Fewer or more than [`LINE_BYTES`] bytes.
     Length(usize),

@@ -25,7 +25,7 @@ pub const DIGITAL_OUTPUTS: u8 = 8;
 
 /// Which MCU a line belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Section {
     /// Lines 000-149, executed by the drive MCU every 1 ms.
     Drive,
@@ -51,7 +51,7 @@ impl Section {
 /// The discriminants are the binary encoding's mnemonic codes: never renumber them
 /// (stored EEPROM images and the link download depend on them).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum Mnemonic {
     // Both sections.
@@ -374,7 +374,7 @@ impl Mnemonic {
 /// (see [`Program::default`]). Nothing stores or sends this tag (the line format is
 /// `program::encode`'s).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum Operand {
     /// Digital input D00-D15 (bit; [`DIGITAL_INPUTS`]).
@@ -429,7 +429,7 @@ pub enum Operand {
 
 /// One program line's instruction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Instruction {
     pub mnemonic: Mnemonic,
     pub operand: Option<Operand>,

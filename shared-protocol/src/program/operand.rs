@@ -12,7 +12,7 @@ pub const Q_COUNT: usize = 64;
 ///
 /// The order of [`OperandClass::ALL`] is the order the keypad editor offers operands in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[repr(u8)]
 pub enum OperandClass {
     D,
@@ -248,7 +248,7 @@ impl Operand {
 
 /// A set of operand classes (one bit per [`OperandClass`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OperandSet(pub u32);
 
 impl OperandSet {

@@ -264,7 +264,7 @@ pub const fn drive_stack_step(depth: u8, m: Mnemonic) -> Result<u8, u8> {
 
 /// Why a line may not run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum VerifyErrorKind {
     /// Line number 1000 or above.
     LineOutOfRange,
@@ -326,7 +326,7 @@ pub enum VerifyErrorKind {
 /// The LCD text of a verifier error (at most 16 characters, for `NNN:text` on a
 /// 20-column row): fixed for most, naming the setting or function for the safety rules.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ShortText {
     Fixed(&'static str),
     /// `fss twice`
@@ -492,7 +492,7 @@ impl core::fmt::Display for VerifyErrorKind {
 
 /// The first line that may not run, and why.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct VerifyError {
     pub line: u16,
     pub kind: VerifyErrorKind,

@@ -127,7 +127,7 @@ pub enum Answer {
 
 /// Why a request was refused (service.md 3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RefuseReason {
     /// No `Hello` with the PLC's version yet (or the PLC forgot the client).
     Hello,
@@ -181,7 +181,7 @@ pub struct Identity {
 
 /// Where RUN stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum PlcState {
     Stop,
     /// RUN requested: waiting for the link or the drive's acceptance of its section.
@@ -201,7 +201,7 @@ impl PlcState {
 
 /// The PLC-drive link as the PLC sees it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum LinkView {
     Up,
     /// No valid frame from the drive (connecting).
@@ -231,7 +231,7 @@ pub struct DriveInfo {
 
 /// A run-time warning of the PLC's program.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RunWarning {
     /// `DIV` by a `Q` holding 0 at this line.
     Div0 { line: u16 },
@@ -239,7 +239,7 @@ pub enum RunWarning {
 
 /// One fault-log entry with its ring position.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LogEntry {
     /// Ring position 0-31.
     pub pos: u8,
@@ -344,7 +344,7 @@ pub struct Counters {
 
 /// What a slot holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum SlotState {
     Empty,
     Valid,
@@ -392,7 +392,7 @@ pub struct ProgramChunk {
 
 /// Why a written program was not saved.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum InvalidReason {
     /// The verifier refused the line: [`crate::link::message::verify_kind_code`].
     Verify(u8),
@@ -404,7 +404,7 @@ pub enum InvalidReason {
 
 /// `WriteCommit`'s answer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum WriteResult {
     Saved {
         generation: u32,

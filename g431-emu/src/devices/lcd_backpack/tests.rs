@@ -12,7 +12,7 @@ use crate::time::CYCLES_PER_US;
 const US: Cycles = CYCLES_PER_US;
 const MS: Cycles = 1000 * US;
 
-/// `firmware-plc/src/board/lcd.rs` replayed through embassy's blocking driver: `fixed`
+/// `plc-image/src/board/lcd.rs` replayed through embassy's blocking driver: `fixed`
 /// selects the D14 fix (`[b, b|E, b]` per nibble) instead of the image's `[b|E, b]`.
 struct ImageLcd<'e, 'a> {
     e: &'e mut Embassy<'a>,
