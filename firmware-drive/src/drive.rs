@@ -77,6 +77,24 @@ pub enum CommandError {
     StoInput,
 }
 
+impl core::fmt::Display for CommandError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            CommandError::Booting => f.write_str("the drive is still booting"),
+            CommandError::Faulted => f.write_str("a fault is latched: acknowledge it first"),
+            CommandError::NoProgram => f.write_str("no accepted drive section"),
+            CommandError::CauseActive(c) => write!(f, "the cause of {} is still present", c.name()),
+            CommandError::FrequencyNotBelowFmn => {
+                f.write_str("the frequency command is not below fmn")
+            }
+            CommandError::BadAddress => f.write_str("Q index beyond Q63"),
+            CommandError::StoInput => f.write_str("STO_IN is low"),
+        }
+    }
+}
+
+impl core::error::Error for CommandError {}
+
 /// Warnings: reported, nothing latched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -929,7 +947,7 @@ impl DriveCore {
                 true
             }
             Ok(None) => true,
-            Err(()) => false,
+            Err(crate::measure::ZeroOutOfTolerance) => false,
         };
         if !(table_ok && timing_ok && offsets_ok) || self.trim_failed {
             self.trip(FaultCode::Boot);
