@@ -397,6 +397,24 @@ mod tests {
         }
     }
 
+    /// A peer that does not know a code would refuse every frame carrying it (the link
+    /// would look broken); a new fault code therefore raises `PROTOCOL_VERSION`, so that
+    /// the handshake refuses the mismatched pair instead (`docs/contributing/add-a-trip.md`).
+    #[test]
+    fn the_protocol_version_names_its_fault_codes() {
+        const CODES_PER_VERSION: [(u16, usize); 1] = [(5, 16)];
+        let known = CODES_PER_VERSION
+            .iter()
+            .find(|(v, _)| *v == PROTOCOL_VERSION);
+        assert_eq!(
+            known.map(|(_, n)| *n),
+            Some(FaultCode::COUNT),
+            "PROTOCOL_VERSION {PROTOCOL_VERSION} does not carry {} fault codes: raise it and \
+             add (version, count) to CODES_PER_VERSION",
+            FaultCode::COUNT
+        );
+    }
+
     #[test]
     fn typed_fault_codes_keep_the_wire_bytes() {
         let mut typed = [0u8; 64];
