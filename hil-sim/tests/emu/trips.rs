@@ -274,3 +274,25 @@ fn the_emu_summary_shows_the_link_trip_after_a_cut() {
         .expect("a time");
     assert!(t > 2.0 && t <= 2.052, "{line}");
 }
+
+/// `docs/contributing/add-a-trip.md` step 11: every code added after drive.md's 16 has an
+/// emulator test on the real image (one of the emulator test files names it).
+#[test]
+fn every_added_trip_has_an_emulator_test() {
+    use shared_protocol::fault::FaultCode;
+    let sources = [
+        include_str!("trips.rs"),
+        include_str!("board_findings.rs"),
+        include_str!("power_stage.rs"),
+        include_str!("safety.rs"),
+    ]
+    .concat();
+    for f in FaultCode::ALL.iter().filter(|f| f.code() > 16) {
+        let name = format!("FaultCode::{f:?}.code()");
+        let named = sources.matches(&name).count();
+        assert!(
+            named >= 1,
+            "no emulator test names {name} (hil-sim/tests/emu/trips.rs)"
+        );
+    }
+}
