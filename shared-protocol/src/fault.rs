@@ -97,6 +97,10 @@ fault_table! {
     Sdi = 15, "SDI", "wrong direction";
     /// SLA: acceleration or deceleration above its limit.
     Sla = 16, "SLA", "over SLA limit";
+    /// Software overvoltage: the DC link above `U>` while the outputs switch, on a board
+    /// without a brake chopper (`docs/fault-codes.md`): between the overvoltage
+    /// controller's level and `U>>`.
+    Ov = 17, "OV", "overvoltage";
 }
 
 /// A byte that is no [`FaultCode`] (0 is "no fault", codes above [`FaultCode::COUNT`] are

@@ -53,9 +53,18 @@ pub const V1: Format = Format {
     trips: 16,
 };
 
+/// `0xC2`: fault codes 1-17, 64 bytes. One more trip counter than `C1` fits the page
+/// only with a one-byte magic and a one-byte sequence (two copies alternate, so modulo
+/// 2^8 tells the newer as well as 2^16 did).
+pub const V2: Format = Format {
+    magic: &[0xC2],
+    seq_bytes: 1,
+    trips: 17,
+};
+
 /// The formats read, oldest first; the last is the one written.
-pub const FORMATS: [Format; 1] = [V1];
-const NEWEST: Format = V1;
+pub const FORMATS: [Format; 2] = [V1, V2];
+const NEWEST: Format = V2;
 
 const _: () = assert!(
     NEWEST.trips == TRIP_CODES,
