@@ -74,6 +74,18 @@ pub struct TrimFailed {
     pub code: u16,
 }
 
+impl core::fmt::Display for TrimFailed {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "comparator {} trim failed at DAC code {}",
+            self.comp, self.code
+        )
+    }
+}
+
+impl core::error::Error for TrimFailed {}
+
 /// The search of every comparator the profile trims.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -77,6 +77,24 @@ pub enum CommandError {
     StoInput,
 }
 
+impl core::fmt::Display for CommandError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            CommandError::Booting => f.write_str("the drive is still booting"),
+            CommandError::Faulted => f.write_str("a fault is latched: acknowledge it first"),
+            CommandError::NoProgram => f.write_str("no accepted drive section"),
+            CommandError::CauseActive(c) => write!(f, "the cause of {} is still present", c.name()),
+            CommandError::FrequencyNotBelowFmn => {
+                f.write_str("the frequency command is not below fmn")
+            }
+            CommandError::BadAddress => f.write_str("Q index beyond Q63"),
+            CommandError::StoInput => f.write_str("STO_IN is low"),
+        }
+    }
+}
+
+impl core::error::Error for CommandError {}
+
 /// Warnings: reported, nothing latched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -721,6 +739,15 @@ impl DriveCore {
         if self.state == DriveState::Run {
             self.monitor();
         }
+        // OV (shared-protocol/docs/fault-codes.md): without a chopper, the DC link above
+        // `U>` while the outputs switch; the controller's level lies below it, `U>>` above.
+        if self.state == DriveState::Run
+            && self.outputs_on
+            && !self.cfg.board.brake_chopper
+            && self.limits.above_u_max(&self.last)
+        {
+            self.trip(FaultCode::Ov);
+        }
         self.apply_settings();
         self.update_modulator();
         while let Some(e) = self.events.pop_front() {
@@ -894,6 +921,7 @@ impl DriveCore {
                 !self.hw_active(HwBreak::Overvoltage) && !self.limits.overvoltage(&self.last)
             }
             FaultCode::Uv => !self.limits.undervoltage(&self.last),
+            FaultCode::Ov => !self.limits.above_u_max(&self.last),
             // The ACK itself arrived over the link.
             FaultCode::Link => true,
             FaultCode::Prog => self.program.is_some(),
@@ -929,7 +957,7 @@ impl DriveCore {
                 true
             }
             Ok(None) => true,
-            Err(()) => false,
+            Err(crate::measure::ZeroOutOfTolerance) => false,
         };
         if !(table_ok && timing_ok && offsets_ok) || self.trim_failed {
             self.trip(FaultCode::Boot);
@@ -946,13 +974,14 @@ impl DriveCore {
         self.limits.set_i_max(s.i_max_centiamps);
         self.limits.set_u_min(s.u_min_volts);
         self.limits.set_u_max(s.u_max_volts);
-        // Without a chopper `U>` caps the overvoltage controller's level, which stays
-        // CAP_BELOW_OV_HW_VOLTS below `U>>` (docs/drive-core.md "Overvoltage").
-        let below_trip = (self.hw.ov_hw.0.max(0) as u16).saturating_sub(CAP_BELOW_OV_HW_VOLTS);
-        let cap = match s.u_max_volts {
-            0 => below_trip,
-            u => u.min(below_trip),
+        // Without a chopper the overvoltage controller's level stays CAP_BELOW_OV_HW_VOLTS
+        // below both trips, `U>` (OV) and `U>>` (OV_HW) (docs/drive-core.md "Overvoltage").
+        let ov_hw = self.hw.ov_hw.0.max(0) as u16;
+        let lowest_trip = match s.u_max_volts {
+            0 => ov_hw,
+            u => u.min(ov_hw),
         };
+        let cap = lowest_trip.saturating_sub(CAP_BELOW_OV_HW_VOLTS);
         self.ovc
             .set_cap_volts((!self.cfg.board.brake_chopper).then_some(cap));
         let key = (s.pwf_hz, s.prescaler);
@@ -1375,6 +1404,64 @@ mod tests {
         core.load_program(&section(&format!("{SINE}013 U>> K08 0040\n")))
             .unwrap();
         assert_eq!(core.hw_thresholds().ov_hw, Volts(34));
+    }
+
+    /// `OV` (code 17, shared-protocol/docs/fault-codes.md): on the ESC1 the DC link above
+    /// `U>` while the outputs switch trips, once, and the ACK waits for the link to come
+    /// back; in IDLE, or with a chopper, it is no trip.
+    #[test]
+    fn the_esc1_trips_ov_above_u_max_while_switching() {
+        let mut core = DriveCore::new(esc1(), ResetCause::PowerOn);
+        events(&mut core);
+        let program = SINE
+            .replace("U>  K05 0035", "U>  K05 0022")
+            .replace("U<  K06 0025", "U<  K06 0015");
+        core.load_program(&section(&program)).unwrap();
+        let (supply, high) = (2388, 2687); // 20.0 V, 22.5 V
+                                           // IDLE: the outputs are off, a high link is no trip.
+        let _ = core.pwm_period(&esc1_at(high));
+        events(&mut core);
+        assert_eq!(core.fault(), None);
+        core.command(DriveCommand::SetQ {
+            addr: 1,
+            value: 500,
+        })
+        .unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        let _ = core.pwm_period(&esc1_at(supply));
+        events(&mut core);
+        let c = core.pwm_period(&esc1_at(supply));
+        assert!(c.enable && core.fault().is_none());
+        // 22.5 V > U> 22 V (below U>> 32 V): OV at the next millisecond, outputs off.
+        let _ = core.pwm_period(&esc1_at(high));
+        let ev = events(&mut core);
+        assert_eq!(core.fault(), Some(FaultCode::Ov));
+        let faults = ev
+            .iter()
+            .filter(|e| matches!(e, DriveEvent::Fault(_)))
+            .collect::<Vec<_>>();
+        assert_eq!(faults, vec![&DriveEvent::Fault(FaultCode::Ov)]);
+        assert!(!core.pwm_period(&esc1_at(high)).enable);
+        assert!(events(&mut core)
+            .iter()
+            .all(|e| !matches!(e, DriveEvent::Fault(_))));
+        core.command(DriveCommand::SetQ { addr: 1, value: 0 })
+            .unwrap();
+        events(&mut core);
+        assert_eq!(
+            core.command(DriveCommand::Ack),
+            Err(CommandError::CauseActive(FaultCode::Ov))
+        );
+        let _ = core.pwm_period(&esc1_at(supply));
+        core.command(DriveCommand::Ack).unwrap();
+        // With a chopper (the source's sensors) U> is the chopper's level, no trip.
+        let mut core = running(500);
+        let _ = core.pwm_period(&AdcSample {
+            u_dc: 3276, // 36 V > U> 35 V, below U>> 40 V
+            ..AdcSample::default()
+        });
+        events(&mut core);
+        assert_ne!(core.fault(), Some(FaultCode::Ov));
     }
 
     #[test]

@@ -242,12 +242,11 @@ impl ZeroCalibration {
         self.samples = self.samples.saturating_add(1);
     }
 
-    /// The measured zeros, or `Err(())` when a sample was out of tolerance; `Ok(None)`
+    /// The measured zeros, or an error when a sample was out of tolerance; `Ok(None)`
     /// when no sample was taken (the nominal zero stays).
-    #[allow(clippy::result_unit_err)]
-    pub fn result(&self) -> Result<Option<[i32; 2]>, ()> {
+    pub fn result(&self) -> Result<Option<[i32; 2]>, ZeroOutOfTolerance> {
         if self.out_of_tolerance {
-            return Err(());
+            return Err(ZeroOutOfTolerance);
         }
         if self.samples == 0 {
             return Ok(None);
@@ -257,6 +256,19 @@ impl ZeroCalibration {
         Ok(Some([mean(self.sum[0]), mean(self.sum[1])]))
     }
 }
+
+/// A current sensor's zero at boot was out of tolerance (the self-test fails: `BOOT`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct ZeroOutOfTolerance;
+
+impl core::fmt::Display for ZeroOutOfTolerance {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("current-sensor zero out of tolerance")
+    }
+}
+
+impl core::error::Error for ZeroOutOfTolerance {}
 
 /// Milliseconds of the `IMX` window.
 pub const PEAK_WINDOW_MS: usize = 10;
@@ -368,7 +380,7 @@ mod tests {
         assert_eq!((s.i_a, s.i_b), (2048, 2048));
         // A sensor reading near a rail fails the self-test.
         cal.add(&raw(2048, 2048 + 206, 0), &ESC1_SCALING);
-        assert_eq!(cal.result(), Err(()));
+        assert_eq!(cal.result(), Err(ZeroOutOfTolerance));
     }
 
     #[test]

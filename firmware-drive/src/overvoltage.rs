@@ -1,4 +1,4 @@
-//! The overvoltage controller of a board without a brake chopper (issue 29, review N7):
+//! The overvoltage controller of a board without a brake chopper:
 //! what industrial drives call the Vdc-max controller. A motor that decelerates faster
 //! than its losses allow returns energy to the DC link; without a chopper (the bare
 //! B-G431B-ESC1) and on a supply that cannot take energy back (a lab supply, a diode
@@ -14,8 +14,8 @@
 //! the motor's losses need and ends at 0 Hz instead of in `OV_HW`.
 //!
 //! The level follows the supply, as SINAMICS' automatic "Vdc_max on level" does:
-//! [`LEVEL_MARGIN_VOLTS`] above the supply, never above the cap (`U>` on such a
-//! board, at most `U>>` - [`CAP_BELOW_OV_HW_VOLTS`]). A supply within
+//! [`LEVEL_MARGIN_VOLTS`] above the supply, never above the cap ([`CAP_BELOW_OV_HW_VOLTS`]
+//! below the lower of `U>` and `U>>`, the software trip `OV` and the hardware `OV_HW`). A supply within
 //! [`MIN_HEADROOM_DECIVOLTS`] of the cap leaves no room to regulate: the controller is
 //! then off and `U>>` protects alone (`docs/drive-core.md`, "Overvoltage without a
 //! chopper"). The supply is the DC link with the outputs off; while they switch, the
@@ -30,7 +30,8 @@ use crate::measure::udc_counts_at_volts;
 
 /// The level sits this far above the supply's DC link, V.
 pub const LEVEL_MARGIN_VOLTS: u32 = 1;
-/// The level's cap is at least this far below `U>>`, V: regulation starts before the trip.
+/// The level's cap is at least this far below `U>` (`OV`) and `U>>` (`OV_HW`), V:
+/// regulation starts before either trip.
 pub const CAP_BELOW_OV_HW_VOLTS: u16 = 2;
 /// The controller is off when the level is less than this above the supply, 0.1 V.
 pub const MIN_HEADROOM_DECIVOLTS: u32 = 5;

@@ -20,7 +20,7 @@ pub struct Limits {
     brake_on_above: Option<u32>,
     /// ... and off again below this one (`U>` - 1 V).
     brake_off_below: u32,
-    /// Trip `OV_HW` above this reading (counts of `U>>` V, review N7).
+    /// Trip `OV_HW` above this reading (counts of `U>>` V).
     ov_above: Option<u32>,
 }
 
@@ -63,6 +63,16 @@ impl Limits {
         // counts_at(V) is exact (4095/45 = 91 counts per volt): "above V" is "> counts".
         self.brake_on_above = (volts > 0).then_some(udc_counts_at_volts(v));
         self.brake_off_below = udc_counts_at_volts(v.saturating_sub(1));
+    }
+
+    /// DC link above `U>` (the `OV` trip of a board without a chopper,
+    /// `shared-protocol/docs/fault-codes.md`)? `U>` not set: never.
+    #[inline(always)]
+    pub fn above_u_max(&self, s: &AdcSample) -> bool {
+        match self.brake_on_above {
+            Some(lim) => u32::from(s.u_dc) > lim,
+            None => false,
+        }
     }
 
     /// Software overcurrent on this sample?
@@ -136,6 +146,18 @@ mod tests {
         assert!(!l.overvoltage(&udc(edge)));
         assert!(l.overvoltage(&udc(edge + 1)));
         assert_eq!(Limits::with_ov_hw(Volts(28)), l);
+    }
+
+    #[test]
+    fn above_u_max_strictly_above_and_never_without_u_max() {
+        let mut l = Limits::default();
+        assert!(!l.above_u_max(&udc(4095)));
+        l.set_u_max(28);
+        let edge = udc_counts_at_volts(28) as u16;
+        assert!(!l.above_u_max(&udc(edge)));
+        assert!(l.above_u_max(&udc(edge + 1)));
+        l.set_u_max(0);
+        assert!(!l.above_u_max(&udc(4095)));
     }
 
     #[test]

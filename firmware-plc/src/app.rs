@@ -758,11 +758,11 @@ impl<E: Eeprom> PlcApp<E> {
     /// Erase the fault log and log the event `LOGCLR` (240) as the emptied log's first
     /// entry (service.md 6), so the log itself says when and in which power-up it was
     /// cleared. Keypad `*` `0` and the service's `ClearFaultLog`.
-    fn queue_clear_fault_log(&mut self, now: Micros) -> Result<(), ()> {
+    fn queue_clear_fault_log(&mut self, now: Micros) -> Result<(), crate::storage::QueueFull> {
         let event = self
             .storage
             .fault_entry(shared_protocol::service::EVENT_LOG_CLEARED, now.0 / 1000);
-        self.storage.queue(Job::ClearFaultLog).map_err(|_| ())?;
+        self.storage.queue(Job::ClearFaultLog)?;
         self.newest_fault = None;
         // The queue had room for the clear; the event follows it (a full queue loses
         // only the event).

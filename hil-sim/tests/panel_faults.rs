@@ -190,6 +190,26 @@ fn uv_from_a_low_supply_while_running() {
     ack(&mut app, FaultCode::Uv);
 }
 
+/// OV (17): the motor program with `U>` 28 V, below the rig's 30 V: the DC link is above
+/// `U>` as soon as the outputs switch. Nothing discharges the bare ESC1's link with the
+/// outputs off, so the cause stays and the ACK is refused.
+#[test]
+fn ov_from_a_u_max_below_the_supply() {
+    let text = std::fs::read_to_string(MOTOR)
+        .unwrap()
+        .replace("014 U>  K09 0035", "014 U>  K09 0028");
+    assert!(text.contains("014 U>  K09 0028"));
+    let path = Path::new(env!("CARGO_TARGET_TMPDIR")).join("motor_u_max_28.plc");
+    std::fs::write(&path, text).unwrap();
+    let mut app = open(Some(&path), None).unwrap();
+    app.advance(100);
+    run_motor(&mut app, 300);
+    wait_for_fault_on_lcd(&mut app, FaultCode::Ov, 3000);
+    assert!(app.status().u_dc_v > 28.0, "{:?}", app.status());
+    setpoint_to_zero(&mut app, 8000);
+    ack_refused(&mut app, FaultCode::Ov, "ACK REFUSED: CAUSE");
+}
+
 #[test]
 fn link_from_cutting_the_wires_in_run() {
     let mut app = motor_panel();
@@ -283,7 +303,8 @@ fn boot_from_a_sensor_fault_at_a_drive_restart() {
 #[test]
 fn every_fault_code_has_a_panel_action_a_doc_row_and_a_test() {
     let doc = include_str!("../docs/cli.md");
-    // Codes 1-8 from the rig's keys (here), 9-16 from safety_lab.plc (panel_safety.rs).
+    // Codes 1-8 and 17 from the rig's keys (here), 9-16 from safety_lab.plc
+    // (panel_safety.rs).
     let tests = [
         include_str!("panel_faults.rs"),
         include_str!("panel_safety.rs"),

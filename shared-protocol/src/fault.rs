@@ -3,52 +3,108 @@
 //!
 //! The code is what `FLT` reads, what the fault log stores and what the link carries (one
 //! byte, see `docs/link.md` "Fault codes on the wire").
+//!
+//! **One table.** [`fault_table!`] below is the only list of codes: it makes the enum,
+//! [`FaultCode::ALL`], [`FaultCode::COUNT`], [`FaultCode::from_code`], the names and the
+//! texts. Everything sized per code follows [`FaultCode::COUNT`]: the PLC's trip counters
+//! (`firmware_plc::storage::counters::TRIP_CODES`, its EEPROM record), the service's
+//! [`crate::service::Trips`], plcctl's and hil-sim's texts (they call [`fault_name`] and
+//! [`fault_text`]), and `docs/fault-codes.md` (a test walks the table against it). A new
+//! code is one line here; what else it needs is in `docs/contributing/add-a-trip.md`.
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-/// Latched fault codes (drive.md table; `Boot` is this project's addition, drive.md's
-/// code 8).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[repr(u8)]
-pub enum FaultCode {
-    /// Software overcurrent: |i_a| or |i_b| above `I>`.
-    Oc = 1,
-    /// Hardware comparator on a phase current (TIM1 break input).
-    OcHw = 2,
-    /// Hardware comparator on the DC link (TIM1 break input).
-    OvHw = 3,
-    /// DC link below `U<` while the PWM is on.
-    Uv = 4,
-    /// No valid frame from the PLC within the link timeout in RUN.
-    Link = 5,
-    /// Drive section rejected on download.
-    Prog = 6,
-    /// The drive restarted through its watchdog.
-    Wdg = 7,
-    /// The boot self-test failed (sine table, timer setup or current-sensor offset out of
-    /// tolerance).
-    Boot = 8,
-    /// Safety (NOT RATED, safety.md 7): STO requested in RUN (`SFR STO` or `STO_IN` low).
-    Sto = 9,
-    /// SS1 reached its end (time or early limit): STO.
-    Ss1 = 10,
-    /// Ramp envelope exceeded, or an SS2/SLS target missed at the end of the ramp.
-    Ramp = 11,
-    /// Standstill lost (SOS, or SS2 in standstill).
-    Sos = 12,
-    /// Over an SLS limit in its safe state.
-    Sls = 13,
-    /// SLI: moved more than `pli`, or requested while moving.
-    Sli = 14,
-    /// SDI: moved more than `pss` against the allowed direction.
-    Sdi = 15,
-    /// SLA: acceleration or deceleration above its limit.
-    Sla = 16,
+/// The table: `Variant = code, "NAME", "text";` with the doc comment of the code. Codes
+/// are consecutive from 1 (a test checks it), so that per-code arrays index `code - 1`.
+macro_rules! fault_table {
+    ($($(#[$doc:meta])* $v:ident = $code:literal, $name:literal, $text:literal;)+) => {
+        /// Latched fault codes (drive.md table; `Boot` is this project's addition,
+        /// drive.md's code 8; `Ov` is this project's, `docs/fault-codes.md`).
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        #[repr(u8)]
+        pub enum FaultCode {
+            $($(#[$doc])* $v = $code,)+
+        }
+
+        impl FaultCode {
+            /// Every code, in the order of their numbers (index `code - 1`).
+            pub const ALL: [FaultCode; FaultCode::COUNT] = [$(FaultCode::$v,)+];
+
+            /// How many codes this protocol version defines (the highest code).
+            pub const COUNT: usize = [$($code,)+].len();
+
+            /// The fault with this code; 0 ("no fault") and undefined codes are errors.
+            pub const fn from_code(c: u8) -> Result<FaultCode, UnknownFaultCode> {
+                match c {
+                    $($code => Ok(FaultCode::$v),)+
+                    _ => Err(UnknownFaultCode(c)),
+                }
+            }
+
+            /// Short name (drive.md), for the fault log screen and hil-sim's reports.
+            pub const fn name(self) -> &'static str {
+                match self {
+                    $(FaultCode::$v => $name,)+
+                }
+            }
+
+            /// The text the LCD status line (`F2 overcurrent (HW)`), the fault log and
+            /// hil-sim show. At most [`FAULT_TEXT_MAX`] characters, so that `Fnn text`
+            /// fits one 20-column row. `link lost`, not `PLC link lost`: the text is read
+            /// on the PLC's own LCD, where "PLC" would point at the wrong end.
+            pub const fn text(self) -> &'static str {
+                match self {
+                    $(FaultCode::$v => $text,)+
+                }
+            }
+        }
+    };
 }
 
-/// A byte that is no [`FaultCode`] (0 is "no fault", 17.. are not defined by this
-/// protocol version).
+fault_table! {
+    /// Software overcurrent: |i_a| or |i_b| above `I>`.
+    Oc = 1, "OC", "overcurrent";
+    /// Hardware comparator on a phase current (TIM1 break input).
+    OcHw = 2, "OC_HW", "overcurrent (HW)";
+    /// Hardware comparator on the DC link (TIM1 break input), and its software twin at
+    /// `U>>` every PWM period.
+    OvHw = 3, "OV_HW", "overvoltage (HW)";
+    /// DC link below `U<` while the PWM is on.
+    Uv = 4, "UV", "undervoltage";
+    /// No valid frame from the PLC within the link timeout in RUN.
+    Link = 5, "LINK", "link lost";
+    /// Drive section rejected on download.
+    Prog = 6, "PROG", "program rejected";
+    /// The drive restarted through its watchdog.
+    Wdg = 7, "WDG", "watchdog reset";
+    /// The boot self-test failed (sine table, timer setup or current-sensor offset out of
+    /// tolerance).
+    Boot = 8, "BOOT", "self-test failed";
+    /// Safety (NOT RATED, safety.md 7): STO requested in RUN (`SFR STO` or `STO_IN` low).
+    Sto = 9, "STO", "STO requested";
+    /// SS1 reached its end (time or early limit): STO.
+    Ss1 = 10, "SS1", "SS1 done: STO";
+    /// Ramp envelope exceeded, or an SS2/SLS target missed at the end of the ramp.
+    Ramp = 11, "RAMP", "ramp violated";
+    /// Standstill lost (SOS, or SS2 in standstill).
+    Sos = 12, "SOS", "standstill lost";
+    /// Over an SLS limit in its safe state.
+    Sls = 13, "SLS", "over SLS limit";
+    /// SLI: moved more than `pli`, or requested while moving.
+    Sli = 14, "SLI", "SLI turns exceed";
+    /// SDI: moved more than `pss` against the allowed direction.
+    Sdi = 15, "SDI", "wrong direction";
+    /// SLA: acceleration or deceleration above its limit.
+    Sla = 16, "SLA", "over SLA limit";
+    /// Software overvoltage: the DC link above `U>` while the outputs switch, on a board
+    /// without a brake chopper (`docs/fault-codes.md`): between the overvoltage
+    /// controller's level and `U>>`.
+    Ov = 17, "OV", "overvoltage";
+}
+
+/// A byte that is no [`FaultCode`] (0 is "no fault", codes above [`FaultCode::COUNT`] are
+/// not defined by this protocol version).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct UnknownFaultCode(pub u8);
@@ -59,99 +115,17 @@ impl core::fmt::Display for UnknownFaultCode {
     }
 }
 
-impl FaultCode {
-    pub const ALL: [FaultCode; 16] = [
-        FaultCode::Oc,
-        FaultCode::OcHw,
-        FaultCode::OvHw,
-        FaultCode::Uv,
-        FaultCode::Link,
-        FaultCode::Prog,
-        FaultCode::Wdg,
-        FaultCode::Boot,
-        FaultCode::Sto,
-        FaultCode::Ss1,
-        FaultCode::Ramp,
-        FaultCode::Sos,
-        FaultCode::Sls,
-        FaultCode::Sli,
-        FaultCode::Sdi,
-        FaultCode::Sla,
-    ];
+impl core::error::Error for UnknownFaultCode {}
 
+impl FaultCode {
     /// The code shown by `FLT`, stored in the fault log and sent over the link.
     pub const fn code(self) -> u8 {
         self as u8
     }
 
-    /// The fault with this code; 0 ("no fault") and undefined codes are errors.
-    pub const fn from_code(c: u8) -> Result<FaultCode, UnknownFaultCode> {
-        Ok(match c {
-            1 => FaultCode::Oc,
-            2 => FaultCode::OcHw,
-            3 => FaultCode::OvHw,
-            4 => FaultCode::Uv,
-            5 => FaultCode::Link,
-            6 => FaultCode::Prog,
-            7 => FaultCode::Wdg,
-            8 => FaultCode::Boot,
-            9 => FaultCode::Sto,
-            10 => FaultCode::Ss1,
-            11 => FaultCode::Ramp,
-            12 => FaultCode::Sos,
-            13 => FaultCode::Sls,
-            14 => FaultCode::Sli,
-            15 => FaultCode::Sdi,
-            16 => FaultCode::Sla,
-            _ => return Err(UnknownFaultCode(c)),
-        })
-    }
-
-    /// Short name (drive.md), for the fault log screen and hil-sim's reports.
-    pub const fn name(self) -> &'static str {
-        match self {
-            FaultCode::Oc => "OC",
-            FaultCode::OcHw => "OC_HW",
-            FaultCode::OvHw => "OV_HW",
-            FaultCode::Uv => "UV",
-            FaultCode::Link => "LINK",
-            FaultCode::Prog => "PROG",
-            FaultCode::Wdg => "WDG",
-            FaultCode::Boot => "BOOT",
-            FaultCode::Sto => "STO",
-            FaultCode::Ss1 => "SS1",
-            FaultCode::Ramp => "RAMP",
-            FaultCode::Sos => "SOS",
-            FaultCode::Sls => "SLS",
-            FaultCode::Sli => "SLI",
-            FaultCode::Sdi => "SDI",
-            FaultCode::Sla => "SLA",
-        }
-    }
-
-    /// The text the LCD status line (`F2 overcurrent (HW)`), the fault log and hil-sim
-    /// show. At most [`FAULT_TEXT_MAX`] characters, so that `Fnn text` fits one 20-column
-    /// row. `link lost`, not `PLC link lost`: the text is read on the PLC's own LCD,
-    /// where "PLC" would point at the wrong end.
-    pub const fn text(self) -> &'static str {
-        match self {
-            FaultCode::Oc => "overcurrent",
-            FaultCode::OcHw => "overcurrent (HW)",
-            FaultCode::OvHw => "overvoltage (HW)",
-            FaultCode::Uv => "undervoltage",
-            FaultCode::Link => "link lost",
-            FaultCode::Prog => "program rejected",
-            FaultCode::Wdg => "watchdog reset",
-            FaultCode::Boot => "self-test failed",
-            FaultCode::Sto => "STO requested",
-            FaultCode::Ss1 => "SS1 done: STO",
-            FaultCode::Ramp => "ramp violated",
-            FaultCode::Sos => "standstill lost",
-            FaultCode::Sls => "over SLS limit",
-            FaultCode::Sli => "SLI turns exceed",
-            FaultCode::Sdi => "wrong direction",
-            FaultCode::Sla => "over SLA limit",
-        }
+    /// Position in per-code arrays (trip counters): `code - 1`.
+    pub const fn index(self) -> usize {
+        self as usize - 1
     }
 }
 
@@ -207,7 +181,7 @@ impl<'de> Deserialize<'de> for FaultCode {
         FaultCode::from_code(c).map_err(|_| {
             serde::de::Error::invalid_value(
                 serde::de::Unexpected::Unsigned(u64::from(c)),
-                &"a drive fault code 1..=16",
+                &"a drive fault code (fault::FaultCode)",
             )
         })
     }
@@ -229,7 +203,7 @@ pub mod wire_option {
             c => FaultCode::from_code(c).map(Some).map_err(|_| {
                 serde::de::Error::invalid_value(
                     serde::de::Unexpected::Unsigned(u64::from(c)),
-                    &"0 (no fault) or a drive fault code 1..=16",
+                    &"0 (no fault) or a drive fault code (fault::FaultCode)",
                 )
             }),
         }
@@ -276,8 +250,10 @@ mod tests {
             assert_eq!(FaultCode::from_code(f.code()), Ok(f));
             assert_eq!(FaultCode::try_from(u8::from(f)), Ok(f));
         }
+        // drive.md's codes 1-16 keep their numbers and names.
         let names: Vec<_> = FaultCode::ALL
             .iter()
+            .take(16)
             .map(|f| (f.code(), f.name()))
             .collect();
         assert_eq!(
@@ -302,11 +278,48 @@ mod tests {
             ]
         );
         assert_eq!(FaultCode::from_code(0), Err(UnknownFaultCode(0)));
-        assert_eq!(FaultCode::from_code(17), Err(UnknownFaultCode(17)));
         assert_eq!(
-            UnknownFaultCode(17).to_string(),
-            "unknown drive fault code 17"
+            UnknownFaultCode(200).to_string(),
+            "unknown drive fault code 200"
         );
+    }
+
+    /// The table is the vocabulary: codes 1..=COUNT without a gap, `ALL` in code order,
+    /// `index` its position, every other byte unknown, names unique.
+    #[test]
+    fn the_table_has_consecutive_codes_and_nothing_else_parses() {
+        assert_eq!(FaultCode::ALL.len(), FaultCode::COUNT);
+        for (i, f) in FaultCode::ALL.into_iter().enumerate() {
+            assert_eq!(usize::from(f.code()), i + 1, "{f:?}");
+            assert_eq!(f.index(), i, "{f:?}");
+        }
+        for c in 0..=u8::MAX {
+            let known = (1..=FaultCode::COUNT).contains(&usize::from(c));
+            assert_eq!(FaultCode::from_code(c).is_ok(), known, "{c}");
+        }
+        let mut names: Vec<_> = FaultCode::ALL.iter().map(|f| f.name()).collect();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), FaultCode::COUNT, "two codes share a name");
+    }
+
+    /// `docs/fault-codes.md` lists every code with its name and text, and no other.
+    #[test]
+    fn the_docs_table_lists_every_code() {
+        let doc = include_str!("../docs/fault-codes.md");
+        for f in FaultCode::ALL {
+            let row = format!("| {} | `{}` | {} |", f.code(), f.name(), f.text());
+            assert!(doc.contains(&row), "docs/fault-codes.md has no row {row}");
+        }
+        let rows = doc
+            .lines()
+            .filter(|l| {
+                l.split('|')
+                    .nth(1)
+                    .is_some_and(|c| c.trim().parse::<u8>().is_ok())
+            })
+            .count();
+        assert_eq!(rows, FaultCode::COUNT, "docs/fault-codes.md rows");
     }
 
     #[test]
@@ -322,7 +335,7 @@ mod tests {
         assert_eq!(fault_name(8), "BOOT");
         assert_eq!(fault_name(9), "STO");
         assert_eq!(fault_text(13), "over SLS limit");
-        assert_eq!(fault_name(17), "?");
+        assert_eq!(fault_name(FaultCode::COUNT as u8 + 1), "?");
     }
 
     #[test]
@@ -341,7 +354,7 @@ mod tests {
             assert_eq!(postcard::to_slice(&f, &mut buf).unwrap(), [f.code()]);
             assert_eq!(postcard::from_bytes::<FaultCode>(&[f.code()]), Ok(f));
         }
-        for c in [0u8, 17, 127, 255] {
+        for c in [0u8, FaultCode::COUNT as u8 + 1, 127, 255] {
             assert!(postcard::from_bytes::<FaultCode>(&[c]).is_err(), "{c}");
         }
     }

@@ -468,7 +468,7 @@ impl<E: Eeprom> PlcApp<E> {
             Request::ClearFaultLog if !stopped => refused(RefuseReason::InRun),
             Request::ClearFaultLog => match self.queue_clear_fault_log(now) {
                 Ok(()) => Outcome::Answer(Answer::Done),
-                Err(()) => refused(RefuseReason::Busy),
+                Err(crate::storage::QueueFull) => refused(RefuseReason::Busy),
             },
         }
     }

@@ -281,6 +281,7 @@ impl Tally {
 mod tests {
     use super::*;
     use crate::storage::mem_eeprom::MemEeprom;
+    use shared_protocol::fault::FaultCode;
 
     fn ms(n: u64) -> Micros {
         Micros(n * 1000)
@@ -340,8 +341,8 @@ mod tests {
             },
             ms(at + 1),
         );
-        // Events and codes above 16 have no trip counter.
-        for code in [17, 240, 241, 0] {
+        // Events and undefined codes have no trip counter.
+        for code in [FaultCode::COUNT as u8 + 1, 240, 241, 0] {
             t.observe(
                 &Observation {
                     fault: Some(code),
@@ -359,6 +360,32 @@ mod tests {
         trips[2] = 1;
         trips[15] = 1;
         assert_eq!(v.trips, trips);
+    }
+
+    /// Every code of the fault table has its own trip counter, kept through a write and a
+    /// read of the record (`docs/contributing/add-a-trip.md`, the PLC's counters).
+    #[test]
+    fn every_fault_code_counts_in_its_own_counter_and_survives_the_record() {
+        let mut t = Tally::new();
+        for (n, f) in FaultCode::ALL.into_iter().enumerate() {
+            for _ in 0..=n {
+                t.observe(
+                    &Observation {
+                        fault: Some(f.code()),
+                        ..Default::default()
+                    },
+                    ms(0),
+                );
+            }
+        }
+        let v = t.values();
+        let want: [u16; TRIP_CODES] = core::array::from_fn(|i| i as u16 + 1);
+        assert_eq!(v.trips, want);
+        let read = crate::storage::counters::parse(&v.to_bytes(1));
+        assert!(
+            matches!(read, CopyState::Valid(_, r) if r == *v),
+            "{read:?}"
+        );
     }
 
     #[test]

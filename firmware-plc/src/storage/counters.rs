@@ -1,25 +1,76 @@
 //! The counters record (service.md 7, `docs/eeprom-image.md` "Counters"): two copies in
-//! pages 510 and 511, one 64-byte record each, big-endian, saturating, CRC-16.
+//! pages 510 and 511, one record of at most 64 bytes each, big-endian, saturating, CRC-16.
 //!
 //! As with the boot record, a write goes to the copy not holding the newest valid record,
 //! with the next sequence number, so a power cut while writing it leaves the previous
 //! record in force. This module is the record's bytes only; when it is written is the
 //! tally's business (`service::counters`).
+//!
+//! The record holds one trip counter per fault code ([`TRIP_CODES`] follows the fault
+//! table), so a new code needs a new record [`Format`]: [`FORMATS`] lists every format
+//! this firmware reads, the last one is written. A record of an older format is read (its
+//! missing counters are 0) and the next write replaces it with the newest. A compile-time
+//! check refuses a fault table that the newest format does not hold.
 
 use super::fault_log::CRC16;
 
 use super::eeprom::PAGE_BYTES;
 use super::layout::COUNTERS_ADDR;
+use shared_protocol::fault::FaultCode;
 
-/// The record's size: one page.
+/// A copy's size: one page.
 pub const COUNTERS_BYTES: usize = PAGE_BYTES;
-const MAGIC: [u8; 2] = *b"C1";
 /// Largest value of a 3-byte field.
 pub const U24_MAX: u32 = 0xFF_FFFF;
-/// Fault codes with a trip counter: 1-16.
-pub const TRIP_CODES: usize = 16;
+/// Fault codes with a trip counter: every code of the fault table.
+pub const TRIP_CODES: usize = FaultCode::COUNT;
 /// Application counters (Q60-Q63).
 pub const APP_COUNTERS: usize = 4;
+
+/// One layout of the record: magic, sequence, the fields of [`CounterValues`] with
+/// `trips` counters, CRC-16 over everything before it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Format {
+    /// The first bytes, which tell the formats apart.
+    pub magic: &'static [u8],
+    /// Bytes of the sequence number (compared modulo 2^(8 x this)).
+    pub seq_bytes: usize,
+    /// Trip counters it holds (codes 1..=trips).
+    pub trips: usize,
+}
+
+impl Format {
+    /// Bytes of a record in this format, CRC included.
+    pub const fn bytes(&self) -> usize {
+        self.magic.len() + self.seq_bytes + 4 * 3 + 2 + 2 * self.trips + 3 * APP_COUNTERS + 2
+    }
+}
+
+/// `C1`: fault codes 1-16, 64 bytes.
+pub const V1: Format = Format {
+    magic: b"C1",
+    seq_bytes: 2,
+    trips: 16,
+};
+
+/// `0xC2`: fault codes 1-17, 64 bytes. One more trip counter than `C1` fits the page
+/// only with a one-byte magic and a one-byte sequence (two copies alternate, so modulo
+/// 2^8 tells the newer as well as 2^16 did).
+pub const V2: Format = Format {
+    magic: &[0xC2],
+    seq_bytes: 1,
+    trips: 17,
+};
+
+/// The formats read, oldest first; the last is the one written.
+pub const FORMATS: [Format; 2] = [V1, V2];
+const NEWEST: Format = V2;
+
+const _: () = assert!(
+    NEWEST.trips == TRIP_CODES,
+    "the fault table changed: add a counters record format (docs/contributing/add-a-trip.md)"
+);
+const _: () = assert!(NEWEST.bytes() <= COUNTERS_BYTES, "a record is one page");
 
 /// The counted values (the record without magic, sequence and CRC).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -34,7 +85,7 @@ pub struct CounterValues {
     pub link_errors: u32,
     /// Program saves (keypad and service).
     pub program_saves: u16,
-    /// Trips per fault code 1-16 (index 0 = code 1).
+    /// Trips per fault code (index 0 = code 1).
     pub trips: [u16; TRIP_CODES],
     /// Application counters 1-4 (Q60-Q63), u24.
     pub app: [u32; APP_COUNTERS],
@@ -69,26 +120,36 @@ impl CounterValues {
         out
     }
 
-    /// The record with sequence `seq`, CRC included.
+    /// The record in the newest format with sequence `seq` (its low bytes when the
+    /// format's sequence is shorter), CRC included; bytes after it in the page are `FF`.
     pub fn to_bytes(&self, seq: u16) -> [u8; COUNTERS_BYTES] {
+        self.to_bytes_as(&NEWEST, seq)
+    }
+
+    /// The record in `format` (the newest one, or an old one for the tests of reading).
+    pub fn to_bytes_as(&self, format: &Format, seq: u16) -> [u8; COUNTERS_BYTES] {
         let mut w = Writer {
-            buf: [0; COUNTERS_BYTES],
+            buf: [0xFF; COUNTERS_BYTES],
             at: 0,
         };
-        w.put(&MAGIC);
-        w.put(&seq.to_be_bytes());
+        w.put(format.magic);
+        let seq = seq.to_be_bytes();
+        w.put(
+            seq.get(2usize.saturating_sub(format.seq_bytes)..)
+                .unwrap_or(&[]),
+        );
         w.u24(self.run_starts);
         w.u24(self.run_minutes);
         w.u24(self.pwm_minutes);
         w.u24(self.link_errors);
         w.put(&self.program_saves.to_be_bytes());
-        for t in self.trips {
-            w.put(&t.to_be_bytes());
+        for i in 0..format.trips {
+            w.put(&self.trips.get(i).copied().unwrap_or(0).to_be_bytes());
         }
         for a in self.app {
             w.u24(a);
         }
-        let crc = CRC16.checksum(w.buf.get(..COUNTERS_BYTES - 2).unwrap_or(&[]));
+        let crc = CRC16.checksum(w.buf.get(..w.at).unwrap_or(&[]));
         w.put(&crc.to_be_bytes());
         w.buf
     }
@@ -136,30 +197,54 @@ impl Reader<'_> {
     }
 }
 
+/// Where a valid copy stands: its format (position in [`FORMATS`]) and sequence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Stamp {
+    pub format: usize,
+    pub seq: u16,
+}
+
 /// What one copy holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CopyState {
     /// Never written (all `FF`).
     Erased,
-    /// Torn, overwritten or flipped: wrong magic or CRC.
+    /// Torn, overwritten or flipped: no known magic, or a wrong CRC.
     Bad,
-    /// A valid record with its sequence.
-    Valid(u16, CounterValues),
+    /// A valid record with its format and sequence.
+    Valid(Stamp, CounterValues),
 }
 
-/// Reads one copy's bytes.
+/// Reads one copy's bytes, in whichever of [`FORMATS`] its magic names.
 pub fn parse(buf: &[u8; COUNTERS_BYTES]) -> CopyState {
     if buf.iter().all(|&b| b == 0xFF) {
         return CopyState::Erased;
     }
-    let (body, crc) = buf.split_at(COUNTERS_BYTES - 2);
-    let stored = crc.first().copied().unwrap_or(0);
-    let stored = u16::from_be_bytes([stored, crc.get(1).copied().unwrap_or(0)]);
-    if body.get(..2) != Some(&MAGIC[..]) || CRC16.checksum(body) != stored {
+    let Some((format, f)) = FORMATS
+        .iter()
+        .enumerate()
+        .find(|(_, f)| buf.starts_with(f.magic))
+    else {
+        return CopyState::Bad;
+    };
+    let len = f.bytes().min(COUNTERS_BYTES);
+    let (body, crc) = buf.split_at(len - 2);
+    let stored = u16::from_be_bytes([
+        crc.first().copied().unwrap_or(0),
+        crc.get(1).copied().unwrap_or(0),
+    ]);
+    if CRC16.checksum(body) != stored {
         return CopyState::Bad;
     }
-    let mut r = Reader { buf, at: 2 };
-    let seq = r.u16();
+    let mut r = Reader {
+        buf,
+        at: f.magic.len(),
+    };
+    let seq = if f.seq_bytes == 2 {
+        r.u16()
+    } else {
+        u16::from(r.byte())
+    };
     let mut v = CounterValues {
         run_starts: r.u24(),
         run_minutes: r.u24(),
@@ -168,13 +253,13 @@ pub fn parse(buf: &[u8; COUNTERS_BYTES]) -> CopyState {
         program_saves: r.u16(),
         ..CounterValues::default()
     };
-    for t in v.trips.iter_mut() {
+    for t in v.trips.iter_mut().take(f.trips) {
         *t = r.u16();
     }
     for a in v.app.iter_mut() {
         *a = r.u24();
     }
-    CopyState::Valid(seq, v)
+    CopyState::Valid(Stamp { format, seq }, v)
 }
 
 /// What the two copies give at power-up.
@@ -191,9 +276,27 @@ pub struct Found {
     pub reset: bool,
 }
 
-/// `a` is newer than `b`, modulo 2^16.
-fn newer(a: u16, b: u16) -> bool {
-    (a.wrapping_sub(b) as i16) > 0
+/// `a` is newer than `b`: a newer format always (an older one is never written again),
+/// in the same format the sequence modulo 2^(8 x its bytes).
+fn newer(a: Stamp, b: Stamp) -> bool {
+    if a.format != b.format {
+        return a.format > b.format;
+    }
+    let one_byte = FORMATS.get(a.format).is_some_and(|f| f.seq_bytes == 1);
+    if one_byte {
+        (a.seq.wrapping_sub(b.seq) as u8 as i8) > 0
+    } else {
+        (a.seq.wrapping_sub(b.seq) as i16) > 0
+    }
+}
+
+/// The sequence after `s`, in its format's width.
+fn next(s: Stamp) -> u16 {
+    let n = s.seq.wrapping_add(1);
+    match FORMATS.get(s.format) {
+        Some(f) if f.seq_bytes == 1 => n & 0xFF,
+        _ => n,
+    }
 }
 
 /// The record in force from both copies (copy 0 = page 510, copy 1 = page 511).
@@ -212,10 +315,10 @@ pub fn choose(copies: [CopyState; 2]) -> Found {
         _ => None,
     };
     match newest {
-        Some((copy, seq, values)) => Found {
+        Some((copy, stamp, values)) => Found {
             values,
             next_copy: 1 - copy,
-            next_seq: seq.wrapping_add(1),
+            next_seq: next(stamp),
             reset: false,
         },
         None => Found {
@@ -253,9 +356,18 @@ mod tests {
         }
     }
 
+    /// `v` as a record of `format` reads it: the counters of codes it has no room for
+    /// are 0.
+    fn as_read_from(format: &Format, mut v: CounterValues) -> CounterValues {
+        for t in v.trips.iter_mut().skip(format.trips) {
+            *t = 0;
+        }
+        v
+    }
+
     #[test]
     fn the_record_has_the_layout_of_service_md_7() {
-        let b = sample().to_bytes(0x0102);
+        let b = sample().to_bytes_as(&V1, 0x0102);
         assert_eq!(&b[0..4], b"C1\x01\x02");
         assert_eq!(&b[4..7], &[0, 0, 3]);
         assert_eq!(&b[7..10], &[0x12, 0x34, 0x56]);
@@ -266,7 +378,46 @@ mod tests {
         assert_eq!(&b[50..53], &[0, 0, 1]);
         assert_eq!(&b[56..59], &[0xAB, 0xCD, 0xEF]);
         assert_eq!(u16::from_be_bytes([b[62], b[63]]), CRC16.checksum(&b[..62]));
-        assert_eq!(parse(&b), CopyState::Valid(0x0102, sample()));
+        assert_eq!(
+            parse(&b),
+            CopyState::Valid(
+                Stamp {
+                    format: 0,
+                    seq: 0x0102
+                },
+                as_read_from(&V1, sample())
+            )
+        );
+    }
+
+    /// Every format this firmware knows is read, an older one loses against the newest
+    /// whatever its sequence (a firmware update: the next write is the newest format, the
+    /// old copy keeps its counts until then), and each fits one page.
+    #[test]
+    fn old_formats_still_read_and_the_newest_wins() {
+        assert_eq!(FORMATS.last(), Some(&NEWEST));
+        for (i, f) in FORMATS.iter().enumerate() {
+            assert!(f.bytes() <= COUNTERS_BYTES, "{f:?}");
+            let v = as_read_from(f, sample());
+            let b = sample().to_bytes_as(f, 0x0107);
+            let seq = if f.seq_bytes == 2 { 0x0107 } else { 0x07 };
+            assert_eq!(
+                parse(&b),
+                CopyState::Valid(Stamp { format: i, seq }, v),
+                "{f:?}"
+            );
+            let newest = CounterValues::default().to_bytes(3);
+            let found = choose([parse(&b), parse(&newest)]);
+            let want = if i + 1 == FORMATS.len() {
+                v
+            } else {
+                Default::default()
+            };
+            assert_eq!(found.values, want, "{f:?}");
+        }
+        for w in FORMATS.windows(2) {
+            assert!(w[0].trips < w[1].trips && w[0].magic != w[1].magic);
+        }
     }
 
     #[test]

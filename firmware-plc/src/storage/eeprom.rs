@@ -28,6 +28,19 @@ pub enum EepromError {
     PowerLost,
 }
 
+impl core::fmt::Display for EepromError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            EepromError::OutOfRange => "EEPROM address out of range",
+            EepromError::CrossesPage => "EEPROM write crosses a page boundary",
+            EepromError::Bus => "EEPROM did not acknowledge",
+            EepromError::PowerLost => "supply lost during the EEPROM write",
+        })
+    }
+}
+
+impl core::error::Error for EepromError {}
+
 /// A byte-addressed EEPROM with page writes (the 24C256 and compatible parts).
 ///
 /// No call waits for the chip: after [`Eeprom::start_write`] the chip runs its write

@@ -69,6 +69,22 @@ pub enum StorageError {
     Busy,
 }
 
+impl core::fmt::Display for StorageError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            StorageError::NoSuchSlot(s) => write!(f, "no slot {s}"),
+            StorageError::Empty(s) => write!(f, "slot {s} is empty"),
+            StorageError::Damaged(s) => write!(f, "both copies of slot {s} are damaged"),
+            StorageError::TooBig => f.write_str("the program does not fit a slot"),
+            StorageError::VerifyFailed => f.write_str("the written copy did not read back"),
+            StorageError::Eeprom(e) => write!(f, "{e}"),
+            StorageError::Busy => f.write_str("the EEPROM is busy"),
+        }
+    }
+}
+
+impl core::error::Error for StorageError {}
+
 impl From<EepromError> for StorageError {
     fn from(e: EepromError) -> Self {
         StorageError::Eeprom(e)
@@ -152,6 +168,14 @@ pub struct PowerUp {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct QueueFull;
+
+impl core::fmt::Display for QueueFull {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str("the storage queue is full")
+    }
+}
+
+impl core::error::Error for QueueFull {}
 
 /// The storage facade the application calls: the EEPROM, the job queue and the job in
 /// progress.

@@ -88,6 +88,20 @@ pub enum CopyError {
     Eeprom(EepromError),
 }
 
+impl core::fmt::Display for CopyError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            CopyError::NoHeader => f.write_str("no program header (never written or damaged)"),
+            CopyError::WrongSlot => f.write_str("the copy belongs to another slot"),
+            CopyError::Crc => f.write_str("program copy CRC mismatch"),
+            CopyError::Format => f.write_str("program payload does not decode"),
+            CopyError::Eeprom(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl core::error::Error for CopyError {}
+
 impl From<EepromError> for CopyError {
     fn from(e: EepromError) -> Self {
         CopyError::Eeprom(e)

@@ -274,3 +274,81 @@ fn the_emu_summary_shows_the_link_trip_after_a_cut() {
         .expect("a time");
     assert!(t > 2.0 && t <= 2.052, "{line}");
 }
+
+/// `OV` (code 17, `shared-protocol/docs/fault-codes.md`) on the real drive image: the
+/// bare ESC1 (no chopper) on a 20 V supply with `U>` 22 V, which leaves the overvoltage
+/// controller no room (its cap is 2 V below `U>`), stops on a ramp faster than the
+/// example's (0.5 s): the DC link passes `U>` and the image trips `OV`, once, well below
+/// `U>>` (32 V), and the PLC's LCD names it (hil-sim's twin:
+/// `sim::trips::without_a_chopper_an_uncontrolled_stop_trips_ov_once`).
+#[test]
+fn the_drive_image_trips_ov_above_u_max_without_a_chopper() {
+    use hil_sim::sim::Sample;
+    use shared_protocol::fault::FaultCode;
+    let program = MOTOR_PLC
+        .replace("002 LD  K01 2333", "002 LD  K01 0500")
+        .replace("014 U>  K09 0035", "014 U>  K09 0022")
+        .replace("015 U<  K10 0025", "015 U<  K10 0015");
+    assert!(program.contains("K01 0500") && program.contains("K09 0022"));
+    let scen = format!(
+        "[plant]\ndc_link_v = 20.0\n{START_50HZ}\n[[event]]\nat_s = 1.5\npress = \"D00\"\n"
+    );
+    let mut sim = emu(&program, &scen);
+    let mut peak = 0.0f64;
+    let mut last_on_ns = 0;
+    let mut status_rows = Vec::new();
+    for k in 1..=30 {
+        sim.run_until(ns(0.1 * f64::from(k)), |s: &Sample| {
+            peak = peak.max(s.u_dc_v);
+            if s.pwm_on {
+                last_on_ns = s.t_ns;
+            }
+        });
+        status_rows.push(sim.lcd().row(3));
+        if !sim.faults().is_empty() && status_rows.iter().any(|r| r.starts_with("F17 overvoltage"))
+        {
+            break;
+        }
+    }
+    let codes: Vec<u8> = sim.faults().iter().map(|f| f.code).collect();
+    assert_eq!(
+        codes,
+        vec![FaultCode::Ov.code()],
+        "faults {:?}, DC link peak {peak:.2} V",
+        sim.faults()
+    );
+    let t_trip = sim.faults()[0].t_ns as f64 * 1e-9;
+    assert!(t_trip > 1.5, "OV at {t_trip:.3} s, before the stop");
+    assert!(peak > 22.0 && peak < 32.0, "DC link peak {peak:.2} V");
+    let last_on = last_on_ns as f64 * 1e-9;
+    assert!(
+        last_on < t_trip + 0.002,
+        "switching at {last_on:.4} s, OV at {t_trip:.4} s"
+    );
+    assert!(
+        status_rows.iter().any(|r| r.starts_with("F17 overvoltage")),
+        "LCD status rows {status_rows:?}"
+    );
+}
+
+/// `docs/contributing/add-a-trip.md` step 11: every code added after drive.md's 16 has an
+/// emulator test on the real image (one of the emulator test files names it).
+#[test]
+fn every_added_trip_has_an_emulator_test() {
+    use shared_protocol::fault::FaultCode;
+    let sources = [
+        include_str!("trips.rs"),
+        include_str!("board_findings.rs"),
+        include_str!("power_stage.rs"),
+        include_str!("safety.rs"),
+    ]
+    .concat();
+    for f in FaultCode::ALL.iter().filter(|f| f.code() > 16) {
+        let name = format!("FaultCode::{f:?}.code()");
+        let named = sources.matches(&name).count();
+        assert!(
+            named >= 1,
+            "no emulator test names {name} (hil-sim/tests/emu/trips.rs)"
+        );
+    }
+}

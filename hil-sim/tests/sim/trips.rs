@@ -212,3 +212,67 @@ fn a_refused_ack_says_why_and_a_later_one_is_accepted() {
     assert_eq!(states.last(), Some(&"IDLE"), "{states:?}");
     assert!(states.contains(&"FAULT"), "{states:?}");
 }
+
+/// `OV` (code 17, `shared-protocol/docs/fault-codes.md`) on the bare ESC1 (the default
+/// board, no chopper): `U>` 22 V on a 20 V supply leaves the overvoltage controller no
+/// room (its cap, 2 V below `U>`, is the supply: the controller is off), so a stop on a
+/// faster ramp than the example's (time constant 0.5 s instead of 2.333 s) lifts the DC
+/// link above `U>` and trips `OV`, long before `U>>` (32 V). The PLC logs it once, with
+/// its code.
+#[test]
+fn without_a_chopper_an_uncontrolled_stop_trips_ov_once() {
+    use shared_protocol::fault::FaultCode;
+    let program = MOTOR_PLC
+        .replace("002 LD  K01 2333", "002 LD  K01 0500")
+        .replace("014 U>  K09 0035", "014 U>  K09 0022")
+        .replace("015 U<  K10 0025", "015 U<  K10 0015");
+    assert!(program.contains("K01 0500") && program.contains("K09 0022"));
+    let p = parse_program(&program, "motor.plc").unwrap();
+    let scen = r#"
+[plant]
+dc_link_v = 20.0
+
+[[event]]
+at_s = 0.0
+set = { A00 = 980, A01 = 500 }
+
+[[event]]
+at_s = 0.3
+press = "D00"
+
+[[event]]
+at_s = 1.5
+press = "D00"
+"#;
+    let mut sim =
+        Simulation::new(&p, Scenario::parse(scen).unwrap(), RunOptions::default()).unwrap();
+    let mut peak = 0.0f64;
+    let mut f_at_stop = 0.0;
+    let mut on_at = Vec::new();
+    sim.run_until(3_500_000_000, |s| {
+        peak = peak.max(s.u_dc_v);
+        if s.t_ns <= 1_500_000_000 {
+            f_at_stop = s.f_cmd_hz;
+        }
+        if s.pwm_on {
+            on_at.push(s.t_ns);
+        }
+    });
+    let faults: Vec<_> = sim.faults().iter().map(|f| f.code).collect();
+    assert_eq!(
+        faults,
+        vec![FaultCode::Ov.code()],
+        "running at {f_at_stop:.1} Hz when stopped, DC link peak {peak:.2} V"
+    );
+    let t_trip = sim.faults()[0].t_ns as f64 * 1e-9;
+    assert!(t_trip > 1.5 && f_at_stop > 5.0, "trip at {t_trip} s");
+    assert!(peak > 22.0 && peak < 32.0, "DC link peak {peak:.2} V");
+    // Off within the millisecond of the check and a PWM period.
+    let last_on = on_at.last().copied().unwrap_or(0) as f64 * 1e-9;
+    assert!(
+        last_on < t_trip + 0.002,
+        "switching at {last_on} s, OV at {t_trip} s"
+    );
+    let logged: Vec<_> = sim.plc().app().fault_log().iter().map(|e| e.code).collect();
+    assert_eq!(logged, vec![FaultCode::Ov.code()]);
+}

@@ -55,6 +55,21 @@ pub enum FrameError {
     BufferTooSmall,
 }
 
+impl core::fmt::Display for FrameError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            FrameError::TooLong => "frame longer than the wire limit",
+            FrameError::Cobs => "inconsistent COBS code bytes",
+            FrameError::TooShort => "frame shorter than header and CRC",
+            FrameError::Crc => "frame CRC mismatch",
+            FrameError::Message => "the frame's message does not parse",
+            FrameError::BufferTooSmall => "output buffer too small for the frame",
+        })
+    }
+}
+
+impl core::error::Error for FrameError {}
+
 /// Encode one frame into `out`; returns the number of wire bytes.
 pub fn encode_frame<M: Serialize>(
     frame: &Frame<M>,

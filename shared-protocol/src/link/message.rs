@@ -14,7 +14,7 @@ pub use crate::fault::{fault_name, fault_text, FaultCode};
 /// 3: `DriveMsg::AckRefused` (why the drive refused an acknowledgement).
 /// 4: the safety functions (safety.md 9): `PlcMsg::SafetyRequest`, the status's `sf_*`
 /// and `sto_in_low` fields, fault codes 9-16.
-pub const PROTOCOL_VERSION: u16 = 5;
+pub const PROTOCOL_VERSION: u16 = 6;
 
 /// Most Q writes carried by one frame (a scan that writes more sends several frames).
 pub const MAX_Q_PER_FRAME: usize = 8;
@@ -397,6 +397,24 @@ mod tests {
         }
     }
 
+    /// A peer that does not know a code would refuse every frame carrying it (the link
+    /// would look broken); a new fault code therefore raises `PROTOCOL_VERSION`, so that
+    /// the handshake refuses the mismatched pair instead (`docs/contributing/add-a-trip.md`).
+    #[test]
+    fn the_protocol_version_names_its_fault_codes() {
+        const CODES_PER_VERSION: [(u16, usize); 2] = [(5, 16), (6, 17)];
+        let known = CODES_PER_VERSION
+            .iter()
+            .find(|(v, _)| *v == PROTOCOL_VERSION);
+        assert_eq!(
+            known.map(|(_, n)| *n),
+            Some(FaultCode::COUNT),
+            "PROTOCOL_VERSION {PROTOCOL_VERSION} does not carry {} fault codes: raise it and \
+             add (version, count) to CODES_PER_VERSION",
+            FaultCode::COUNT
+        );
+    }
+
     #[test]
     fn typed_fault_codes_keep_the_wire_bytes() {
         let mut typed = [0u8; 64];
@@ -561,7 +579,8 @@ mod tests {
     #[test]
     fn an_undefined_fault_code_makes_the_frame_unparsable() {
         let mut wire = [0u8; 128];
-        for code in [0u8, 17, 200] {
+        let undefined = FaultCode::COUNT as u8 + 1;
+        for code in [0u8, undefined, 200] {
             let frame = Frame {
                 seq: 0,
                 ack: 0,
@@ -589,7 +608,7 @@ mod tests {
         .len();
         let fault_at = 2 + 1 + 1; // seq, ack, message type, state
         assert_eq!(raw[fault_at], 0);
-        raw[fault_at] = 17;
+        raw[fault_at] = FaultCode::COUNT as u8 + 1;
         let crc = crate::link::frame::CRC.checksum(&raw[..ok]);
         raw[ok..ok + 4].copy_from_slice(&crc.to_le_bytes());
         assert_eq!(

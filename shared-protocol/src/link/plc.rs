@@ -77,6 +77,18 @@ pub enum CommandError {
     BadAddress,
 }
 
+impl core::fmt::Display for CommandError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            CommandError::NotConnected => "the link to the drive is not up",
+            CommandError::QueueFull => "too many commands waiting for the link",
+            CommandError::BadAddress => "Q address above 63",
+        })
+    }
+}
+
+impl core::error::Error for CommandError {}
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Pending {
     Q(QValue),

@@ -119,6 +119,8 @@ pub struct AsmError {
     pub kind: AsmErrorKind,
 }
 
+impl core::error::Error for AsmError {}
+
 impl core::fmt::Display for AsmError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(f, "{}:{}: {}", self.line, self.col, self.kind)

@@ -97,6 +97,8 @@ pub enum DecodeError {
     ConstantWithoutK,
 }
 
+impl core::error::Error for DecodeError {}
+
 impl core::fmt::Display for DecodeError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {

@@ -498,6 +498,8 @@ pub struct VerifyError {
     pub kind: VerifyErrorKind,
 }
 
+impl core::error::Error for VerifyError {}
+
 impl core::fmt::Display for VerifyError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(f, "line {:03}: {}", self.line, self.kind)

@@ -13,6 +13,7 @@ use heapless::{String, Vec};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use super::{CHUNK_BYTES, LOG_ENTRIES_PER_ANSWER, MAX_SUBSCRIBED_Q};
+use crate::fault::FaultCode;
 use crate::link::DriveState;
 
 /// PC to PLC. See service.md section 3 for what each request does; the doc of each variant
@@ -296,31 +297,55 @@ pub struct FaultLog {
     pub entries: Vec<LogEntry, LOG_ENTRIES_PER_ANSWER>,
 }
 
-/// The 16 trip counters, carried as 32 big-endian bytes (a varint could need 48).
+/// The trip counters, one per fault code ([`FaultCode::COUNT`], code 1 first), carried as
+/// big-endian byte pairs (a varint array could need 3 bytes a counter). The size follows
+/// the fault table, so a new code changes this message: [`super::SERVICE_VERSION`] goes
+/// up with it (`tests::the_service_version_names_its_trip_count`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct Trips(pub [u16; 16]);
+pub struct Trips(pub [u16; FaultCode::COUNT]);
+
+/// Bytes of [`Trips`] on the wire.
+pub const TRIPS_BYTES: usize = 2 * FaultCode::COUNT;
 
 impl Serialize for Trips {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        let mut b = [0u8; 32];
-        for (pair, v) in b.chunks_exact_mut(2).zip(self.0.iter()) {
-            pair.copy_from_slice(&v.to_be_bytes());
+        use serde::ser::SerializeTuple;
+        let mut t = s.serialize_tuple(TRIPS_BYTES)?;
+        for v in self.0 {
+            for b in v.to_be_bytes() {
+                t.serialize_element(&b)?;
+            }
         }
-        b.serialize(s)
+        t.end()
     }
 }
 
 impl<'de> Deserialize<'de> for Trips {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let b = <[u8; 32]>::deserialize(d)?;
-        let mut t = [0u16; 16];
-        for (v, pair) in t.iter_mut().zip(b.chunks_exact(2)) {
-            *v = u16::from_be_bytes([
-                pair.first().copied().unwrap_or(0),
-                pair.get(1).copied().unwrap_or(0),
-            ]);
+        struct Pairs;
+        impl<'de> serde::de::Visitor<'de> for Pairs {
+            type Value = Trips;
+            fn expecting(&self, f: &mut core::fmt::Formatter) -> core::fmt::Result {
+                write!(f, "{TRIPS_BYTES} bytes of trip counters")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Trips, A::Error> {
+                let mut t = [0u16; FaultCode::COUNT];
+                for (i, v) in t.iter_mut().enumerate() {
+                    let mut pair = [0u8; 2];
+                    for (j, b) in pair.iter_mut().enumerate() {
+                        *b = seq
+                            .next_element()?
+                            .ok_or_else(|| serde::de::Error::invalid_length(2 * i + j, &self))?;
+                    }
+                    *v = u16::from_be_bytes(pair);
+                }
+                Ok(Trips(t))
+            }
         }
-        Ok(Trips(t))
+        d.deserialize_tuple(TRIPS_BYTES, Pairs)
     }
 }
 
@@ -333,7 +358,7 @@ pub struct Counters {
     pub pwm_minutes: u32,
     pub link_errors: u32,
     pub program_saves: u16,
-    /// Trips per fault code 1-16 (index 0 = code 1).
+    /// Trips per fault code (index 0 = code 1).
     pub trips: Trips,
     /// Application counters 1-4 (Q60-Q63).
     pub app: [u32; 4],

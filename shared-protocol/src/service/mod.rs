@@ -24,7 +24,7 @@ use crate::link::frame::{encode_frame, Frame, FrameError, FrameReader};
 /// (slot 0 is the program in RAM).
 pub const SLOTS: u8 = 4;
 /// The service protocol's version (`Hello`), independent of the link's.
-pub const SERVICE_VERSION: u16 = 1;
+pub const SERVICE_VERSION: u16 = 2;
 /// Default line rate (a firmware constant; `plcctl --baud` must match).
 pub const SERVICE_BAUD: u32 = 115_200;
 /// The PLC answers a request within this time...

@@ -1,6 +1,7 @@
 //! Sizes, round trips and the decoders' fuzzing.
 
 use super::*;
+use crate::fault::FaultCode;
 use crate::link::frame::{decode_raw, CRC, MAX_WIRE_FRAME};
 use crate::link::DriveState;
 use heapless::{String, Vec};
@@ -110,7 +111,7 @@ fn largest_answers() -> std::vec::Vec<Answer> {
             pwm_minutes: u32::MAX,
             link_errors: u32::MAX,
             program_saves: u16::MAX,
-            trips: Trips([u16::MAX; 16]),
+            trips: Trips([u16::MAX; FaultCode::COUNT]),
             app: [u32::MAX; 4],
             power_ups: u32::MAX,
             since_write_s: Some(u32::MAX),
@@ -320,4 +321,34 @@ proptest! {
         let w = wire(id, req.clone());
         prop_assert_eq!(read_all::<Request>(&w), std::vec![Ok((id, req))]);
     }
+}
+
+/// `Trips` carries one counter per fault code, so its size is part of the service
+/// version: a new code (`docs/contributing/add-a-trip.md`) raises `SERVICE_VERSION` and
+/// adds its line here. A host of another version is refused at `Hello`.
+#[test]
+fn the_service_version_names_its_trip_count() {
+    const TRIPS_PER_VERSION: [(u16, usize); 2] = [(1, 16), (2, 17)];
+    let known = TRIPS_PER_VERSION
+        .iter()
+        .find(|(v, _)| *v == SERVICE_VERSION);
+    assert_eq!(
+        known.map(|(_, n)| *n),
+        Some(crate::fault::FaultCode::COUNT),
+        "SERVICE_VERSION {SERVICE_VERSION} does not carry {} trip counters: raise it and \
+         add (version, count) to TRIPS_PER_VERSION",
+        crate::fault::FaultCode::COUNT
+    );
+    // Raw big-endian pairs whatever the values.
+    let mut buf = [0u8; 2 * TRIPS_BYTES];
+    for t in [Trips::default(), Trips([u16::MAX; FaultCode::COUNT])] {
+        let b = postcard::to_slice(&t, &mut buf).expect("fits");
+        assert_eq!(b.len(), TRIPS_BYTES);
+    }
+    let mut t = Trips::default();
+    t.0[0] = 0x0102;
+    let b = postcard::to_slice(&t, &mut buf).expect("fits");
+    assert_eq!(&b[..3], &[1, 2, 0]);
+    assert_eq!(postcard::from_bytes::<Trips>(b), Ok(t));
+    assert!(postcard::from_bytes::<Trips>(&b[..TRIPS_BYTES - 1]).is_err());
 }
