@@ -457,9 +457,55 @@ impl Lowering {
                 Operand::Sf(f) => Op::Sfr(sfr_cell(f)),
                 _ => return None,
             },
-            // Drive-section mnemonics (PWF, PI, SNx, the parameters, the safety
-            // settings): the verifier keeps them out of lines 150-999.
-            _ => return None,
+            // Drive-section mnemonics: the verifier keeps them out of lines 150-999. Listed
+            // one by one, so that a new mnemonic is a compile error here until it is given
+            // its op or listed here.
+            M::Pwf
+            | M::Pr0
+            | M::Pr1
+            | M::Pr2
+            | M::Pi
+            | M::Sn1
+            | M::Sn2
+            | M::Sn3
+            | M::RsSet
+            | M::UcSet
+            | M::IzSet
+            | M::CalcDu
+            | M::DuSet
+            | M::UMax
+            | M::UMin
+            | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
+            | M::Fmn
+            | M::Fjm
+            | M::Fmx
+            | M::Frv
+            | M::Fss
+            | M::Pss
+            | M::Trd
+            | M::Ard
+            | M::Tel
+            | M::Ts1
+            | M::Ts2
+            | M::Fl1
+            | M::Fl2
+            | M::Fl3
+            | M::Fl4
+            | M::Tl1
+            | M::Tl2
+            | M::Tl3
+            | M::Tl4
+            | M::Pli
+            | M::Tli
+            | M::Tdi
+            | M::Aap
+            | M::Adp
+            | M::Aan
+            | M::Adn
+            | M::Tla
+            | M::Asr => return None,
         };
         Some(op)
     }

@@ -346,9 +346,54 @@ impl ReferenceVm {
                     }
                 }
             }
-            // Drive-section mnemonics (PWF, PI, SNx, the parameters, the safety
-            // settings): the verifier keeps them out of lines 150-999.
-            _ => {}
+            // Drive-section mnemonics: the verifier keeps them out of lines 150-999. Listed
+            // one by one, as in `compile.rs`.
+            M::Pwf
+            | M::Pr0
+            | M::Pr1
+            | M::Pr2
+            | M::Pi
+            | M::Sn1
+            | M::Sn2
+            | M::Sn3
+            | M::RsSet
+            | M::UcSet
+            | M::IzSet
+            | M::CalcDu
+            | M::DuSet
+            | M::UMax
+            | M::UMin
+            | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
+            | M::Fmn
+            | M::Fjm
+            | M::Fmx
+            | M::Frv
+            | M::Fss
+            | M::Pss
+            | M::Trd
+            | M::Ard
+            | M::Tel
+            | M::Ts1
+            | M::Ts2
+            | M::Fl1
+            | M::Fl2
+            | M::Fl3
+            | M::Fl4
+            | M::Tl1
+            | M::Tl2
+            | M::Tl3
+            | M::Tl4
+            | M::Pli
+            | M::Tli
+            | M::Tdi
+            | M::Aap
+            | M::Adp
+            | M::Aan
+            | M::Adn
+            | M::Tla
+            | M::Asr => {}
         }
     }
 }

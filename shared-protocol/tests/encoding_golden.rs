@@ -9,8 +9,7 @@
 //! in the diff that only the new mnemonic's lines were added.
 
 use shared_protocol::program::{
-    constant_range, decode_line, encode_line, mnemonics_for, operands_for, Instruction,
-    Section,
+    constant_range, decode_line, encode_line, mnemonics_for, operands_for, Instruction, Section,
 };
 
 const GOLDEN: &str = "tests/encoding_golden.txt";

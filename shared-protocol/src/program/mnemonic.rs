@@ -1,0 +1,357 @@
+//! The instruction table: every mnemonic of both sections, in one place. Each row gives
+//! the mnemonic's binary code, its text, the operand classes it takes in the PLC section
+//! and in the drive section (`-`: not in that section), its `K` constant range (`-`:
+//! 0000-9999) and its use of the drive section's int stack (`-`: none). The
+//! [`Mnemonic`] enum, [`Mnemonic::ALL`] (the editor's order), the text, the verifier's
+//! operand sets and constant ranges and the drive's stack tracking are all generated from
+//! it, so an instruction is added by one row here plus its execution in the VM that runs
+//! it (whose `match` is exhaustive: the compiler names the VM that lacks it). The recipe
+//! is `docs/contributing/add-a-plc-instruction.md`.
+//!
+//! The codes are the binary encoding's mnemonic codes (`encode.rs`): never renumber them
+//! (stored EEPROM images and the link download depend on them); a new row takes a code no
+//! row has used. `tests/encoding_golden.rs` holds every instruction's bytes.
+
+use super::model::CONSTANT_MAX;
+use super::operand::{OperandClass as C, OperandSet};
+use super::verify::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
+use crate::safety::SafetySetting;
+
+/// Takes no operand.
+const NONE: OperandSet = OperandSet::NONE;
+/// The PLC's bit operands (`LDC`).
+pub(crate) const PLC_BITS: OperandSet =
+    OperandSet::of(&[C::D, C::O, C::B, C::Rdy, C::Flb, C::Sf, C::Sdc]);
+/// Everything the PLC's `LD` reads.
+const PLC_LD: OperandSet = OperandSet::of(&[
+    C::D,
+    C::O,
+    C::B,
+    C::A,
+    C::K,
+    C::Q,
+    C::Com,
+    C::Vlt,
+    C::Amp,
+    C::Frq,
+    C::Udc,
+    C::Imx,
+    C::Flt,
+    C::Dir,
+    C::Rdy,
+    C::Flb,
+    C::Ihw,
+    C::Uhw,
+    C::Sf,
+    C::Sdc,
+    C::Sft,
+]);
+const SF_ONLY: OperandSet = OperandSet::of(&[C::Sf]);
+const PLC_WR: OperandSet = OperandSet::of(&[C::O, C::B, C::Q]);
+const B_ONLY: OperandSet = OperandSet::of(&[C::B]);
+const B_O: OperandSet = OperandSet::of(&[C::O, C::B]);
+const K_Q: OperandSet = OperandSet::of(&[C::K, C::Q]);
+const Q_ONLY: OperandSet = OperandSet::of(&[C::Q]);
+const K_ONLY: OperandSet = OperandSet::of(&[C::K]);
+const DRIVE_WR: OperandSet = OperandSet::of(&[C::Q, C::Pw1, C::Pw3, C::Pw5]);
+
+/// `-` or an operand set.
+macro_rules! operands {
+    (-) => {
+        None
+    };
+    ($set:ident) => {
+        Some($set)
+    };
+}
+
+/// `-` (0000-9999) or `(min, max)`.
+macro_rules! constants {
+    (-) => {
+        (0, CONSTANT_MAX)
+    };
+    (($min:expr, $max:expr)) => {
+        ($min, $max)
+    };
+}
+
+/// `-` (no stack use) or `(needs, pops, pushes)`.
+macro_rules! stack {
+    (-) => {
+        (0, 0, 0)
+    };
+    (($needs:expr, $pops:expr, $pushes:expr)) => {
+        ($needs, $pops, $pushes)
+    };
+}
+
+macro_rules! mnemonic_table {
+    ($(
+        $(#[$doc:meta])*
+        $v:ident = $code:literal, $text:literal
+            plc $plc:tt drive $drive:tt k $k:tt stack $stack:tt;
+    )*) => {
+        /// Every mnemonic of both sections. `Ld` and `Wr` exist in both with different
+        /// meanings. The discriminants are the binary encoding's mnemonic codes.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[cfg_attr(target_os = "none", derive(defmt::Format))]
+        #[repr(u8)]
+        pub enum Mnemonic {
+            $( $(#[$doc])* $v = $code, )*
+        }
+
+        impl Mnemonic {
+            /// All mnemonics, in the order the editor offers them (the table's).
+            pub const ALL: [Mnemonic; [$($code),*].len()] = [$(Mnemonic::$v),*];
+
+            /// The text form, exactly as program.md writes it (canonical case). Out of
+            /// line: the PLC image had two copies of its table when it was inlined.
+            #[inline(never)]
+            pub const fn text(self) -> &'static str {
+                match self {
+                    $(Mnemonic::$v => $text,)*
+                }
+            }
+
+            /// The operand classes this mnemonic takes in the PLC section; `None` when it
+            /// is not a PLC instruction.
+            pub const fn plc_operands(self) -> Option<OperandSet> {
+                match self {
+                    $(Mnemonic::$v => operands!($plc),)*
+                }
+            }
+
+            /// The operand classes this mnemonic takes in the drive section; `None` when
+            /// it is not a drive instruction.
+            pub const fn drive_operands(self) -> Option<OperandSet> {
+                match self {
+                    $(Mnemonic::$v => operands!($drive),)*
+                }
+            }
+
+            /// The smallest and largest constant a `K` operand of this mnemonic accepts.
+            pub const fn constant_limits(self) -> (u16, u16) {
+                match self {
+                    $(Mnemonic::$v => constants!($k),)*
+                }
+            }
+
+            /// Drive section: values it needs on the int stack, pops, pushes.
+            pub const fn stack_effect(self) -> (u8, u8, u8) {
+                match self {
+                    $(Mnemonic::$v => stack!($stack),)*
+                }
+            }
+        }
+    };
+}
+
+mnemonic_table! {
+    // Variant = code, text, PLC operands, drive operands, K range, drive stack use
+    // (needs, pops, pushes); rows in the editor's order.
+    Ld      =  1, "LD"   plc PLC_LD    drive K_Q       k -                     stack (0,0,1);
+    Ldc     =  3, "LDC"  plc PLC_BITS  drive -         k -                     stack -;
+    Wr      =  2, "WR"   plc PLC_WR    drive DRIVE_WR  k -                     stack (1,0,0);
+    Wrc     =  4, "WRC"  plc PLC_WR    drive -         k -                     stack -;
+    Not     =  5, "NOT"  plc NONE      drive -         k -                     stack -;
+    And     =  6, "AND"  plc NONE      drive -         k -                     stack -;
+    Or      =  7, "OR"   plc NONE      drive -         k -                     stack -;
+    Xor     =  8, "XOR"  plc NONE      drive -         k -                     stack -;
+    Anc     =  9, "ANC"  plc NONE      drive -         k -                     stack -;
+    Orc     = 10, "ORC"  plc NONE      drive -         k -                     stack -;
+    Let     = 11, "LET"  plc B_ONLY    drive -         k -                     stack -;
+    /// `I/O`, the T flip-flop.
+    Io      = 12, "I/O"  plc B_O       drive -         k -                     stack -;
+    Set     = 13, "SET"  plc B_O       drive -         k -                     stack -;
+    Res     = 14, "RES"  plc B_O       drive -         k -                     stack -;
+    Eq      = 15, "EQ"   plc K_Q       drive -         k -                     stack -;
+    Gt      = 16, "GT"   plc K_Q       drive -         k -                     stack -;
+    Lt      = 17, "LT"   plc K_Q       drive -         k -                     stack -;
+    Ctu     = 18, "CTU"  plc Q_ONLY    drive -         k -                     stack -;
+    Ctd     = 19, "CTD"  plc Q_ONLY    drive -         k -                     stack -;
+    Ton     = 20, "TON"  plc K_Q       drive -         k -                     stack -;
+    Tof     = 21, "TOF"  plc K_Q       drive -         k -                     stack -;
+    Imp     = 22, "IMP"  plc K_Q       drive -         k -                     stack -;
+    Add     = 23, "ADD"  plc K_Q       drive -         k -                     stack -;
+    Sub     = 24, "SUB"  plc K_Q       drive -         k -                     stack -;
+    Mul     = 25, "MUL"  plc K_Q       drive -         k -                     stack -;
+    Div     = 26, "DIV"  plc K_Q       drive -         k (1,CONSTANT_MAX)      stack -;
+    Lcd     = 27, "LCD"  plc NONE      drive -         k -                     stack -;
+    Rev     = 28, "REV"  plc NONE      drive -         k -                     stack -;
+    Ack     = 29, "ACK"  plc NONE      drive -         k -                     stack -;
+    /// `SFR x`: safety function x's control bit = S0 (0 = requested, safety.md 5).
+    Sfr     = 30, "SFR"  plc SF_ONLY   drive -         k -                     stack -;
+    Pwf     = 40, "PWF"  plc -         drive K_Q       k (488,CONSTANT_MAX)    stack -;
+    Pr0     = 41, "PR0"  plc -         drive NONE      k -                     stack -;
+    Pr1     = 42, "PR1"  plc -         drive NONE      k -                     stack -;
+    Pr2     = 43, "PR2"  plc -         drive NONE      k -                     stack -;
+    Pi      = 44, "PI"   plc -         drive K_ONLY    k (1,CONSTANT_MAX)      stack (4,4,1);
+    Sn1     = 45, "SN1"  plc -         drive NONE      k -                     stack (3,0,0);
+    Sn2     = 46, "SN2"  plc -         drive NONE      k -                     stack (1,0,0);
+    Sn3     = 47, "SN3"  plc -         drive NONE      k -                     stack (1,0,0);
+    RsSet   = 48, "Rs="  plc -         drive K_ONLY    k -                     stack -;
+    UcSet   = 49, "Uc="  plc -         drive K_ONLY    k (1,CONSTANT_MAX)      stack -;
+    IzSet   = 50, "Iz="  plc -         drive K_ONLY    k -                     stack -;
+    CalcDu  = 51, "=dU"  plc -         drive NONE      k -                     stack -;
+    DuSet   = 52, "dU="  plc -         drive K_ONLY    k (0,1023)              stack -;
+    UMax    = 53, "U>"   plc -         drive K_ONLY    k (1,CONSTANT_MAX)      stack -;
+    UMin    = 54, "U<"   plc -         drive K_ONLY    k -                     stack -;
+    IMax    = 55, "I>"   plc -         drive K_ONLY    k (1,CONSTANT_MAX)      stack -;
+    /// `I>>`: hardware overcurrent threshold (the source's current trimmers), 0.01 A.
+    IMaxHw  = 60, "I>>"  plc -         drive K_ONLY    k (1,I_MAX_HW_LIMIT)    stack -;
+    /// `U>>`: hardware overvoltage threshold (the source's DC-link trimmer), V.
+    UMaxHw  = 61, "U>>"  plc -         drive K_ONLY    k (1,U_MAX_HW_LIMIT)    stack -;
+    Fmn     = 56, "fmn"  plc -         drive K_ONLY    k -                     stack -;
+    Fjm     = 57, "fjm"  plc -         drive K_ONLY    k (1,CONSTANT_MAX)      stack -;
+    Fmx     = 58, "fmx"  plc -         drive K_ONLY    k (1,CONSTANT_MAX)      stack -;
+    Frv     = 59, "frv"  plc -         drive K_ONLY    k -                     stack -;
+    /// The safety settings (safety.md 4), in signature order: see
+    /// [`crate::safety::SafetySetting`] for each one's meaning and unit.
+    Fss     = 62, "fss"  plc -         drive K_ONLY    k -                     stack -;
+    Pss     = 63, "pss"  plc -         drive K_ONLY    k -                     stack -;
+    Trd     = 64, "trd"  plc -         drive K_ONLY    k -                     stack -;
+    Ard     = 65, "ard"  plc -         drive K_ONLY    k -                     stack -;
+    Tel     = 66, "tel"  plc -         drive K_ONLY    k -                     stack -;
+    Ts1     = 67, "ts1"  plc -         drive K_ONLY    k -                     stack -;
+    Ts2     = 68, "ts2"  plc -         drive K_ONLY    k -                     stack -;
+    Fl1     = 69, "fl1"  plc -         drive K_ONLY    k -                     stack -;
+    Fl2     = 70, "fl2"  plc -         drive K_ONLY    k -                     stack -;
+    Fl3     = 71, "fl3"  plc -         drive K_ONLY    k -                     stack -;
+    Fl4     = 72, "fl4"  plc -         drive K_ONLY    k -                     stack -;
+    Tl1     = 73, "tl1"  plc -         drive K_ONLY    k -                     stack -;
+    Tl2     = 74, "tl2"  plc -         drive K_ONLY    k -                     stack -;
+    Tl3     = 75, "tl3"  plc -         drive K_ONLY    k -                     stack -;
+    Tl4     = 76, "tl4"  plc -         drive K_ONLY    k -                     stack -;
+    Pli     = 77, "pli"  plc -         drive K_ONLY    k -                     stack -;
+    Tli     = 78, "tli"  plc -         drive K_ONLY    k -                     stack -;
+    Tdi     = 79, "tdi"  plc -         drive K_ONLY    k -                     stack -;
+    Aap     = 80, "aap"  plc -         drive K_ONLY    k -                     stack -;
+    Adp     = 81, "adp"  plc -         drive K_ONLY    k -                     stack -;
+    Aan     = 82, "aan"  plc -         drive K_ONLY    k -                     stack -;
+    Adn     = 83, "adn"  plc -         drive K_ONLY    k -                     stack -;
+    Tla     = 84, "tla"  plc -         drive K_ONLY    k -                     stack -;
+    Asr     = 85, "asr"  plc -         drive K_ONLY    k -                     stack -;
+}
+
+impl Mnemonic {
+    /// The binary encoding's code of this mnemonic (its `repr(u8)` discriminant).
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The mnemonic with this binary code, `None` for an unused code (0 means an empty
+    /// line in stored images, 255 is erased EEPROM).
+    pub fn from_code(code: u8) -> Option<Mnemonic> {
+        Mnemonic::ALL.iter().copied().find(|m| m.code() == code)
+    }
+
+    /// The safety setting this mnemonic sets (drive section, safety.md 4). The settings'
+    /// codes are consecutive in signature order (62 `fss` .. 85 `asr`): one table lookup,
+    /// which keeps the drive's verifier small.
+    pub fn safety_setting(self) -> Option<SafetySetting> {
+        let i = self.code().checked_sub(Mnemonic::Fss.code())?;
+        SafetySetting::ALL.get(usize::from(i)).copied()
+    }
+
+    /// The mnemonic of a safety setting.
+    pub const fn of_setting(s: SafetySetting) -> Mnemonic {
+        match s {
+            SafetySetting::Fss => Mnemonic::Fss,
+            SafetySetting::Pss => Mnemonic::Pss,
+            SafetySetting::Trd => Mnemonic::Trd,
+            SafetySetting::Ard => Mnemonic::Ard,
+            SafetySetting::Tel => Mnemonic::Tel,
+            SafetySetting::Ts1 => Mnemonic::Ts1,
+            SafetySetting::Ts2 => Mnemonic::Ts2,
+            SafetySetting::Fl1 => Mnemonic::Fl1,
+            SafetySetting::Fl2 => Mnemonic::Fl2,
+            SafetySetting::Fl3 => Mnemonic::Fl3,
+            SafetySetting::Fl4 => Mnemonic::Fl4,
+            SafetySetting::Tl1 => Mnemonic::Tl1,
+            SafetySetting::Tl2 => Mnemonic::Tl2,
+            SafetySetting::Tl3 => Mnemonic::Tl3,
+            SafetySetting::Tl4 => Mnemonic::Tl4,
+            SafetySetting::Pli => Mnemonic::Pli,
+            SafetySetting::Tli => Mnemonic::Tli,
+            SafetySetting::Tdi => Mnemonic::Tdi,
+            SafetySetting::Aap => Mnemonic::Aap,
+            SafetySetting::Adp => Mnemonic::Adp,
+            SafetySetting::Aan => Mnemonic::Aan,
+            SafetySetting::Adn => Mnemonic::Adn,
+            SafetySetting::Tla => Mnemonic::Tla,
+            SafetySetting::Asr => Mnemonic::Asr,
+        }
+    }
+}
+
+/// Walks the table: each row is a whole instruction for every part that reads programs.
+#[cfg(test)]
+mod tests {
+    use super::super::{
+        assemble, constant_range, decode_line, encode_line, line_string, operands_for, verify_line,
+        Instruction, Section, PLC_FIRST_LINE,
+    };
+    use super::*;
+
+    /// Codes are unique, not 0 (empty line) nor 255 (erased EEPROM); texts are unique in
+    /// any case (the assembler is case-insensitive) and fit the editor's 4-column field.
+    #[test]
+    fn codes_and_texts_are_unique() {
+        for (n, a) in Mnemonic::ALL.iter().enumerate() {
+            assert!(a.code() != 0 && a.code() != 255, "{a:?}");
+            assert_eq!(Mnemonic::from_code(a.code()), Some(*a));
+            assert!(a.text().len() <= 3, "{a:?}: LCD field");
+            for b in Mnemonic::ALL.iter().skip(n + 1) {
+                assert_ne!(a.code(), b.code(), "{a:?} {b:?}");
+                assert!(!a.text().eq_ignore_ascii_case(b.text()), "{a:?} {b:?}");
+            }
+        }
+    }
+
+    /// Every mnemonic belongs to a section, and in each of its sections its first and
+    /// last operand with the smallest and largest constant verify, encode and decode back,
+    /// and disassemble to text that assembles back to the same line.
+    #[test]
+    fn every_row_verifies_encodes_and_round_trips_through_text() {
+        for m in Mnemonic::ALL {
+            assert!(
+                m.plc_operands().is_some() || m.drive_operands().is_some(),
+                "{m:?} is in no section"
+            );
+            for (section, line) in [(Section::Plc, PLC_FIRST_LINE), (Section::Drive, 0)] {
+                let ops: std::vec::Vec<_> = operands_for(m, section).collect();
+                let (Some(first), Some(last)) = (ops.first(), ops.last()) else {
+                    continue;
+                };
+                for op in [*first, *last] {
+                    let range = constant_range(m, section, op);
+                    let constants = range.map_or([0, 0], |r| [*r.start(), *r.end()]);
+                    for constant in constants {
+                        let i = Instruction {
+                            mnemonic: m,
+                            operand: op,
+                            constant,
+                        };
+                        assert_eq!(verify_line(line, &i), Ok(()), "{i:?}");
+                        assert_eq!(decode_line(&encode_line(&i)), Ok(i));
+                        let text = line_string(line, &i);
+                        let p = assemble(&text).unwrap_or_else(|e| panic!("{text}: {e:?}"));
+                        assert_eq!(p.get(line), Some(&i), "{text}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The drive's stack use is declared only for drive instructions.
+    #[test]
+    fn stack_use_only_in_the_drive_section() {
+        for m in Mnemonic::ALL {
+            if m.drive_operands().is_none() {
+                assert_eq!(m.stack_effect(), (0, 0, 0), "{m:?}");
+            }
+            let (needs, pops, _) = m.stack_effect();
+            assert!(pops <= needs, "{m:?}");
+        }
+    }
+}
