@@ -426,6 +426,7 @@ impl DriveVm {
             | Mnemonic::Lcd
             | Mnemonic::Rev
             | Mnemonic::Ack
+            | Mnemonic::Alm
             | Mnemonic::Sfr => {}
         }
     }

@@ -144,6 +144,11 @@ pub enum Op {
     },
     /// `SFR x`: the request cell of function x = !S0 (control bit 0 = requested).
     Sfr(u8),
+    /// `ALM K`: rising edge of S0 reports application fault `code` (1..=99).
+    Alm {
+        flags: u8,
+        code: u8,
+    },
 }
 
 // The RAM figure in docs/vm.md depends on it.
@@ -340,6 +345,7 @@ impl Lowering {
             | Op::Lcd(_)
             | Op::Rev
             | Op::Ack { .. }
+            | Op::Alm { .. }
             | Op::Sfr(_) => {}
         }
     }
@@ -453,6 +459,14 @@ impl Lowering {
             M::Rev if last_rev => Op::Rev,
             M::Rev => return None,
             M::Ack => Op::Ack { flags: 0 },
+            // A constant above 255 (verifier: 1..=99) does nothing, as in the interpreter.
+            M::Alm => match x? {
+                Operand::K(_) => Op::Alm {
+                    flags: 0,
+                    code: u8::try_from(ins.constant).ok()?,
+                },
+                _ => return None,
+            },
             M::Sfr => match x? {
                 Operand::Sf(f) => Op::Sfr(sfr_cell(f)),
                 _ => return None,

@@ -337,6 +337,17 @@ impl ReferenceVm {
                     }
                 }
             }
+            M::Alm => {
+                if let (Some(Operand::K(_)), Ok(code)) = (x, u8::try_from(ins.constant)) {
+                    if out.alarm.is_none() {
+                        if let Some(flags) = self.flags.get_mut(idx) {
+                            if timer::rising_edge(flags, regs.top(), env.first_scan) {
+                                out.alarm = Some(code);
+                            }
+                        }
+                    }
+                }
+            }
             M::Sfr => {
                 if let Some(Operand::Sf(f)) = x {
                     if regs.top() {

@@ -294,6 +294,8 @@ mnemonic_table! {
     Lcd     = 27, "LCD"  plc NONE      drive -         k -       stack -;
     Rev     = 28, "REV"  plc NONE      drive -         k -       stack -;
     Ack     = 29, "ACK"  plc NONE      drive -         k -       stack -;
+    /// `ALM K`: on a rising edge of S0, log application fault K (program-format.md).
+    Alm     = 31, "ALM"  plc K_ONLY    drive -         k ALM     stack -;
     /// `SFR x`: safety function x's control bit = S0 (0 = requested, safety.md 5).
     Sfr     = 30, "SFR"  plc SF_ONLY   drive -         k -       stack -;
     Pwf     = 40, "PWF"  plc -         drive K_Q       k PWF     stack -;

@@ -744,7 +744,7 @@ mod tests {
         let not: std::vec::Vec<_> = operands_for(Mnemonic::Not, Section::Plc).collect();
         assert_eq!(not, std::vec![None]);
         assert_eq!(operands_for(Mnemonic::Pwf, Section::Plc).count(), 0);
-        assert_eq!(mnemonics_for(Section::Plc).count(), 30);
+        assert_eq!(mnemonics_for(Section::Plc).count(), 31);
         assert_eq!(mnemonics_for(Section::Drive).count(), 48);
         // The safety settings: drive section, K only, 0000-9999.
         for setting in crate::safety::SafetySetting::ALL {
