@@ -362,7 +362,72 @@ impl DriveVm {
             Mnemonic::Fjm if ki > 0 => self.settings.fjm = ki,
             Mnemonic::Fmx => self.settings.fmx = ki,
             Mnemonic::Frv => self.settings.frv = ki,
-            _ => {}
+            // `fjm 0` keeps the default (the verifier refuses it anyway); the safety
+            // settings are read by `safety_settings`, not here; the rest are executed by
+            // `exec` (not settings) or are PLC-section mnemonics the verifier keeps out.
+            // Listed one by one, so that a new mnemonic is a compile error here until it
+            // is given its effect or listed.
+            Mnemonic::Fjm
+            | Mnemonic::Fss
+            | Mnemonic::Pss
+            | Mnemonic::Trd
+            | Mnemonic::Ard
+            | Mnemonic::Tel
+            | Mnemonic::Ts1
+            | Mnemonic::Ts2
+            | Mnemonic::Fl1
+            | Mnemonic::Fl2
+            | Mnemonic::Fl3
+            | Mnemonic::Fl4
+            | Mnemonic::Tl1
+            | Mnemonic::Tl2
+            | Mnemonic::Tl3
+            | Mnemonic::Tl4
+            | Mnemonic::Pli
+            | Mnemonic::Tli
+            | Mnemonic::Tdi
+            | Mnemonic::Aap
+            | Mnemonic::Adp
+            | Mnemonic::Aan
+            | Mnemonic::Adn
+            | Mnemonic::Tla
+            | Mnemonic::Asr
+            | Mnemonic::Ld
+            | Mnemonic::Wr
+            | Mnemonic::Pwf
+            | Mnemonic::Pi
+            | Mnemonic::Sn1
+            | Mnemonic::Sn2
+            | Mnemonic::Sn3
+            | Mnemonic::Ldc
+            | Mnemonic::Wrc
+            | Mnemonic::Not
+            | Mnemonic::And
+            | Mnemonic::Or
+            | Mnemonic::Xor
+            | Mnemonic::Anc
+            | Mnemonic::Orc
+            | Mnemonic::Let
+            | Mnemonic::Io
+            | Mnemonic::Set
+            | Mnemonic::Res
+            | Mnemonic::Eq
+            | Mnemonic::Gt
+            | Mnemonic::Lt
+            | Mnemonic::Ctu
+            | Mnemonic::Ctd
+            | Mnemonic::Ton
+            | Mnemonic::Tof
+            | Mnemonic::Imp
+            | Mnemonic::Add
+            | Mnemonic::Sub
+            | Mnemonic::Mul
+            | Mnemonic::Div
+            | Mnemonic::Lcd
+            | Mnemonic::Rev
+            | Mnemonic::Ack
+            | Mnemonic::Alm
+            | Mnemonic::Sfr => {}
         }
     }
 

@@ -564,6 +564,14 @@ impl<E: Eeprom> PlcApp<E> {
             // drive's fault is read again after the reconnection.
             let _ = self.link.ack_fault();
         }
+        if let Some(n) = out.alarm {
+            // `ALM`: an application fault, logged like a drive fault under its own codes.
+            let code = shared_protocol::service::app_fault_code(n);
+            let entry = self.storage.fault_entry(code, now.0 / 1000);
+            if self.storage.queue(Job::LogFault(entry)).is_err() {
+                self.editor.notify(Notice::Text("FAULT LOG ERROR"));
+            }
+        }
         // No command until the next scan: a heartbeat that is due soon goes now, so it is
         // never on the wire when the next scan's writes want it.
         let quiet = self.scan_period_us.saturating_sub(QUIET_MARGIN_US);

@@ -297,6 +297,32 @@ fn div0_warning_shows_on_the_run_screen() {
     );
 }
 
+/// `ALM K00 0012` logs application fault 12 (code 112) in the PLC's fault log on each
+/// rising edge of its input, and nothing while the input stays on.
+#[test]
+fn alm_logs_an_application_fault_in_the_fault_log() {
+    let mut r = Rig::new(&format!("{PROGRAM}157 LD D02\n158 ALM K00 0012\n"));
+    r.run_for(20_000);
+    r.plc.run(None, r.now);
+    r.run_for(100_000);
+    assert_eq!(r.plc.run_state(), RunState::Running);
+    assert!(r.plc.fault_log().is_empty());
+    r.digital |= 1 << 2;
+    r.run_for(50_000);
+    let codes: Vec<u8> = r.plc.fault_log().iter().map(|e| e.code).collect();
+    assert_eq!(codes, vec![112]);
+    assert_eq!(
+        shared_protocol::service::LogText(codes[0]).to_string(),
+        "application fault 12"
+    );
+    r.digital &= !(1 << 2);
+    r.run_for(20_000);
+    r.digital |= 1 << 2;
+    r.run_for(50_000);
+    assert_eq!(r.plc.fault_log().len(), 2);
+    assert_eq!(r.plc.run_state(), RunState::Running, "the program goes on");
+}
+
 #[test]
 fn the_slot_last_run_runs_again_at_power_up() {
     let mut r = Rig::new(PROGRAM);

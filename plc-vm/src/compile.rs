@@ -144,6 +144,11 @@ pub enum Op {
     },
     /// `SFR x`: the request cell of function x = !S0 (control bit 0 = requested).
     Sfr(u8),
+    /// `ALM K`: rising edge of S0 reports application fault `code` (1..=99).
+    Alm {
+        flags: u8,
+        code: u8,
+    },
 }
 
 // The RAM figure in docs/vm.md depends on it.
@@ -340,6 +345,7 @@ impl Lowering {
             | Op::Lcd(_)
             | Op::Rev
             | Op::Ack { .. }
+            | Op::Alm { .. }
             | Op::Sfr(_) => {}
         }
     }
@@ -453,13 +459,67 @@ impl Lowering {
             M::Rev if last_rev => Op::Rev,
             M::Rev => return None,
             M::Ack => Op::Ack { flags: 0 },
+            // A constant above 255 (verifier: 1..=99) does nothing, as in the interpreter.
+            M::Alm => match x? {
+                Operand::K(_) => Op::Alm {
+                    flags: 0,
+                    code: u8::try_from(ins.constant).ok()?,
+                },
+                _ => return None,
+            },
             M::Sfr => match x? {
                 Operand::Sf(f) => Op::Sfr(sfr_cell(f)),
                 _ => return None,
             },
-            // Drive-section mnemonics (PWF, PI, SNx, the parameters, the safety
-            // settings): the verifier keeps them out of lines 150-999.
-            _ => return None,
+            // Drive-section mnemonics: the verifier keeps them out of lines 150-999. Listed
+            // one by one, so that a new mnemonic is a compile error here until it is given
+            // its op or listed here.
+            M::Pwf
+            | M::Pr0
+            | M::Pr1
+            | M::Pr2
+            | M::Pi
+            | M::Sn1
+            | M::Sn2
+            | M::Sn3
+            | M::RsSet
+            | M::UcSet
+            | M::IzSet
+            | M::CalcDu
+            | M::DuSet
+            | M::UMax
+            | M::UMin
+            | M::IMax
+            | M::IMaxHw
+            | M::UMaxHw
+            | M::Fmn
+            | M::Fjm
+            | M::Fmx
+            | M::Frv
+            | M::Fss
+            | M::Pss
+            | M::Trd
+            | M::Ard
+            | M::Tel
+            | M::Ts1
+            | M::Ts2
+            | M::Fl1
+            | M::Fl2
+            | M::Fl3
+            | M::Fl4
+            | M::Tl1
+            | M::Tl2
+            | M::Tl3
+            | M::Tl4
+            | M::Pli
+            | M::Tli
+            | M::Tdi
+            | M::Aap
+            | M::Adp
+            | M::Aan
+            | M::Adn
+            | M::Tla
+            | M::Asr => return None,
         };
         Some(op)
     }

@@ -160,6 +160,7 @@ fn logic_instruction() -> BoxedStrategy<Instruction> {
             M::Tof,
             M::Imp,
             M::Ack,
+            M::Alm,
             M::Rev,
             M::Sfr,
             M::Eq,

@@ -196,6 +196,17 @@ pub fn run(
                     out.ack_request = true;
                 }
             }
+            // One alarm per scan: with one already reported, this line's edge is left
+            // for the next scan (its flags are not updated).
+            Op::Alm { code, .. } => {
+                if out.alarm.is_none()
+                    && timer(slot, |st| {
+                        timer::rising_edge(st.flags, top(s), env.first_scan)
+                    })
+                {
+                    out.alarm = Some(code);
+                }
+            }
         }
     }
     rev
@@ -213,7 +224,8 @@ fn timer(slot: &mut Slot, f: impl FnOnce(LineState<'_>) -> bool) -> bool {
         | Op::TofK { flags, .. }
         | Op::Imp { flags, .. }
         | Op::ImpK { flags, .. }
-        | Op::Ack { flags } => f(LineState { flags, since }),
+        | Op::Ack { flags }
+        | Op::Alm { flags, .. } => f(LineState { flags, since }),
         _ => false,
     }
 }

@@ -101,6 +101,10 @@ pub struct ScanOutputs {
     pub sf_request: Option<u16>,
     /// The first run-time warning of this scan.
     pub warning: Option<Warning>,
+    /// An `ALM K` saw a rising edge of S0: application fault K (1..=99), for the fault
+    /// log. One per scan: an `ALM` whose edge comes after the reported one keeps its edge
+    /// for the next scan (reported then if its S0 is still 1).
+    pub alarm: Option<u8>,
 }
 
 impl ScanOutputs {

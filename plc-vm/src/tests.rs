@@ -764,6 +764,47 @@ fn ack_on_rising_edge_only() {
 }
 
 #[test]
+fn alm_reports_its_code_on_a_rising_edge_only() {
+    let lines = vec![l(M::Ld, X::D(0)), k(M::Alm, 0, 12), l(M::Wr, X::O(0))];
+    let mut r = Rig::new(&lines);
+    r.d(0, true);
+    let out = r.scan();
+    assert_eq!(out.alarm, None, "no edge on the first scan");
+    assert!(out.output(0), "S unchanged");
+    r.d(0, false);
+    assert_eq!(r.scan().alarm, None);
+    r.d(0, true);
+    assert_eq!(r.scan().alarm, Some(12));
+    assert_eq!(r.scan().alarm, None, "held: one report per edge");
+}
+
+#[test]
+fn a_second_alm_edge_in_the_same_scan_is_reported_in_the_next() {
+    let lines = vec![
+        l(M::Ld, X::D(0)),
+        k(M::Alm, 0, 12),
+        k(M::Alm, 1, 13),
+        l(M::Ld, X::D(1)),
+        k(M::Alm, 2, 14),
+    ];
+    let mut r = Rig::new(&lines);
+    r.scan();
+    r.d(0, true);
+    assert_eq!(r.scan().alarm, Some(12));
+    assert_eq!(r.scan().alarm, Some(13), "its edge was kept");
+    assert_eq!(r.scan().alarm, None);
+    // An edge that is gone by the next scan is not reported.
+    r.d(0, false);
+    r.scan();
+    r.d(0, true);
+    r.d(1, true);
+    assert_eq!(r.scan().alarm, Some(12));
+    r.d(0, false);
+    r.d(1, false);
+    assert_eq!(r.scan().alarm, None);
+}
+
+#[test]
 fn start_clears_memory_and_timers() {
     let lines = vec![
         l(M::Ld, X::D(0)),

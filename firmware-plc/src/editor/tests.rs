@@ -108,6 +108,27 @@ fn drive_lines_offer_drive_mnemonics_only() {
     assert!(seen.contains(&"PWF".to_string()) && !seen.contains(&"LET".to_string()));
 }
 
+/// Every mnemonic of the instruction table can be entered from the keypad on a line of
+/// its section, and the line it makes verifies (a new table row is offered without any
+/// change to the editor).
+#[test]
+fn every_mnemonic_can_be_entered_on_its_section() {
+    for (section, line) in [(Section::Plc, "#150"), (Section::Drive, "#000")] {
+        let n: u16 = line[1..].parse().unwrap();
+        for (pos, m) in mnemonics_for(section).enumerate() {
+            let mut ed = Editor::new(20, 4);
+            let mut p = Program::default();
+            press(&mut ed, &mut p, false, line);
+            press(&mut ed, &mut p, false, "5");
+            press(&mut ed, &mut p, false, &"8".repeat(pos + 1));
+            press(&mut ed, &mut p, false, "5");
+            let i = p.lines[usize::from(n)].unwrap_or_else(|| panic!("{m:?} not entered"));
+            assert_eq!(i.mnemonic, m);
+            assert_eq!(verify_line(n, &i), Ok(()), "{i:?}");
+        }
+    }
+}
+
 #[test]
 fn fast_scrolling_and_next_used_line() {
     let mut ed = Editor::new(20, 4);

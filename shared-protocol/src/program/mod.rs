@@ -1,5 +1,6 @@
 //! The user program model (program.md sections 1-2, shared by both MCUs and the host).
 //!
+//! * mnemonic: the instruction table ([`Mnemonic`]: code, text, operands, constants).
 //! * model: lines, instructions, operands ([`Program`], [`Instruction`], [`Operand`]).
 //! * [`encode_line`]/[`decode_line`]: the 4-byte binary line (EEPROM image, link download).
 //! * [`verify()`]: what may run, and the valid choices the keypad editor offers
@@ -14,6 +15,7 @@
 mod asm;
 mod disasm;
 mod encode;
+mod mnemonic;
 mod model;
 mod operand;
 pub mod payload;
@@ -27,6 +29,7 @@ pub mod testing;
 pub use asm::*;
 pub use disasm::*;
 pub use encode::*;
+pub use mnemonic::*;
 pub use model::*;
 pub use operand::*;
 pub use verify::*;

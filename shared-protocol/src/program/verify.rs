@@ -31,97 +31,20 @@
 use core::ops::RangeInclusive;
 
 use super::model::{
-    DriveSection, Instruction, Mnemonic, Operand, Program, Section, CONSTANT_MAX, PLC_FIRST_LINE,
+    DriveSection, Instruction, Mnemonic, Operand, Program, Section, PLC_FIRST_LINE,
 };
 use super::operand::{OperandClass, OperandSet};
 use crate::safety::{SafetyFunction, SafetySetting, SafetySettings};
 
-use OperandClass as C;
-
-const PLC_BITS: OperandSet = OperandSet::of(&[C::D, C::O, C::B, C::Rdy, C::Flb, C::Sf, C::Sdc]);
-const PLC_LD: OperandSet = OperandSet::of(&[
-    C::D,
-    C::O,
-    C::B,
-    C::A,
-    C::K,
-    C::Q,
-    C::Com,
-    C::Vlt,
-    C::Amp,
-    C::Frq,
-    C::Udc,
-    C::Imx,
-    C::Flt,
-    C::Dir,
-    C::Rdy,
-    C::Flb,
-    C::Ihw,
-    C::Uhw,
-    C::Sf,
-    C::Sdc,
-    C::Sft,
-]);
-const SF_ONLY: OperandSet = OperandSet::of(&[C::Sf]);
-const PLC_WR: OperandSet = OperandSet::of(&[C::O, C::B, C::Q]);
-const B_ONLY: OperandSet = OperandSet::of(&[C::B]);
-const B_O: OperandSet = OperandSet::of(&[C::O, C::B]);
-const K_Q: OperandSet = OperandSet::of(&[C::K, C::Q]);
-const Q_ONLY: OperandSet = OperandSet::of(&[C::Q]);
-const K_ONLY: OperandSet = OperandSet::of(&[C::K]);
-const DRIVE_WR: OperandSet = OperandSet::of(&[C::Q, C::Pw1, C::Pw3, C::Pw5]);
+use super::mnemonic::PLC_BITS;
 
 /// The operand classes `m` accepts in `section`; `None` when the mnemonic does not exist
-/// in that section, [`OperandSet::NONE`] when it takes no operand.
+/// in that section, [`OperandSet::NONE`] when it takes no operand (the table in
+/// `mnemonic.rs`).
 pub fn operand_set(m: Mnemonic, section: Section) -> Option<OperandSet> {
-    use Mnemonic as M;
     match section {
-        Section::Plc => match m {
-            M::Ld => Some(PLC_LD),
-            M::Ldc => Some(PLC_BITS),
-            M::Wr | M::Wrc => Some(PLC_WR),
-            M::Not | M::And | M::Or | M::Xor | M::Anc | M::Orc | M::Lcd | M::Rev | M::Ack => {
-                Some(OperandSet::NONE)
-            }
-            M::Let => Some(B_ONLY),
-            M::Io | M::Set | M::Res => Some(B_O),
-            M::Eq
-            | M::Gt
-            | M::Lt
-            | M::Ton
-            | M::Tof
-            | M::Imp
-            | M::Add
-            | M::Sub
-            | M::Mul
-            | M::Div => Some(K_Q),
-            M::Ctu | M::Ctd => Some(Q_ONLY),
-            M::Sfr => Some(SF_ONLY),
-            _ => None,
-        },
-        Section::Drive => match m {
-            M::Ld | M::Pwf => Some(K_Q),
-            M::Wr => Some(DRIVE_WR),
-            M::Pr0 | M::Pr1 | M::Pr2 | M::Sn1 | M::Sn2 | M::Sn3 | M::CalcDu => {
-                Some(OperandSet::NONE)
-            }
-            M::Pi
-            | M::RsSet
-            | M::UcSet
-            | M::IzSet
-            | M::DuSet
-            | M::UMax
-            | M::UMin
-            | M::IMax
-            | M::IMaxHw
-            | M::UMaxHw
-            | M::Fmn
-            | M::Fjm
-            | M::Fmx
-            | M::Frv => Some(K_ONLY),
-            m if m.safety_setting().is_some() => Some(K_ONLY),
-            _ => None,
-        },
+        Section::Plc => m.plc_operands(),
+        Section::Drive => m.drive_operands(),
     }
 }
 
@@ -190,25 +113,10 @@ pub fn constant_range(
     section: Section,
     op: Option<Operand>,
 ) -> Option<RangeInclusive<u16>> {
-    use Mnemonic as M;
-    if !op.is_some_and(|o| o.is_k()) || !operand_set(m, section)?.contains(C::K) {
+    if !op.is_some_and(|o| o.is_k()) || !operand_set(m, section)?.contains(OperandClass::K) {
         return None;
     }
-    let min = match (section, m) {
-        (Section::Plc, M::Div) => 1,
-        (Section::Drive, M::Pwf) => 488,
-        (
-            Section::Drive,
-            M::Pi | M::UcSet | M::UMax | M::IMax | M::IMaxHw | M::UMaxHw | M::Fjm | M::Fmx,
-        ) => 1,
-        _ => 0,
-    };
-    let max = match (section, m) {
-        (Section::Drive, M::DuSet) => 1023,
-        (Section::Drive, M::IMaxHw) => I_MAX_HW_LIMIT,
-        (Section::Drive, M::UMaxHw) => U_MAX_HW_LIMIT,
-        _ => CONSTANT_MAX,
-    };
+    let (min, max) = m.constant_limits();
     Some(min..=max)
 }
 
@@ -232,13 +140,7 @@ pub struct StackUse {
 
 /// The stack use of a drive-section mnemonic (program.md 4.2).
 pub const fn drive_stack_use(m: Mnemonic) -> StackUse {
-    let (needs, pops, pushes) = match m {
-        Mnemonic::Ld => (0, 0, 1),
-        Mnemonic::Wr | Mnemonic::Sn2 | Mnemonic::Sn3 => (1, 0, 0),
-        Mnemonic::Sn1 => (3, 0, 0),
-        Mnemonic::Pi => (4, 4, 1),
-        _ => (0, 0, 0),
-    };
+    let (needs, pops, pushes) = m.stack_effect();
     StackUse {
         needs,
         pops,
@@ -844,13 +746,16 @@ mod tests {
         let not: std::vec::Vec<_> = operands_for(Mnemonic::Not, Section::Plc).collect();
         assert_eq!(not, std::vec![None]);
         assert_eq!(operands_for(Mnemonic::Pwf, Section::Plc).count(), 0);
-        assert_eq!(mnemonics_for(Section::Plc).count(), 30);
+        assert_eq!(mnemonics_for(Section::Plc).count(), 31);
         assert_eq!(mnemonics_for(Section::Drive).count(), 48);
         // The safety settings: drive section, K only, 0000-9999.
         for setting in crate::safety::SafetySetting::ALL {
             let m = Mnemonic::of_setting(setting);
             assert_eq!(m.safety_setting(), Some(setting));
-            assert_eq!(operand_set(m, Section::Drive), Some(K_ONLY));
+            assert_eq!(
+                operand_set(m, Section::Drive),
+                Some(OperandSet::of(&[OperandClass::K]))
+            );
             assert_eq!(operand_set(m, Section::Plc), None);
             assert_eq!(
                 constant_range(m, Section::Drive, Some(Operand::K(0))),

@@ -64,6 +64,23 @@ pub const EVENT_LOG_CLEARED: u8 = 240;
 /// Fault-log event: a program was written over the service port.
 pub const EVENT_PROGRAM_WRITTEN: u8 = 241;
 
+/// Fault-log codes 101-199: application faults 1-99, logged by the PLC program's `ALM`
+/// (program-format.md), between the drive's codes and the events.
+pub const APP_FAULT_BASE: u8 = 100;
+
+/// The fault-log code of application fault `n` (`ALM K00 00nn`, 1..=99).
+pub const fn app_fault_code(n: u8) -> u8 {
+    APP_FAULT_BASE.saturating_add(n)
+}
+
+/// The application fault (1..=99) a fault-log code holds, if it is one.
+pub const fn app_fault_of(code: u8) -> Option<u8> {
+    match code {
+        101..=199 => Some(code - APP_FAULT_BASE),
+        _ => None,
+    }
+}
+
 /// Whether a fault-log code is an event (240-254): listed, never counted as a trip nor
 /// shown as the newest fault.
 pub const fn is_event(code: u8) -> bool {
@@ -76,6 +93,7 @@ pub const fn log_name(code: u8) -> &'static str {
     match code {
         EVENT_LOG_CLEARED => "LOGCLR",
         EVENT_PROGRAM_WRITTEN => "PGMSVC",
+        101..=199 => "ALM",
         c => crate::link::fault_name(c),
     }
 }
@@ -90,6 +108,9 @@ impl core::fmt::Display for LogText {
         match self.0 {
             EVENT_LOG_CLEARED => f.write_str("fault log cleared"),
             EVENT_PROGRAM_WRITTEN => f.write_str("program written over the service port"),
+            c if app_fault_of(c).is_some() => {
+                write!(f, "application fault {}", c.saturating_sub(APP_FAULT_BASE))
+            }
             c if crate::link::fault_name(c).as_bytes() != b"?" && c != 0 => {
                 f.write_str(crate::link::fault_text(c))
             }

@@ -255,6 +255,13 @@ fn log_texts() {
     use std::string::ToString;
     assert_eq!(LogText(2).to_string(), "overcurrent (HW)");
     assert_eq!(LogText(240).to_string(), "fault log cleared");
+    assert_eq!(LogText(112).to_string(), "application fault 12");
+    assert_eq!(log_name(112), "ALM");
+    assert_eq!(app_fault_code(12), 112);
+    assert_eq!(app_fault_of(112), Some(12));
+    assert_eq!(app_fault_of(100), None);
+    assert_eq!(app_fault_of(200), None);
+    assert!(!is_event(app_fault_code(99)));
     assert_eq!(
         LogText(241).to_string(),
         "program written over the service port"

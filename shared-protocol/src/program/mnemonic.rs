@@ -1,0 +1,569 @@
+//! The instruction table: every mnemonic of both sections, in one place. Each row gives
+//! the mnemonic's binary code, its text, the operand classes it takes in the PLC section
+//! and in the drive section (`-`: not in that section), its `K` constant range (`-`:
+//! 0000-9999) and its use of the drive section's int stack (`-`: none). The
+//! [`Mnemonic`] enum, [`Mnemonic::ALL`] (the editor's order), the text, the verifier's
+//! operand sets and constant ranges and the drive's stack tracking are all generated from
+//! it, so an instruction is added by one row here plus its execution in the VM that runs
+//! it (whose `match` is exhaustive: the compiler names the VM that lacks it). The recipe
+//! is `docs/contributing/add-a-plc-instruction.md`.
+//!
+//! The codes are the binary encoding's mnemonic codes (`encode.rs`): never renumber them
+//! (stored EEPROM images and the link download depend on them); a new row takes a code no
+//! row has used. `tests/encoding_golden.rs` holds every instruction's bytes.
+
+use super::model::CONSTANT_MAX;
+use super::operand::{OperandClass as C, OperandSet};
+use super::verify::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
+use crate::safety::SafetySetting;
+
+/// The PLC's bit operands (`LDC`).
+pub(crate) const PLC_BITS: OperandSet =
+    OperandSet::of(&[C::D, C::O, C::B, C::Rdy, C::Flb, C::Sf, C::Sdc]);
+
+/// The operand sets the rows name. A row holds one of these names (one byte in flash per
+/// row and section), not the 4-byte set: the table stays as small as the `match`es it
+/// replaced.
+#[allow(non_camel_case_types, clippy::upper_case_acronyms)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum OperandSetName {
+    /// No operand.
+    NONE,
+    /// The PLC's bit operands (`LDC`).
+    PLC_BITS,
+    /// Everything the PLC's `LD` reads.
+    PLC_LD,
+    SF_ONLY,
+    PLC_WR,
+    B_ONLY,
+    B_O,
+    K_Q,
+    Q_ONLY,
+    K_ONLY,
+    /// The drive's `WR`: Q and the direct duties.
+    DRIVE_WR,
+}
+
+impl OperandSetName {
+    /// Every name, in discriminant order (a test checks it).
+    const ALL: [OperandSetName; 11] = [
+        OperandSetName::NONE,
+        OperandSetName::PLC_BITS,
+        OperandSetName::PLC_LD,
+        OperandSetName::SF_ONLY,
+        OperandSetName::PLC_WR,
+        OperandSetName::B_ONLY,
+        OperandSetName::B_O,
+        OperandSetName::K_Q,
+        OperandSetName::Q_ONLY,
+        OperandSetName::K_ONLY,
+        OperandSetName::DRIVE_WR,
+    ];
+
+    /// The operand classes of the set.
+    pub const fn set(self) -> OperandSet {
+        match self {
+            OperandSetName::NONE => OperandSet::NONE,
+            OperandSetName::PLC_BITS => PLC_BITS,
+            OperandSetName::PLC_LD => OperandSet::of(&[
+                C::D,
+                C::O,
+                C::B,
+                C::A,
+                C::K,
+                C::Q,
+                C::Com,
+                C::Vlt,
+                C::Amp,
+                C::Frq,
+                C::Udc,
+                C::Imx,
+                C::Flt,
+                C::Dir,
+                C::Rdy,
+                C::Flb,
+                C::Ihw,
+                C::Uhw,
+                C::Sf,
+                C::Sdc,
+                C::Sft,
+            ]),
+            OperandSetName::SF_ONLY => OperandSet::of(&[C::Sf]),
+            OperandSetName::PLC_WR => OperandSet::of(&[C::O, C::B, C::Q]),
+            OperandSetName::B_ONLY => OperandSet::of(&[C::B]),
+            OperandSetName::B_O => OperandSet::of(&[C::O, C::B]),
+            OperandSetName::K_Q => OperandSet::of(&[C::K, C::Q]),
+            OperandSetName::Q_ONLY => OperandSet::of(&[C::Q]),
+            OperandSetName::K_ONLY => OperandSet::of(&[C::K]),
+            OperandSetName::DRIVE_WR => OperandSet::of(&[C::Q, C::Pw1, C::Pw3, C::Pw5]),
+        }
+    }
+}
+
+/// The `K` constant ranges the rows name (`-` in a row: [`Constants::ANY`]).
+#[allow(non_camel_case_types, clippy::upper_case_acronyms)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Constants {
+    /// 0000-9999.
+    ANY,
+    /// 0001-9999 (a divisor, a limit, a trip level that 0 would make meaningless).
+    FROM_1,
+    /// `PWF`: 0488-9999 Hz (the source's minimum).
+    PWF,
+    /// `dU=`: 0000-1023.
+    DU,
+    /// `I>>`: 0001 up to the current sensors' full scale.
+    IHW,
+    /// `U>>`: 0001 up to the DC-link sensor's full scale.
+    UHW,
+    /// `ALM`: application faults 0001-0099.
+    ALM,
+}
+
+impl Constants {
+    /// Every name, in discriminant order (a test checks it).
+    const ALL: [Constants; 7] = [
+        Constants::ANY,
+        Constants::FROM_1,
+        Constants::PWF,
+        Constants::DU,
+        Constants::IHW,
+        Constants::UHW,
+        Constants::ALM,
+    ];
+
+    /// The smallest and largest constant.
+    pub const fn limits(self) -> (u16, u16) {
+        match self {
+            Constants::ANY => (0, CONSTANT_MAX),
+            Constants::FROM_1 => (1, CONSTANT_MAX),
+            Constants::PWF => (488, CONSTANT_MAX),
+            Constants::DU => (0, 1023),
+            Constants::IHW => (1, I_MAX_HW_LIMIT),
+            Constants::UHW => (1, U_MAX_HW_LIMIT),
+            Constants::ALM => (1, 99),
+        }
+    }
+}
+
+/// How a drive instruction uses the int stack (`-` in a row: [`StackEffect::NONE`]).
+#[allow(non_camel_case_types, clippy::upper_case_acronyms)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum StackEffect {
+    NONE,
+    /// `LD`: pushes one.
+    LOAD,
+    /// `WR`, `SN2`, `SN3`: read one.
+    USE1,
+    /// `SN1`: reads three.
+    USE3,
+    /// `PI`: pops four, pushes one.
+    PI,
+}
+
+impl StackEffect {
+    /// Every name, in discriminant order (a test checks it).
+    const ALL: [StackEffect; 5] = [
+        StackEffect::NONE,
+        StackEffect::LOAD,
+        StackEffect::USE1,
+        StackEffect::USE3,
+        StackEffect::PI,
+    ];
+
+    /// Values needed on the stack, popped, pushed.
+    pub const fn counts(self) -> (u8, u8, u8) {
+        match self {
+            StackEffect::NONE => (0, 0, 0),
+            StackEffect::LOAD => (0, 0, 1),
+            StackEffect::USE1 => (1, 0, 0),
+            StackEffect::USE3 => (3, 0, 0),
+            StackEffect::PI => (4, 4, 1),
+        }
+    }
+}
+
+/// `-` or an operand set's name.
+macro_rules! operands {
+    (-) => {
+        None
+    };
+    ($set:ident) => {
+        Some(OperandSetName::$set)
+    };
+}
+
+/// `-` or a name of [`Constants`] / [`StackEffect`].
+macro_rules! named {
+    ($ty:ident, -) => {
+        $ty::ANY_OR_NONE
+    };
+    ($ty:ident, $name:ident) => {
+        $ty::$name
+    };
+}
+
+macro_rules! mnemonic_table {
+    ($(
+        $(#[$doc:meta])*
+        $v:ident = $code:literal, $text:literal
+            plc $plc:tt drive $drive:tt k $k:tt stack $stack:tt;
+    )*) => {
+        /// Every mnemonic of both sections. `Ld` and `Wr` exist in both with different
+        /// meanings. The discriminants are the binary encoding's mnemonic codes.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        #[repr(u8)]
+        pub enum Mnemonic {
+            $( $(#[$doc])* $v = $code, )*
+        }
+
+        impl Mnemonic {
+            /// All mnemonics, in the order the editor offers them (the table's).
+            pub const ALL: [Mnemonic; [$($code),*].len()] = [$(Mnemonic::$v),*];
+
+            /// The text form, exactly as program.md writes it (canonical case). Out of
+            /// line: the PLC image had two copies of its table when it was inlined.
+            #[inline(never)]
+            pub const fn text(self) -> &'static str {
+                match self {
+                    $(Mnemonic::$v => $text,)*
+                }
+            }
+
+            /// The row's names packed in 16 bits (PLC operand set + 1, drive operand
+            /// set + 1, 0 for none, 4 bits each; constant range; stack use): one
+            /// two-byte table in flash for the whole table, out of line so that the
+            /// fields' decoders do not turn it back into one table per field.
+            #[inline(never)]
+            const fn row(self) -> u16 {
+                match self {
+                    $(Mnemonic::$v => pack(
+                        operands!($plc),
+                        operands!($drive),
+                        named!(Constants, $k),
+                        named!(StackEffect, $stack),
+                    ),)*
+                }
+            }
+        }
+    };
+}
+
+impl Constants {
+    const ANY_OR_NONE: Constants = Constants::ANY;
+}
+
+impl StackEffect {
+    const ANY_OR_NONE: StackEffect = StackEffect::NONE;
+}
+
+mnemonic_table! {
+    // Variant = code, text, PLC operands, drive operands, K range, drive stack use
+    // (needs, pops, pushes); rows in the editor's order.
+    Ld      =  1, "LD"   plc PLC_LD    drive K_Q       k -       stack LOAD;
+    Ldc     =  3, "LDC"  plc PLC_BITS  drive -         k -       stack -;
+    Wr      =  2, "WR"   plc PLC_WR    drive DRIVE_WR  k -       stack USE1;
+    Wrc     =  4, "WRC"  plc PLC_WR    drive -         k -       stack -;
+    Not     =  5, "NOT"  plc NONE      drive -         k -       stack -;
+    And     =  6, "AND"  plc NONE      drive -         k -       stack -;
+    Or      =  7, "OR"   plc NONE      drive -         k -       stack -;
+    Xor     =  8, "XOR"  plc NONE      drive -         k -       stack -;
+    Anc     =  9, "ANC"  plc NONE      drive -         k -       stack -;
+    Orc     = 10, "ORC"  plc NONE      drive -         k -       stack -;
+    Let     = 11, "LET"  plc B_ONLY    drive -         k -       stack -;
+    /// `I/O`, the T flip-flop.
+    Io      = 12, "I/O"  plc B_O       drive -         k -       stack -;
+    Set     = 13, "SET"  plc B_O       drive -         k -       stack -;
+    Res     = 14, "RES"  plc B_O       drive -         k -       stack -;
+    Eq      = 15, "EQ"   plc K_Q       drive -         k -       stack -;
+    Gt      = 16, "GT"   plc K_Q       drive -         k -       stack -;
+    Lt      = 17, "LT"   plc K_Q       drive -         k -       stack -;
+    Ctu     = 18, "CTU"  plc Q_ONLY    drive -         k -       stack -;
+    Ctd     = 19, "CTD"  plc Q_ONLY    drive -         k -       stack -;
+    Ton     = 20, "TON"  plc K_Q       drive -         k -       stack -;
+    Tof     = 21, "TOF"  plc K_Q       drive -         k -       stack -;
+    Imp     = 22, "IMP"  plc K_Q       drive -         k -       stack -;
+    Add     = 23, "ADD"  plc K_Q       drive -         k -       stack -;
+    Sub     = 24, "SUB"  plc K_Q       drive -         k -       stack -;
+    Mul     = 25, "MUL"  plc K_Q       drive -         k -       stack -;
+    Div     = 26, "DIV"  plc K_Q       drive -         k FROM_1  stack -;
+    Lcd     = 27, "LCD"  plc NONE      drive -         k -       stack -;
+    Rev     = 28, "REV"  plc NONE      drive -         k -       stack -;
+    Ack     = 29, "ACK"  plc NONE      drive -         k -       stack -;
+    /// `ALM K`: on a rising edge of S0, log application fault K (program-format.md).
+    Alm     = 31, "ALM"  plc K_ONLY    drive -         k ALM     stack -;
+    /// `SFR x`: safety function x's control bit = S0 (0 = requested, safety.md 5).
+    Sfr     = 30, "SFR"  plc SF_ONLY   drive -         k -       stack -;
+    Pwf     = 40, "PWF"  plc -         drive K_Q       k PWF     stack -;
+    Pr0     = 41, "PR0"  plc -         drive NONE      k -       stack -;
+    Pr1     = 42, "PR1"  plc -         drive NONE      k -       stack -;
+    Pr2     = 43, "PR2"  plc -         drive NONE      k -       stack -;
+    Pi      = 44, "PI"   plc -         drive K_ONLY    k FROM_1  stack PI;
+    Sn1     = 45, "SN1"  plc -         drive NONE      k -       stack USE3;
+    Sn2     = 46, "SN2"  plc -         drive NONE      k -       stack USE1;
+    Sn3     = 47, "SN3"  plc -         drive NONE      k -       stack USE1;
+    RsSet   = 48, "Rs="  plc -         drive K_ONLY    k -       stack -;
+    UcSet   = 49, "Uc="  plc -         drive K_ONLY    k FROM_1  stack -;
+    IzSet   = 50, "Iz="  plc -         drive K_ONLY    k -       stack -;
+    CalcDu  = 51, "=dU"  plc -         drive NONE      k -       stack -;
+    DuSet   = 52, "dU="  plc -         drive K_ONLY    k DU      stack -;
+    UMax    = 53, "U>"   plc -         drive K_ONLY    k FROM_1  stack -;
+    UMin    = 54, "U<"   plc -         drive K_ONLY    k -       stack -;
+    IMax    = 55, "I>"   plc -         drive K_ONLY    k FROM_1  stack -;
+    /// `I>>`: hardware overcurrent threshold (the source's current trimmers), 0.01 A.
+    IMaxHw  = 60, "I>>"  plc -         drive K_ONLY    k IHW     stack -;
+    /// `U>>`: hardware overvoltage threshold (the source's DC-link trimmer), V.
+    UMaxHw  = 61, "U>>"  plc -         drive K_ONLY    k UHW     stack -;
+    Fmn     = 56, "fmn"  plc -         drive K_ONLY    k -       stack -;
+    Fjm     = 57, "fjm"  plc -         drive K_ONLY    k FROM_1  stack -;
+    Fmx     = 58, "fmx"  plc -         drive K_ONLY    k FROM_1  stack -;
+    Frv     = 59, "frv"  plc -         drive K_ONLY    k -       stack -;
+    /// The safety settings (safety.md 4), in signature order: see
+    /// [`crate::safety::SafetySetting`] for each one's meaning and unit.
+    Fss     = 62, "fss"  plc -         drive K_ONLY    k -       stack -;
+    Pss     = 63, "pss"  plc -         drive K_ONLY    k -       stack -;
+    Trd     = 64, "trd"  plc -         drive K_ONLY    k -       stack -;
+    Ard     = 65, "ard"  plc -         drive K_ONLY    k -       stack -;
+    Tel     = 66, "tel"  plc -         drive K_ONLY    k -       stack -;
+    Ts1     = 67, "ts1"  plc -         drive K_ONLY    k -       stack -;
+    Ts2     = 68, "ts2"  plc -         drive K_ONLY    k -       stack -;
+    Fl1     = 69, "fl1"  plc -         drive K_ONLY    k -       stack -;
+    Fl2     = 70, "fl2"  plc -         drive K_ONLY    k -       stack -;
+    Fl3     = 71, "fl3"  plc -         drive K_ONLY    k -       stack -;
+    Fl4     = 72, "fl4"  plc -         drive K_ONLY    k -       stack -;
+    Tl1     = 73, "tl1"  plc -         drive K_ONLY    k -       stack -;
+    Tl2     = 74, "tl2"  plc -         drive K_ONLY    k -       stack -;
+    Tl3     = 75, "tl3"  plc -         drive K_ONLY    k -       stack -;
+    Tl4     = 76, "tl4"  plc -         drive K_ONLY    k -       stack -;
+    Pli     = 77, "pli"  plc -         drive K_ONLY    k -       stack -;
+    Tli     = 78, "tli"  plc -         drive K_ONLY    k -       stack -;
+    Tdi     = 79, "tdi"  plc -         drive K_ONLY    k -       stack -;
+    Aap     = 80, "aap"  plc -         drive K_ONLY    k -       stack -;
+    Adp     = 81, "adp"  plc -         drive K_ONLY    k -       stack -;
+    Aan     = 82, "aan"  plc -         drive K_ONLY    k -       stack -;
+    Adn     = 83, "adn"  plc -         drive K_ONLY    k -       stack -;
+    Tla     = 84, "tla"  plc -         drive K_ONLY    k -       stack -;
+    Asr     = 85, "asr"  plc -         drive K_ONLY    k -       stack -;
+}
+
+/// A row's names in 16 bits (see `Mnemonic::row`).
+const fn pack(
+    plc: Option<OperandSetName>,
+    drive: Option<OperandSetName>,
+    k: Constants,
+    stack: StackEffect,
+) -> u16 {
+    set_field(plc) | set_field(drive) << 4 | (k as u16) << 8 | (stack as u16) << 12
+}
+
+const fn set_field(o: Option<OperandSetName>) -> u16 {
+    match o {
+        Some(o) => o as u16 + 1,
+        None => 0,
+    }
+}
+
+/// The operand set of a packed 4-bit field (0: not in the section).
+const fn unpack_set(field: u16) -> Option<OperandSet> {
+    match (field & 0xF).checked_sub(1) {
+        Some(i) if (i as usize) < OperandSetName::ALL.len() => {
+            Some(OperandSetName::ALL[i as usize].set())
+        }
+        _ => None,
+    }
+}
+
+impl Mnemonic {
+    /// The operand classes this mnemonic takes in the PLC section; `None` when it is not
+    /// a PLC instruction.
+    #[inline(never)]
+    pub const fn plc_operands(self) -> Option<OperandSet> {
+        unpack_set(self.row())
+    }
+
+    /// The operand classes this mnemonic takes in the drive section; `None` when it is
+    /// not a drive instruction.
+    #[inline(never)]
+    pub const fn drive_operands(self) -> Option<OperandSet> {
+        unpack_set(self.row() >> 4)
+    }
+
+    /// The smallest and largest constant a `K` operand of this mnemonic accepts.
+    #[inline(never)]
+    pub const fn constant_limits(self) -> (u16, u16) {
+        let i = ((self.row() >> 8) & 0xF) as usize;
+        if i < Constants::ALL.len() {
+            Constants::ALL[i].limits()
+        } else {
+            Constants::ANY.limits()
+        }
+    }
+
+    /// Drive section: values it needs on the int stack, pops, pushes.
+    #[inline(never)]
+    pub const fn stack_effect(self) -> (u8, u8, u8) {
+        let i = (self.row() >> 12) as usize;
+        if i < StackEffect::ALL.len() {
+            StackEffect::ALL[i].counts()
+        } else {
+            StackEffect::NONE.counts()
+        }
+    }
+
+    /// The binary encoding's code of this mnemonic (its `repr(u8)` discriminant).
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The mnemonic with this binary code, `None` for an unused code (0 means an empty
+    /// line in stored images, 255 is erased EEPROM).
+    pub fn from_code(code: u8) -> Option<Mnemonic> {
+        Mnemonic::ALL.iter().copied().find(|m| m.code() == code)
+    }
+
+    /// The safety setting this mnemonic sets (drive section, safety.md 4). The settings'
+    /// codes are consecutive in signature order (62 `fss` .. 85 `asr`): one table lookup,
+    /// which keeps the drive's verifier small.
+    pub fn safety_setting(self) -> Option<SafetySetting> {
+        let i = self.code().checked_sub(Mnemonic::Fss.code())?;
+        SafetySetting::ALL.get(usize::from(i)).copied()
+    }
+
+    /// The mnemonic of a safety setting.
+    pub const fn of_setting(s: SafetySetting) -> Mnemonic {
+        match s {
+            SafetySetting::Fss => Mnemonic::Fss,
+            SafetySetting::Pss => Mnemonic::Pss,
+            SafetySetting::Trd => Mnemonic::Trd,
+            SafetySetting::Ard => Mnemonic::Ard,
+            SafetySetting::Tel => Mnemonic::Tel,
+            SafetySetting::Ts1 => Mnemonic::Ts1,
+            SafetySetting::Ts2 => Mnemonic::Ts2,
+            SafetySetting::Fl1 => Mnemonic::Fl1,
+            SafetySetting::Fl2 => Mnemonic::Fl2,
+            SafetySetting::Fl3 => Mnemonic::Fl3,
+            SafetySetting::Fl4 => Mnemonic::Fl4,
+            SafetySetting::Tl1 => Mnemonic::Tl1,
+            SafetySetting::Tl2 => Mnemonic::Tl2,
+            SafetySetting::Tl3 => Mnemonic::Tl3,
+            SafetySetting::Tl4 => Mnemonic::Tl4,
+            SafetySetting::Pli => Mnemonic::Pli,
+            SafetySetting::Tli => Mnemonic::Tli,
+            SafetySetting::Tdi => Mnemonic::Tdi,
+            SafetySetting::Aap => Mnemonic::Aap,
+            SafetySetting::Adp => Mnemonic::Adp,
+            SafetySetting::Aan => Mnemonic::Aan,
+            SafetySetting::Adn => Mnemonic::Adn,
+            SafetySetting::Tla => Mnemonic::Tla,
+            SafetySetting::Asr => Mnemonic::Asr,
+        }
+    }
+}
+
+/// Walks the table: each row is a whole instruction for every part that reads programs.
+#[cfg(test)]
+mod tests {
+    use super::super::{
+        assemble, constant_range, decode_line, encode_line, line_string, operands_for, verify_line,
+        Instruction, Section, PLC_FIRST_LINE,
+    };
+    use super::*;
+
+    /// Codes are unique, not 0 (empty line) nor 255 (erased EEPROM); texts are unique in
+    /// any case (the assembler is case-insensitive) and fit the editor's 4-column field.
+    #[test]
+    fn codes_and_texts_are_unique() {
+        for (n, a) in Mnemonic::ALL.iter().enumerate() {
+            assert!(a.code() != 0 && a.code() != 255, "{a:?}");
+            assert_eq!(Mnemonic::from_code(a.code()), Some(*a));
+            assert!(a.text().len() <= 3, "{a:?}: LCD field");
+            for b in Mnemonic::ALL.iter().skip(n + 1) {
+                assert_ne!(a.code(), b.code(), "{a:?} {b:?}");
+                assert!(!a.text().eq_ignore_ascii_case(b.text()), "{a:?} {b:?}");
+            }
+        }
+    }
+
+    /// Every mnemonic belongs to a section, and in each of its sections its first and
+    /// last operand with the smallest and largest constant verify, encode and decode back,
+    /// and disassemble to text that assembles back to the same line.
+    #[test]
+    fn every_row_verifies_encodes_and_round_trips_through_text() {
+        for m in Mnemonic::ALL {
+            assert!(
+                m.plc_operands().is_some() || m.drive_operands().is_some(),
+                "{m:?} is in no section"
+            );
+            for (section, line) in [(Section::Plc, PLC_FIRST_LINE), (Section::Drive, 0)] {
+                let ops: std::vec::Vec<_> = operands_for(m, section).collect();
+                let (Some(first), Some(last)) = (ops.first(), ops.last()) else {
+                    continue;
+                };
+                for op in [*first, *last] {
+                    let range = constant_range(m, section, op);
+                    let constants = range.map_or([0, 0], |r| [*r.start(), *r.end()]);
+                    for constant in constants {
+                        let i = Instruction {
+                            mnemonic: m,
+                            operand: op,
+                            constant,
+                        };
+                        assert_eq!(verify_line(line, &i), Ok(()), "{i:?}");
+                        assert_eq!(decode_line(&encode_line(&i)), Ok(i));
+                        let text = line_string(line, &i);
+                        let p = assemble(&text).unwrap_or_else(|e| panic!("{text}: {e:?}"));
+                        assert_eq!(p.get(line), Some(&i), "{text}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The format doc (`docs/program-format.md`, operand table and decisions) names every
+    /// mnemonic: a row added here without its documentation fails.
+    #[test]
+    fn every_mnemonic_is_in_the_program_format_doc() {
+        let doc = include_str!("../../docs/program-format.md");
+        for m in Mnemonic::ALL {
+            let quoted = std::format!("`{}`", m.text());
+            assert!(
+                doc.contains(&quoted),
+                "{quoted} missing in docs/program-format.md"
+            );
+        }
+    }
+
+    /// The packed row decodes every name (the `ALL` lists are in discriminant order).
+    #[test]
+    fn name_lists_are_in_discriminant_order() {
+        for (i, n) in OperandSetName::ALL.iter().enumerate() {
+            assert_eq!(*n as usize, i);
+            assert_eq!(unpack_set(set_field(Some(*n))), Some(n.set()));
+        }
+        for (i, n) in Constants::ALL.iter().enumerate() {
+            assert_eq!(*n as usize, i);
+        }
+        for (i, n) in StackEffect::ALL.iter().enumerate() {
+            assert_eq!(*n as usize, i);
+        }
+        assert_eq!(Mnemonic::Div.constant_limits(), (1, 9999));
+        assert_eq!(Mnemonic::Pi.stack_effect(), (4, 4, 1));
+        assert_eq!(Mnemonic::Pwf.plc_operands(), None);
+    }
+
+    /// The drive's stack use is declared only for drive instructions.
+    #[test]
+    fn stack_use_only_in_the_drive_section() {
+        for m in Mnemonic::ALL {
+            if m.drive_operands().is_none() {
+                assert_eq!(m.stack_effect(), (0, 0, 0), "{m:?}");
+            }
+            let (needs, pops, _) = m.stack_effect();
+            assert!(pops <= needs, "{m:?}");
+        }
+    }
+}
