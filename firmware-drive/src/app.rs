@@ -6,14 +6,13 @@
 //! | UART bytes received (DMA/idle-line interrupt) | [`DriveApp::on_rx`] |
 //! | UART transmitter free, and at least every 1 ms | [`DriveApp::poll_tx`] |
 //! | every 1 ms | [`DriveApp::tick_1ms`] (or each of [`TickStep::ALL`] with [`DriveApp::tick_step`]) |
-//! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`], then [`PeriodAction::apply`] |
-//! | TIM1 break interrupt | [`DriveApp::break_fired`] |
-//! | TIM1 break interrupt, `STO_IN` / system break | [`DriveApp::sto_break`] / [`DriveApp::system_break`] |
-//! | every 1 ms, before `tick_1ms` | [`DriveApp::set_sto_input`], then [`DriveApp::break_poll`] |
+//! | every PWM period (TIM1 update) | [`DriveApp::pwm_interrupt`] ([`DriveApp::pwm_period`], then [`PeriodAction::apply`]) |
+//! | TIM1 break interrupt | [`DriveApp::break_interrupt`] ([`DriveApp::break_fired`], [`DriveApp::sto_break`], [`DriveApp::system_break`]) |
+//! | every 1 ms | [`DriveApp::control_tick`] ([`DriveApp::set_sto_input`], [`DriveApp::break_poll`], [`TickStep::ALL`], the DACs) |
 //!
-//! The board passes what the registers say (ADC counts, comparator levels) and performs
-//! what comes back over its [`PowerPort`](crate::power_port::PowerPort); hil-sim does the
-//! same over its plant, so both run the same decisions.
+//! The interrupt and task bodies are core functions over ports (`crate::bodies`): the
+//! board implements the ports with registers, hil-sim with its plant, so both run the
+//! same sequence and the same decisions.
 //!
 //! What it adds to the two parts:
 //! * Commands from the PLC are applied to the core as soon as their frame is received
@@ -42,6 +41,7 @@ use shared_protocol::link::{
 };
 use shared_protocol::units::Micros;
 
+use crate::comparators::DacValues;
 use crate::config::{DriveConfig, ResetCause};
 use crate::drive::{
     CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, LoadStep, PwmCommand,
@@ -49,7 +49,7 @@ use crate::drive::{
 };
 use crate::measure::AdcSample;
 use crate::power_port::{BreakMonitor, BreakReport, ComparatorLevels, PeriodAction};
-use crate::protection::{FaultCode, HwBreak};
+use crate::protection::FaultCode;
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
 use crate::vm::VmWarning;
@@ -130,6 +130,9 @@ pub struct DriveApp {
     breaks: BreakMonitor,
     /// Where the load of a section the link accepted stands (one step per `poll_tx`).
     load: Load,
+    /// The threshold DAC values last handed to the board ([`DriveApp::boot_dacs`],
+    /// [`DriveApp::dacs_to_write`]).
+    dacs_written: Option<DacValues>,
 }
 
 impl DriveApp {
@@ -147,6 +150,7 @@ impl DriveApp {
             events: heapless::Deque::new(),
             breaks: BreakMonitor::default(),
             load: Load::Idle,
+            dacs_written: None,
         }
     }
 
@@ -185,6 +189,26 @@ impl DriveApp {
 
     pub fn link_state(&self) -> DriveLinkState {
         self.link.state()
+    }
+
+    /// The threshold DAC values the board writes at start-up, once the comparators are
+    /// trimmed ([`DriveCore::comparator_dacs`]); later changes come from
+    /// [`DriveApp::control_tick`](crate::bodies).
+    pub fn boot_dacs(&mut self) -> DacValues {
+        let v = self.core.comparator_dacs();
+        self.dacs_written = Some(v);
+        v
+    }
+
+    /// The core's threshold DAC values if they differ from those last handed out (a
+    /// download changed `I>>`/`U>>`), now counted as written.
+    pub fn dacs_to_write(&mut self) -> Option<DacValues> {
+        let v = self.core.comparator_dacs();
+        if self.dacs_written == Some(v) {
+            return None;
+        }
+        self.dacs_written = Some(v);
+        Some(v)
     }
 
     /// The core's full status (more than the link's status frame carries).
@@ -358,10 +382,8 @@ impl DriveApp {
     #[must_use = "the report says whether to re-arm the break input"]
     pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
         let report = self.breaks.fired(self.core.config().board, levels);
-        for (cause, fired) in HwBreak::ALL.into_iter().zip(report.fired) {
-            if fired {
-                self.core.hardware_break(cause);
-            }
+        for cause in report.fired.iter() {
+            self.core.hardware_break(cause);
         }
         report
     }
@@ -372,10 +394,8 @@ impl DriveApp {
     #[must_use = "the report says whether to re-arm the break input"]
     pub fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
         let report = self.breaks.poll(self.core.config().board, levels);
-        for (cause, released) in HwBreak::ALL.into_iter().zip(report.released) {
-            if released {
-                self.core.hardware_break_released(cause);
-            }
+        for cause in report.released.iter() {
+            self.core.hardware_break_released(cause);
         }
         report
     }

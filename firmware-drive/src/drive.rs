@@ -920,7 +920,12 @@ impl DriveCore {
 
     fn finish_boot(&mut self) {
         let table_ok = crate::sine::table_ok();
-        let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2;
+        // The dead-time floor: DTG does not depend on PSC/ARR, so a timing that passes here
+        // keeps passing at every later `PWF`/`PRx`.
+        let min_dead =
+            crate::timing::min_dead_time_counts(self.cfg.timer_clock_hz, self.cfg.min_dead_time_ns);
+        let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2
+            && self.timing.dead_time_meets(min_dead);
         let offsets_ok = match self.zero_cal.result() {
             Ok(Some(zero)) => {
                 self.front_end.calibrate(zero);

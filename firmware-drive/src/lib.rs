@@ -15,6 +15,7 @@
 // Drive core modules (issue 4). Units, scaling and every decision: `docs/drive-core.md`.
 pub mod app;
 pub mod blanking;
+pub mod bodies;
 pub mod comparator_trim;
 pub mod comparators;
 pub mod config;
