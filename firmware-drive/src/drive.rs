@@ -25,6 +25,7 @@ use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, 
 use crate::measure::{FrontEnd, ZeroCalibration};
 use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::overvoltage::{OvController, CAP_BELOW_OV_HW_VOLTS};
+use crate::power_port::Causes;
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
 use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
@@ -235,7 +236,7 @@ pub struct DriveCore {
     brake: bool,
     last: AdcSample,
     peak: PeakTracker,
-    hw_break_active: [bool; 2],
+    hw_break_active: Causes,
     /// The board's analog front end, calibrated at the end of BOOT.
     front_end: FrontEnd,
     zero_cal: ZeroCalibration,
@@ -321,7 +322,7 @@ impl DriveCore {
             brake: false,
             last: AdcSample::default(),
             peak: PeakTracker::default(),
-            hw_break_active: [false; 2],
+            hw_break_active: Causes::NONE,
             front_end,
             zero_cal: ZeroCalibration::default(),
             events: Deque::new(),
@@ -548,17 +549,19 @@ impl DriveCore {
     /// The TIM1 break input fired (the hardware has already opened all switches). The
     /// cause counts as present until [`DriveCore::hardware_break_released`].
     pub fn hardware_break(&mut self, cause: HwBreak) {
-        if let Some(a) = self.hw_break_active.get_mut(cause.index()) {
-            *a = true;
-        }
+        self.hw_break_active.set(cause, true);
         self.trip(cause.fault());
+    }
+
+    /// The hardware break causes latched and not yet released (their comparators still
+    /// high at the last control tick).
+    pub fn hw_break_active(&self) -> Causes {
+        self.hw_break_active
     }
 
     /// The comparator behind the break input is back below its threshold.
     pub fn hardware_break_released(&mut self, cause: HwBreak) {
-        if let Some(a) = self.hw_break_active.get_mut(cause.index()) {
-            *a = false;
-        }
+        self.hw_break_active.set(cause, false);
     }
 
     // One copy, not inlined at each caller: the drive image's 64 KiB budget.
@@ -915,7 +918,7 @@ impl DriveCore {
     }
 
     fn hw_active(&self, c: HwBreak) -> bool {
-        self.hw_break_active.get(c.index()).copied().unwrap_or(true)
+        self.hw_break_active.get(c)
     }
 
     fn finish_boot(&mut self) {
