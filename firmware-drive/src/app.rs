@@ -22,7 +22,7 @@
 //!   frequency command falls and a later ACK is possible. Nothing restarts by itself:
 //!   after the reconnection the PLC must ACK and send RUN again.
 //! * A download is checked by the link (CRC, decode, `verify_drive`, one step per
-//!   `poll_tx` so that no call holds the PWM interrupt off for long: review D13) and then
+//!   `poll_tx` so that no call holds the PWM interrupt off for long) and then
 //!   handed, as a `VerifiedDriveSection`, to the core in four `poll_tx` calls of their
 //!   own ([`DriveCore::load_begin`], then [`DriveCore::load_step`] three times: the whole load is
 //!   ~6 900 instructions, more than a PWM period at 20 kHz in one critical section, review
@@ -30,7 +30,7 @@
 //!   the PLC finds the new section loaded. A reject trips `PROG`.
 //! * The 1 ms tick is four steps ([`TickStep`]), each one call on the board (one critical
 //!   section): link supervision, the drive section's pass, the rest of the core's
-//!   millisecond, the reports (review N8).
+//!   millisecond, the reports.
 //! * Every fault the core latches is reported to the PLC (reliably, with the drive's
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
@@ -44,7 +44,7 @@ use shared_protocol::units::Micros;
 use crate::comparators::DacValues;
 use crate::config::{DriveConfig, ResetCause};
 use crate::drive::{
-    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, LoadStep, PwmCommand,
+    CommandError, CoreStatus, DriveCommand, DriveCore, DriveEvent, LoadStep, PwmCommand,
     EVENT_QUEUE,
 };
 use crate::measure::AdcSample;
@@ -85,7 +85,7 @@ const APP_EVENTS: usize = 32;
 /// Most events one [`DriveCore::tick_1ms`] delivers.
 const TICK_EVENTS: usize = EVENT_QUEUE + 1;
 
-/// The load of an accepted section, one step per [`DriveApp::poll_tx`] (review N8).
+/// The load of an accepted section, one step per [`DriveApp::poll_tx`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Load {
     Idle,
@@ -212,7 +212,7 @@ impl DriveApp {
     }
 
     /// The core's full status (more than the link's status frame carries).
-    pub fn status(&self) -> DriveStatus {
+    pub fn status(&self) -> CoreStatus {
         self.core.status()
     }
 
@@ -273,7 +273,7 @@ impl DriveApp {
 
     /// One step of the 1 ms tick ([`DriveApp::tick_1ms`] runs them all, in the order of
     /// [`TickStep::ALL`]). The board runs each in a critical section of its own, so that
-    /// the PWM interrupt waits for one step at most (review N8).
+    /// the PWM interrupt waits for one step at most.
     pub fn tick_step(&mut self, step: TickStep, now: Micros) {
         match step {
             TickStep::Link => {
@@ -369,7 +369,7 @@ impl DriveApp {
         self.core.sto_break();
     }
 
-    /// The TIM1 break interrupt found the system break's flag (review N4), as
+    /// The TIM1 break interrupt found the system break's flag, as
     /// [`DriveApp::sto_break`]: the core latches `BOOT` ([`DriveCore::system_break`]).
     pub fn system_break(&mut self) {
         self.breaks.other_fired();
@@ -403,7 +403,7 @@ impl DriveApp {
     fn command(&mut self, command: DriveCommand) {
         if let Err(error) = self.core.command(command) {
             self.push(AppEvent::Refused { command, error });
-            // The PLC shows why an ACK was refused (issue 20): the fault stays latched
+            // The PLC shows why an ACK was refused: the fault stays latched
             // and the user must know what to change.
             let why = match error {
                 CommandError::CauseActive(f) => Some(AckRefusal::CauseActive(f)),
@@ -489,7 +489,7 @@ impl DriveApp {
 }
 
 /// The link's status frame from the core's status.
-pub fn wire_status(s: &DriveStatus) -> WireStatus {
+pub fn wire_status(s: &CoreStatus) -> WireStatus {
     WireStatus {
         state: s.state,
         fault: s.fault,

@@ -142,10 +142,11 @@ impl PwmCommand {
     }
 }
 
-/// Snapshot for the link's status frame and the PLC's extension operands.
+/// The core's full status: the link's `DriveStatus` frame (`app::wire_status`) and the PLC's
+/// extension operands carry part of it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub struct DriveStatus {
+pub struct CoreStatus {
     pub state: DriveState,
     pub fault: Option<FaultCode>,
     /// `FRQ`: frequency being generated (0 while the outputs are off).
@@ -186,7 +187,7 @@ pub struct DriveStatus {
     pub sto_in_low: bool,
 }
 
-impl DriveStatus {
+impl CoreStatus {
     /// `RDY`: no fault, program running.
     pub fn ready(&self) -> bool {
         self.state == DriveState::Run && self.fault.is_none()
@@ -801,14 +802,14 @@ impl DriveCore {
         }
     }
 
-    pub fn status(&self) -> DriveStatus {
+    pub fn status(&self) -> CoreStatus {
         let on = self.state == DriveState::Run && self.outputs_on && self.sine_on;
         let m = if on {
             (self.modulator.params().m_q16 * 1000 + 0x8000) >> 16
         } else {
             0
         };
-        DriveStatus {
+        CoreStatus {
             state: self.state,
             fault: self.fault,
             f_applied: Decihertz(if on { self.f_out } else { 0 }),

@@ -111,7 +111,7 @@ impl PwmTiming {
 /// d < 2^36, so shifting it by 28 bits stays within 64). A 128-bit division is a software
 /// loop of thousands of Cortex-M4 instructions and, expanded inline, 666 B of flash; this
 /// runs in the 1 ms tick whenever `PWF` changes, inside the critical section the PWM
-/// interrupt waits for (review D13).
+/// interrupt waits for.
 fn shl64_div(n: u64, d: u64) -> u128 {
     let d = d.clamp(1, SHL64_DIV_MAX);
     let (q, r) = (n / d, n % d);

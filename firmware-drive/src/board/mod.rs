@@ -73,7 +73,7 @@ pub async fn start(spawner: Spawner) {
     ANALOG.init(analog::init(board.analog, &cfg.board.front_end));
     PWM.init(power_stage::init(board.power, timing));
     // PB5 is the chopper's gate only on a board that has one; on the ESC1 it is
-    // `GPIO_BEMF` and stays as reset leaves it (review N7).
+    // `GPIO_BEMF` and stays as reset leaves it.
     let brake = cfg
         .board
         .brake_chopper

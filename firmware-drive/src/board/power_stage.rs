@@ -76,11 +76,11 @@ pub fn init(p: PowerStage, timing: PwmTiming) -> Tim1Pwm {
     // clear is a read-modify-write).
     let t = pac::TIM1;
     t.bdtr().modify(|w| w.set_moe(false));
-    // Review D1: a halted core (breakpoint, probe-rs halt) stops TIM1's counter, and a
+    // A halted core (breakpoint, probe-rs halt) stops TIM1's counter, and a
     // stopped advanced timer disables its outputs as if MOE were cleared (RM0440 "Debug
     // mode"): no frozen duty cycle keeps driving DC into two windings.
     pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
-    // Review D17: the dead time (BDTR.DTG) is preloaded and changes at the update event,
+    // The dead time (BDTR.DTG) is preloaded and changes at the update event,
     // with PSC and ARR, never in mid-period (DTR2.DTPE, RM0440 29.4.28).
     t.dtr2().modify(|w| w.set_dtpe(true));
     t.bdtr().modify(|w| {
@@ -111,7 +111,7 @@ pub fn init(p: PowerStage, timing: PwmTiming) -> Tim1Pwm {
             w.set_ocpe(ch % 2, true);
         });
     }
-    // Review D10: OC5 is the comparators' blanking window (COMP BLANKSEL = TIM1_OC5), PWM
+    // OC5 is the comparators' blanking window (COMP BLANKSEL = TIM1_OC5), PWM
     // mode 1 (active while CNT < CCR5: around the valley), preloaded like the compares;
     // CCR5 per period from the core (`PeriodAction::blanking`), 0 = no window. GC5Cx
     // stay 0: OC5 is not ANDed into the phase outputs.
@@ -160,7 +160,7 @@ pub fn init(p: PowerStage, timing: PwmTiming) -> Tim1Pwm {
 /// ESC1's CAN_RX and not used) with automatic output enable off: a break clears MOE in
 /// hardware and it stays cleared until software sets it again. Break 1 is `STO_IN`'s
 /// ([`arm_sto_input`]): the only TIM1 break pin the ESC1 leaves free is a BKIN pin
-/// (review N1, `pins`). MOE is 0 here (`init`), so the read-modify-write of BDTR cannot
+/// (`pins`). MOE is 0 here (`init`), so the read-modify-write of BDTR cannot
 /// set it.
 pub fn arm_break(comparators: &[usize]) {
     let t = pac::TIM1;
@@ -182,7 +182,7 @@ pub fn arm_break(comparators: &[usize]) {
 }
 
 /// safety.md 6 (NOT RATED): `STO_IN` on PA15 as TIM1_BKIN (AF9; not BKIN2 as safety.md
-/// says: the G431CBU6's only BKIN2 pin is PA11, the ESC1's CAN_RX, review N1), with a
+/// says: the G431CBU6's only BKIN2 pin is PA11, the ESC1's CAN_RX), with a
 /// pull-down so that a broken wire requests STO; break 1 armed active low (its only
 /// source: the comparators are on break 2) with automatic output enable off: `STO_IN` low
 /// clears MOE in hardware, with no software, and sets BIF, which stays set until the core
@@ -226,7 +226,7 @@ pub fn sto_input_low() -> bool {
     pac::GPIOA.idr().read().idr(STO_PIN) == pac::gpio::vals::Idr::LOW
 }
 
-/// Review D7: routes the Cortex-M4 LOCKUP, the PVD, SRAM parity errors and flash double
+/// Routes the Cortex-M4 LOCKUP, the PVD, SRAM parity errors and flash double
 /// ECC errors to TIM1's system break (SYSCFG_CFGR2 CLL/PVDL/SPL/ECCL, RM0440 Table
 /// "TIMx break interconnect"): a stack overflow that locks the core up (flip-link puts the
 /// stack at the bottom of RAM) opens every switch in hardware, without software. The PVD
@@ -261,7 +261,7 @@ fn apply_timing(timing: &PwmTiming) {
     t.bdtr().write_value(v);
 }
 
-/// TIM1_BDTR as the start-up configured it, with MOE = 0 (review D9). After start-up BDTR
+/// TIM1_BDTR as the start-up configured it, with MOE = 0. After start-up BDTR
 /// is never read: every write is this word whole, with MOE set ([`Tim1Port::outputs_on`])
 /// or not, and a new DTG ([`apply_timing`]) is written into it. A read-modify-write
 /// straddling a break pulse would write back the MOE = 1 it read after the break cleared
@@ -283,7 +283,7 @@ pub fn record_bdtr() {
 }
 
 /// The break flags: both break inputs (BIF: `STO_IN`, B2IF: the comparators) and the
-/// system break (SBIF, review N4).
+/// system break (SBIF).
 fn break_flags() -> SrAdv {
     let mut m = SrAdv(0);
     m.set_bif(0, true);
@@ -293,7 +293,7 @@ fn break_flags() -> SrAdv {
 }
 
 /// Clears the flags of `mask` and no other (TIM SR flags are rc_w0: writing 1 leaves a
-/// flag as it is, a read-modify-write would clear flags set in between; review D9).
+/// flag as it is, a read-modify-write would clear flags set in between).
 #[inline(always)]
 fn clear_flags(mask: SrAdv) {
     pac::TIM1.sr().write_value(SrAdv(!mask.0));
@@ -367,7 +367,7 @@ impl PowerPort for Tim1Port<'_> {
     }
 
     /// The hardware ignores it while the break input is active (RM0440 29.3.18). BDTR
-    /// written whole (review D9).
+    /// written whole.
     #[inline(always)]
     fn outputs_on(&mut self) {
         let mut v = bdtr_config();
@@ -384,7 +384,7 @@ impl PowerPort for Tim1Port<'_> {
 }
 
 /// MOE off: all six outputs to their inactive level after the dead time. BDTR written
-/// whole with the recorded configuration (review D9); before start-up recorded it (a panic
+/// whole with the recorded configuration; before start-up recorded it (a panic
 /// during start-up) that word is 0, which is MOE off as well.
 #[inline(always)]
 pub fn outputs_off() {

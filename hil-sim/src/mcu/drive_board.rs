@@ -6,7 +6,7 @@ use firmware_drive::app::DriveApp;
 use firmware_drive::bodies::ControlPort;
 use firmware_drive::comparators::{BoardProfile, DacValues};
 use firmware_drive::power_port::ComparatorLevels;
-use firmware_drive::{AdcSample, DriveConfig, DriveCore, DriveStatus, PwmTiming, ResetCause};
+use firmware_drive::{AdcSample, CoreStatus, DriveConfig, DriveCore, PwmTiming, ResetCause};
 
 use crate::plant::{Comparators, Plant};
 use crate::tim1::SimTim1;
@@ -126,7 +126,7 @@ impl SimDrive {
         self.timer_clock_hz
     }
 
-    pub fn status(&self) -> DriveStatus {
+    pub fn status(&self) -> CoreStatus {
         self.app.status()
     }
 

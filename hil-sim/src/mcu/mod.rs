@@ -5,7 +5,7 @@
 //! with its ADC sample, 1 ms system tick, UART bytes, break input, GPIO, keypad, LCD,
 //! EEPROM) and calls the same core code the firmware images run, as the boards' tasks
 //! and interrupts call it. There is one of each (no trait: the front panel drives the
-//! same `PlcBoard` through the simulator, issue 14).
+//! same `PlcBoard` through the simulator).
 
 pub mod drive_board;
 pub mod lcd;
