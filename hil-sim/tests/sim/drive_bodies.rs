@@ -69,3 +69,38 @@ fn the_threshold_dacs_change_at_a_millisecond_tick() {
         t - step_ns
     );
 }
+
+/// The power stage's dead-time floor is the core's boot check, on the board and here: a
+/// minimum beyond what TIM1's DTG can encode (10 us is 1 700 counts at 170 MHz, DTG stops
+/// at 1 008) latches `BOOT`, and the outputs never come on.
+#[test]
+fn a_dead_time_below_the_floor_latches_boot() {
+    use firmware_drive::{DriveConfig, DriveState, FaultCode};
+    use hil_sim::mcu::SimDrive;
+    use hil_sim::plant::{Plant, RigParams};
+    use hil_sim::tim1::SimTim1;
+    use shared_protocol::link::LinkConfig;
+    use shared_protocol::units::Micros;
+
+    let floor = |min_dead_time_ns| {
+        let cfg = DriveConfig {
+            min_dead_time_ns,
+            ..DriveConfig::default()
+        };
+        let mut drive = SimDrive::with_config(LinkConfig::default(), cfg);
+        let mut plant = Plant::new(RigParams::default());
+        let mut tim = SimTim1::new(drive.pwm_timing(), drive.timer_clock_hz());
+        drive.boot_dacs(&mut plant);
+        for ms in 1..=20u64 {
+            let _ = drive.control_tick(&mut tim, &mut plant, Micros(ms * 1000));
+            tim.update();
+            drive.pwm_interrupt(&mut tim, &mut plant, Default::default());
+        }
+        (drive.core().state(), drive.core().fault(), tim.moe())
+    };
+    assert_eq!(floor(500).0, DriveState::Idle, "the default floor passes");
+    assert_eq!(
+        floor(10_000),
+        (DriveState::Fault, Some(FaultCode::Boot), false)
+    );
+}
