@@ -6,14 +6,13 @@
 //! | UART bytes received (DMA/idle-line interrupt) | [`DriveApp::on_rx`] |
 //! | UART transmitter free, and at least every 1 ms | [`DriveApp::poll_tx`] |
 //! | every 1 ms | [`DriveApp::tick_1ms`] (or each of [`TickStep::ALL`] with [`DriveApp::tick_step`]) |
-//! | every PWM period (TIM1 update) | [`DriveApp::pwm_period`], then [`PeriodAction::apply`] |
-//! | TIM1 break interrupt | [`DriveApp::break_fired`] |
-//! | TIM1 break interrupt, `STO_IN` / system break | [`DriveApp::sto_break`] / [`DriveApp::system_break`] |
-//! | every 1 ms, before `tick_1ms` | [`DriveApp::set_sto_input`], then [`DriveApp::break_poll`] |
+//! | every PWM period (TIM1 update) | [`DriveApp::pwm_interrupt`] ([`DriveApp::pwm_period`], then [`PeriodAction::apply`]) |
+//! | TIM1 break interrupt | [`DriveApp::break_interrupt`] ([`DriveApp::break_fired`], [`DriveApp::sto_break`], [`DriveApp::system_break`]) |
+//! | every 1 ms | [`DriveApp::control_tick`] ([`DriveApp::set_sto_input`], [`DriveApp::break_poll`], [`TickStep::ALL`], the DACs) |
 //!
-//! The board passes what the registers say (ADC counts, comparator levels) and performs
-//! what comes back over its [`PowerPort`](crate::power_port::PowerPort); hil-sim does the
-//! same over its plant, so both run the same decisions.
+//! The interrupt and task bodies are core functions over ports (`crate::bodies`): the
+//! board implements the ports with registers, hil-sim with its plant, so both run the
+//! same sequence and the same decisions.
 //!
 //! What it adds to the two parts:
 //! * Commands from the PLC are applied to the core as soon as their frame is received
@@ -23,7 +22,7 @@
 //!   frequency command falls and a later ACK is possible. Nothing restarts by itself:
 //!   after the reconnection the PLC must ACK and send RUN again.
 //! * A download is checked by the link (CRC, decode, `verify_drive`, one step per
-//!   `poll_tx` so that no call holds the PWM interrupt off for long: review D13) and then
+//!   `poll_tx` so that no call holds the PWM interrupt off for long) and then
 //!   handed, as a `VerifiedDriveSection`, to the core in four `poll_tx` calls of their
 //!   own ([`DriveCore::load_begin`], then [`DriveCore::load_step`] three times: the whole load is
 //!   ~6 900 instructions, more than a PWM period at 20 kHz in one critical section, review
@@ -31,7 +30,7 @@
 //!   the PLC finds the new section loaded. A reject trips `PROG`.
 //! * The 1 ms tick is four steps ([`TickStep`]), each one call on the board (one critical
 //!   section): link supervision, the drive section's pass, the rest of the core's
-//!   millisecond, the reports (review N8).
+//!   millisecond, the reports.
 //! * Every fault the core latches is reported to the PLC (reliably, with the drive's
 //!   millisecond clock); the status frame is refreshed from the core every tick.
 
@@ -42,14 +41,15 @@ use shared_protocol::link::{
 };
 use shared_protocol::units::Micros;
 
+use crate::comparators::DacValues;
 use crate::config::{DriveConfig, ResetCause};
 use crate::drive::{
-    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, LoadStep, PwmCommand,
+    CommandError, CoreStatus, DriveCommand, DriveCore, DriveEvent, LoadStep, PwmCommand,
     EVENT_QUEUE,
 };
 use crate::measure::AdcSample;
 use crate::power_port::{BreakMonitor, BreakReport, ComparatorLevels, PeriodAction};
-use crate::protection::{FaultCode, HwBreak};
+use crate::protection::FaultCode;
 use crate::state::DriveState;
 use crate::timing::PwmTiming;
 use crate::vm::VmWarning;
@@ -85,7 +85,7 @@ const APP_EVENTS: usize = 32;
 /// Most events one [`DriveCore::tick_1ms`] delivers.
 const TICK_EVENTS: usize = EVENT_QUEUE + 1;
 
-/// The load of an accepted section, one step per [`DriveApp::poll_tx`] (review N8).
+/// The load of an accepted section, one step per [`DriveApp::poll_tx`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Load {
     Idle,
@@ -130,6 +130,9 @@ pub struct DriveApp {
     breaks: BreakMonitor,
     /// Where the load of a section the link accepted stands (one step per `poll_tx`).
     load: Load,
+    /// The threshold DAC values last handed to the board ([`DriveApp::boot_dacs`],
+    /// [`DriveApp::dacs_to_write`]).
+    dacs_written: Option<DacValues>,
 }
 
 impl DriveApp {
@@ -147,6 +150,7 @@ impl DriveApp {
             events: heapless::Deque::new(),
             breaks: BreakMonitor::default(),
             load: Load::Idle,
+            dacs_written: None,
         }
     }
 
@@ -187,8 +191,28 @@ impl DriveApp {
         self.link.state()
     }
 
+    /// The threshold DAC values the board writes at start-up, once the comparators are
+    /// trimmed ([`DriveCore::comparator_dacs`]); later changes come from
+    /// [`DriveApp::control_tick`](crate::bodies).
+    pub fn boot_dacs(&mut self) -> DacValues {
+        let v = self.core.comparator_dacs();
+        self.dacs_written = Some(v);
+        v
+    }
+
+    /// The core's threshold DAC values if they differ from those last handed out (a
+    /// download changed `I>>`/`U>>`), now counted as written.
+    pub fn dacs_to_write(&mut self) -> Option<DacValues> {
+        let v = self.core.comparator_dacs();
+        if self.dacs_written == Some(v) {
+            return None;
+        }
+        self.dacs_written = Some(v);
+        Some(v)
+    }
+
     /// The core's full status (more than the link's status frame carries).
-    pub fn status(&self) -> DriveStatus {
+    pub fn status(&self) -> CoreStatus {
         self.core.status()
     }
 
@@ -249,7 +273,7 @@ impl DriveApp {
 
     /// One step of the 1 ms tick ([`DriveApp::tick_1ms`] runs them all, in the order of
     /// [`TickStep::ALL`]). The board runs each in a critical section of its own, so that
-    /// the PWM interrupt waits for one step at most (review N8).
+    /// the PWM interrupt waits for one step at most.
     pub fn tick_step(&mut self, step: TickStep, now: Micros) {
         match step {
             TickStep::Link => {
@@ -345,7 +369,7 @@ impl DriveApp {
         self.core.sto_break();
     }
 
-    /// The TIM1 break interrupt found the system break's flag (review N4), as
+    /// The TIM1 break interrupt found the system break's flag, as
     /// [`DriveApp::sto_break`]: the core latches `BOOT` ([`DriveCore::system_break`]).
     pub fn system_break(&mut self) {
         self.breaks.other_fired();
@@ -358,10 +382,8 @@ impl DriveApp {
     #[must_use = "the report says whether to re-arm the break input"]
     pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
         let report = self.breaks.fired(self.core.config().board, levels);
-        for (cause, fired) in HwBreak::ALL.into_iter().zip(report.fired) {
-            if fired {
-                self.core.hardware_break(cause);
-            }
+        for cause in report.fired.iter() {
+            self.core.hardware_break(cause);
         }
         report
     }
@@ -372,10 +394,8 @@ impl DriveApp {
     #[must_use = "the report says whether to re-arm the break input"]
     pub fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
         let report = self.breaks.poll(self.core.config().board, levels);
-        for (cause, released) in HwBreak::ALL.into_iter().zip(report.released) {
-            if released {
-                self.core.hardware_break_released(cause);
-            }
+        for cause in report.released.iter() {
+            self.core.hardware_break_released(cause);
         }
         report
     }
@@ -383,7 +403,7 @@ impl DriveApp {
     fn command(&mut self, command: DriveCommand) {
         if let Err(error) = self.core.command(command) {
             self.push(AppEvent::Refused { command, error });
-            // The PLC shows why an ACK was refused (issue 20): the fault stays latched
+            // The PLC shows why an ACK was refused: the fault stays latched
             // and the user must know what to change.
             let why = match error {
                 CommandError::CauseActive(f) => Some(AckRefusal::CauseActive(f)),
@@ -469,7 +489,7 @@ impl DriveApp {
 }
 
 /// The link's status frame from the core's status.
-pub fn wire_status(s: &DriveStatus) -> WireStatus {
+pub fn wire_status(s: &CoreStatus) -> WireStatus {
     WireStatus {
         state: s.state,
         fault: s.fault,

@@ -25,6 +25,7 @@ use crate::measure::{abs_counts_to_centiamps, com_of, udc_decivolts, AdcSample, 
 use crate::measure::{FrontEnd, ZeroCalibration};
 use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::overvoltage::{OvController, CAP_BELOW_OV_HW_VOLTS};
+use crate::power_port::Causes;
 use crate::protection::{FaultCode, HwBreak, Limits};
 use crate::reversal::Reversal;
 use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
@@ -159,10 +160,11 @@ impl PwmCommand {
     }
 }
 
-/// Snapshot for the link's status frame and the PLC's extension operands.
+/// The core's full status: the link's `DriveStatus` frame (`app::wire_status`) and the PLC's
+/// extension operands carry part of it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct DriveStatus {
+pub struct CoreStatus {
     pub state: DriveState,
     pub fault: Option<FaultCode>,
     /// `FRQ`: frequency being generated (0 while the outputs are off).
@@ -203,7 +205,7 @@ pub struct DriveStatus {
     pub sto_in_low: bool,
 }
 
-impl DriveStatus {
+impl CoreStatus {
     /// `RDY`: no fault, program running.
     pub fn ready(&self) -> bool {
         self.state == DriveState::Run && self.fault.is_none()
@@ -253,7 +255,7 @@ pub struct DriveCore {
     brake: bool,
     last: AdcSample,
     peak: PeakTracker,
-    hw_break_active: [bool; 2],
+    hw_break_active: Causes,
     /// The board's analog front end, calibrated at the end of BOOT.
     front_end: FrontEnd,
     zero_cal: ZeroCalibration,
@@ -339,7 +341,7 @@ impl DriveCore {
             brake: false,
             last: AdcSample::default(),
             peak: PeakTracker::default(),
-            hw_break_active: [false; 2],
+            hw_break_active: Causes::NONE,
             front_end,
             zero_cal: ZeroCalibration::default(),
             events: Deque::new(),
@@ -566,17 +568,19 @@ impl DriveCore {
     /// The TIM1 break input fired (the hardware has already opened all switches). The
     /// cause counts as present until [`DriveCore::hardware_break_released`].
     pub fn hardware_break(&mut self, cause: HwBreak) {
-        if let Some(a) = self.hw_break_active.get_mut(cause.index()) {
-            *a = true;
-        }
+        self.hw_break_active.set(cause, true);
         self.trip(cause.fault());
+    }
+
+    /// The hardware break causes latched and not yet released (their comparators still
+    /// high at the last control tick).
+    pub fn hw_break_active(&self) -> Causes {
+        self.hw_break_active
     }
 
     /// The comparator behind the break input is back below its threshold.
     pub fn hardware_break_released(&mut self, cause: HwBreak) {
-        if let Some(a) = self.hw_break_active.get_mut(cause.index()) {
-            *a = false;
-        }
+        self.hw_break_active.set(cause, false);
     }
 
     // One copy, not inlined at each caller: the drive image's 64 KiB budget.
@@ -825,14 +829,14 @@ impl DriveCore {
         }
     }
 
-    pub fn status(&self) -> DriveStatus {
+    pub fn status(&self) -> CoreStatus {
         let on = self.state == DriveState::Run && self.outputs_on && self.sine_on;
         let m = if on {
             (self.modulator.params().m_q16 * 1000 + 0x8000) >> 16
         } else {
             0
         };
-        DriveStatus {
+        CoreStatus {
             state: self.state,
             fault: self.fault,
             f_applied: Decihertz(if on { self.f_out } else { 0 }),
@@ -943,12 +947,17 @@ impl DriveCore {
     }
 
     fn hw_active(&self, c: HwBreak) -> bool {
-        self.hw_break_active.get(c.index()).copied().unwrap_or(true)
+        self.hw_break_active.get(c)
     }
 
     fn finish_boot(&mut self) {
         let table_ok = crate::sine::table_ok();
-        let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2;
+        // The dead-time floor: DTG does not depend on PSC/ARR, so a timing that passes here
+        // keeps passing at every later `PWF`/`PRx`.
+        let min_dead =
+            crate::timing::min_dead_time_counts(self.cfg.timer_clock_hz, self.cfg.min_dead_time_ns);
+        let timing_ok = self.timing.arr > 2 * self.cfg.min_pulse_counts + 2
+            && self.timing.dead_time_meets(min_dead);
         let offsets_ok = match self.zero_cal.result() {
             Ok(Some(zero)) => {
                 self.front_end.calibrate(zero);

@@ -15,6 +15,7 @@
 // Drive core modules (issue 4). Units, scaling and every decision: `docs/drive-core.md`.
 pub mod app;
 pub mod blanking;
+pub mod bodies;
 pub mod comparator_trim;
 pub mod comparators;
 pub mod config;
@@ -35,7 +36,7 @@ pub mod vm;
 
 pub use crate::config::{DriveConfig, ResetCause};
 pub use crate::drive::{
-    CommandError, DriveCommand, DriveCore, DriveEvent, DriveStatus, DriveWarning, PwmCommand,
+    CommandError, CoreStatus, DriveCommand, DriveCore, DriveEvent, DriveWarning, PwmCommand,
 };
 pub use crate::measure::AdcSample;
 pub use crate::protection::{FaultCode, HwBreak};

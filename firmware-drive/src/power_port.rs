@@ -116,9 +116,9 @@ impl PeriodAction {
 pub struct ComparatorLevels(pub [bool; 7]);
 
 impl ComparatorLevels {
-    /// Which causes the high comparators of `board` stand for: [overcurrent, overvoltage].
-    pub fn causes(&self, board: &BoardProfile) -> [bool; 2] {
-        let mut out = [false; 2];
+    /// Which causes the high comparators of `board` stand for.
+    pub fn causes(&self, board: &BoardProfile) -> Causes {
+        let mut out = Causes::NONE;
         for s in board.comparators {
             let high = self
                 .0
@@ -126,13 +126,59 @@ impl ComparatorLevels {
                 .copied()
                 .unwrap_or(false);
             if high {
-                match s.cause() {
-                    HwBreak::Overcurrent => out[0] = true,
-                    HwBreak::Overvoltage => out[1] = true,
-                }
+                out.set(s.cause(), true);
             }
         }
         out
+    }
+}
+
+/// One flag per hardware break cause, indexed by [`HwBreak`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Causes {
+    pub overcurrent: bool,
+    pub overvoltage: bool,
+}
+
+impl Causes {
+    /// No cause.
+    pub const NONE: Causes = Causes {
+        overcurrent: false,
+        overvoltage: false,
+    };
+
+    /// `cause` alone.
+    pub const fn only(cause: HwBreak) -> Causes {
+        let mut c = Causes::NONE;
+        match cause {
+            HwBreak::Overcurrent => c.overcurrent = true,
+            HwBreak::Overvoltage => c.overvoltage = true,
+        }
+        c
+    }
+
+    pub const fn get(&self, cause: HwBreak) -> bool {
+        match cause {
+            HwBreak::Overcurrent => self.overcurrent,
+            HwBreak::Overvoltage => self.overvoltage,
+        }
+    }
+
+    pub fn set(&mut self, cause: HwBreak, on: bool) {
+        match cause {
+            HwBreak::Overcurrent => self.overcurrent = on,
+            HwBreak::Overvoltage => self.overvoltage = on,
+        }
+    }
+
+    pub const fn any(&self) -> bool {
+        self.overcurrent || self.overvoltage
+    }
+
+    /// The causes set, in the order of [`HwBreak::ALL`].
+    pub fn iter(self) -> impl Iterator<Item = HwBreak> {
+        HwBreak::ALL.into_iter().filter(move |c| self.get(*c))
     }
 }
 
@@ -140,24 +186,43 @@ impl ComparatorLevels {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BreakReport {
-    /// Causes to latch now (a break fired): [overcurrent, overvoltage].
-    pub fired: [bool; 2],
-    /// Causes whose comparators went low: [overcurrent, overvoltage].
-    pub released: [bool; 2],
-    /// No comparator is high any more and `STO_IN` is high: the board may unmask the
-    /// break interrupt again (it was masked when a break fired, since a flag sets again at
-    /// once while its input stays active). The board only unmasks: a flag set while the
-    /// interrupt was masked (a comparator break during an STO) is still set and is
-    /// reported then, delayed, not lost (review N3).
+    /// Causes to latch now (a break fired).
+    pub fired: Causes,
+    /// Causes whose comparators went low.
+    pub released: Causes,
+    /// No comparator is high any more and `STO_IN` is high: the break interrupt may be
+    /// unmasked again (it was masked when a break fired, since a flag sets again at once
+    /// while its input stays active). Only unmasked: a flag set while the interrupt was
+    /// masked (a comparator break during an STO) is still set and is reported then,
+    /// delayed, not lost.
     pub rearm: bool,
 }
 
+/// The break flags the break interrupt found, one per source of TIM1's break
+/// (the board maps its status register to these).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct BreakSources {
+    /// `STO_IN` (break 1, BIF).
+    pub sto: bool,
+    /// A comparator (break 2, B2IF).
+    pub comparator: bool,
+    /// The system break (SBIF: PVD, SRAM parity, flash ECC, LOCKUP).
+    pub system: bool,
+}
+
+impl BreakSources {
+    pub const fn any(&self) -> bool {
+        self.sto || self.comparator || self.system
+    }
+}
+
 /// Attribution, release and re-arming of the hardware break: the comparators' break,
-/// the `STO_IN` break and the system break (safety.md 6, review N2-N4) share the one
-/// break interrupt, masked after each report until every input it watches is inactive.
+/// the `STO_IN` break and the system break (safety.md 6) share the one break interrupt,
+/// masked after each report until every input it watches is inactive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct BreakMonitor {
-    active: [bool; 2],
+    active: Causes,
     masked: bool,
     /// `STO_IN` low as last read (the board reads it every millisecond).
     sto_low: bool,
@@ -165,27 +230,26 @@ pub struct BreakMonitor {
 
 impl BreakMonitor {
     /// The break interrupt fired with the comparators at `levels` (the hardware has already
-    /// cleared MOE; the board has masked the interrupt). The causes whose comparators are
-    /// high are latched; if none is high any more (a pulse shorter than the interrupt's
-    /// latency), overcurrent is blamed, the faster and more dangerous cause.
+    /// cleared MOE; the interrupt is masked). The causes whose comparators are high are
+    /// latched; if none is high any more (a pulse shorter than the interrupt's latency),
+    /// overcurrent is blamed, the faster and more dangerous cause.
     pub fn fired(&mut self, board: &BoardProfile, levels: ComparatorLevels) -> BreakReport {
         let mut causes = levels.causes(board);
-        if causes == [false, false] {
-            causes[0] = true;
+        if !causes.any() {
+            causes.overcurrent = true;
         }
-        for (a, c) in self.active.iter_mut().zip(causes) {
-            *a |= c;
-        }
+        self.active.overcurrent |= causes.overcurrent;
+        self.active.overvoltage |= causes.overvoltage;
         self.masked = true;
         BreakReport {
             fired: causes,
-            released: [false; 2],
+            released: Causes::NONE,
             rearm: false,
         }
     }
 
     /// The `STO_IN` break or the system break fired (the hardware has already cleared MOE;
-    /// the board has masked the interrupt): masked until [`BreakMonitor::poll`] re-arms.
+    /// the interrupt is masked): masked until [`BreakMonitor::poll`] re-arms.
     pub fn other_fired(&mut self) {
         self.masked = true;
     }
@@ -202,19 +266,19 @@ impl BreakMonitor {
     /// high.
     pub fn poll(&mut self, board: &BoardProfile, levels: ComparatorLevels) -> BreakReport {
         let high = levels.causes(board);
-        let mut released = [false; 2];
-        for ((a, r), h) in self.active.iter_mut().zip(released.iter_mut()).zip(high) {
-            if *a && !h {
-                *a = false;
-                *r = true;
+        let mut released = Causes::NONE;
+        for c in HwBreak::ALL {
+            if self.active.get(c) && !high.get(c) {
+                self.active.set(c, false);
+                released.set(c, true);
             }
         }
-        let rearm = self.masked && high == [false, false] && !self.sto_low;
+        let rearm = self.masked && !high.any() && !self.sto_low;
         if rearm {
             self.masked = false;
         }
         BreakReport {
-            fired: [false; 2],
+            fired: Causes::NONE,
             released,
             rearm,
         }
@@ -449,20 +513,26 @@ mod tests {
         let mut m = BreakMonitor::default();
         // COMP3 is the DC link: overvoltage.
         let r = m.fired(b, levels(&[3]));
-        assert_eq!(r.fired, [false, true]);
+        assert_eq!(r.fired, Causes::only(HwBreak::Overvoltage));
         // Still high: nothing released, not re-armed.
         assert_eq!(m.poll(b, levels(&[3])), BreakReport::default());
         let r = m.poll(b, levels(&[]));
-        assert_eq!(r.released, [false, true]);
+        assert_eq!(r.released, Causes::only(HwBreak::Overvoltage));
         assert!(r.rearm);
         // Re-armed once only.
         assert!(!m.poll(b, levels(&[])).rearm);
         // COMP4 (phase W) is overcurrent; a pulse already gone blames overcurrent.
-        assert_eq!(m.fired(b, levels(&[4])).fired, [true, false]);
-        assert_eq!(m.fired(b, levels(&[])).fired, [true, false]);
+        assert_eq!(
+            m.fired(b, levels(&[4])).fired,
+            Causes::only(HwBreak::Overcurrent)
+        );
+        assert_eq!(
+            m.fired(b, levels(&[])).fired,
+            Causes::only(HwBreak::Overcurrent)
+        );
     }
 
-    /// Review N2/N3: after an `STO_IN` break the interrupt stays masked while the input
+    /// After an `STO_IN` break the interrupt stays masked while the input
     /// is low, even once the comparators are low (a comparator break meanwhile waits in
     /// its flag), and is re-armed once, when the input is high again.
     #[test]

@@ -89,12 +89,29 @@ impl PwmTiming {
     }
 }
 
+/// Fewest CK_INT periods of dead time the power stage accepts: `min_dead_time_ns` rounded up.
+pub fn min_dead_time_counts(timer_clock_hz: u32, min_dead_time_ns: u32) -> u32 {
+    let counts = (u64::from(min_dead_time_ns) * u64::from(timer_clock_hz)).div_ceil(1_000_000_000);
+    u32::try_from(counts).unwrap_or(u32::MAX)
+}
+
+impl PwmTiming {
+    /// The dead time the DTG code really gives is the one the timing claims and at least
+    /// `min_counts` ([`min_dead_time_counts`]): false when the minimum is beyond what DTG
+    /// can encode (1008 counts). The dead time counts in CK_INT periods, so every timing of
+    /// one configuration has the same DTG whatever its PSC and ARR.
+    pub fn dead_time_meets(&self, min_counts: u32) -> bool {
+        let realised = decode_dtg(self.dtg);
+        realised == self.dead_time_counts && u32::from(realised) >= min_counts
+    }
+}
+
 /// `(n << 64) / d` for `d` in 1..2^36 (the callers' `10 * f_tim` with a 32-bit `f_tim`),
 /// exact, in 64-bit divisions: long division by 28-bit digits (every remainder is below
 /// d < 2^36, so shifting it by 28 bits stays within 64). A 128-bit division is a software
 /// loop of thousands of Cortex-M4 instructions and, expanded inline, 666 B of flash; this
 /// runs in the 1 ms tick whenever `PWF` changes, inside the critical section the PWM
-/// interrupt waits for (review D13).
+/// interrupt waits for.
 fn shl64_div(n: u64, d: u64) -> u128 {
     let d = d.clamp(1, SHL64_DIV_MAX);
     let (q, r) = (n / d, n % d);
@@ -221,6 +238,22 @@ mod tests {
             assert!(u64::from(t.dead_time_counts) >= want, "{ns} ns");
             assert_eq!(decode_dtg(t.dtg), t.dead_time_counts);
         }
+    }
+
+    #[test]
+    fn the_dead_time_floor_holds_at_every_prescaler_and_fails_beyond_dtg() {
+        let min = min_dead_time_counts(170_000_000, 500);
+        assert_eq!(min, 85);
+        let t = PwmTiming::compute(170_000_000, 16_000, 1, 1000, 500);
+        for (pwf, pre) in [(1_000, 1), (16_000, 1), (16_000, 16), (50, 100)] {
+            let u = PwmTiming::compute(170_000_000, pwf, pre, 1000, 500);
+            assert!(u.dead_time_meets(min));
+            assert_eq!(u.dtg, t.dtg, "{pwf} Hz / {pre}");
+        }
+        // 10 us is 1700 counts, beyond DTG's 1008.
+        let min = min_dead_time_counts(170_000_000, 10_000);
+        let t = PwmTiming::compute(170_000_000, 16_000, 1, 1000, 10_000);
+        assert!(!t.dead_time_meets(min));
     }
 
     #[test]

@@ -19,12 +19,12 @@ use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use crate::mcu::{DriveBoard, PlcBoard, PlcPins, Warnings};
+use crate::mcu::{PlcBoard, PlcPins, SimDrive, Warnings};
 use crate::plant::lift::{
     Lift, LiftSample, BRAKE_RELEASE_OUTPUT, CHAIN_INPUT, DOOR_CLOSED_INPUT, DOOR_OPEN_OUTPUT,
     LOAD_ANALOG, VANE_L_INPUT, VANE_R_INPUT,
 };
-use crate::plant::{Comparators, GateCommand, Plant, PlantOutputs, RigParams};
+use crate::plant::{GateCommand, Plant, PlantOutputs, RigParams};
 use crate::scenario::{Action, Input, Scenario};
 use crate::tim1::SimTim1;
 
@@ -96,7 +96,7 @@ pub struct Simulation {
     now_ns: u64,
     plant: Plant,
     plant_ns: u64,
-    drive: DriveBoard,
+    drive: SimDrive,
     plc: PlcBoard,
     scenario: Scenario,
     next_action: usize,
@@ -162,7 +162,7 @@ impl Simulation {
         .map_err(|e| anyhow::anyhow!("cannot store the program in the EEPROM: {e:?}"))
         .context("EEPROM image")?;
         let link = LinkConfig::at_baud(scenario.baud);
-        let drive = DriveBoard::with_config(link, drive_config(&scenario.rig));
+        let drive = SimDrive::with_config(link, drive_config(&scenario.rig));
         let mut plc = PlcBoard::new(MemEeprom::from_image(&image), link, Micros(0));
         // The link's quiet window after each scan lasts until the next scan.
         plc.app_mut()
@@ -229,7 +229,7 @@ impl Simulation {
     /// [`Channel`] wires with its link settings (bit errors seeded from `opts.seed`, the
     /// drive-to-PLC direction from a derived seed).
     pub fn with_boards(
-        drive: DriveBoard,
+        drive: SimDrive,
         plc: PlcBoard,
         scenario: Scenario,
         opts: RunOptions,
@@ -248,7 +248,7 @@ impl Simulation {
     /// The given boards, plant and wires. `to_drive` carries the PLC's transmissions,
     /// `to_plc` the drive's.
     pub fn with_parts(
-        drive: DriveBoard,
+        mut drive: SimDrive,
         plc: PlcBoard,
         mut plant: Plant,
         to_drive: Channel,
@@ -258,6 +258,7 @@ impl Simulation {
     ) -> Self {
         let timing = drive.pwm_timing();
         let tim1 = SimTim1::new(timing, drive.timer_clock_hz());
+        drive.boot_dacs(&mut plant);
         let lift = scenario.lift.map(Lift::new);
         let mut pins = PlcPins::default();
         if let Some(l) = &lift {
@@ -313,9 +314,10 @@ impl Simulation {
     pub fn restart_drive(&mut self, cause: ResetCause) {
         let cfg = *self.drive.core().config();
         let link = LinkConfig::at_baud(self.scenario.baud);
-        self.drive = DriveBoard::with_reset(link, cfg, cause);
+        self.drive = SimDrive::with_reset(link, cfg, cause);
         let timing = self.drive.pwm_timing();
         self.tim1 = SimTim1::new(timing, self.drive.timer_clock_hz());
+        self.drive.boot_dacs(&mut self.plant);
         self.pwm_key = (timing.arr, timing.psc);
         self.pwm_epoch_ns = self.now_ns;
         self.pwm_k = 0;
@@ -359,7 +361,7 @@ impl Simulation {
         &mut self.plant
     }
 
-    pub fn drive(&self) -> &DriveBoard {
+    pub fn drive(&self) -> &SimDrive {
         &self.drive
     }
 
@@ -498,7 +500,8 @@ impl Simulation {
         if t >= self.next_pwm_ns {
             self.pwm_event(t);
         }
-        let mut app_ran = [false; 2];
+        let mut app_ran = false;
+        let mut drive_kick = false;
         if t >= self.next_drive_tick_ns && self.plant.diverged() {
             self.unstable_at_ns = Some(t);
             return;
@@ -506,16 +509,12 @@ impl Simulation {
         if t >= self.next_drive_tick_ns {
             // The lift moves on with the outputs of the PLC's last scan.
             self.lift_step();
-            // The board's 1 ms task: STO_IN (safety.md 6) and the comparator levels to the
-            // break monitor, then the tick.
-            self.drive.set_sto_input(self.plant.sto_in_low());
-            let report = self.drive.break_poll(self.plant.comparator_levels());
-            if report.rearm {
-                self.tim1.rearm_break(&mut self.plant);
-            }
-            self.drive.tick_1ms(now);
+            // The board's 1 ms task: STO_IN (safety.md 6), the break monitor, the tick, the
+            // threshold DACs, the link task's wake-up.
+            drive_kick = self
+                .drive
+                .control_tick(&mut self.tim1, &mut self.plant, now);
             self.next_drive_tick_ns += MS_NS;
-            app_ran[1] = true;
             let status = self.drive.status();
             let f = status.fault.map_or(0, |f| f.code());
             if f != 0 && f != self.last_fault {
@@ -535,16 +534,13 @@ impl Simulation {
         if t >= self.next_plc_tick_ns {
             self.plc.tick_1ms(now);
             self.next_plc_tick_ns += MS_NS;
-            app_ran[0] = true;
+            app_ran = true;
         }
         // A link task passes when bytes arrived, at its pump's deadline (or when its line
         // became free with a frame due), or when the application task that just ran left
         // something due (the boards' tasks kick it then: `pump::is_due`).
         let woken = self.tx_wake_ns.map(|w| w.is_some_and(|w| w <= t));
-        let kick = [
-            app_ran[0] && is_due(self.plc.link_timeout(), now),
-            app_ran[1] && is_due(self.drive.link_timeout(), now),
-        ];
+        let kick = [app_ran && is_due(self.plc.link_timeout(), now), drive_kick];
         if !plc_rx.is_empty() || woken[0] || kick[0] {
             self.link_pass(0, &plc_rx, t);
         }
@@ -648,13 +644,8 @@ impl Simulation {
             }
             // 10-bit value on the drive's 12-bit converter.
             Action::Set(Input::Aux, v) => self.aux_counts = (v << 2).min(4095),
-            Action::Set(Input::StoIn, v) => {
-                self.plant.set_sto_input(v == 0);
-                if v == 0 {
-                    // The board's break interrupt on `STO_IN`'s break (issue 29 N2).
-                    self.drive.sto_break();
-                }
-            }
+            // Low sets BIF: the break interrupt runs at the next event if unmasked.
+            Action::Set(Input::StoIn, v) => self.plant.set_sto_input(v == 0),
             Action::KeyDown(k) => self.plc.key(k, true, now),
             Action::KeyUp(k) => self.plc.key(k, false, now),
             Action::Plant(c) => c.apply(self.plant.params_mut()),
@@ -665,19 +656,10 @@ impl Simulation {
     }
 
     fn pwm_event(&mut self, t: u64) {
-        // The comparators' DACs as the firmware last wrote them (they change at a download).
-        let comparators = Comparators {
-            board: self.drive.board(),
-            dacs: self.drive.comparator_dacs(),
-        };
-        if comparators != *self.plant.comparators() {
-            self.plant.set_comparators(comparators);
-        }
         // The break interrupt first (it outranks the update interrupt): the hardware has
         // already opened the switches.
         if self.tim1.break_irq_pending(&self.plant) {
-            self.tim1.take_break(&mut self.plant);
-            let _ = self.drive.break_fired(self.plant.comparator_levels());
+            self.drive.break_interrupt(&mut self.tim1, &mut self.plant);
         }
         // The update event: the preloaded timing and compares take effect.
         self.tim1.update();
@@ -704,9 +686,9 @@ impl Simulation {
             u_dc: s.u_dc_counts,
             aux: self.aux_counts,
         };
-        // The update interrupt: the firmware's action over the same port order as TIM1's.
-        let action = self.drive.pwm_isr(&adc);
-        action.apply(&mut self.tim1.port(&mut self.plant));
+        // The update interrupt: the firmware's body over the simulator's TIM1.
+        self.drive
+            .pwm_interrupt(&mut self.tim1, &mut self.plant, adc);
     }
 
     fn sample(&self, t: u64) -> Sample {

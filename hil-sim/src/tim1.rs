@@ -8,8 +8,9 @@
 //! blanking window's CCR5), PSC, ARR and the dead time take effect at the update event; MOE and the output enables at once; MOE
 //! cannot be set while the break input is active; the break flag stays set while it is.
 
-use firmware_drive::power_port::PowerPort;
-use firmware_drive::PwmTiming;
+use firmware_drive::bodies::{BreakPort, PwmPort};
+use firmware_drive::power_port::{BreakSources, ComparatorLevels, PowerPort};
+use firmware_drive::{AdcSample, PwmTiming};
 
 use crate::plant::{GateCommand, Leg, Plant};
 
@@ -97,27 +98,124 @@ impl SimTim1 {
         }
     }
 
-    /// The break interrupt would run now: unmasked and the flag set.
+    /// The break interrupt would run now: unmasked and a break flag set (BIF or B2IF).
     pub fn break_irq_pending(&self, plant: &Plant) -> bool {
-        self.break_irq_enabled && plant.break_flag()
+        self.break_irq_enabled && (plant.break_flag() || plant.sto_flag())
     }
 
-    /// What the board's break handler does to the registers before it calls the
-    /// application: mask the interrupt, clear the flag.
-    pub fn take_break(&mut self, plant: &mut Plant) {
-        self.break_irq_enabled = false;
-        plant.clear_break_flag();
+    /// BIE: the break interrupt is unmasked.
+    pub fn break_irq_enabled(&self) -> bool {
+        self.break_irq_enabled
     }
 
-    /// The application's `BreakReport::rearm`: clear the flag, unmask the interrupt.
-    pub fn rearm_break(&mut self, plant: &mut Plant) {
-        plant.clear_break_flag();
+    /// BIE = 1 (the control tick's re-arm): no flag is cleared.
+    pub fn unmask_break_irq(&mut self) {
         self.break_irq_enabled = true;
     }
 
     /// The firmware's power port on these registers and `plant`.
     pub fn port<'a>(&'a mut self, plant: &'a mut Plant) -> SimPowerPort<'a> {
         SimPowerPort { tim: self, plant }
+    }
+
+    /// The PWM interrupt's port: these registers, `plant` and the ADC's `sample` of this
+    /// period (the update event has happened: [`SimTim1::update`]).
+    pub fn pwm_port<'a>(&'a mut self, plant: &'a mut Plant, sample: AdcSample) -> SimPwmPort<'a> {
+        SimPwmPort {
+            power: SimPowerPort { tim: self, plant },
+            sample,
+            update: true,
+        }
+    }
+
+    /// The break interrupt's port on these registers and `plant`.
+    pub fn break_port<'a>(&'a mut self, plant: &'a mut Plant) -> SimBreakPort<'a> {
+        SimBreakPort {
+            power: SimPowerPort { tim: self, plant },
+        }
+    }
+}
+
+/// [`PwmPort`] over [`SimTim1`], the plant and the period's ADC sample, as the board's
+/// `Tim1Port` is over TIM1 and the ADC.
+pub struct SimPwmPort<'a> {
+    power: SimPowerPort<'a>,
+    sample: AdcSample,
+    /// UIF (the simulator calls the interrupt at the update event).
+    update: bool,
+}
+
+impl PwmPort for SimPwmPort<'_> {
+    fn take_update(&mut self) -> bool {
+        core::mem::take(&mut self.update)
+    }
+
+    fn sample(&mut self) -> AdcSample {
+        self.sample
+    }
+}
+
+impl PowerPort for SimPwmPort<'_> {
+    fn outputs_off(&mut self) {
+        self.power.outputs_off();
+    }
+    fn break_pending(&self) -> bool {
+        self.power.break_pending()
+    }
+    fn set_timing(&mut self, t: &PwmTiming) {
+        self.power.set_timing(t);
+    }
+    fn set_compares(&mut self, ccr: [u16; 3]) {
+        self.power.set_compares(ccr);
+    }
+    fn set_blanking(&mut self, ccr5: u16) {
+        self.power.set_blanking(ccr5);
+    }
+    fn set_legs(&mut self, on: [bool; 3]) {
+        self.power.set_legs(on);
+    }
+    fn outputs_on(&mut self) {
+        self.power.outputs_on();
+    }
+    fn set_brake(&mut self, on: bool) {
+        self.power.set_brake(on);
+    }
+}
+
+/// [`BreakPort`] over [`SimTim1`] and the plant (BIF: `STO_IN`, B2IF: the comparators; no
+/// system break in the simulator), as the board's `Tim1Break` is over TIM1.
+pub struct SimBreakPort<'a> {
+    power: SimPowerPort<'a>,
+}
+
+impl BreakPort for SimBreakPort<'_> {
+    fn break_flags(&mut self) -> BreakSources {
+        BreakSources {
+            sto: self.power.plant.sto_flag(),
+            comparator: self.power.plant.break_flag(),
+            system: false,
+        }
+    }
+
+    fn mask_break_irq(&mut self) {
+        self.power.tim.break_irq_enabled = false;
+    }
+
+    fn outputs_off(&mut self) {
+        PowerPort::outputs_off(&mut self.power);
+    }
+
+    fn comparator_levels(&mut self) -> ComparatorLevels {
+        self.power.plant.comparator_levels()
+    }
+
+    fn clear_break_flags(&mut self, seen: BreakSources) {
+        if seen.sto {
+            self.power.plant.clear_sto_flag();
+        }
+        if seen.comparator {
+            self.power.plant.clear_break_flag();
+        }
     }
 }
 
@@ -142,7 +240,10 @@ impl PowerPort for SimPowerPort<'_> {
     }
 
     fn break_pending(&self) -> bool {
-        self.plant.break_flag() || self.plant.break_input_active() || self.plant.sto_in_low()
+        self.plant.break_flag()
+            || self.plant.sto_flag()
+            || self.plant.break_input_active()
+            || self.plant.sto_in_low()
     }
 
     fn set_timing(&mut self, t: &PwmTiming) {
@@ -165,8 +266,8 @@ impl PowerPort for SimPowerPort<'_> {
     }
 
     fn outputs_on(&mut self) {
-        // RM0440 29.3.18: MOE cannot be set while a break input is active (BKIN, or
-        // BKIN2 = `STO_IN` low).
+        // RM0440 29.3.18: MOE cannot be set while a break input is active (break 2: the
+        // comparators, break 1: `STO_IN` low).
         if self.plant.break_input_active() || self.plant.sto_in_low() {
             return;
         }

@@ -1,69 +1,31 @@
-//! The 1 ms task: the comparator levels to the application's break monitor (release and
-//! re-arming are its decisions), the application's millisecond tick (link supervision,
-//! drive section, state machine, status), the threshold DACs it asks for, and the defmt
-//! log of the application's events.
+//! The 1 ms task: the application's control tick (`firmware_drive::bodies`) over
+//! [`ControlRegs`], then the defmt log of its events.
 
 use embassy_time::{Duration, Ticker};
-use firmware_drive::app::{AppEvent, TickStep};
+use firmware_drive::app::{AppEvent, DriveApp};
+use firmware_drive::bodies::ControlPort;
+use firmware_drive::comparators::DacValues;
 use firmware_drive::drive::DriveEvent;
-use heapless::Vec;
+use firmware_drive::power_port::ComparatorLevels;
+use shared_protocol::units::Micros;
 
 use super::{hw_protection, power_stage, shared, supervisor};
 
 /// Period of the drive-section task.
 pub const PERIOD: Duration = Duration::from_millis(1);
 
-/// Events taken per tick for logging (the application keeps the newest 32; the link task
-/// leaves its events for this task).
-const EVENTS_PER_TICK: usize = 32;
-
 /// Ticks the application every millisecond.
 #[embassy_executor::task]
 pub async fn run() {
     let mut ticker = Ticker::every(PERIOD);
-    // The threshold DACs as written at start-up (the core's defaults).
-    let mut dacs = shared::with(|s| s.app.core().comparator_dacs());
     loop {
         ticker.next().await;
-        let levels = hw_protection::levels();
-        let mut events: Vec<AppEvent, EVENTS_PER_TICK> = Vec::new();
         #[cfg(feature = "dwt-cycles")]
         let start = super::cycles::now();
-        let rearm = shared::with(|s| {
-            // safety.md 6: the STO input's level, every tick, before the break monitor
-            // (no re-arming while it is low) and the tick.
-            s.app.set_sto_input(power_stage::sto_input_low());
-            s.app.break_poll(levels).rearm
-        });
-        // Each step of the tick in a critical section of its own (review N8: the whole
-        // tick at the start of RUN held the PWM interrupt off for ~1.5 periods at 20 kHz).
-        // No await in between: no other task runs between the steps, only interrupts.
-        let t = shared::now();
-        for step in TickStep::ALL {
-            shared::with(|s| s.app.tick_step(step, t));
-        }
-        shared::with(|s| {
-            // A download may have changed I>>/U>>: write the core's new DAC values.
-            let now = s.app.core().comparator_dacs();
-            if Some(now) != dacs {
-                hw_protection::write_dacs(now);
-                dacs = Some(now);
-            }
-            while !events.is_full() {
-                match s.app.poll_event() {
-                    Some(e) => {
-                        let _ = events.push(e);
-                    }
-                    None => break,
-                }
-            }
-        });
+        let events = DriveApp::control_tick(&mut ControlRegs);
         #[cfg(feature = "dwt-cycles")]
         super::cycles::record_tick(start);
-        super::link::kick_if_due();
-        if rearm == Some(true) {
-            power_stage::rearm_break_irq();
-        }
+        // Only the defmt format is chosen here.
         for e in events {
             match e {
                 AppEvent::Core(DriveEvent::Fault(code)) => defmt::error!("drive: fault {}", code),
@@ -86,5 +48,47 @@ pub async fn run() {
         #[cfg(feature = "dwt-cycles")]
         super::cycles::report_every_second();
         supervisor::alive(supervisor::TASK_CONTROL);
+    }
+}
+
+/// The control tick's registers: `STO_IN`, the comparators, the threshold DACs, the break
+/// interrupt's mask, the link task's wake-up, and the application in one critical section
+/// per access.
+struct ControlRegs;
+
+impl ControlPort for ControlRegs {
+    #[inline(always)]
+    fn with_app<R>(&mut self, f: impl FnOnce(&mut DriveApp) -> R) -> Option<R> {
+        shared::with(|s| f(s.app))
+    }
+
+    #[inline(always)]
+    fn now(&mut self) -> Micros {
+        shared::now()
+    }
+
+    #[inline(always)]
+    fn sto_input_low(&mut self) -> bool {
+        power_stage::sto_input_low()
+    }
+
+    #[inline(always)]
+    fn comparator_levels(&mut self) -> ComparatorLevels {
+        hw_protection::levels()
+    }
+
+    #[inline(always)]
+    fn rearm_break_irq(&mut self) {
+        power_stage::rearm_break_irq();
+    }
+
+    #[inline(always)]
+    fn write_dacs(&mut self, v: DacValues) {
+        hw_protection::write_dacs(v);
+    }
+
+    #[inline(always)]
+    fn kick_link(&mut self) {
+        board_common::link::kick();
     }
 }

@@ -3,7 +3,6 @@
 
 use board_common::link::{self as common, LinkPort, SharedEndpoint};
 use firmware_drive::app::DriveApp;
-use shared_protocol::link::pump::is_due;
 
 use super::shared;
 use crate::pins::Link;
@@ -27,13 +26,4 @@ impl SharedEndpoint for Shared {
 #[embassy_executor::task]
 pub async fn run(port: LinkPort) {
     common::run(port, Shared).await
-}
-
-/// Wakes the link task when the application has something due (a status change, a
-/// fault report); the task otherwise sleeps until the deadline it knew.
-pub fn kick_if_due() {
-    let deadline = shared::with(|s| s.app.poll_timeout()).flatten();
-    if is_due(deadline, shared::now()) {
-        common::kick();
-    }
 }

@@ -62,8 +62,6 @@ pub async fn start(spawner: Spawner) {
     let link_cfg = LinkConfig::default();
     let app = shared::app_in_place(cfg, cause, link_cfg);
     let timing = app.pwm_timing();
-    let min_dead_counts =
-        power_stage::min_dead_time_counts(cfg.timer_clock_hz, cfg.min_dead_time_ns);
 
     defmt::info!("board profile: {}", cfg.board.name);
     let board = pins::split(p);
@@ -71,20 +69,16 @@ pub async fn start(spawner: Spawner) {
     HW.init(hw);
     // The thresholds from the trimmed zeros (a failed trim ends BOOT in `BOOT`).
     app.set_comparator_trim(trim);
-    hw_protection::write_dacs(app.core().comparator_dacs());
+    hw_protection::write_dacs(app.boot_dacs());
     ANALOG.init(analog::init(board.analog, &cfg.board.front_end));
-    PWM.init(power_stage::init(board.power, timing, min_dead_counts));
+    PWM.init(power_stage::init(board.power, timing));
     // PB5 is the chopper's gate only on a board that has one; on the ESC1 it is
-    // `GPIO_BEMF` and stays as reset leaves it (review N7).
+    // `GPIO_BEMF` and stays as reset leaves it.
     let brake = cfg
         .board
         .brake_chopper
         .then(|| Output::new(board.misc.brake, Level::Low, Speed::Low));
-    shared::install(shared::Shared {
-        app,
-        brake,
-        min_dead_counts,
-    });
+    shared::install(shared::Shared { app, brake });
     power_stage::arm_break(&hw_protection::break_comparators(cfg.board));
     power_stage::arm_sto_input();
     power_stage::route_system_faults_to_break();

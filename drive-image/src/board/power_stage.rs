@@ -22,8 +22,11 @@ use embassy_stm32::timer::complementary_pwm::ComplementaryPwmPin;
 use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::timer::simple_pwm::{PwmPin, PwmPinConfig};
 use embassy_stm32::timer::{Ch1, Ch2, Ch3};
+use firmware_drive::bodies::{BreakPort, PwmPort};
+use firmware_drive::measure::AdcSample;
 use firmware_drive::power_port::PowerPort;
-use firmware_drive::timing::{decode_dtg, PwmTiming};
+use firmware_drive::power_port::{BreakSources, ComparatorLevels};
+use firmware_drive::timing::PwmTiming;
 
 use crate::pins::PowerStage;
 
@@ -45,15 +48,9 @@ pub struct Tim1Pwm {
     _sto_in: embassy_stm32::Peri<'static, embassy_stm32::peripherals::PA15>,
 }
 
-/// Fewest CK_INT periods of dead time the power stage accepts: `min_dead_time_ns` rounded up.
-pub fn min_dead_time_counts(timer_clock_hz: u32, min_dead_time_ns: u32) -> u32 {
-    let counts = (u64::from(min_dead_time_ns) * u64::from(timer_clock_hz)).div_ceil(1_000_000_000);
-    u32::try_from(counts).unwrap_or(u32::MAX)
-}
-
 /// Claims the six pins (pulled down while the timer takes them over), clocks TIM1 and leaves
 /// it counting with MOE = 0, all compares at 0 and the update interrupt enabled.
-pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
+pub fn init(p: PowerStage, timing: PwmTiming) -> Tim1Pwm {
     let cfg = PwmPinConfig {
         output_type: OutputType::PushPull,
         speed: Speed::VeryHigh,
@@ -79,11 +76,11 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
     // clear is a read-modify-write).
     let t = pac::TIM1;
     t.bdtr().modify(|w| w.set_moe(false));
-    // Review D1: a halted core (breakpoint, probe-rs halt) stops TIM1's counter, and a
+    // A halted core (breakpoint, probe-rs halt) stops TIM1's counter, and a
     // stopped advanced timer disables its outputs as if MOE were cleared (RM0440 "Debug
     // mode"): no frozen duty cycle keeps driving DC into two windings.
     pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
-    // Review D17: the dead time (BDTR.DTG) is preloaded and changes at the update event,
+    // The dead time (BDTR.DTG) is preloaded and changes at the update event,
     // with PSC and ARR, never in mid-period (DTR2.DTPE, RM0440 29.4.28).
     t.dtr2().modify(|w| w.set_dtpe(true));
     t.bdtr().modify(|w| {
@@ -114,7 +111,7 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
             w.set_ocpe(ch % 2, true);
         });
     }
-    // Review D10: OC5 is the comparators' blanking window (COMP BLANKSEL = TIM1_OC5), PWM
+    // OC5 is the comparators' blanking window (COMP BLANKSEL = TIM1_OC5), PWM
     // mode 1 (active while CNT < CCR5: around the valley), preloaded like the compares;
     // CCR5 per period from the core (`PeriodAction::blanking`), 0 = no window. GC5Cx
     // stay 0: OC5 is not ANDed into the phase outputs.
@@ -143,7 +140,7 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
     // One update per PWM period, at the valley (counter = 0).
     t.rcr().write(|w| w.set_rep(1));
     record_bdtr();
-    apply_timing(&timing, min_dead_counts);
+    apply_timing(&timing);
     for ch in 0..3 {
         t.ccr(ch).write(|w| w.set_ccr(0));
     }
@@ -163,7 +160,7 @@ pub fn init(p: PowerStage, timing: PwmTiming, min_dead_counts: u32) -> Tim1Pwm {
 /// ESC1's CAN_RX and not used) with automatic output enable off: a break clears MOE in
 /// hardware and it stays cleared until software sets it again. Break 1 is `STO_IN`'s
 /// ([`arm_sto_input`]): the only TIM1 break pin the ESC1 leaves free is a BKIN pin
-/// (review N1, `pins`). MOE is 0 here (`init`), so the read-modify-write of BDTR cannot
+/// (`pins`). MOE is 0 here (`init`), so the read-modify-write of BDTR cannot
 /// set it.
 pub fn arm_break(comparators: &[usize]) {
     let t = pac::TIM1;
@@ -185,11 +182,11 @@ pub fn arm_break(comparators: &[usize]) {
 }
 
 /// safety.md 6 (NOT RATED): `STO_IN` on PA15 as TIM1_BKIN (AF9; not BKIN2 as safety.md
-/// says: the G431CBU6's only BKIN2 pin is PA11, the ESC1's CAN_RX, review N1), with a
+/// says: the G431CBU6's only BKIN2 pin is PA11, the ESC1's CAN_RX), with a
 /// pull-down so that a broken wire requests STO; break 1 armed active low (its only
 /// source: the comparators are on break 2) with automatic output enable off: `STO_IN` low
 /// clears MOE in hardware, with no software, and sets BIF, which stays set until the core
-/// has seen it ([`take_break`]); only the drive software sets MOE again (after ACK and a
+/// has seen it (`DriveApp::break_interrupt`); only the drive software sets MOE again (after ACK and a
 /// new RUN). No filter (BKF = 0): a pulse of one timer clock (5.9 ns) breaks. No policy
 /// here: the core latches the break and reads the level every tick
 /// ([`sto_input_low`]). The pin stays reserved by `pins` (its `Peri` is kept by the
@@ -229,7 +226,7 @@ pub fn sto_input_low() -> bool {
     pac::GPIOA.idr().read().idr(STO_PIN) == pac::gpio::vals::Idr::LOW
 }
 
-/// Review D7: routes the Cortex-M4 LOCKUP, the PVD, SRAM parity errors and flash double
+/// Routes the Cortex-M4 LOCKUP, the PVD, SRAM parity errors and flash double
 /// ECC errors to TIM1's system break (SYSCFG_CFGR2 CLL/PVDL/SPL/ECCL, RM0440 Table
 /// "TIMx break interconnect"): a stack overflow that locks the core up (flip-link puts the
 /// stack at the bottom of RAM) opens every switch in hardware, without software. The PVD
@@ -249,16 +246,11 @@ pub fn route_system_faults_to_break() {
 }
 
 /// Programs PSC, ARR, CH4's trigger point and the dead time for `timing` (all preloaded:
-/// they take effect together at the next update), after checking that the dead time the
-/// DTG code really gives is at least the power stage's minimum. A violation is a bug in
-/// the timing computation: the power stage goes off and the firmware stops (`fault`).
-/// Called only with MOE = 0 ([`PowerPort::set_timing`]'s contract): BDTR is written whole
-/// with MOE = 0 and the new DTG (review D9).
-fn apply_timing(timing: &PwmTiming, min_dead_counts: u32) {
-    let realised = u32::from(decode_dtg(timing.dtg));
-    if realised < min_dead_counts || realised != u32::from(timing.dead_time_counts) {
-        super::fault::fatal("dead time below the power stage's minimum");
-    }
+/// they take effect together at the next update). The dead-time floor is the core's
+/// boot check (`PwmTiming::dead_time_meets`: below it the core latches `BOOT` and never
+/// sets MOE). Called only with MOE = 0 ([`PowerPort::set_timing`]'s contract): BDTR is
+/// written whole with MOE = 0 and the new DTG.
+fn apply_timing(timing: &PwmTiming) {
     let t = pac::TIM1;
     t.psc().write_value(timing.psc);
     t.arr().write(|w| w.set_arr(timing.arr));
@@ -269,7 +261,7 @@ fn apply_timing(timing: &PwmTiming, min_dead_counts: u32) {
     t.bdtr().write_value(v);
 }
 
-/// TIM1_BDTR as the start-up configured it, with MOE = 0 (review D9). After start-up BDTR
+/// TIM1_BDTR as the start-up configured it, with MOE = 0. After start-up BDTR
 /// is never read: every write is this word whole, with MOE set ([`Tim1Port::outputs_on`])
 /// or not, and a new DTG ([`apply_timing`]) is written into it. A read-modify-write
 /// straddling a break pulse would write back the MOE = 1 it read after the break cleared
@@ -291,7 +283,7 @@ pub fn record_bdtr() {
 }
 
 /// The break flags: both break inputs (BIF: `STO_IN`, B2IF: the comparators) and the
-/// system break (SBIF, review N4).
+/// system break (SBIF).
 fn break_flags() -> SrAdv {
     let mut m = SrAdv(0);
     m.set_bif(0, true);
@@ -301,19 +293,30 @@ fn break_flags() -> SrAdv {
 }
 
 /// Clears the flags of `mask` and no other (TIM SR flags are rc_w0: writing 1 leaves a
-/// flag as it is, a read-modify-write would clear flags set in between; review D9).
+/// flag as it is, a read-modify-write would clear flags set in between).
 #[inline(always)]
 fn clear_flags(mask: SrAdv) {
     pac::TIM1.sr().write_value(SrAdv(!mask.0));
 }
 
-/// TIM1 and the brake chopper's gate as the core's [`PowerPort`]: one register access per
-/// method, no decisions (the order is `PeriodAction::apply`'s).
+/// TIM1, the ADC and the brake chopper's gate as the PWM interrupt's [`PwmPort`]: one
+/// register access per method, no decisions (the order is `DriveApp::pwm_interrupt`'s and
+/// `PeriodAction::apply`'s).
 pub struct Tim1Port<'a> {
     /// `None` on a board without a chopper (the pin is not touched).
     pub brake: &'a mut Option<Output<'static>>,
-    /// Fewest dead-time counts the power stage accepts (checked on every timing write).
-    pub min_dead_counts: u32,
+}
+
+impl PwmPort for Tim1Port<'_> {
+    #[inline(always)]
+    fn take_update(&mut self) -> bool {
+        take_update()
+    }
+
+    #[inline(always)]
+    fn sample(&mut self) -> AdcSample {
+        super::analog::read()
+    }
 }
 
 impl PowerPort for Tim1Port<'_> {
@@ -328,7 +331,7 @@ impl PowerPort for Tim1Port<'_> {
     }
 
     fn set_timing(&mut self, t: &PwmTiming) {
-        apply_timing(t, self.min_dead_counts);
+        apply_timing(t);
     }
 
     #[inline(always)]
@@ -364,7 +367,7 @@ impl PowerPort for Tim1Port<'_> {
     }
 
     /// The hardware ignores it while the break input is active (RM0440 29.3.18). BDTR
-    /// written whole (review D9).
+    /// written whole.
     #[inline(always)]
     fn outputs_on(&mut self) {
         let mut v = bdtr_config();
@@ -381,7 +384,7 @@ impl PowerPort for Tim1Port<'_> {
 }
 
 /// MOE off: all six outputs to their inactive level after the dead time. BDTR written
-/// whole with the recorded configuration (review D9); before start-up recorded it (a panic
+/// whole with the recorded configuration; before start-up recorded it (a panic
 /// during start-up) that word is 0, which is MOE off as well.
 #[inline(always)]
 pub fn outputs_off() {
@@ -400,52 +403,51 @@ pub fn take_update() -> bool {
     set
 }
 
-/// The break flags the break interrupt found (a register value: which source each flag
-/// stands for is `arm_break`'s and `arm_sto_input`'s wiring).
-#[derive(Clone, Copy)]
-pub struct BreakFlags(SrAdv);
+/// TIM1's break registers and the comparators as the break interrupt's [`BreakPort`]:
+/// which flag stands for which source is [`arm_break`]'s and [`arm_sto_input`]'s wiring.
+pub struct Tim1Break;
 
-impl BreakFlags {
-    /// None set (a spurious entry).
-    pub fn none(self) -> bool {
-        self.0 .0 == 0
+impl BreakPort for Tim1Break {
+    #[inline(always)]
+    fn break_flags(&mut self) -> BreakSources {
+        let sr = pac::TIM1.sr().read();
+        BreakSources {
+            sto: sr.bif(0),
+            comparator: sr.bif(1),
+            system: sr.sbif(),
+        }
     }
-    /// BIF: `STO_IN` (break 1).
-    pub fn sto(self) -> bool {
-        self.0.bif(0)
-    }
-    /// B2IF: a comparator (break 2).
-    pub fn comparator(self) -> bool {
-        self.0.bif(1)
-    }
-    /// SBIF: the system break (PVD, SRAM parity, flash ECC, LOCKUP).
-    pub fn system(self) -> bool {
-        self.0.sbif()
-    }
-}
 
-/// The break flags now set, with the break interrupt masked (a flag sets again at once
-/// while its input stays active) until [`rearm_break_irq`]. The flags stay set until
-/// [`clear_break_flags`], after the core has been told (safety.md 6: the break stays
-/// latched until the core has seen it; meanwhile `Tim1Port::break_pending` keeps MOE off).
-pub fn take_break() -> BreakFlags {
-    let t = pac::TIM1;
-    let seen = SrAdv(t.sr().read().0 & break_flags().0);
-    if seen.0 != 0 {
-        t.dier().modify(|w| w.set_bie(false));
+    #[inline(always)]
+    fn mask_break_irq(&mut self) {
+        pac::TIM1.dier().modify(|w| w.set_bie(false));
     }
-    BreakFlags(seen)
-}
 
-/// Clears the flags of `seen` and no other: a flag that set in between (another source)
-/// stays for the next entry.
-pub fn clear_break_flags(seen: BreakFlags) {
-    clear_flags(seen.0);
+    #[inline(always)]
+    fn outputs_off(&mut self) {
+        outputs_off();
+    }
+
+    #[inline(always)]
+    fn comparator_levels(&mut self) -> ComparatorLevels {
+        super::hw_protection::levels()
+    }
+
+    /// The flags of `seen` and no other: a flag that set in between (another source)
+    /// stays for the next entry.
+    #[inline(always)]
+    fn clear_break_flags(&mut self, seen: BreakSources) {
+        let mut m = SrAdv(0);
+        m.set_bif(0, seen.sto);
+        m.set_bif(1, seen.comparator);
+        m.set_sbif(seen.system);
+        clear_flags(m);
+    }
 }
 
 /// Unmasks the break interrupt (the core's `BreakReport::rearm`) without clearing any
 /// flag: a break that came while the interrupt was masked (a comparator during an STO)
-/// is then reported, delayed, not lost (review N3).
+/// is then reported, delayed, not lost.
 pub fn rearm_break_irq() {
     pac::TIM1.dier().modify(|w| w.set_bie(true));
 }

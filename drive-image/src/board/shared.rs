@@ -1,8 +1,9 @@
 //! The drive application, shared between the PWM interrupt and the tasks.
 //!
 //! Every access is one `critical_section` (interrupts masked): the PWM interrupt's section
-//! is the core's per-period function plus a few register writes; the 1 ms task's is one
-//! `tick_1ms`, the link task's one `on_rx` or `poll_tx`. A task holding the section delays the PWM interrupt at most by that long;
+//! is the application's PWM interrupt body; the 1 ms task's is one step of its tick
+//! (`ControlPort::with_app`), the link task's one `on_rx` or `poll_tx`. A task holding the
+//! section delays the PWM interrupt at most by that long;
 //! the compare registers are preloaded, so a late interrupt repeats the previous duties for
 //! one period instead of glitching. `dwt-cycles` measures both.
 
@@ -23,8 +24,6 @@ pub struct Shared {
     /// Brake chopper gate, written by the PWM interrupt; `None` on a board without one
     /// (`BoardProfile::brake_chopper`: on the ESC1 PB5 enables the BEMF dividers).
     pub brake: Option<Output<'static>>,
-    /// Fewest dead-time counts the power stage accepts.
-    pub min_dead_counts: u32,
 }
 
 /// A reference, so that the static is `.bss` (an `Option<Shared>` initialised to `None`

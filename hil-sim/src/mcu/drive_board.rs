@@ -1,22 +1,27 @@
 //! The drive MCU on the host: the firmware's [`DriveApp`] (link endpoint + drive core),
-//! called as the board's interrupts and tasks call it.
+//! whose interrupt and task bodies (`firmware_drive::bodies`) run over the simulator's
+//! TIM1 ([`SimTim1`]) and plant, at the board's cadence.
 
 use firmware_drive::app::DriveApp;
+use firmware_drive::bodies::ControlPort;
 use firmware_drive::comparators::{BoardProfile, DacValues};
-use firmware_drive::power_port::{BreakReport, ComparatorLevels, PeriodAction};
-use firmware_drive::{AdcSample, DriveConfig, DriveCore, DriveStatus, PwmTiming, ResetCause};
+use firmware_drive::power_port::ComparatorLevels;
+use firmware_drive::{AdcSample, CoreStatus, DriveConfig, DriveCore, PwmTiming, ResetCause};
+
+use crate::plant::{Comparators, Plant};
+use crate::tim1::SimTim1;
 use shared_protocol::link::pump::{Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::units::Micros;
 
-/// The drive board.
-pub struct DriveBoard {
+/// The drive MCU (the board's image, on the host).
+pub struct SimDrive {
     app: DriveApp,
     pump: Pump,
     timer_clock_hz: u32,
 }
 
-impl DriveBoard {
+impl SimDrive {
     pub fn new(link_cfg: LinkConfig) -> Self {
         Self::with_config(link_cfg, DriveConfig::default())
     }
@@ -28,7 +33,7 @@ impl DriveBoard {
 
     /// A board coming out of reset with `cause` (power-on, or its watchdog).
     pub fn with_reset(link_cfg: LinkConfig, cfg: DriveConfig, cause: ResetCause) -> Self {
-        DriveBoard {
+        SimDrive {
             timer_clock_hz: cfg.timer_clock_hz,
             app: DriveApp::new(cfg, cause, link_cfg),
             pump: Pump::new(MAX_IDLE_US),
@@ -49,44 +54,45 @@ impl DriveBoard {
     }
 }
 
-impl DriveBoard {
+impl SimDrive {
     // The calls the simulator makes, as the board's interrupts and tasks make them.
-    /// TIM1 update interrupt: the ADC conversion of this period in, what the power stage
-    /// does out (performed over the simulator's TIM1, [`crate::tim1::SimTim1`]).
-    #[inline]
-    pub fn pwm_isr(&mut self, adc: &AdcSample) -> PeriodAction {
-        self.app.pwm_period(adc)
+    /// TIM1 update interrupt ([`DriveApp::pwm_interrupt`]): the ADC conversion of this
+    /// period in, the power stage's action performed on the simulator's TIM1.
+    pub fn pwm_interrupt(&mut self, tim: &mut SimTim1, plant: &mut Plant, adc: AdcSample) {
+        self.app.pwm_interrupt(&mut tim.pwm_port(plant, adc));
     }
 
-    /// The 1 ms system tick (drive section, state machine, link timers).
-    pub fn tick_1ms(&mut self, now: Micros) {
-        self.app.tick_1ms(now);
-        self.drain();
+    /// TIM1 break interrupt ([`DriveApp::break_interrupt`]).
+    pub fn break_interrupt(&mut self, tim: &mut SimTim1, plant: &mut Plant) {
+        self.app.break_interrupt(&mut tim.break_port(plant));
     }
 
-    /// The board reads `STO_IN` every millisecond, before the tick (safety.md 6).
-    pub fn set_sto_input(&mut self, low: bool) {
-        self.app.set_sto_input(low);
+    /// The board's 1 ms task ([`DriveApp::control_tick`]): whether it woke the link task.
+    pub fn control_tick(&mut self, tim: &mut SimTim1, plant: &mut Plant, now: Micros) -> bool {
+        let mut port = SimControl {
+            app: &mut self.app,
+            tim,
+            plant,
+            now,
+            kick: false,
+        };
+        // The board logs these over defmt; the simulator has no use for them.
+        let _ = DriveApp::control_tick(&mut port);
+        port.kick
+    }
+
+    /// The threshold DACs as the board's start-up writes them (after the trim).
+    pub fn boot_dacs(&mut self, plant: &mut Plant) {
+        let dacs = self.app.boot_dacs();
+        plant.set_comparators(Comparators {
+            board: self.board(),
+            dacs,
+        });
     }
 
     /// The safety monitor's commanded field turns since RUN start, 10⁻⁴ turn.
     pub fn turns_e4(&self) -> i64 {
         self.app.core().safety().turns_e4()
-    }
-
-    /// TIM1 break interrupt on `STO_IN`'s break (break 1).
-    pub fn sto_break(&mut self) {
-        self.app.sto_break();
-    }
-
-    /// TIM1 break interrupt with the comparators at `levels`.
-    pub fn break_fired(&mut self, levels: ComparatorLevels) -> BreakReport {
-        self.app.break_fired(levels)
-    }
-
-    /// Every 1 ms before the tick: the comparators at `levels` (release, re-arm).
-    pub fn break_poll(&mut self, levels: ComparatorLevels) -> BreakReport {
-        self.app.break_poll(levels)
     }
 
     /// One pass of the board's link task: the core's pump
@@ -120,7 +126,7 @@ impl DriveBoard {
         self.timer_clock_hz
     }
 
-    pub fn status(&self) -> DriveStatus {
+    pub fn status(&self) -> CoreStatus {
         self.app.status()
     }
 
@@ -133,5 +139,46 @@ impl DriveBoard {
     /// What the firmware writes to the comparator threshold DACs now.
     pub fn comparator_dacs(&self) -> DacValues {
         self.app.core().comparator_dacs()
+    }
+}
+
+/// [`ControlPort`] over the simulator: `STO_IN` and the comparators from the plant, the
+/// DACs into it, the break interrupt's mask in [`SimTim1`].
+struct SimControl<'a> {
+    app: &'a mut DriveApp,
+    tim: &'a mut SimTim1,
+    plant: &'a mut Plant,
+    now: Micros,
+    kick: bool,
+}
+
+impl ControlPort for SimControl<'_> {
+    fn with_app<R>(&mut self, f: impl FnOnce(&mut DriveApp) -> R) -> Option<R> {
+        Some(f(self.app))
+    }
+
+    fn now(&mut self) -> Micros {
+        self.now
+    }
+
+    fn sto_input_low(&mut self) -> bool {
+        self.plant.sto_in_low()
+    }
+
+    fn comparator_levels(&mut self) -> ComparatorLevels {
+        self.plant.comparator_levels()
+    }
+
+    fn rearm_break_irq(&mut self) {
+        self.tim.unmask_break_irq();
+    }
+
+    fn write_dacs(&mut self, dacs: DacValues) {
+        let board = self.app.core().config().board;
+        self.plant.set_comparators(Comparators { board, dacs });
+    }
+
+    fn kick_link(&mut self) {
+        self.kick = true;
     }
 }

@@ -1,17 +1,17 @@
 //! The two MCUs as the simulator drives them.
 //!
-//! [`DriveBoard`] and [`PlcBoard`] are the seam between the simulated hardware and the
+//! [`SimDrive`] and [`PlcBoard`] are the seam between the simulated hardware and the
 //! firmware's sans-IO applications: the simulator plays the peripherals (timer interrupt
 //! with its ADC sample, 1 ms system tick, UART bytes, break input, GPIO, keypad, LCD,
 //! EEPROM) and calls the same core code the firmware images run, as the boards' tasks
 //! and interrupts call it. There is one of each (no trait: the front panel drives the
-//! same `PlcBoard` through the simulator, issue 14).
+//! same `PlcBoard` through the simulator).
 
 pub mod drive_board;
 pub mod lcd;
 pub mod plc_board;
 
-pub use drive_board::DriveBoard;
+pub use drive_board::SimDrive;
 pub use lcd::Lcd;
 pub use plc_board::PlcBoard;
 

@@ -129,7 +129,7 @@ impl PlcBoard {
         }
     }
 
-    /// See [`super::DriveBoard::link_pass`].
+    /// See [`super::SimDrive::link_pass`].
     pub fn link_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
         self.pump.pass(&mut self.app, rx, tx_room, now)
     }

@@ -16,7 +16,7 @@ use shared_protocol::link::LinkConfig;
 use shared_protocol::program::{Program, DIGITAL_INPUTS};
 use shared_protocol::units::Micros;
 
-use crate::mcu::{DriveBoard, PlcBoard, PlcPins};
+use crate::mcu::{PlcBoard, PlcPins, SimDrive};
 use crate::plant::{SenseSpike, UdcSenseSpike};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};
@@ -224,7 +224,7 @@ impl SimBackend {
         let plc = PlcBoard::new(eeprom, link, Micros(0));
         // The drive core configured for the rig's board (as `run`): the plant's sensors
         // and the core's scaling must be the same board's.
-        let drive = DriveBoard::with_config(link, crate::sim::drive_config(&scenario.rig));
+        let drive = SimDrive::with_config(link, crate::sim::drive_config(&scenario.rig));
         let opts = RunOptions {
             // The RMS current needs a few samples per period of the output (70 Hz at
             // most): 2 kHz.

@@ -181,12 +181,15 @@ pub struct Plant {
     /// TIM1's break input cleared MOE: all legs float until software sets MOE again
     /// ([`Plant::release_break`]), which it cannot while a comparator is high.
     hw_break: bool,
-    /// The drive board's `STO_IN` is low (safety.md 6): TIM1's second break input
-    /// (BKIN2) holds MOE cleared, without software and without an interrupt.
+    /// The drive board's `STO_IN` is low (safety.md 6): TIM1's break 1 (BKIN)
+    /// holds MOE cleared without software, and sets BIF ([`Plant::sto_flag`]).
     sto_in_low: bool,
-    /// TIM1_SR.BIF: set while the break input is active, cleared by software only once
-    /// it is not.
+    /// TIM1_SR.B2IF (the comparators' break 2): set while a comparator is high, cleared
+    /// by software only once none is.
     break_flag: bool,
+    /// TIM1_SR.BIF (`STO_IN`'s break 1): set while `STO_IN` is low, cleared by software
+    /// only once it is high.
+    sto_flag: bool,
     /// The board's comparators (table and DAC values from the drive core).
     comparators: Comparators,
     /// Comparator outputs after the last step.
@@ -227,6 +230,7 @@ impl Plant {
             hw_break: false,
             sto_in_low: false,
             break_flag: false,
+            sto_flag: false,
             comparators: Comparators::new(params.board, params.hw_defaults.thresholds()),
             comparator_levels: ComparatorLevels::default(),
             blank_half_ns: 0,
@@ -313,14 +317,24 @@ impl Plant {
         self.brake_on = on;
     }
 
-    /// TIM1_SR.BIF.
+    /// TIM1_SR.B2IF (a comparator broke).
     pub fn break_flag(&self) -> bool {
         self.break_flag
     }
 
-    /// Software clears BIF: it stays set while the break input is active (RM0440).
+    /// Software clears B2IF: it stays set while the break input is active (RM0440).
     pub fn clear_break_flag(&mut self) {
         self.break_flag = self.break_input_active();
+    }
+
+    /// TIM1_SR.BIF (`STO_IN` broke).
+    pub fn sto_flag(&self) -> bool {
+        self.sto_flag
+    }
+
+    /// Software clears BIF: it stays set while `STO_IN` is low (RM0440).
+    pub fn clear_sto_flag(&mut self) {
+        self.sto_flag = self.sto_in_low;
     }
 
     /// A comparator is high: the break input is active.
@@ -328,16 +342,18 @@ impl Plant {
         self.comparator_levels.0.iter().any(|l| *l)
     }
 
-    /// `STO_IN` (safety.md 6, 11): low opens the inverter at once (BKIN2, like the
-    /// comparators' break, in the same PWM period), and MOE cannot be set while it is.
+    /// `STO_IN` (safety.md 6, 11): low opens the inverter at once (BKIN, like the
+    /// comparators' break, in the same PWM period) and sets BIF, and MOE cannot be set
+    /// while it is low.
     pub fn set_sto_input(&mut self, low: bool) {
         self.sto_in_low = low;
         if low {
             self.hw_break = true;
+            self.sto_flag = true;
         }
     }
 
-    /// `STO_IN` is low (BKIN2 active).
+    /// `STO_IN` is low (BKIN active).
     pub fn sto_in_low(&self) -> bool {
         self.sto_in_low
     }
@@ -642,6 +658,7 @@ impl Plant {
         }
         if self.sto_in_low {
             self.hw_break = true;
+            self.sto_flag = true;
         }
     }
 

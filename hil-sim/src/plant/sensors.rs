@@ -161,6 +161,8 @@ mod tests {
 
     use firmware_drive::comparators::{B_G431B_ESC1, SOURCE_SENSORS};
     use firmware_drive::measure::{ESC1_SCALING, SOURCE_SCALING};
+    use firmware_drive::power_port::Causes;
+    use firmware_drive::HwBreak;
 
     #[test]
     fn current_scaling_is_mid_scale_and_saturates() {
@@ -211,23 +213,30 @@ mod tests {
         for phase in 0..3 {
             let mut i = [-1.0; 3];
             i[phase] = 3.3;
-            assert_eq!(c.levels(i, 24.0).causes(c.board), [true, false], "{phase}");
+            assert_eq!(
+                c.levels(i, 24.0).causes(c.board),
+                Causes::only(HwBreak::Overcurrent),
+                "{phase}"
+            );
             i[phase] = 2.8;
-            assert_eq!(c.levels(i, 24.0).causes(c.board), [false, false], "{phase}");
+            assert_eq!(c.levels(i, 24.0).causes(c.board), Causes::NONE, "{phase}");
         }
         // Negative currents raise the signal: no trip.
         assert_eq!(
             c.levels([-8.0, 4.0, 4.0], 24.0).causes(c.board),
-            [true, false],
+            Causes::only(HwBreak::Overcurrent),
             "phase b and c at +4 A"
         );
         assert_eq!(
             c.levels([-2.5, 1.25, 1.25], 24.0).causes(c.board),
-            [false, false]
+            Causes::NONE
         );
         // The DC link at 30 V of the 34.3 V range.
-        assert_eq!(c.levels([0.0; 3], 30.2).causes(c.board), [false, true]);
-        assert_eq!(c.levels([0.0; 3], 29.8).causes(c.board), [false, false]);
+        assert_eq!(
+            c.levels([0.0; 3], 30.2).causes(c.board),
+            Causes::only(HwBreak::Overvoltage)
+        );
+        assert_eq!(c.levels([0.0; 3], 29.8).causes(c.board), Causes::NONE);
     }
 
     #[test]
@@ -241,34 +250,34 @@ mod tests {
         // Each phase's positive half-wave trips, on any of the three phases.
         assert_eq!(
             c.levels([3.05, -1.5, -1.55], 30.0).causes(c.board),
-            [true, false]
+            Causes::only(HwBreak::Overcurrent)
         );
         assert_eq!(
             c.levels([-1.5, 3.05, -1.55], 30.0).causes(c.board),
-            [true, false]
+            Causes::only(HwBreak::Overcurrent)
         );
         assert_eq!(
             c.levels([-1.5, -1.55, 3.05], 30.0).causes(c.board),
-            [true, false]
+            Causes::only(HwBreak::Overcurrent)
         );
         // A negative half-wave alone does not (no window on the G431's four comparators):
         // -5 A on phase a with +2.5 A on b and c is the software check's (I>).
         assert_eq!(
             c.levels([-5.0, 2.5, 2.5], 30.0).causes(c.board),
-            [false, false]
+            Causes::NONE
         );
         // Beyond -2 x the threshold another phase exceeds +threshold (sum zero).
         assert_eq!(
             c.levels([-6.2, 3.1, 3.1], 30.0).causes(c.board),
-            [true, false]
+            Causes::only(HwBreak::Overcurrent)
         );
         assert_eq!(
             c.levels([0.0, 0.0, 0.0], 40.05).causes(c.board),
-            [false, true]
+            Causes::only(HwBreak::Overvoltage)
         );
         assert_eq!(
             c.levels([2.9, 2.9, -5.8], 39.9).causes(c.board),
-            [false, false]
+            Causes::NONE
         );
     }
 }

@@ -8,6 +8,7 @@ mod common;
 mod brake_and_determinism;
 mod cli;
 mod debounce;
+mod drive_bodies;
 mod examples_on_rig;
 mod hw_comparators;
 mod keypad;
