@@ -271,15 +271,15 @@ impl JobOutcome {
 /// What one step did.
 #[must_use]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Step {
+pub struct JobStep {
     /// The step talked to the EEPROM (a transfer or a ready poll): the bus was busy.
     pub used_bus: bool,
     /// The job that finished in this step.
     pub done: Option<JobDone>,
 }
 
-impl Step {
-    pub(crate) const IDLE: Step = Step {
+impl JobStep {
+    pub(crate) const IDLE: JobStep = JobStep {
         used_bus: false,
         done: None,
     };
