@@ -502,7 +502,7 @@ impl<E: Eeprom> PlcApp<E> {
                 signature: settings.signature(),
             });
         }
-        // Compiles the PLC section now (issue 21), not in the first scan.
+        // Compiles the PLC section now, not in the first scan.
         self.vm.start_program(&self.program, now.millis());
         self.link.forget_q();
         self.q_sent = [None; Q_COUNT];

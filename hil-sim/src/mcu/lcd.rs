@@ -2,6 +2,7 @@
 //! firmware's LCD sync drives them ([`CharLcd`]), or filled row by row from the emulated
 //! board's bus traffic (`crate::emu`).
 
+use firmware_plc::editor::Screen;
 use firmware_plc::task::{CharLcd, Cursor};
 
 pub const COLS: usize = 20;
@@ -63,6 +64,19 @@ impl SimLcd {
         }
         let (r, c) = self.cell(self.addr)?;
         Some((r as u8, c as u8, self.cursor))
+    }
+
+    /// What the display shows as a [`Screen`] (the panel draws it), cursor included.
+    pub fn to_screen(&self) -> Screen {
+        let mut s = Screen::new(COLS as u8, ROWS as u8);
+        for r in 0..ROWS {
+            s.put(r as u8, 0, &self.row(r));
+        }
+        if let Some((r, c, look)) = self.cursor() {
+            s.cursor = Some((r, c));
+            s.blink = look == Cursor::Blink;
+        }
+        s
     }
 
     /// All rows framed, for summaries and terminals.

@@ -16,7 +16,7 @@ use firmware_plc::service::endpoint::OnApp;
 use firmware_plc::service::Service;
 use firmware_plc::storage::MemEeprom;
 use firmware_plc::task::{AppPass, IoPort};
-use shared_protocol::link::pump::{Pass, Pump, MAX_IDLE_US};
+use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
@@ -127,9 +127,10 @@ impl SimPlc {
         &mut self.svc
     }
 
-    /// The board's identity and service version, as a service line plugs in.
+    /// The board's identity and service version, as a service line plugs in (the
+    /// endpoint keeps what it has counted since power-up).
     pub fn set_service_identity(&mut self, build: BuildInfo, version: u16) {
-        self.svc = Service::new(build);
+        self.svc.set_build(build);
         self.svc.port().set_version(version);
     }
 }

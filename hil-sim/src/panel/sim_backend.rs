@@ -404,10 +404,10 @@ impl SimBackend {
         self.service = Some(service);
     }
 
-    /// The LCD as the PLC drives it now (with its cursor; refreshed every 100 ms and
-    /// after each key).
+    /// The LCD as the PLC drives it now, with its cursor (the application pass writes
+    /// one changed cell per millisecond, as on the board).
     pub fn lcd(&self) -> Screen {
-        self.sim.plc().screen().clone()
+        self.sim.plc().lcd().to_screen()
     }
 
     pub fn status(&self) -> RigStatus {
