@@ -19,7 +19,7 @@ use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use crate::mcu::{DriveBoard, SimPlc, PlcPins, Warnings};
+use crate::mcu::{DriveBoard, PlcPins, SimPlc, Warnings};
 use crate::plant::lift::{
     Lift, LiftSample, BRAKE_RELEASE_OUTPUT, CHAIN_INPUT, DOOR_CLOSED_INPUT, DOOR_OPEN_OUTPUT,
     LOAD_ANALOG, VANE_L_INPUT, VANE_R_INPUT,

@@ -22,8 +22,8 @@ use shared_protocol::units::Micros;
 
 use super::{PlcApp, RunState};
 use crate::editor::Notice;
-use crate::storage::reads::{SlotReads, SlotRecord};
 use crate::storage::layout::SLOTS;
+use crate::storage::reads::{SlotReads, SlotRecord};
 use crate::storage::slot::for_each_payload_byte;
 use crate::storage::{Eeprom, Job, StorageError, FAULT_LOG_ENTRIES};
 use crate::vm;

@@ -93,7 +93,7 @@ impl CharLcd for Lcd {
         self.command(0x28)?; // 4-bit, 2 lines (also rows 3-4 of a 20x4), 5x8 font
         self.command(0x08)?; // display off
         self.command(0x01)?; // clear
-        // 1.52 ms at 270 kHz, up to about 2.2 ms at the slowest oscillator (190 kHz).
+                             // 1.52 ms at 270 kHz, up to about 2.2 ms at the slowest oscillator (190 kHz).
         block_for(Duration::from_millis(CLEAR_MS));
         self.command(0x06)?; // entry mode: increment, no shift
         self.command(0x0C) // display on, cursor off

@@ -34,9 +34,9 @@ pub mod endpoint;
 pub mod port;
 pub mod write;
 
+pub use crate::storage::reads::{SlotReads, SlotRecord};
 pub use counters::Tally;
 pub use port::{PortStats, ServicePort, Step, Stored};
-pub use crate::storage::reads::{SlotReads, SlotRecord};
 pub use write::ProgramWrite;
 
 use shared_protocol::drive_state::DriveState;

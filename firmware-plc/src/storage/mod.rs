@@ -34,7 +34,7 @@ pub use boot::BootRecord;
 pub use eeprom::{Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES};
 pub use fault_log::FaultEntry;
 pub use job::{
-    BootChange, Job, JobDone, JobKind, JobOutcome, JobSummary, ProgramUse, JobStep,
+    BootChange, Job, JobDone, JobKind, JobOutcome, JobStep, JobSummary, ProgramUse,
     WRITE_CYCLE_LIMIT_US,
 };
 pub use layout::{FAULT_LOG_ENTRIES, SLOTS};

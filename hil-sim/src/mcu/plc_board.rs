@@ -141,9 +141,13 @@ impl SimPlc {
     /// The application task's 1 ms pass with the pins as they are at `now`.
     pub fn tick_1ms(&mut self, pins: &PlcPins, now: Micros) {
         self.io.pins = *pins;
-        let report = self
-            .pass
-            .run(&mut self.app, &mut self.svc, &mut self.io, &mut self.lcd, now);
+        let report = self.pass.run(
+            &mut self.app,
+            &mut self.svc,
+            &mut self.io,
+            &mut self.lcd,
+            now,
+        );
         self.service_due |= report.service_due;
         self.tick = Some(report.tick);
     }

@@ -16,7 +16,7 @@ use shared_protocol::link::LinkConfig;
 use shared_protocol::program::{Program, DIGITAL_INPUTS};
 use shared_protocol::units::Micros;
 
-use crate::mcu::{DriveBoard, SimPlc, PlcPins};
+use crate::mcu::{DriveBoard, PlcPins, SimPlc};
 use crate::plant::{SenseSpike, UdcSenseSpike};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};

@@ -20,7 +20,12 @@ const FOLLOW: &str = "150 LD D00\n151 WR O00\n";
 
 fn sim(program: &str, scenario: &str) -> Simulation {
     let p = parse_program(program, "test.plc").unwrap();
-    Simulation::new(&p, Scenario::parse(scenario).unwrap(), RunOptions::default()).unwrap()
+    Simulation::new(
+        &p,
+        Scenario::parse(scenario).unwrap(),
+        RunOptions::default(),
+    )
+    .unwrap()
 }
 
 #[test]
@@ -51,7 +56,14 @@ fn the_pins_are_sampled_every_millisecond_whatever_the_scan_period() {
 /// Cells of the LCD that are not blank.
 fn lit_cells(sim: &Simulation) -> usize {
     (0..4)
-        .map(|r| sim.plc().lcd().row(r).bytes().filter(|&b| b != b' ').count())
+        .map(|r| {
+            sim.plc()
+                .lcd()
+                .row(r)
+                .bytes()
+                .filter(|&b| b != b' ')
+                .count()
+        })
         .sum()
 }
 
@@ -72,7 +84,11 @@ fn the_lcd_is_written_one_cell_per_application_pass() {
     sim.run_until(200 * MS, |_| {});
     let screen = sim.plc().screen().clone();
     for r in 0..4u8 {
-        assert_eq!(sim.plc().lcd().row(usize::from(r)), screen.row(r), "row {r}");
+        assert_eq!(
+            sim.plc().lcd().row(usize::from(r)),
+            screen.row(r),
+            "row {r}"
+        );
     }
 }
 
