@@ -708,7 +708,7 @@ impl<E: Eeprom> PlcApp<E> {
     }
 
     /// A key of the keypad (debounced; [`PlcApp::tick_1ms`] calls it).
-    fn key(&mut self, key: Key, now: Micros) {
+    fn on_key(&mut self, key: Key, now: Micros) {
         let running = self.run != RunState::Stopped;
         self.editor.set_program_use(self.storage.program_use());
         let Some(req) = self.editor.key(key, &mut self.program, running) else {
@@ -846,7 +846,7 @@ impl<E: Eeprom> PlcApp<E> {
             }
         });
         for k in &pressed {
-            self.key(*k, now);
+            self.on_key(*k, now);
         }
         self.expire_remote(now);
         let scan_ticks = u32::try_from(self.scan_period_us.div_ceil(1000).max(1)).unwrap_or(1);
@@ -960,6 +960,11 @@ impl<E: Eeprom> PlcApp<E> {
     #[must_use = "the outputs must be written to the pins"]
     pub fn scan(&mut self, digital: u16, analog: [u16; 4], now: Micros) -> ScanOutputs {
         self.scan_once(digital, analog, now)
+    }
+
+    /// A debounced key now.
+    pub fn key(&mut self, key: Key, now: Micros) {
+        self.on_key(key, now)
     }
 
     /// One step of the storage queue now.

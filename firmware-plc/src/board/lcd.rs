@@ -3,10 +3,11 @@
 //! to write: one changed cell per pass, then the cursor back).
 //!
 //! Backpack wiring (the common one): P0 = RS, P1 = R/W, P2 = E, P3 = backlight,
-//! P4..P7 = D4..D7. At 100 kHz one byte to the controller is 7 bytes on the bus (address
-//! + 3 per nibble: data, data|E, data, so that RS and D4-D7 are stable before E rises,
-//! tAS), about 0.63 ms: a cell next to the last one written costs 0.63 ms, a scattered
-//! cell 1.26 ms (goto + data), and putting the editor's cursor back another 0.63 ms.
+//! P4..P7 = D4..D7. At 100 kHz one byte to the controller is 7 bytes on the bus: the
+//! address and 3 per nibble (data, data|E, data, so that RS and D4-D7 are stable before
+//! E rises, tAS), about 0.63 ms. A cell next to the last one written costs 0.63 ms, a
+//! scattered cell 1.26 ms (goto + data), and putting the editor's cursor back another
+//! 0.63 ms.
 
 use embassy_time::{block_for, Duration};
 use firmware_plc::task::{CharLcd, Cursor};
