@@ -5,19 +5,20 @@
 //! | when | call |
 //! | --- | --- |
 //! | power-up | [`PlcApp::new`], or [`PlcApp::new_cold`] + [`PlcApp::power_up`] in place (loads the slot last run; starts RUN when it was running) |
-//! | each scan (inputs sampled at its start) | [`PlcApp::scan`] → output image |
-//! | UART bytes received | [`PlcApp::on_rx`] |
-//! | UART transmitter free, and at least every 1 ms | [`PlcApp::poll_tx`] |
-//! | a key pressed | [`PlcApp::key`] |
-//! | LCD refresh (e.g. every 100 ms) | [`PlcApp::render`] |
+//! | every 1 ms, the pins as sampled | [`PlcApp::tick_1ms`] (through `crate::task::AppPass::run`) |
+//! | UART bytes received, transmitter free | the link pump over the application (`crate::link`) |
 //!
-//! A board (and hil-sim) calls [`PlcApp::tick_1ms`] every millisecond with the **raw** pin
-//! levels and key matrix: it debounces them, runs the scan at its cadence, steps the
-//! EEPROM jobs (one page per pass) and redraws the screen at its cadence. The calls above
-//! remain for tests and tools.
+//! [`PlcApp::tick_1ms`] takes the **raw** pin levels and key matrix: it debounces them,
+//! runs the scan at its cadence, steps the EEPROM jobs (one page per pass) and redraws
+//! the screen at its cadence. Its single steps are public only to test rigs (feature
+//! `sim`).
+//!
+//! Dependencies: this module uses the storage, the editor and the VM; the service
+//! endpoint (`crate::service`) and the task bodies (`crate::task`) use it, never the other
+//! way (`docs/board.md`, "Crate structure").
 //!
 //! Storage: saves, loads, the fault log and the boot record are queued as
-//! [`crate::storage::Job`]s and done one EEPROM page per `tick_1ms` (review D5): nothing
+//! [`crate::storage::Job`]s and done one EEPROM page per `tick_1ms`: nothing
 //! ever stalls the board's executor, and a save is allowed in RUN. Only power-up
 //! ([`PlcApp::power_up`]) reads synchronously, before the watchdog runs.
 //!
@@ -302,7 +303,7 @@ impl<E: Eeprom> PlcApp<E> {
         }
     }
 
-    /// The period at which the board calls [`PlcApp::scan`] (default 1 ms). The link
+    /// The scan period [`PlcApp::tick_1ms`] runs the scan at (default 1 ms). The link
     /// sends its heartbeats right after a scan when they fit before the next one, so that
     /// a Q write never waits behind a heartbeat (latency one frame, ≈ 1.13 ms at 115200).
     pub fn set_scan_period_us(&mut self, us: u64) {
@@ -404,7 +405,7 @@ impl<E: Eeprom> PlcApp<E> {
         self.link.last_status().map(|(s, _)| s)
     }
 
-    /// Start RUN (the editor's `A` key does this through [`PlcApp::key`]). `slot` is the
+    /// Start RUN (the editor's `A` key does this through the debounced keys of [`PlcApp::tick_1ms`]). `slot` is the
     /// slot the program came from, recorded so that it runs again at power-up.
     pub fn run(&mut self, slot: Option<u8>, now: Micros) {
         if let Err(e) = verify(&self.program) {
@@ -501,7 +502,7 @@ impl<E: Eeprom> PlcApp<E> {
                 signature: settings.signature(),
             });
         }
-        // Compiles the PLC section now (issue 21), not in the first scan.
+        // Compiles the PLC section now, not in the first scan.
         self.vm.start_program(&self.program, now.millis());
         self.link.forget_q();
         self.q_sent = [None; Q_COUNT];
@@ -513,8 +514,7 @@ impl<E: Eeprom> PlcApp<E> {
 
     /// One scan with the inputs sampled at its start; returns the outputs to write.
     /// Does nothing (outputs off) unless RUN is on.
-    #[must_use = "the outputs must be written to the pins"]
-    pub fn scan(&mut self, digital: u16, analog: [u16; 4], now: Micros) -> ScanOutputs {
+    fn scan_once(&mut self, digital: u16, analog: [u16; 4], now: Micros) -> ScanOutputs {
         let running = self.run == RunState::Running;
         self.observed.scanned(digital, analog, now, running);
         if !running {
@@ -627,13 +627,6 @@ impl<E: Eeprom> PlcApp<E> {
         self.link.line_error();
     }
 
-    /// Link timers and the RUN sequence without transmitting (`poll_tx` does this too):
-    /// for a board whose transmit path is driven only by UART interrupts.
-    pub fn tick(&mut self, now: Micros) {
-        self.link.tick(now);
-        self.service(now);
-    }
-
     fn service(&mut self, now: Micros) {
         self.service_link(now);
         self.track_safety(now);
@@ -723,7 +716,7 @@ impl<E: Eeprom> PlcApp<E> {
     }
 
     /// A key of the keypad (debounced; [`PlcApp::tick_1ms`] calls it).
-    pub fn key(&mut self, key: Key, now: Micros) {
+    fn on_key(&mut self, key: Key, now: Micros) {
         let running = self.run != RunState::Stopped;
         self.editor.set_program_use(self.storage.program_use());
         let Some(req) = self.editor.key(key, &mut self.program, running) else {
@@ -781,9 +774,8 @@ impl<E: Eeprom> PlcApp<E> {
     }
 
     /// Moves the storage queue on by one EEPROM page (see [`Storage::step`]) and takes
-    /// the outcome of a finished job into the application. `tick_1ms` calls it; a board
-    /// without `tick_1ms` calls it once per pass.
-    pub fn step_storage(&mut self, now: Micros) -> crate::storage::Step {
+    /// the outcome of a finished job into the application. `tick_1ms` calls it.
+    fn storage_step(&mut self, now: Micros) -> crate::storage::JobStep {
         let step = self.storage.step(now, &mut self.program);
         if let Some(done) = step.done {
             self.storage_done(done, now);
@@ -862,23 +854,23 @@ impl<E: Eeprom> PlcApp<E> {
             }
         });
         for k in &pressed {
-            self.key(*k, now);
+            self.on_key(*k, now);
         }
         self.expire_remote(now);
         let scan_ticks = u32::try_from(self.scan_period_us.div_ceil(1000).max(1)).unwrap_or(1);
         let scanned = self.ticks.is_multiple_of(scan_ticks);
         let mut warning = None;
         if scanned {
-            let out = self.scan(digital, raw.analog, now);
+            let out = self.scan_once(digital, raw.analog, now);
             warning = out.warning;
         }
-        let step = self.step_storage(now);
+        let step = self.storage_step(now);
         let alerts = self.alerts();
         let redrawn = !pressed.is_empty()
             || self.ticks.is_multiple_of(RENDER_TICKS)
             || self.drawn_alerts != Some(alerts);
         if redrawn {
-            self.render(now, screen);
+            self.draw(now, screen);
             self.drawn_alerts = Some(alerts);
         }
         self.ticks = self.ticks.wrapping_add(1);
@@ -921,7 +913,7 @@ impl<E: Eeprom> PlcApp<E> {
     }
 
     /// Draw the current page (listing, run screen or fault log) for the LCD.
-    pub fn render(&self, now: Micros, screen: &mut Screen) {
+    fn draw(&self, now: Micros, screen: &mut Screen) {
         let warning = self.warning.map(|w| match w {
             vm::Warning::Div0 { line } => Warning {
                 text: "DIV0",
@@ -965,6 +957,32 @@ impl<E: Eeprom> PlcApp<E> {
             now_ms: now.millis().0,
         };
         self.editor.render(&view, screen);
+    }
+}
+
+/// The steps of [`PlcApp::tick_1ms`] one by one, for test rigs that step the
+/// application outside the board's pass (the `sim` feature; never in the image).
+#[cfg(any(test, feature = "sim"))]
+impl<E: Eeprom> PlcApp<E> {
+    /// One scan now (see [`PlcApp::tick_1ms`] for the board's cadence).
+    #[must_use = "the outputs must be written to the pins"]
+    pub fn scan(&mut self, digital: u16, analog: [u16; 4], now: Micros) -> ScanOutputs {
+        self.scan_once(digital, analog, now)
+    }
+
+    /// A debounced key now.
+    pub fn key(&mut self, key: Key, now: Micros) {
+        self.on_key(key, now)
+    }
+
+    /// One step of the storage queue now.
+    pub fn step_storage(&mut self, now: Micros) -> crate::storage::JobStep {
+        self.storage_step(now)
+    }
+
+    /// The current page, drawn now.
+    pub fn render(&self, now: Micros, screen: &mut Screen) {
+        self.draw(now, screen)
     }
 }
 

@@ -9,7 +9,7 @@ use firmware_plc::storage::StorageError;
 use shared_protocol::fault::fault_name;
 use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
-use crate::mcu::Lcd;
+use crate::mcu::SimLcd;
 use crate::plant::lift::LiftEvent;
 use crate::plot::Marks;
 use crate::scenario::{Action, Input, PlantChange, Scenario, TimedAction};
@@ -84,7 +84,7 @@ pub fn parse_program(text: &str, name: &str) -> Result<Program> {
 pub struct RunReport {
     pub samples: Vec<Sample>,
     pub faults: Vec<FaultRecord>,
-    pub lcd: Lcd,
+    pub lcd: SimLcd,
     pub sim_s: f64,
     pub wall: Duration,
     pub drive_state: &'static str,

@@ -19,7 +19,7 @@ use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use crate::mcu::{PlcBoard, PlcPins, SimDrive, Warnings};
+use crate::mcu::{SimPlc, PlcPins, SimDrive, Warnings};
 use crate::plant::lift::{
     Lift, LiftSample, BRAKE_RELEASE_OUTPUT, CHAIN_INPUT, DOOR_CLOSED_INPUT, DOOR_OPEN_OUTPUT,
     LOAD_ANALOG, VANE_L_INPUT, VANE_R_INPUT,
@@ -97,7 +97,7 @@ pub struct Simulation {
     plant: Plant,
     plant_ns: u64,
     drive: SimDrive,
-    plc: PlcBoard,
+    plc: SimPlc,
     scenario: Scenario,
     next_action: usize,
     pins: PlcPins,
@@ -119,7 +119,6 @@ pub struct Simulation {
     tim1: SimTim1,
     next_drive_tick_ns: u64,
     next_plc_tick_ns: u64,
-    next_scan_ns: u64,
     next_sample_ns: u64,
     sample_ns: u64,
     faults: Vec<FaultRecord>,
@@ -163,7 +162,7 @@ impl Simulation {
         .context("EEPROM image")?;
         let link = LinkConfig::at_baud(scenario.baud);
         let drive = SimDrive::with_config(link, drive_config(&scenario.rig));
-        let mut plc = PlcBoard::new(MemEeprom::from_image(&image), link, Micros(0));
+        let mut plc = SimPlc::new(MemEeprom::from_image(&image), link, Micros(0));
         // The link's quiet window after each scan lasts until the next scan.
         plc.app_mut()
             .set_scan_period_us((scenario.scan_time_ns / 1000).max(1));
@@ -230,7 +229,7 @@ impl Simulation {
     /// drive-to-PLC direction from a derived seed).
     pub fn with_boards(
         drive: SimDrive,
-        plc: PlcBoard,
+        plc: SimPlc,
         scenario: Scenario,
         opts: RunOptions,
     ) -> Self {
@@ -249,7 +248,7 @@ impl Simulation {
     /// `to_plc` the drive's.
     pub fn with_parts(
         mut drive: SimDrive,
-        plc: PlcBoard,
+        plc: SimPlc,
         mut plant: Plant,
         to_drive: Channel,
         to_plc: Channel,
@@ -285,7 +284,6 @@ impl Simulation {
             tim1,
             next_drive_tick_ns: MS_NS,
             next_plc_tick_ns: MS_NS,
-            next_scan_ns: 0,
             next_sample_ns: 0,
             sample_ns: opts.sample_ns.max(1),
             faults: Vec::new(),
@@ -365,12 +363,12 @@ impl Simulation {
         &self.drive
     }
 
-    pub fn plc(&self) -> &PlcBoard {
+    pub fn plc(&self) -> &SimPlc {
         &self.plc
     }
 
     /// The PLC board, for a host that reaches into it (the PC panel's EEPROM file).
-    pub fn plc_mut(&mut self) -> &mut PlcBoard {
+    pub fn plc_mut(&mut self) -> &mut SimPlc {
         &mut self.plc
     }
 
@@ -458,7 +456,6 @@ impl Simulation {
             .next_pwm_ns
             .min(self.next_drive_tick_ns)
             .min(self.next_plc_tick_ns)
-            .min(self.next_scan_ns)
             .min(self.next_sample_ns);
         if let Some(a) = self.scenario.actions.get(self.next_action) {
             t = t.min(a.at_ns);
@@ -526,13 +523,10 @@ impl Simulation {
                 self.states.push((t, state));
             }
         }
-        if t >= self.next_scan_ns {
-            // The pins as they are now; the PLC samples them in its tick (raw levels).
-            self.plc.scan(&self.pins, now);
-            self.next_scan_ns += self.scenario.scan_time_ns;
-        }
         if t >= self.next_plc_tick_ns {
-            self.plc.tick_1ms(now);
+            // The application pass samples the pins as they are now (raw levels), every
+            // millisecond as the board does; the scan cadence is the core's.
+            self.plc.tick_1ms(&self.pins, now);
             self.next_plc_tick_ns += MS_NS;
             app_ran = true;
         }

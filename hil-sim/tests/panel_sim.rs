@@ -103,7 +103,9 @@ fn bit_flip_in_the_eeprom_is_reported_on_the_lcd_at_power_up() {
     let mut eeprom = MemEeprom::from_image(&image);
     eeprom.flip_bit(copy_addr(1, 0).unwrap() + 40, 2);
     let mut app = PanelApp::new(SimBackend::with_eeprom(eeprom));
-    app.advance(10);
+    // The LCD takes one changed cell per millisecond, as on the board: the status row
+    // comes after the three rows above it.
+    app.advance(100);
     let lcd = lcd_text(&app);
     assert!(lcd.contains("S1:COPY A BAD,USED B"), "{lcd}");
     // The image asks for RUN at power-up: the program from copy B runs.

@@ -1,8 +1,9 @@
 //! The application's side of the service port (service.md part A): what the PLC shows a
 //! PC and what a PC may ask of it. The protocol (frames, ids, `Hello`, remote-service
-//! refusals, repeats, samples) is [`crate::service`]; this module answers the requests it
-//! hands over, from the application's RAM (status, log, program in RAM) or through the
-//! service's paced EEPROM reads ([`SlotReads`]).
+//! refusals, repeats, samples) is `crate::service`, which depends on this module, never
+//! the other way; this module answers the requests it hands over, from the application's
+//! RAM (status, log, program in RAM) or through the paced EEPROM reads ([`SlotReads`],
+//! part of the storage).
 //!
 //! The few things the service needs that the rest of the application does not keep are
 //! in [`Observed`], one small field of [`PlcApp`] (the board's application builder is
@@ -21,8 +22,8 @@ use shared_protocol::units::Micros;
 
 use super::{PlcApp, RunState};
 use crate::editor::Notice;
-use crate::service::{SlotReads, SlotRecord};
 use crate::storage::layout::SLOTS;
+use crate::storage::reads::{SlotReads, SlotRecord};
 use crate::storage::{Eeprom, Job, StorageError, FAULT_LOG_ENTRIES};
 use crate::vm;
 use shared_protocol::program::payload::for_each_payload_byte;
@@ -88,7 +89,7 @@ pub enum Outcome {
     /// Send this answer.
     Answer(Answer),
     /// The EEPROM reads it needs are under way (see [`SlotReads`]): ask again after the
-    /// next [`crate::service::Service::eeprom_step`].
+    /// next step of the reads (the service endpoint's EEPROM step).
     Later,
 }
 
@@ -307,7 +308,7 @@ impl<E: Eeprom> PlcApp<E> {
     /// `GetScreen`: the rows as the LCD shows them now.
     fn service_screen(&self, now: Micros) -> ScreenRows {
         let mut screen = self.editor.screen();
-        self.render(now, &mut screen);
+        self.draw(now, &mut screen);
         // Blank cells are spaces (`Screen::clear`): trimming them alone spares the image
         // `trim_end`'s Unicode white-space table.
         ScreenRows {

@@ -6,8 +6,8 @@
 //!
 //! * [`port`]: the protocol: frames, ids, repeats, `Hello`, remote-service refusals,
 //!   subscriptions and samples.
-//! * [`reads`]: the paced EEPROM reads behind `ListSlots`, `ReadProgram` and `Run` of
-//!   slots 1-4.
+//! * [`SlotReads`] (in [`crate::storage::reads`]): the paced EEPROM reads behind
+//!   `ListSlots`, `ReadProgram` and `Run` of slots 1-4.
 //! * [`endpoint`]: the service on the application as the board's byte pump sees it, and
 //!   the application task's share (one EEPROM step after each scan).
 //! * [`write`](mod@write): program writes (`WriteBegin`, `WriteChunk`, `WriteCommit`),
@@ -15,6 +15,10 @@
 //! * [`counters`]: the counters of service.md 7 and their EEPROM record.
 //! * The requests themselves are answered by the application (`app/service.rs`), which
 //!   holds everything they read and change.
+//!
+//! Dependencies point one way: this module drives the application ([`PlcApp`], whose
+//! `app/service.rs` answers the requests) and the storage; neither names anything here
+//! (`docs/board.md`, "Crate structure").
 //!
 //! [`Service`] is kept apart from [`PlcApp`]: the board keeps it in its own static (the
 //! application builder's stack frame grows with `PlcApp`), and it borrows the
@@ -28,12 +32,11 @@
 pub mod counters;
 pub mod endpoint;
 pub mod port;
-pub mod reads;
 pub mod write;
 
+pub use crate::storage::reads::{SlotReads, SlotRecord};
 pub use counters::Tally;
 pub use port::{PortStats, ServicePort, Step, Stored};
-pub use reads::{SlotReads, SlotRecord};
 pub use write::ProgramWrite;
 
 use shared_protocol::drive_state::DriveState;
@@ -67,6 +70,13 @@ impl Service {
             counters: Tally::new(),
             build,
         }
+    }
+
+    /// Another build and chip for `Identify` (hil-sim's service line brings the
+    /// simulated board's when it is plugged in; the board's is fixed at [`Service::new`]).
+    #[cfg(feature = "sim")]
+    pub fn set_build(&mut self, build: BuildInfo) {
+        self.build = build;
     }
 
     /// The port (tests make it announce another version, and read its figures).

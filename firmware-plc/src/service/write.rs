@@ -19,9 +19,9 @@ use shared_protocol::service::{
     Answer, RefuseReason, Request, SlotState, WriteResult, CHUNK_BYTES, PROGRAM_MAX_BYTES,
 };
 
-use super::reads::SlotReads;
 use crate::app::{checked_slot, Outcome, PlcApp, RunState};
 use crate::storage::layout::{copy_addr, SLOTS};
+use crate::storage::reads::SlotReads;
 use crate::storage::staged::payload_addr;
 use crate::storage::{Eeprom, Job, SlotCopy, StorageError};
 

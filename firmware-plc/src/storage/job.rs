@@ -1,7 +1,7 @@
 //! Storage work as jobs, done one EEPROM page per step.
 //!
 //! A save of a full slot reads and writes about 380 pages; over the board's 100 kHz I2C
-//! that is seconds. Done in one call it stalls everything else (board review D5/D11), so
+//! that is seconds. Done in one call it stalls everything else, so
 //! every storage operation is a [`Job`] in a queue, and [`super::Storage::step`] moves the
 //! active job on by **at most one transfer of at most one page** (64 bytes) per call: the
 //! application calls it once per 1 ms pass, between scans.
@@ -271,15 +271,15 @@ impl JobOutcome {
 /// What one step did.
 #[must_use]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Step {
+pub struct JobStep {
     /// The step talked to the EEPROM (a transfer or a ready poll): the bus was busy.
     pub used_bus: bool,
     /// The job that finished in this step.
     pub done: Option<JobDone>,
 }
 
-impl Step {
-    pub(crate) const IDLE: Step = Step {
+impl JobStep {
+    pub(crate) const IDLE: JobStep = JobStep {
         used_bus: false,
         done: None,
     };

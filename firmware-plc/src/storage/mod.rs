@@ -25,6 +25,7 @@ pub mod image;
 pub mod job;
 pub mod layout;
 pub mod mem_eeprom;
+pub mod reads;
 pub mod slot;
 pub mod staged;
 
@@ -32,7 +33,7 @@ pub use boot::BootRecord;
 pub use eeprom::{Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES};
 pub use fault_log::FaultEntry;
 pub use job::{
-    BootChange, Job, JobDone, JobKind, JobOutcome, JobSummary, ProgramUse, Step,
+    BootChange, Job, JobDone, JobKind, JobOutcome, JobStep, JobSummary, ProgramUse,
     WRITE_CYCLE_LIMIT_US,
 };
 pub use layout::{FAULT_LOG_ENTRIES, SLOTS};
@@ -280,11 +281,11 @@ impl<E: Eeprom> Storage<E> {
     /// Moves the queue on: at most one EEPROM transfer of at most one page (plus, before
     /// it, one ready poll if a write cycle may still run). Call once per pass; `program`
     /// is the application's (a save reads it, a load rewrites it).
-    pub fn step(&mut self, now: Micros, program: &mut Program) -> Step {
+    pub fn step(&mut self, now: Micros, program: &mut Program) -> JobStep {
         self.step_with(now, &mut Prog::Mut(program))
     }
 
-    fn step_with(&mut self, now: Micros, prog: &mut Prog<'_>) -> Step {
+    fn step_with(&mut self, now: Micros, prog: &mut Prog<'_>) -> JobStep {
         if self.active.is_none() && self.queue.is_empty() && self.writing_since.is_some() {
             // Only a write outside the queue to wait for.
             let since = self.writing_since.flatten().unwrap_or(now);
@@ -295,19 +296,19 @@ impl<E: Eeprom> Storage<E> {
                 // Ready, or a chip that never comes back: the next job finds out.
                 _ => None,
             };
-            return Step {
+            return JobStep {
                 used_bus: true,
                 done: None,
             };
         }
         if self.active.is_none() {
             let Some(job) = self.queue.pop_front() else {
-                return Step::IDLE;
+                return JobStep::IDLE;
             };
             match job::start(job) {
                 Ok(phase) => self.active = Some((job, phase)),
                 Err(e) => {
-                    return Step {
+                    return JobStep {
                         used_bus: false,
                         done: Some(JobDone::failed(job, e)),
                     }
@@ -315,7 +316,7 @@ impl<E: Eeprom> Storage<E> {
             }
         }
         let Some((job, _)) = self.active else {
-            return Step::IDLE;
+            return JobStep::IDLE;
         };
         let mut used_bus = false;
         if let Some(since) = self.writing_since {
@@ -328,7 +329,7 @@ impl<E: Eeprom> Storage<E> {
                 }
                 Ok(false) if now.0.saturating_sub(since.0) <= WRITE_CYCLE_LIMIT_US => {
                     self.writing_since = Some(Some(since));
-                    return Step {
+                    return JobStep {
                         used_bus,
                         done: None,
                     };
@@ -339,14 +340,14 @@ impl<E: Eeprom> Storage<E> {
             if let Some(e) = failed {
                 self.writing_since = None;
                 self.active = None;
-                return Step {
+                return JobStep {
                     used_bus,
                     done: Some(JobDone::failed(job, e)),
                 };
             }
         }
         let Some((_, phase)) = self.active.as_mut() else {
-            return Step::IDLE;
+            return JobStep::IDLE;
         };
         let (done, access) = job::advance(&mut self.eeprom, job, phase, prog);
         if access == Access::Write {
@@ -358,7 +359,7 @@ impl<E: Eeprom> Storage<E> {
         if done.is_some() {
             self.active = None;
         }
-        Step { used_bus, done }
+        JobStep { used_bus, done }
     }
 
     /// Runs `job` to the end, steps timed by `clock`. Refused while jobs are queued.

@@ -10,7 +10,7 @@ use g431_emu::time::cycles_to_ns;
 use shared_protocol::program::Program;
 
 use super::sim::EmuSim;
-use crate::mcu::Lcd;
+use crate::mcu::SimLcd;
 use crate::scenario::Scenario;
 use crate::sim::{FaultRecord, RunOptions, Sample};
 use shared_protocol::fault::fault_name;
@@ -20,7 +20,7 @@ use shared_protocol::fault::fault_name;
 pub struct EmuReport {
     pub samples: Vec<Sample>,
     pub faults: Vec<FaultRecord>,
-    pub lcd: Lcd,
+    pub lcd: SimLcd,
     pub sim_s: f64,
     pub wall: Duration,
     /// Both images' defmt logs, merged in virtual time: (image, line).

@@ -48,7 +48,7 @@ use shared_protocol::link::FrameReader;
 use shared_protocol::program::Program;
 
 use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
-use crate::mcu::Lcd;
+use crate::mcu::SimLcd;
 use crate::plant::Plant;
 use crate::scenario::silicon::McuSide;
 use crate::scenario::{Action, BoardKind, ImageTrouble, Input, Scenario};
@@ -379,8 +379,8 @@ impl EmuSim {
     }
 
     /// The LCD as the user sees it.
-    pub fn lcd(&self) -> Lcd {
-        let mut l = Lcd::default();
+    pub fn lcd(&self) -> SimLcd {
+        let mut l = SimLcd::default();
         for (r, text) in self.lcd.borrow().text().iter().enumerate() {
             l.set_row(r, text);
         }

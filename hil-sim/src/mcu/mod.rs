@@ -1,19 +1,20 @@
 //! The two MCUs as the simulator drives them.
 //!
-//! [`SimDrive`] and [`PlcBoard`] are the seam between the simulated hardware and the
+//! [`SimDrive`] and [`SimPlc`] are the seam between the simulated hardware and the
 //! firmware's sans-IO applications: the simulator plays the peripherals (timer interrupt
 //! with its ADC sample, 1 ms system tick, UART bytes, break input, GPIO, keypad, LCD,
 //! EEPROM) and calls the same core code the firmware images run, as the boards' tasks
 //! and interrupts call it. There is one of each (no trait: the front panel drives the
-//! same `PlcBoard` through the simulator).
+//! same `SimPlc` through the simulator). The PLC's side calls the firmware's task bodies
+//! themselves (`firmware_plc::task`) over this crate's pin and LCD models.
 
 pub mod drive_board;
 pub mod lcd;
 pub mod plc_board;
 
 pub use drive_board::SimDrive;
-pub use lcd::Lcd;
-pub use plc_board::PlcBoard;
+pub use lcd::SimLcd;
+pub use plc_board::SimPlc;
 
 /// The PLC's inputs as its pins present them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

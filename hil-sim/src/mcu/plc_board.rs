@@ -1,52 +1,95 @@
 //! The PLC MCU on the host: the firmware's [`PlcApp`] (program, VM, link endpoint, keypad
-//! editor, EEPROM storage) with a [`MemEeprom`] in the socket, called as the board's
-//! tasks call it: every millisecond [`PlcApp::tick_1ms`] with the **raw** pin levels and
-//! key matrix (debouncing, scan cadence, one EEPROM page of storage work and the redraw
-//! cadence are the core's, as on the board), UART bytes in and out as the link task does.
+//! editor, EEPROM storage) with a [`MemEeprom`] in the socket and its service endpoint,
+//! driven as the board's tasks drive them and through the same core functions:
+//!
+//! * the application task: every millisecond [`AppPass::run`] over the simulated pins
+//!   ([`PlcPins`], the key matrix, the output latch) and the simulated HD44780
+//!   ([`SimLcd`]): the raw pins sampled, the tick, the outputs, the service's share, one
+//!   LCD cell;
+//! * the link task: the link's [`Pump`] over the application ([`SimPlc::link_pass`]);
+//! * the service task: a second [`Pump`] over [`OnApp`] ([`SimPlc::service_pass`]), woken
+//!   as the board's is: by bytes, by its deadline, or by the application pass.
 
-use firmware_plc::app::{PlcApp, RawIo, RunState, RunStatus, Tick};
+use firmware_plc::app::{BuildInfo, PlcApp, RawIo, RunState, RunStatus, Tick};
 use firmware_plc::editor::{Editor, Key, Screen};
+use firmware_plc::service::endpoint::OnApp;
+use firmware_plc::service::Service;
 use firmware_plc::storage::MemEeprom;
+use firmware_plc::task::{AppPass, IoPort};
 use shared_protocol::link::pump::{LinkEndpoint, Pass, Pump, MAX_IDLE_US};
 use shared_protocol::link::LinkConfig;
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use super::{Lcd, PlcPins};
+use super::{PlcPins, SimLcd};
 
-/// The PLC board.
-pub struct PlcBoard {
+/// The LCD fitted to the simulated PLC.
+const LCD_COLS: u8 = 20;
+const LCD_ROWS: u8 = 4;
+
+/// The simulated PLC board.
+pub struct SimPlc {
     app: PlcApp<MemEeprom>,
-    screen: Screen,
-    lcd: Lcd,
-    outputs: u8,
+    /// The service endpoint (the board keeps it in its own static, beside the app).
+    svc: Service,
+    /// The application task's state (screen, LCD sync, LCD retry).
+    pass: AppPass,
+    lcd: SimLcd,
+    io: SimIo,
     /// The board's link pump (its link task's state).
     pump: Pump,
-    /// The pins as the last [`PlcBoard::scan`] call gave them (raw levels).
-    pins: PlcPins,
-    /// Keys held down now (bit as in [`RawIo::keys`]).
-    keys: u16,
-    /// What the last tick did, until the service port takes it (`crate::service`).
+    /// The service task's pump.
+    svc_pump: Pump,
+    /// The last application pass asked for a service pass.
+    service_due: bool,
+    /// What the last tick did.
     tick: Option<Tick>,
 }
 
-impl PlcBoard {
-    /// Power-up at `now` with `eeprom` in the socket (20x4 LCD).
+/// The pins, the key matrix and the output latch as the application task's port.
+#[derive(Debug, Clone, Copy, Default)]
+struct SimIo {
+    pins: PlcPins,
+    /// Keys held down now (bit as in [`RawIo::keys`]).
+    keys: u16,
+    outputs: u8,
+}
+
+impl IoPort for SimIo {
+    fn sample(&mut self) -> RawIo {
+        RawIo {
+            digital: self.pins.digital,
+            analog: self.pins.analog,
+            keys: self.keys,
+        }
+    }
+
+    fn write_outputs(&mut self, outputs: u8) {
+        self.outputs = outputs;
+    }
+}
+
+/// The simulated PLC's identity when no service line gave it another.
+const DEFAULT_BUILD: BuildInfo = BuildInfo {
+    firmware: env!("CARGO_PKG_VERSION"),
+    git: "sim",
+    uid: *b"\0\0\0\0\0\0\0\0HSIM",
+};
+
+impl SimPlc {
+    /// Power-up at `now` with `eeprom` in the socket (20x4 LCD, which answers).
     pub fn new(eeprom: MemEeprom, link_cfg: LinkConfig, now: Micros) -> Self {
-        let app = PlcApp::new(eeprom, link_cfg, 20, 4, now);
-        let mut b = PlcBoard {
-            screen: Screen::new(20, 4),
-            app,
-            lcd: Lcd::default(),
-            outputs: 0,
+        SimPlc {
+            app: PlcApp::new(eeprom, link_cfg, LCD_COLS, LCD_ROWS, now),
+            svc: Service::new(DEFAULT_BUILD),
+            pass: AppPass::new(LCD_COLS, LCD_ROWS, true, now),
+            lcd: SimLcd::default(),
+            io: SimIo::default(),
             pump: Pump::new(MAX_IDLE_US),
-            pins: PlcPins::default(),
-            keys: 0,
+            svc_pump: Pump::new(MAX_IDLE_US),
+            service_due: false,
             tick: None,
-        };
-        b.app.render(now, &mut b.screen);
-        b.show();
-        b
+        }
     }
 
     pub fn app(&self) -> &PlcApp<MemEeprom> {
@@ -73,45 +116,45 @@ impl PlcBoard {
         self.app.status()
     }
 
-    /// The LCD with its cursor, as the HD44780 shows it.
+    /// The screen as the application last drew it, with its cursor (the LCD comes to
+    /// show it one cell per pass: [`SimPlc::lcd`]).
     pub fn screen(&self) -> &Screen {
-        &self.screen
+        self.pass.screen()
     }
 
-    fn show(&mut self) {
-        for r in 0..self.screen.rows() {
-            self.lcd.set_row(usize::from(r), self.screen.row(r));
-        }
+    /// The service endpoint (figures; a service line gives it its identity).
+    pub fn service(&mut self) -> &mut Service {
+        &mut self.svc
+    }
+
+    /// The board's identity and service version, as a service line plugs in (the
+    /// endpoint keeps what it has counted since power-up).
+    pub fn set_service_identity(&mut self, build: BuildInfo, version: u16) {
+        self.svc.set_build(build);
+        self.svc.port().set_version(version);
     }
 }
 
-impl PlcBoard {
+impl SimPlc {
     // The calls the simulator makes, as the board's interrupts and tasks make them.
-    /// The 1 ms system tick (link timers, keypad debouncing, LCD refresh).
-    pub fn tick_1ms(&mut self, now: Micros) {
-        self.app.tick(now);
-        let raw = RawIo {
-            digital: self.pins.digital,
-            analog: self.pins.analog,
-            keys: self.keys,
-        };
-        let tick = self.app.tick_1ms(now, raw, &mut self.screen);
-        self.outputs = tick.outputs;
-        self.tick = Some(tick);
-        if tick.redrawn {
-            self.show();
-        }
+
+    /// The application task's 1 ms pass with the pins as they are at `now`.
+    pub fn tick_1ms(&mut self, pins: &PlcPins, now: Micros) {
+        self.io.pins = *pins;
+        let report = self.pass.run(
+            &mut self.app,
+            &mut self.svc,
+            &mut self.io,
+            &mut self.lcd,
+            now,
+        );
+        self.service_due |= report.service_due;
+        self.tick = Some(report.tick);
     }
 
-    /// What the last tick did, once (the service port's samples follow scans).
-    pub fn take_tick(&mut self) -> Option<Tick> {
-        self.tick.take()
-    }
-
-    /// One PLC scan with the pins as they are now.
-    pub fn scan(&mut self, pins: &PlcPins, _now: Micros) {
-        // Sampled (raw) by the next tick, as the board samples its pins.
-        self.pins = *pins;
+    /// What the last tick did.
+    pub fn last_tick(&self) -> Option<Tick> {
+        self.tick
     }
 
     /// A keypad key went down or up.
@@ -123,9 +166,9 @@ impl PlcBoard {
             return;
         };
         if down {
-            self.keys |= 1 << bit;
+            self.io.keys |= 1 << bit;
         } else {
-            self.keys &= !(1 << bit);
+            self.io.keys &= !(1 << bit);
         }
     }
 
@@ -142,9 +185,28 @@ impl PlcBoard {
         self.app.poll_timeout()
     }
 
+    /// Whether an application pass since the last service pass asked for one (the
+    /// board's application task kicks the service task then); cleared.
+    pub fn take_service_due(&mut self) -> bool {
+        core::mem::take(&mut self.service_due)
+    }
+
+    /// One pass of the service task's pump: the received bytes in, a frame out when the
+    /// line has room for it.
+    pub fn service_pass(&mut self, rx: &[u8], tx_room: usize, now: Micros) -> Pass {
+        self.service_due = false;
+        let mut ep = OnApp::new(&mut self.svc, &mut self.app);
+        self.svc_pump.pass(&mut ep, rx, tx_room, now)
+    }
+
+    /// The frame the last service pass put out.
+    pub fn service_tx(&self) -> &[u8] {
+        self.svc_pump.tx()
+    }
+
     /// Output pins O00..O07, bit n = On.
     pub fn outputs(&self) -> u8 {
-        self.outputs
+        self.io.outputs
     }
 
     /// The PLC's copy of Qn.
@@ -158,7 +220,7 @@ impl PlcBoard {
     }
 
     /// The LCD as the user sees it.
-    pub fn lcd(&self) -> &Lcd {
+    pub fn lcd(&self) -> &SimLcd {
         &self.lcd
     }
 

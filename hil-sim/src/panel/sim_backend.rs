@@ -1,6 +1,6 @@
 //! The panel on the full co-simulation: both MCUs, the UART link and the motor rig.
 //!
-//! The panel's keys and switches reach the simulator's PLC board ([`crate::mcu::PlcBoard`],
+//! The panel's keys and switches reach the simulator's PLC board ([`crate::mcu::SimPlc`],
 //! the firmware's `PlcApp` as the board runs it) the way a scenario's do: keypad keys
 //! queue and are pressed one after the other, each held for [`KEY_HOLD_MS`] and released
 //! for as long (the keypad debouncing needs 10 stable samples each way), and the
@@ -16,7 +16,7 @@ use shared_protocol::link::LinkConfig;
 use shared_protocol::program::{Program, DIGITAL_INPUTS};
 use shared_protocol::units::Micros;
 
-use crate::mcu::{PlcBoard, PlcPins, SimDrive};
+use crate::mcu::{PlcPins, SimDrive, SimPlc};
 use crate::plant::{SenseSpike, UdcSenseSpike};
 use crate::scenario::Scenario;
 use crate::sim::{RunOptions, Sample, Simulation};
@@ -221,7 +221,7 @@ impl SimBackend {
 
     fn with_scenario(eeprom: MemEeprom, scenario: Scenario) -> Self {
         let link = LinkConfig::at_baud(scenario.baud);
-        let plc = PlcBoard::new(eeprom, link, Micros(0));
+        let plc = SimPlc::new(eeprom, link, Micros(0));
         // The drive core configured for the rig's board (as `run`): the plant's sensors
         // and the core's scaling must be the same board's.
         let drive = SimDrive::with_config(link, crate::sim::drive_config(&scenario.rig));
@@ -404,10 +404,10 @@ impl SimBackend {
         self.service = Some(service);
     }
 
-    /// The LCD as the PLC drives it now (with its cursor; refreshed every 100 ms and
-    /// after each key).
+    /// The LCD as the PLC drives it now, with its cursor (the application pass writes
+    /// one changed cell per millisecond, as on the board).
     pub fn lcd(&self) -> Screen {
-        self.sim.plc().screen().clone()
+        self.sim.plc().lcd().to_screen()
     }
 
     pub fn status(&self) -> RigStatus {

@@ -1,24 +1,31 @@
 //! The service UART as the simulation plays it: LPUART1 at the service baud, both
 //! directions timed byte by byte by the link's [`Channel`] (no impairments: the ST-LINK's
-//! USB bridge is not a noisy wire), the firmware's [`Service`] at the PLC's end.
+//! USB bridge is not a noisy wire). At the PLC's end the board's service task: the
+//! PLC's service pump over `OnApp` ([`SimPlc::service_pass`]), passing when bytes
+//! arrived, at its deadline, or when the application pass asked for it, as on the board.
 
 use std::collections::VecDeque;
 
 use firmware_plc::app::BuildInfo;
-use firmware_plc::service::Service;
+use firmware_plc::service::PortStats;
 use shared_protocol::link::channel::{Channel, Impairments};
 use shared_protocol::link::MAX_WIRE_FRAME;
 use shared_protocol::units::Micros;
 
-use crate::mcu::PlcBoard;
+use crate::mcu::SimPlc;
 use crate::sim::receive_all;
 
 /// How often the service is stepped (the PLC's tick), ns.
 pub const STEP_NS: u64 = 1_000_000;
 
-/// One service UART with the PLC's endpoint.
+/// One service UART to the PLC.
 pub struct ServiceLine {
-    svc: Service,
+    /// The identity the PLC's endpoint takes when the line is plugged in (first step).
+    identity: Option<(BuildInfo, u16)>,
+    /// The service task's next deadline (its pump's).
+    wake: Option<Micros>,
+    /// The PLC endpoint's receive figures at the last step.
+    stats: PortStats,
     /// Host -> PLC.
     to_plc: Channel,
     /// PLC -> host.
@@ -51,10 +58,10 @@ impl ServiceLine {
     /// another); `flood`: the seed of garbage written into the PLC's receiver at line
     /// rate for the whole run.
     pub fn new(build: BuildInfo, baud: u32, version: u16, flood: Option<u64>) -> Self {
-        let mut svc = Service::new(build);
-        svc.port().set_version(version);
         ServiceLine {
-            svc,
+            identity: Some((build, version)),
+            wake: None,
+            stats: PortStats::default(),
             to_plc: Channel::new(baud, Impairments::default(), 0),
             to_host: Channel::new(baud, Impairments::default(), 0),
             host_queue: VecDeque::new(),
@@ -86,14 +93,14 @@ impl ServiceLine {
         self.flood_bytes
     }
 
-    /// One step after the PLC's tick at `now`: the tick's sample and EEPROM step, the
-    /// bytes that arrived at the PLC, at most one frame out when its transmitter is free.
-    /// Returns the bytes that arrived at the host by `now`.
-    pub fn step(&mut self, plc: &mut PlcBoard, now: Micros) -> Vec<u8> {
-        if let Some(tick) = plc.take_tick() {
-            self.svc.after_tick(plc.app(), &tick, now);
+    /// One step after the PLC's tick at `now`: the bytes that arrived at the PLC, and a
+    /// pass of its service task when they did, at its deadline or when the application
+    /// pass asked for one (a frame out when its transmitter is free). Returns the bytes
+    /// that arrived at the host by `now`.
+    pub fn step(&mut self, plc: &mut SimPlc, now: Micros) -> Vec<u8> {
+        if let Some((build, version)) = self.identity.take() {
+            plc.set_service_identity(build, version);
         }
-        self.svc.eeprom_step(plc.app_mut());
         // Keep the host's line busy until the next step: host bytes first, else flood.
         let horizon = Micros(now.0 + STEP_NS / 1000);
         while self.to_plc.free_at() < horizon {
@@ -107,22 +114,32 @@ impl ServiceLine {
             self.to_plc.send(&[b], now);
         }
         let rx = receive_all(&mut self.to_plc, now);
-        if !rx.is_empty() {
-            self.svc.on_rx(&rx, now);
-        }
-        if self.to_host.is_idle(now) {
-            let mut out = [0u8; MAX_WIRE_FRAME];
-            let n = self.svc.poll_tx(plc.app_mut(), now, &mut out);
-            if let Some(frame) = out.get(..n).filter(|f| !f.is_empty()) {
-                self.to_host.send(frame, now);
-                self.plc_bytes += n as u64;
+        let kicked = plc.take_service_due();
+        if !rx.is_empty() || kicked || self.wake.is_some_and(|w| w <= now) {
+            let room = if self.to_host.is_idle(now) {
+                MAX_WIRE_FRAME
+            } else {
+                0
+            };
+            let pass = plc.service_pass(&rx, room, now);
+            let tx = plc.service_tx();
+            if !tx.is_empty() {
+                self.to_host.send(tx, now);
+                self.plc_bytes += tx.len() as u64;
             }
+            // A frame due while the line is busy goes when the line is free.
+            self.wake = Some(if pass.wake_at <= now && !self.to_host.is_idle(now) {
+                self.to_host.free_at()
+            } else {
+                pass.wake_at
+            });
         }
+        self.stats = plc.service().port().stats();
         receive_all(&mut self.to_host, now)
     }
 
-    /// The endpoint (figures, version).
-    pub fn service(&mut self) -> &mut Service {
-        &mut self.svc
+    /// The PLC endpoint's receive figures at the last step.
+    pub fn port_stats(&self) -> PortStats {
+        self.stats
     }
 }

@@ -18,6 +18,7 @@ mod lift_plant;
 mod link_latency;
 mod motor_program;
 mod overmodulation;
+mod plc_task;
 mod reversal;
 mod safety;
 mod service;

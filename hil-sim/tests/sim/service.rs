@@ -151,7 +151,7 @@ fn a_flooded_service_port_leaves_the_record_byte_identical() {
     // The line was kept full: ~11.5 bytes per ms for 1.5 s.
     let sent = line.line().flooded_bytes();
     assert!(sent > 15_000, "{sent} flood bytes");
-    assert!(line.line().service().port().stats().frames_bad > 0);
+    assert!(line.line().port_stats().frames_bad > 0);
     assert!(without.lines().count() > 1000);
     assert!(with_flood == without, "the flood changed the record");
 }

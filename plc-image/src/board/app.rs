@@ -1,49 +1,61 @@
-//! The application task: once per millisecond it samples the raw pins and key matrix,
-//! hands them to [`firmware_plc::app::PlcApp::tick_1ms`] (debouncing, scan, one EEPROM
-//! page of storage work, redraw: all core code), writes the output image and sends the
-//! LCD one changed cell; after the outputs, the service port's share of the pass
-//! (`board::service::after_scan`).
+//! The application task: awaits each 1 ms pass's deadline and runs the pass,
+//! [`firmware_plc::task::AppPass::run`] (pins sampled, tick, outputs, the service's
+//! share, one LCD cell or the LCD's retry: all core code), over this board's pins and
+//! LCD; then wakes the link and service tasks the pass asks for, and logs what it did.
 //!
 //! The pass schedule is [`Pacer`]: a late pass never replays the missed periods, and the
-//! task yields once per pass, so the link task and the supervisor always get their turn
-//! (review D5).
+//! task yields once per pass, so the link task and the supervisor always get their turn.
 
 use embassy_time::{Duration, Instant, Timer};
 use firmware_plc::app::RawIo;
-use firmware_plc::editor::Screen;
-use firmware_plc::pace::{Pacer, RetryTimer};
+use firmware_plc::pace::Pacer;
+use firmware_plc::task::{AppPass, IoPort, LcdEvent, PassReport};
 
 use super::analog::AnalogInputs;
 use super::inputs::DigitalInputs;
 use super::keypad::KeypadScanner;
-use super::lcd::{self, Lcd};
+use super::lcd::{self, Lcd, LcdError};
 use super::outputs::DigitalOutputs;
 use super::{shared, supervisor};
 
+pub use firmware_plc::task::pass::LCD_RETRY_US;
+
 /// Scan and I/O sampling period.
 pub const PERIOD: Duration = Duration::from_millis(1);
-/// A failed LCD is initialised again after this long (review D6/D14).
-pub const LCD_RETRY_US: u64 = 2_000_000;
 
-/// The I/O the application task owns.
+/// The pins the application task owns.
 pub struct PlcIo {
     pub inputs: DigitalInputs,
     pub outputs: DigitalOutputs,
     pub analog: AnalogInputs,
     pub keypad: KeypadScanner,
-    pub lcd: Option<Lcd>,
-    pub bus: super::i2c_bus::SharedI2c,
 }
 
-/// Runs the scan loop.
-#[embassy_executor::task]
-pub async fn run(mut io: PlcIo, app: shared::SharedApp, svc: super::service::SharedService) {
-    let mut screen = Screen::new(lcd::COLS, lcd::ROWS);
-    let mut pacer = Pacer::new(PERIOD.as_micros());
-    let mut lcd_retry = RetryTimer::new(LCD_RETRY_US);
-    if io.lcd.is_none() {
-        lcd_retry.failed(shared::now());
+impl IoPort for PlcIo {
+    fn sample(&mut self) -> RawIo {
+        RawIo {
+            digital: self.inputs.sample(),
+            analog: self.analog.sample(),
+            keys: self.keypad.scan(),
+        }
     }
+
+    fn write_outputs(&mut self, outputs: u8) {
+        self.outputs.write(outputs);
+    }
+}
+
+/// Runs the scan loop; `lcd_up`: the LCD answered its power-on initialisation.
+#[embassy_executor::task]
+pub async fn run(
+    mut io: PlcIo,
+    mut lcd: Lcd,
+    lcd_up: bool,
+    app: shared::SharedApp,
+    svc: super::service::SharedService,
+) {
+    let mut pass = AppPass::new(lcd::COLS, lcd::ROWS, lcd_up, shared::now());
+    let mut pacer = Pacer::new(PERIOD.as_micros());
     loop {
         let due = pacer.next(shared::now());
         Timer::at(Instant::from_micros(due.0)).await;
@@ -51,60 +63,54 @@ pub async fn run(mut io: PlcIo, app: shared::SharedApp, svc: super::service::Sha
         yield_now().await;
         #[cfg(feature = "dwt-cycles")]
         let start = super::cycles::now();
-        let raw = RawIo {
-            digital: io.inputs.sample(),
-            analog: io.analog.sample(),
-            keys: io.keypad.scan(),
-        };
         let now = shared::now();
-        let tick = shared::with(app, |a| a.tick_1ms(now, raw, &mut screen));
-        io.outputs.write(tick.outputs);
-        super::link::kick_if_due(app);
-        // After the outputs: the trend sample, one EEPROM step of a service read.
-        super::service::after_scan(svc, app, &tick);
-        if let Some(w) = tick.warning {
-            defmt::warn!("scan: {}", w);
+        let report = shared::with(app, |a| {
+            svc.lock(|s| pass.run(a, &mut s.borrow_mut(), &mut io, &mut lcd, now))
+        });
+        if report.link_due {
+            board_common::link::kick();
         }
-        if tick.keys_down != 0 {
-            defmt::debug!("keys down {=u16:#x}", tick.keys_down);
+        if report.service_due {
+            super::service::kick();
         }
-        if let Some((from, to)) = tick.run_change {
-            defmt::info!("plc: {} -> {}", from, to);
-        }
-        if let Some(done) = tick.storage {
-            let s = done.summary();
-            defmt::info!(
-                "storage: {} {=u8}: {} {=u32}",
-                s.kind,
-                s.slot,
-                s.outcome,
-                s.value
-            );
-        }
-        match io.lcd.as_mut() {
-            Some(l) => {
-                if let Err(e) = l.refresh(&screen) {
-                    defmt::warn!("lcd: {}, retrying in {=u64} ms", e, LCD_RETRY_US / 1000);
-                    io.lcd = None;
-                    lcd_retry.failed(now);
-                }
-            }
-            None if lcd_retry.retry_due(now) => match Lcd::new(io.bus, false) {
-                Ok(l) => {
-                    defmt::info!("lcd: back");
-                    io.lcd = Some(l);
-                    lcd_retry.ok();
-                }
-                Err(_) => lcd_retry.failed(now),
-            },
-            None => {}
-        }
+        log(&report);
         #[cfg(feature = "dwt-cycles")]
         {
             super::cycles::record_scan(start);
             super::cycles::report_every_second();
         }
         supervisor::alive(supervisor::TASK_SCAN);
+    }
+}
+
+/// What the pass did, to defmt.
+fn log(report: &PassReport<LcdError>) {
+    let tick = &report.tick;
+    if let Some(w) = tick.warning {
+        defmt::warn!("scan: {}", w);
+    }
+    if tick.keys_down != 0 {
+        defmt::debug!("keys down {=u16:#x}", tick.keys_down);
+    }
+    if let Some((from, to)) = tick.run_change {
+        defmt::info!("plc: {} -> {}", from, to);
+    }
+    if let Some(done) = tick.storage {
+        let s = done.summary();
+        defmt::info!(
+            "storage: {} {=u8}: {} {=u32}",
+            s.kind,
+            s.slot,
+            s.outcome,
+            s.value
+        );
+    }
+    match report.lcd {
+        Some(LcdEvent::Failed(e)) => {
+            defmt::warn!("lcd: {}, retrying in {=u64} ms", e, LCD_RETRY_US / 1000)
+        }
+        Some(LcdEvent::Back) => defmt::info!("lcd: back"),
+        None => {}
     }
 }
 

@@ -1,17 +1,16 @@
-//! HD44780 character LCD (20 x 4, or 16 x 2) in 4-bit mode behind a PCF8574 I2C backpack.
+//! HD44780 character LCD (20 x 4, or 16 x 2) in 4-bit mode behind a PCF8574 I2C backpack:
+//! the [`CharLcd`] port of the LCD sync (`firmware_plc::task::lcd`, which decides what
+//! to write: one changed cell per pass, then the cursor back).
 //!
 //! Backpack wiring (the common one): P0 = RS, P1 = R/W, P2 = E, P3 = backlight,
-//! P4..P7 = D4..D7. The display mirrors the core's [`Screen`]: [`Lcd::refresh`] sends only the
-//! cells that differ from what the LCD shows, at most [`CELLS_PER_REFRESH`] per call, so
-//! one call blocks the application task for a bounded time. At 100 kHz one byte to the
-//! controller is 7 bytes on the bus (address + 3 per nibble: data, data|E, data, so that RS
-//! and D4-D7 are stable before E rises, tAS; review D14), about 0.63 ms: a cell next to the
-//! last one written costs 0.63 ms, a scattered cell 1.26 ms (goto + data), and putting the
-//! editor's cursor back another 0.63 ms. A full 20 x 4 redraw is 80 cells, one per pass
-//! of the application task: about 80 passes.
+//! P4..P7 = D4..D7. At 100 kHz one byte to the controller is 7 bytes on the bus: the
+//! address and 3 per nibble (data, data|E, data, so that RS and D4-D7 are stable before
+//! E rises, tAS), about 0.63 ms. A cell next to the last one written costs 0.63 ms, a
+//! scattered cell 1.26 ms (goto + data), and putting the editor's cursor back another
+//! 0.63 ms.
 
 use embassy_time::{block_for, Duration};
-use firmware_plc::editor::{Screen, MAX_COLS, MAX_ROWS};
+use firmware_plc::task::{CharLcd, Cursor};
 
 use super::i2c_bus::SharedI2c;
 
@@ -20,11 +19,11 @@ pub const ADDRESS: u8 = 0x27;
 /// Geometry of the fitted display.
 pub const COLS: u8 = 20;
 pub const ROWS: u8 = 4;
-/// Cells written per [`Lcd::refresh`].
-pub const CELLS_PER_REFRESH: usize = 1;
 
-/// Wait after the clear command (review D14).
+/// Wait after the clear command.
 const CLEAR_MS: u64 = 3;
+/// The controller's power-on time (40 ms after VCC reaches 2.7 V), with margin.
+const POWER_ON_MS: u64 = 50;
 
 const RS: u8 = 1 << 0;
 const E: u8 = 1 << 2;
@@ -36,46 +35,22 @@ const ROW_ADDR: [u8; 4] = [0x00, 0x40, 0x14, 0x54];
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub struct LcdError(pub embassy_stm32::i2c::Error);
 
-/// The display and a copy of what it shows.
+/// The display on the shared I2C bus.
 pub struct Lcd {
     bus: SharedI2c,
-    shown: [[u8; MAX_COLS]; MAX_ROWS],
-    cursor: Option<(u8, u8)>,
-    blink: bool,
-    /// The controller's address counter is known (after a write we set ourselves).
-    at: Option<(u8, u8)>,
 }
 
 impl Lcd {
-    /// Initialises the controller into 4-bit, 2-line mode, display on, cursor off, cleared.
-    /// `cold`: just after power-on, wait the controller's 40 ms power-on time first (a retry
-    /// after an I2C error skips it, so that it blocks the application task for about 8 ms
-    /// only).
-    pub fn new(bus: SharedI2c, cold: bool) -> Result<Self, LcdError> {
-        let mut lcd = Lcd {
-            bus,
-            shown: [[b' '; MAX_COLS]; MAX_ROWS],
-            cursor: None,
-            blink: false,
-            at: None,
-        };
-        // HD44780 datasheet, "initialising by instruction", 4-bit interface.
-        if cold {
-            block_for(Duration::from_millis(50));
-        }
-        for wait_us in [4500, 150, 150] {
-            lcd.nibble(0x30, 0)?;
-            block_for(Duration::from_micros(wait_us));
-        }
-        lcd.nibble(0x20, 0)?;
-        lcd.command(0x28)?; // 4-bit, 2 lines (also rows 3-4 of a 20x4), 5x8 font
-        lcd.command(0x08)?; // display off
-        lcd.command(0x01)?; // clear
-                            // 1.52 ms at 270 kHz, up to about 2.2 ms at the slowest oscillator (190 kHz).
-        block_for(Duration::from_millis(CLEAR_MS));
-        lcd.command(0x06)?; // entry mode: increment, no shift
-        lcd.command(0x0C)?; // display on, cursor off
-        Ok(lcd)
+    pub fn new(bus: SharedI2c) -> Self {
+        Lcd { bus }
+    }
+
+    /// The first initialisation, just after power-on: waits the controller's power-on
+    /// time first (a retry, [`CharLcd::init`], skips it, so that it blocks the
+    /// application task for about 8 ms only).
+    pub fn power_on(&mut self) -> Result<(), LcdError> {
+        block_for(Duration::from_millis(POWER_ON_MS));
+        self.init()
     }
 
     fn write_raw(&mut self, bytes: &[u8]) -> Result<(), LcdError> {
@@ -97,72 +72,48 @@ impl Lcd {
         let hi = (value & 0xF0) | rs | BACKLIGHT;
         let lo = (value << 4) | rs | BACKLIGHT;
         // One I2C transaction per byte, each nibble as in `nibble`.
-        self.write_raw(&[hi, hi | E, hi, lo, lo | E, lo])?;
-        Ok(())
+        self.write_raw(&[hi, hi | E, hi, lo, lo | E, lo])
     }
 
     fn command(&mut self, c: u8) -> Result<(), LcdError> {
         self.byte(c, 0)
     }
+}
 
-    fn goto(&mut self, row: u8, col: u8) -> Result<(), LcdError> {
-        if self.at != Some((row, col)) {
-            let base = ROW_ADDR.get(usize::from(row)).copied().unwrap_or(0);
-            self.command(0x80 | base.wrapping_add(col))?;
-            self.at = Some((row, col));
+impl CharLcd for Lcd {
+    type Error = LcdError;
+
+    /// Into 4-bit, 2-line mode, display on, cursor off, cleared (HD44780 datasheet,
+    /// "initialising by instruction", 4-bit interface).
+    fn init(&mut self) -> Result<(), LcdError> {
+        for wait_us in [4500, 150, 150] {
+            self.nibble(0x30, 0)?;
+            block_for(Duration::from_micros(wait_us));
         }
-        Ok(())
+        self.nibble(0x20, 0)?;
+        self.command(0x28)?; // 4-bit, 2 lines (also rows 3-4 of a 20x4), 5x8 font
+        self.command(0x08)?; // display off
+        self.command(0x01)?; // clear
+                             // 1.52 ms at 270 kHz, up to about 2.2 ms at the slowest oscillator (190 kHz).
+        block_for(Duration::from_millis(CLEAR_MS));
+        self.command(0x06)?; // entry mode: increment, no shift
+        self.command(0x0C) // display on, cursor off
     }
 
-    /// Sends up to [`CELLS_PER_REFRESH`] changed cells of `screen`, then the cursor.
-    /// Returns whether the LCD now shows `screen` completely.
-    pub fn refresh(&mut self, screen: &Screen) -> Result<bool, LcdError> {
-        let rows = screen.rows().min(ROWS);
-        let cols = screen.cols().min(COLS);
-        let mut budget = CELLS_PER_REFRESH;
-        for r in 0..rows {
-            let line = screen.row_bytes(r);
-            for c in 0..cols {
-                let want = line.get(usize::from(c)).copied().unwrap_or(b' ');
-                let have = self
-                    .shown
-                    .get(usize::from(r))
-                    .and_then(|row| row.get(usize::from(c)))
-                    .copied();
-                if have.is_none_or(|h| h == want) {
-                    continue;
-                }
-                if budget == 0 {
-                    return Ok(false);
-                }
-                budget -= 1;
-                self.goto(r, c)?;
-                self.byte(want, RS)?;
-                if let Some(cell) = self
-                    .shown
-                    .get_mut(usize::from(r))
-                    .and_then(|row| row.get_mut(usize::from(c)))
-                {
-                    *cell = want;
-                }
-                // The address counter advances by one; past a row's end it jumps rows.
-                self.at = if c + 1 < cols { Some((r, c + 1)) } else { None };
-            }
-        }
-        if self.cursor != screen.cursor || self.blink != screen.blink {
-            match screen.cursor {
-                Some((r, c)) => {
-                    self.goto(r, c)?;
-                    self.command(if screen.blink { 0x0D } else { 0x0E })?;
-                }
-                None => self.command(0x0C)?,
-            }
-            self.cursor = screen.cursor;
-            self.blink = screen.blink;
-        } else if let Some((r, c)) = screen.cursor {
-            // Writing cells moved the controller's cursor: put it back.
-            self.goto(r, c)?;
-        }
-        Ok(true)
+    fn set_address(&mut self, row: u8, col: u8) -> Result<(), LcdError> {
+        let base = ROW_ADDR.get(usize::from(row)).copied().unwrap_or(0);
+        self.command(0x80 | base.wrapping_add(col))
+    }
+
+    fn write_char(&mut self, c: u8) -> Result<(), LcdError> {
+        self.byte(c, RS)
+    }
+
+    fn set_cursor(&mut self, cursor: Cursor) -> Result<(), LcdError> {
+        self.command(match cursor {
+            Cursor::Hidden => 0x0C,
+            Cursor::Underline => 0x0E,
+            Cursor::Blink => 0x0D,
+        })
     }
 }

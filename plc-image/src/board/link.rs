@@ -2,7 +2,6 @@
 //! shared PLC application. Nothing here decides anything.
 
 use board_common::link::{self as common, LinkPort, SharedEndpoint};
-use shared_protocol::link::pump::is_due;
 
 use super::shared::{self, App, SharedApp};
 use crate::pins::Link;
@@ -25,13 +24,4 @@ impl SharedEndpoint for Shared {
 #[embassy_executor::task]
 pub async fn run(port: LinkPort, app: SharedApp) {
     common::run(port, Shared(app)).await
-}
-
-/// Wakes the link task when the application has something due (e.g. the Q writes of the
-/// scan that just ran); the task otherwise sleeps until the deadline it knew.
-pub fn kick_if_due(app: SharedApp) {
-    let deadline = shared::with(app, |a| a.link().poll_timeout());
-    if is_due(deadline, shared::now()) {
-        common::kick();
-    }
 }

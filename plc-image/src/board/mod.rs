@@ -1,5 +1,6 @@
 //! PLC board layer: brings up the STM32G431 and binds the peripherals to the
-//! `firmware_plc` core; no PLC logic lives here.
+//! `firmware_plc` core's ports; its tasks await and call the core's task bodies
+//! (`firmware_plc::task`, `docs/board.md` "Task bodies"); no PLC logic lives here.
 
 pub mod analog;
 pub mod app;
@@ -39,25 +40,23 @@ pub async fn start(spawner: Spawner) {
     // Outputs off before anything else can take time.
     let outputs = outputs::DigitalOutputs::new(board.outputs);
     let bus = i2c_bus::open(board.bus);
-    let lcd = match lcd::Lcd::new(bus, true) {
-        Ok(l) => Some(l),
-        Err(e) => {
+    let mut lcd = lcd::Lcd::new(bus);
+    let lcd_up = lcd
+        .power_on()
+        .inspect_err(|e| {
             defmt::warn!(
                 "lcd: no answer at {=u8:#x} ({}), retrying every {=u64} ms",
                 lcd::ADDRESS,
                 e,
                 app::LCD_RETRY_US / 1000
-            );
-            None
-        }
-    };
+            )
+        })
+        .is_ok();
     let io = app::PlcIo {
         inputs: inputs::DigitalInputs::new(board.inputs),
         outputs,
         analog: analog::AnalogInputs::new(board.analog),
         keypad: keypad::KeypadScanner::new(board.keypad),
-        lcd,
-        bus,
     };
     let link_cfg = LinkConfig::default();
     let port = link::open(board.link, link_cfg.baud);
@@ -73,7 +72,7 @@ pub async fn start(spawner: Spawner) {
             .expect("spawn supervisor"),
     );
     spawner.spawn(link::run(port, app).expect("spawn link"));
-    spawner.spawn(app::run(io, app, svc).expect("spawn app"));
+    spawner.spawn(app::run(io, lcd, lcd_up, app, svc).expect("spawn app"));
     // Spawned last: below the application and the link (service.md 5).
     spawner.spawn(service::run(service_port, svc, app).expect("spawn service"));
 }

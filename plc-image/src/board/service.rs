@@ -1,8 +1,7 @@
 //! The service port (service.md 1-2): LPUART1 on PA2/PA3, the NUCLEO-G431RB's ST-LINK/V3
 //! virtual COM port, 8N1 at [`SERVICE_BAUD`], TX and RX on DMA1 CH3/CH4 (RX into the
-//! ring receiver `board_common::link_rx::Service`, which a line error never stops: review
-//! N13). The bytes move
-//! through the link's machinery (`board_common::link::open_port` and `run_task`, the core's
+//! ring receiver `board_common::link_rx::Service`, which a line error never stops). The
+//! bytes move through the link's machinery (`board_common::link::open_port` and `run_task`, the core's
 //! pump) into the core's service endpoint ([`firmware_plc::service::endpoint`]). Nothing
 //! here decides anything: what runs when, and who touches the EEPROM, is the endpoint's.
 //!
@@ -14,9 +13,10 @@
 //!   and it yields between them. It is not on the watchdog: a silent service must never
 //!   reset a running machine (the scan's and the link's bits still catch a stalled
 //!   executor).
-//! * The application task calls [`after_scan`] after each scan: the trend sample, one
-//!   step of the EEPROM reads a request waits for (the bus is idle then), and the wake-up
-//!   of this task when something is ready.
+//! * The application pass (`firmware_plc::task::AppPass::run`) does the service's share
+//!   after each scan (the trend sample, one step of the EEPROM reads a request waits for:
+//!   the bus is idle then) and says when this task must pass; the application task then
+//!   [`kick`]s it.
 
 use core::cell::RefCell;
 
@@ -26,8 +26,8 @@ use embassy_stm32::interrupt::typelevel::{Handler, DMA1_CHANNEL4, LPUART1};
 use embassy_stm32::{bind_interrupts, dma, peripherals, usart};
 use embassy_sync::blocking_mutex::ThreadModeMutex;
 use embassy_sync::signal::Signal;
-use firmware_plc::app::{BuildInfo, Tick};
-use firmware_plc::service::endpoint::{self, OnApp};
+use firmware_plc::app::BuildInfo;
+use firmware_plc::service::endpoint::OnApp;
 use firmware_plc::service::Service;
 use shared_protocol::service::SERVICE_BAUD;
 use static_cell::StaticCell;
@@ -36,7 +36,7 @@ use super::eeprom::I2cEeprom;
 use super::shared::{self, SharedApp};
 use crate::pins;
 
-// The ring receiver's handlers first (`board_common::link_rx`, review N13): they take the
+// The ring receiver's handlers first (`board_common::link_rx`): they take the
 // IDLE and half-transfer flags they use; embassy's then find nothing of theirs.
 bind_interrupts!(struct Irqs {
     LPUART1 => RxIdle, usart::InterruptHandler<peripherals::LPUART1>;
@@ -131,14 +131,7 @@ pub async fn run(port: ServicePort, svc: SharedService, app: SharedApp) {
     common::run_task(port, Shared { svc, app }, &TASK).await
 }
 
-/// The application task's share after each scan (`endpoint::after_scan`), and the
-/// service task's wake-up when it asks for one.
-pub fn after_scan(svc: SharedService, app: SharedApp, tick: &Tick) {
-    let now = shared::now();
-    let due = shared::with(app, |a| {
-        svc.lock(|s| endpoint::after_scan(&mut s.borrow_mut(), a, tick, now))
-    });
-    if due {
-        TASK.kick();
-    }
+/// Wakes the service task (the application pass asks for it: `PassReport::service_due`).
+pub fn kick() {
+    TASK.kick();
 }

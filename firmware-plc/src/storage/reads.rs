@@ -6,8 +6,9 @@
 //! is kept per slot ([`SlotReads::summary`]) until that slot is written (keypad save or
 //! service write: the caller invalidates it), so afterwards a chunk is one read of at most
 //! 64 bytes. Every read goes through [`SlotReads::step`], which reads at most the byte
-//! budget it is given: the board calls it once per millisecond after the scan, in place of
-//! an LCD cell update (see [`super::Service::eeprom_step`]).
+//! budget it is given: the service endpoint calls it once per application pass, after
+//! the scan. Part of the storage (the service uses it, not the other way), so that the
+//! application's answers to service requests depend on nothing in `crate::service`.
 
 use heapless::Vec;
 use shared_protocol::crc32::Digest;
