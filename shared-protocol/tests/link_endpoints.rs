@@ -566,7 +566,10 @@ fn restart_plc(seed: Option<u8>) -> (Vec<(u64, DriveEvent)>, u64) {
     drive_events(&mut p);
     // The PLC reboots; the drive keeps running.
     let t0 = p.now;
-    p.restart_plc(Pumped::new(PlcLink::new(LinkConfig::default()), MAX_IDLE_US));
+    p.restart_plc(Pumped::new(
+        PlcLink::new(LinkConfig::default()),
+        MAX_IDLE_US,
+    ));
     if let Some(s) = seed {
         p.plc.seed_session(s);
     }
@@ -636,7 +639,10 @@ fn a_sequence_disagreement_is_detected_and_healed() {
     }
     let end = Micros(p.now.0 + 30_000);
     p.run_until(end, |_| {});
-    p.restart_plc(Pumped::new(PlcLink::new(LinkConfig::default()), MAX_IDLE_US));
+    p.restart_plc(Pumped::new(
+        PlcLink::new(LinkConfig::default()),
+        MAX_IDLE_US,
+    ));
     let t0 = p.now;
     let end = Micros(t0.0 + 30_000);
     p.run_until(end, |_| {});

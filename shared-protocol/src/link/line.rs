@@ -179,7 +179,13 @@ impl Line {
 
     /// Whether `end`'s task passes at `t_ns`: bytes arrived for it, its deadline came, or
     /// `kicked` (the application task just ran) and its endpoint has something due.
-    pub fn is_woken<T: LinkTask + ?Sized>(&self, end: End, task: &T, t_ns: u64, kicked: bool) -> bool {
+    pub fn is_woken<T: LinkTask + ?Sized>(
+        &self,
+        end: End,
+        task: &T,
+        t_ns: u64,
+        kicked: bool,
+    ) -> bool {
         let inbox = match end {
             End::Plc => &self.to_plc,
             End::Drive => &self.to_drive,
@@ -201,7 +207,13 @@ impl Line {
     }
 
     /// [`Self::pass`] if [`Self::is_woken`]; whether it passed.
-    pub fn poll<T: LinkTask + ?Sized>(&mut self, end: End, task: &mut T, t_ns: u64, kicked: bool) -> bool {
+    pub fn poll<T: LinkTask + ?Sized>(
+        &mut self,
+        end: End,
+        task: &mut T,
+        t_ns: u64,
+        kicked: bool,
+    ) -> bool {
         let woken = self.is_woken(end, task, t_ns, kicked);
         if woken {
             self.pass(end, task, t_ns);

@@ -117,7 +117,8 @@ impl<P: LinkTask, D: LinkTask> Pair<P, D> {
     /// The drive's MCU restarts now with `drive` as its task.
     pub fn restart_drive(&mut self, drive: D) {
         self.drive = drive;
-        self.line.restart(End::Drive, self.now.0.saturating_mul(1000));
+        self.line
+            .restart(End::Drive, self.now.0.saturating_mul(1000));
     }
 
     /// Cuts (or restores) the line, both directions.
