@@ -126,3 +126,56 @@ impl<P: LinkTask, D: LinkTask> Pair<P, D> {
         self.line.set_cut(cut);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::drive::DriveEvent;
+
+    /// The example of `docs/cosim.md`.
+    #[test]
+    fn the_documented_example() {
+        let mut p = LinkPair::new(LinkConfig::default(), Impairments::default(), 1);
+        p.run_until(Micros(20_000), |_| {});
+        assert!(p.plc.is_up() && p.drive.is_up());
+        p.plc.write_q(0, 100).unwrap();
+        p.run_for(5_000);
+        assert_eq!(
+            std::iter::from_fn(|| p.drive.poll_event()).last(),
+            Some(DriveEvent::QWrite {
+                addr: 0,
+                value: 100
+            })
+        );
+        let cut = p.now;
+        p.cut(true);
+        p.run_until(Micros(cut.0 + 60_000), |_| {});
+        assert!(!p.drive.is_up(), "the drive's link timeout (50 ms) expired");
+    }
+
+    /// A noise burst spoils the frame it hits: the receiver counts it bad, and the link
+    /// stays up (the next frames are clean).
+    #[test]
+    fn a_burst_is_one_bad_frame_and_the_link_stays_up() {
+        let mut p = LinkPair::new(LinkConfig::default(), Impairments::default(), 1);
+        p.run_until(Micros(20_000), |_| {});
+        let bad = p.drive.stats().frames_bad;
+        p.line.to_drive.burst(4);
+        p.run_for(30_000);
+        assert_eq!(p.drive.stats().frames_bad, bad + 1);
+        assert!(p.plc.is_up() && p.drive.is_up());
+        assert!(p.line.to_drive.stats().corrupted_frames >= 1);
+    }
+
+    /// A restarted side passes at once: the new PLC's Hello goes out at the restart.
+    #[test]
+    fn a_restarted_side_passes_at_once() {
+        let cfg = LinkConfig::default();
+        let mut p = LinkPair::new(cfg, Impairments::default(), 1);
+        p.run_until(Micros(20_000), |_| {});
+        let frames = p.line.to_drive.stats().frames;
+        p.restart_plc(Pumped::new(PlcLink::new(cfg), MAX_IDLE_US));
+        p.step(p.now);
+        assert_eq!(p.line.to_drive.stats().frames, frames + 1, "Hello at once");
+    }
+}

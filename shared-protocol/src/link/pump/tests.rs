@@ -106,8 +106,7 @@ impl Rig {
         self.pair.run_until(t, |p| {
             let now = p.now;
             plc_events.extend(std::iter::from_fn(|| p.plc.ep.poll_event()).map(|e| (now, e)));
-            drive_events
-                .extend(std::iter::from_fn(|| p.drive.ep.poll_event()).map(|e| (now, e)));
+            drive_events.extend(std::iter::from_fn(|| p.drive.ep.poll_event()).map(|e| (now, e)));
         });
     }
 
@@ -269,7 +268,10 @@ fn timers_run_while_the_line_stays_busy() {
         passes += 1;
     }
     let timeout = r.pair.plc.ep.config().plc_timeout_us;
-    assert!(!r.pair.plc.ep.is_up(), "link loss detected with the line busy");
+    assert!(
+        !r.pair.plc.ep.is_up(),
+        "link loss detected with the line busy"
+    );
     assert!(last.0 - start.0 <= timeout, "at its deadline");
     assert!(passes <= 41, "{passes} passes");
 }
