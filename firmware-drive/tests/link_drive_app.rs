@@ -1,12 +1,16 @@
-//! DriveApp (drive core + link endpoint) driven by a bare PLC link endpoint over the
-//! byte-timed wire: what the drive does with downloads, rejects, RUN/STOP, a lost link
+//! DriveApp (drive core + link endpoint) driven by a bare PLC link endpoint on the
+//! co-simulation rig (`shared_protocol::link::pair::Pair`: each side served by its pump,
+//! as on the boards): what the drive does with downloads, rejects, RUN/STOP, a lost link
 //! and a PLC of another protocol version.
 
 use firmware_drive::app::{AppEvent, DriveApp};
 use firmware_drive::link::{DriveEvent as LinkEvent, DriveLinkState};
 use firmware_drive::{AdcSample, DriveConfig, DriveState, FaultCode, ResetCause};
-use shared_protocol::link::channel::{Channel, Impairments};
+use shared_protocol::link::channel::Impairments;
 use shared_protocol::link::frame::{encode_frame, Frame};
+use shared_protocol::link::line::{Line, Pumped};
+use shared_protocol::link::pair::Pair;
+use shared_protocol::link::pump::LinkEndpoint;
 use shared_protocol::link::{
     DownloadResult, LinkConfig, PlcEvent, PlcLink, PlcMsg, RejectReason, MAX_WIRE_FRAME,
     PROTOCOL_VERSION,
@@ -14,87 +18,86 @@ use shared_protocol::link::{
 use shared_protocol::program::{assemble, Instruction, Mnemonic, Operand};
 use shared_protocol::units::Micros;
 
-struct Rig {
-    plc: PlcLink,
-    drive: DriveApp,
-    to_drive: Channel,
-    to_plc: Channel,
-    now: Micros,
-    plc_events: Vec<PlcEvent>,
-    pwm_on: bool,
+/// The drive application, recording each `poll_tx` call the pump makes.
+struct Recorded {
+    app: DriveApp,
     /// Every `poll_tx` call: (bytes returned, section loaded before, loaded after, the
     /// link accepted a section in this call).
     tx_calls: Vec<(usize, bool, bool, bool)>,
-    drive_events: Vec<AppEvent>,
+    events: Vec<AppEvent>,
+}
+
+impl LinkEndpoint for Recorded {
+    fn on_rx(&mut self, bytes: &[u8], now: Micros) {
+        self.app.on_rx(bytes, now);
+    }
+    fn poll_tx(&mut self, now: Micros, out: &mut [u8]) -> usize {
+        let loaded = self.app.status().program_loaded;
+        let n = self.app.poll_tx(now, out);
+        let seen = self.events.len();
+        self.events
+            .extend(std::iter::from_fn(|| self.app.poll_event()));
+        let accepted = self.events[seen..].contains(&AppEvent::Link(LinkEvent::ProgramAccepted));
+        let after = self.app.status().program_loaded;
+        self.tx_calls.push((n, loaded, after, accepted));
+        n
+    }
+    fn poll_timeout(&self) -> Option<Micros> {
+        self.app.poll_timeout()
+    }
+    fn line_error(&mut self) {
+        self.app.on_line_error();
+    }
+}
+
+/// A bare PLC endpoint and the drive application on the co-simulation rig, with the
+/// drive's PWM period every 100 us and its 1 ms tick.
+struct Rig {
+    pair: Pair<Pumped<PlcLink>, Pumped<Recorded>>,
+    plc_events: Vec<PlcEvent>,
+    pwm_on: bool,
 }
 
 impl Rig {
     fn new() -> Rig {
         let cfg = LinkConfig::default();
+        let drive = Recorded {
+            app: DriveApp::new(DriveConfig::default(), ResetCause::PowerOn, cfg),
+            tx_calls: Vec::new(),
+            events: Vec::new(),
+        };
         Rig {
-            plc: PlcLink::new(cfg),
-            drive: DriveApp::new(DriveConfig::default(), ResetCause::PowerOn, cfg),
-            to_drive: Channel::new(cfg.baud, Impairments::default(), 1),
-            to_plc: Channel::new(cfg.baud, Impairments::default(), 2),
-            now: Micros(0),
+            pair: Pair::pumped(
+                PlcLink::new(cfg),
+                drive,
+                Line::new(cfg.baud, Impairments::default(), 1),
+            ),
             plc_events: Vec::new(),
             pwm_on: false,
-            tx_calls: Vec::new(),
-            drive_events: Vec::new(),
         }
     }
 
     fn run_for(&mut self, us: u64) {
-        let end = self.now.0 + us;
-        let mut buf = [0u8; 64];
-        let mut out = [0u8; MAX_WIRE_FRAME];
+        let end = self.pair.now.0 + us;
         let adc = AdcSample {
             u_dc: 2800,
             ..AdcSample::default()
         };
-        while self.now.0 < end {
-            self.now = Micros(self.now.0 + 10);
-            let now = self.now;
-            let n = self.to_drive.receive(now, &mut buf);
-            if n > 0 {
-                self.drive.on_rx(&buf[..n], now);
-            }
-            let n = self.to_plc.receive(now, &mut buf);
-            if n > 0 {
-                self.plc.receive(&buf[..n], now);
-            }
+        let events = &mut self.plc_events;
+        while self.pair.now.0 < end {
+            // The drive's next PWM period (every 100 us).
+            let next = ((self.pair.now.0 / 100 + 1) * 100).min(end);
+            self.pair.run_until(Micros(next), |p| {
+                events.extend(std::iter::from_fn(|| p.plc.poll_event()));
+            });
+            let now = self.pair.now;
             if now.0.is_multiple_of(100) {
-                self.pwm_on = self.drive.pwm_period(&adc).enable;
+                self.pwm_on = self.pair.drive.app.pwm_period(&adc).enable;
             }
             if now.0.is_multiple_of(1000) {
-                self.drive.tick_1ms(now);
+                self.pair.drive.app.tick_1ms(now);
             }
-            if self.to_drive.is_idle(now) {
-                let n = self.plc.poll_transmit(now, &mut out);
-                if n > 0 {
-                    self.to_drive.send(&out[..n], now);
-                }
-            }
-            // As the pump: a frame when the line is free, else the endpoint's timers only.
-            let loaded = self.drive.status().program_loaded;
-            let n = if self.to_plc.is_idle(now) {
-                let n = self.drive.poll_tx(now, &mut out);
-                if n > 0 {
-                    self.to_plc.send(&out[..n], now);
-                }
-                n
-            } else {
-                self.drive.poll_tx(now, &mut [])
-            };
-            let seen = self.drive_events.len();
-            self.drive_events
-                .extend(std::iter::from_fn(|| self.drive.poll_event()));
-            let accepted =
-                self.drive_events[seen..].contains(&AppEvent::Link(LinkEvent::ProgramAccepted));
-            let after = self.drive.status().program_loaded;
-            self.tx_calls.push((n, loaded, after, accepted));
-            self.plc_events
-                .extend(std::iter::from_fn(|| self.plc.poll_event()));
+            self.pair.kick();
         }
     }
 
@@ -103,7 +106,7 @@ impl Rig {
         if let Some((line, i)) = patch {
             section.lines[line] = Some(i);
         }
-        self.plc.start_download(&section).unwrap();
+        self.pair.plc.start_download(&section).unwrap();
         self.run_for(150_000);
         self.plc_events
             .iter()
@@ -131,8 +134,8 @@ const SPIN: &str = "
 fn connected() -> Rig {
     let mut r = Rig::new();
     r.run_for(20_000);
-    assert!(r.plc.is_up());
-    assert_eq!(r.drive.core().state(), DriveState::Idle);
+    assert!(r.pair.plc.is_up());
+    assert_eq!(r.pair.drive.app.core().state(), DriveState::Idle);
     r
 }
 
@@ -140,14 +143,14 @@ fn connected() -> Rig {
 fn accepted_section_runs_and_stops() {
     let mut r = connected();
     assert_eq!(r.download(SPIN, None), DownloadResult::Accepted);
-    r.plc.write_q(0, 100).unwrap();
-    r.plc.run().unwrap();
+    r.pair.plc.write_q(0, 100).unwrap();
+    r.pair.plc.run().unwrap();
     r.run_for(20_000);
-    assert_eq!(r.drive.core().state(), DriveState::Run);
+    assert_eq!(r.pair.drive.app.core().state(), DriveState::Run);
     assert!(r.pwm_on, "outputs switching at 10 Hz");
-    r.plc.stop().unwrap();
+    r.pair.plc.stop().unwrap();
     r.run_for(5_000);
-    assert_eq!(r.drive.core().state(), DriveState::Idle);
+    assert_eq!(r.pair.drive.app.core().state(), DriveState::Idle);
     assert!(!r.pwm_on);
 }
 
@@ -158,14 +161,18 @@ fn accepted_section_runs_and_stops() {
 #[test]
 fn an_accepted_section_is_loaded_in_passes_of_its_own() {
     let mut r = connected();
-    r.tx_calls.clear();
+    r.pair.drive.tx_calls.clear();
     assert_eq!(r.download(SPIN, None), DownloadResult::Accepted);
     let accepted = r
+        .pair
+        .drive
         .tx_calls
         .iter()
         .position(|&(_, _, _, accepted_here)| accepted_here)
         .expect("a poll_tx call accepted the section");
     let loaded = r
+        .pair
+        .drive
         .tx_calls
         .iter()
         .position(|&(_, before, after, _)| !before && after)
@@ -175,11 +182,11 @@ fn an_accepted_section_is_loaded_in_passes_of_its_own() {
         4,
         "four load passes after the accepting one"
     );
-    for &(n, _, _, accepted_here) in &r.tx_calls[accepted + 1..=loaded] {
+    for &(n, _, _, accepted_here) in &r.pair.drive.tx_calls[accepted + 1..=loaded] {
         assert_eq!(n, 0, "a loading pass sends no frame");
         assert!(!accepted_here);
     }
-    assert!(r.drive.status().program_loaded);
+    assert!(r.pair.drive.app.status().program_loaded);
 }
 
 #[test]
@@ -201,11 +208,11 @@ fn rejected_section_trips_prog_and_names_the_line() {
         ),
         "{result:?}"
     );
-    assert_eq!(r.drive.core().fault(), Some(FaultCode::Prog));
+    assert_eq!(r.pair.drive.app.core().fault(), Some(FaultCode::Prog));
     // RUN is refused until the fault is acknowledged and a good section arrives.
-    r.plc.run().unwrap();
+    r.pair.plc.run().unwrap();
     r.run_for(10_000);
-    assert_eq!(r.drive.core().state(), DriveState::Fault);
+    assert_eq!(r.pair.drive.app.core().state(), DriveState::Fault);
     assert!(!r.pwm_on);
     // The PLC hears of the trip (for its fault log).
     assert!(r.plc_events.iter().any(|e| matches!(
@@ -221,22 +228,23 @@ fn rejected_section_trips_prog_and_names_the_line() {
 fn lost_link_in_run_trips_link_and_switches_off() {
     let mut r = connected();
     assert_eq!(r.download(SPIN, None), DownloadResult::Accepted);
-    r.plc.write_q(0, 100).unwrap();
-    r.plc.run().unwrap();
+    r.pair.plc.write_q(0, 100).unwrap();
+    r.pair.plc.run().unwrap();
     r.run_for(20_000);
     assert!(r.pwm_on);
-    r.to_drive.set_cut(true);
-    r.to_plc.set_cut(true);
-    let cut = r.now;
-    while r.drive.core().fault().is_none() && r.now.0 < cut.0 + 100_000 {
+    r.pair.cut(true);
+    let cut = r.pair.now;
+    while r.pair.drive.app.core().fault().is_none() && r.pair.now.0 < cut.0 + 100_000 {
         r.run_for(100);
     }
-    assert_eq!(r.drive.core().fault(), Some(FaultCode::Link));
-    assert!(r.now.0 - cut.0 <= 51_000);
+    assert_eq!(r.pair.drive.app.core().fault(), Some(FaultCode::Link));
+    assert!(r.pair.now.0 - cut.0 <= 51_000);
     r.run_for(200);
     assert!(!r.pwm_on);
     assert!(r
-        .drive_events
+        .pair
+        .drive
+        .events
         .contains(&AppEvent::Link(LinkEvent::LinkLost)));
 }
 
@@ -254,10 +262,10 @@ fn a_plc_of_another_version_never_brings_the_outputs_on() {
     };
     let mut out = [0u8; MAX_WIRE_FRAME];
     let n = encode_frame(&hello, true, &mut out).unwrap();
-    let now = r.now;
-    r.drive.on_rx(&out[..n], now);
+    let now = r.pair.now;
+    r.pair.drive.app.on_rx(&out[..n], now);
     assert_eq!(
-        r.drive.link_state(),
+        r.pair.drive.app.link_state(),
         DriveLinkState::Incompatible {
             plc_version: PROTOCOL_VERSION + 1
         }
@@ -269,11 +277,11 @@ fn a_plc_of_another_version_never_brings_the_outputs_on() {
         msg: PlcMsg::Run,
     };
     let n = encode_frame(&run, false, &mut out).unwrap();
-    r.drive.on_rx(&out[..n], now);
+    r.pair.drive.app.on_rx(&out[..n], now);
     let adc = AdcSample::default();
-    r.drive.tick_1ms(now);
-    assert!(!r.drive.pwm_period(&adc).enable);
-    assert_ne!(r.drive.core().state(), DriveState::Run);
+    r.pair.drive.app.tick_1ms(now);
+    assert!(!r.pair.drive.app.pwm_period(&adc).enable);
+    assert_ne!(r.pair.drive.app.core().state(), DriveState::Run);
 }
 
 /// SPIN with the switching frequency from Q01 (`PWF`, Hz).
@@ -297,30 +305,33 @@ const SPIN_PWF: &str = "
 #[test]
 fn a_new_pwf_is_programmed_once_and_then_switches() {
     let mut r = connected();
-    let before = r.drive.pwm_timing();
-    let changes = r.drive.core().timing_changes();
+    let before = r.pair.drive.app.pwm_timing();
+    let changes = r.pair.drive.app.core().timing_changes();
     assert_eq!(r.download(SPIN_PWF, None), DownloadResult::Accepted);
-    r.plc.write_q(0, 100).unwrap();
-    r.plc.write_q(1, 12_000).unwrap();
-    r.plc.run().unwrap();
+    r.pair.plc.write_q(0, 100).unwrap();
+    r.pair.plc.write_q(1, 12_000).unwrap();
+    r.pair.plc.run().unwrap();
     r.run_for(20_000);
-    assert_eq!(r.drive.core().state(), DriveState::Run);
+    assert_eq!(r.pair.drive.app.core().state(), DriveState::Run);
     assert_ne!(
-        r.drive.core().timing_changes(),
+        r.pair.drive.app.core().timing_changes(),
         changes,
         "PWF recomputed the timing"
     );
     assert_ne!(
-        r.drive.core().pwm_timing(),
+        r.pair.drive.app.core().pwm_timing(),
         before,
         "12 kHz is not the default"
     );
-    assert_eq!(r.drive.pwm_timing(), r.drive.core().pwm_timing());
+    assert_eq!(
+        r.pair.drive.app.pwm_timing(),
+        r.pair.drive.app.core().pwm_timing()
+    );
     let adc = AdcSample {
         u_dc: 2800,
         ..AdcSample::default()
     };
-    let action = r.drive.pwm_period(&adc);
+    let action = r.pair.drive.app.pwm_period(&adc);
     assert!(action.timing.is_none(), "programmed once, not every period");
     assert!(action.enable, "switching at the new frequency");
 }

@@ -7,10 +7,11 @@
 //! only queues a storage job; `PlcApp::tick_1ms` runs it one EEPROM page per tick, and
 //! waits for the write cycle with non-blocking ready polls.
 //!
-//! Both applications pumped as the boards run them (`board_common::link::run`: receive,
-//! transmit, write, then the reaction; the PLC's application task every millisecond),
-//! with the EEPROM's bus time modelled and the PLC's tasks (one executor) blocked for as
-//! long as its EEPROM work takes.
+//! Both applications on the co-simulation rig (`shared_protocol::link::pair::Pair`),
+//! pumped as the boards run them (`board_common::link::run`: receive, transmit, write,
+//! then the reaction; the application tasks every millisecond), with the EEPROM's bus
+//! time modelled and the PLC's tasks (one executor) blocked for as long as its EEPROM
+//! work takes.
 
 use std::cell::Cell;
 use std::rc::Rc;
@@ -20,9 +21,11 @@ use firmware_drive::{DriveConfig, ResetCause};
 use firmware_plc::app::{PlcApp, RawIo};
 use firmware_plc::editor::Screen;
 use firmware_plc::storage::{Eeprom, EepromError, MemEeprom};
-use shared_protocol::link::channel::{Channel, Impairments};
-use shared_protocol::link::pump::{Pump, MAX_IDLE_US};
-use shared_protocol::link::{LinkConfig, PlcLinkState, MAX_WIRE_FRAME};
+use shared_protocol::link::channel::Impairments;
+use shared_protocol::link::line::{Line, LinkTask, Pumped};
+use shared_protocol::link::pair::Pair;
+use shared_protocol::link::pump::{Pass, Pump, MAX_IDLE_US};
+use shared_protocol::link::{LinkConfig, PlcLinkState};
 use shared_protocol::units::Micros;
 
 /// I2C at 100 kHz: 9 bit times per byte.
@@ -66,22 +69,81 @@ impl Eeprom for TimedEeprom {
     }
 }
 
-struct Rig {
-    plc: PlcApp<TimedEeprom>,
-    plc_pump: Pump,
-    /// The PLC's link task is blocked (EEPROM work) until then.
-    plc_busy_until: Micros,
-    plc_wake: Micros,
-    /// The longest single block of the PLC's link task by its EEPROM work.
+/// The PLC's link task as `board_common::link::run` makes it (receive, transmit, write,
+/// then the reaction), on the same executor as its application task: blocked for as long
+/// as its EEPROM work takes. Bytes that arrive meanwhile wait in the UART's ring.
+struct PlcTask {
+    app: PlcApp<TimedEeprom>,
+    pump: Pump,
+    /// The PLC's tasks are blocked (EEPROM work) until then.
+    busy_until: Micros,
+    /// The longest single block of the PLC's tasks by its EEPROM work.
     longest_block_us: u64,
     spent: Rc<Cell<u64>>,
     clock: Rc<Cell<u64>>,
+    ring: Vec<u8>,
+    byte_us: u64,
+}
+
+impl PlcTask {
+    /// EEPROM time spent since the last call (the task was blocked that long).
+    fn take_spent(&mut self) -> u64 {
+        let block = self.spent.replace(0);
+        self.longest_block_us = self.longest_block_us.max(block);
+        block
+    }
+
+    /// The application task's 1 ms pass, if the executor is free.
+    fn tick_1ms(&mut self, now: Micros, screen: &mut Screen) {
+        if now < self.busy_until {
+            return;
+        }
+        self.clock.set(now.0);
+        self.spent.set(0);
+        let _ = self.app.tick_1ms(now, RawIo::default(), screen);
+        let block = self.take_spent();
+        self.busy_until = Micros(now.0 + block);
+    }
+}
+
+impl LinkTask for PlcTask {
+    fn pass(&mut self, rx: &[u8], room: usize, now: Micros) -> Pass {
+        self.ring.extend_from_slice(rx);
+        if now < self.busy_until {
+            return Pass {
+                tx_len: 0,
+                wake_at: self.busy_until,
+            };
+        }
+        self.clock.set(now.0);
+        let rx = std::mem::take(&mut self.ring);
+        self.spent.set(0);
+        self.pump.receive(&mut self.app, &rx, now);
+        let t = Micros(now.0 + self.take_spent());
+        let pass = self.pump.transmit(&mut self.app, room, t);
+        let mut t = Micros(t.0 + self.take_spent());
+        // The board awaits the write.
+        t = Micros(t.0 + pass.tx_len as u64 * self.byte_us);
+        let wake = self.pump.service(&mut self.app, t);
+        let block = self.take_spent();
+        self.busy_until = Micros(t.0 + block);
+        Pass {
+            tx_len: pass.tx_len,
+            wake_at: wake.max(self.busy_until),
+        }
+    }
+    fn tx(&self) -> &[u8] {
+        self.pump.tx()
+    }
+    fn timeout(&self) -> Option<Micros> {
+        self.app.link().poll_timeout()
+    }
+}
+
+/// The PLC's tasks and the drive application on the co-simulation rig.
+struct Rig {
+    pair: Pair<PlcTask, Pumped<DriveApp>>,
     screen: Screen,
-    drive: DriveApp,
-    drive_pump: Pump,
-    to_drive: Channel,
-    to_plc: Channel,
-    now: Micros,
 }
 
 impl Rig {
@@ -95,87 +157,41 @@ impl Rig {
             clock: clock.clone(),
             busy_until: 0,
         };
-        Rig {
-            plc: PlcApp::new(eeprom, cfg, 20, 4, Micros(0)),
-            plc_pump: Pump::new(MAX_IDLE_US),
-            plc_busy_until: Micros(0),
-            plc_wake: Micros(0),
+        let plc = PlcTask {
+            app: PlcApp::new(eeprom, cfg, 20, 4, Micros(0)),
+            pump: Pump::new(MAX_IDLE_US),
+            busy_until: Micros(0),
             longest_block_us: 0,
             spent,
             clock,
-            screen: Screen::new(20, 4),
-            // Restarted by its watchdog: it reports fault WDG once the link is up.
-            drive: DriveApp::new(DriveConfig::default(), ResetCause::Watchdog, cfg),
-            drive_pump: Pump::new(MAX_IDLE_US),
-            to_drive: Channel::new(cfg.baud, Impairments::default(), 1),
-            to_plc: Channel::new(cfg.baud, Impairments::default(), 2),
-            now: Micros(0),
-        }
-    }
-
-    /// EEPROM time spent since the last call (the link task was blocked that long).
-    fn take_spent(&mut self) -> u64 {
-        let block = self.spent.replace(0);
-        self.longest_block_us = self.longest_block_us.max(block);
-        block
-    }
-
-    /// One pass of the PLC's link task at `now`, as `board_common::link::run` makes it.
-    fn plc_pass(&mut self, now: Micros) {
-        let mut buf = [0u8; 512];
-        let n = self.to_plc.receive(now, &mut buf);
-        self.spent.set(0);
-        self.plc_pump.receive(&mut self.plc, &buf[..n], now);
-        let t = Micros(now.0 + self.take_spent());
-        let room = if self.to_drive.is_idle(t) {
-            MAX_WIRE_FRAME
-        } else {
-            0
+            ring: Vec::new(),
+            byte_us: 10_000_000u64.div_ceil(u64::from(cfg.baud)),
         };
-        let pass = self.plc_pump.transmit(&mut self.plc, room, t);
-        let mut t = Micros(t.0 + self.take_spent());
-        if pass.tx_len > 0 {
-            self.to_drive.send(self.plc_pump.tx(), t);
-            // The board awaits the write.
-            t = self.to_drive.free_at();
+        // Restarted by its watchdog: it reports fault WDG once the link is up.
+        let drive = DriveApp::new(DriveConfig::default(), ResetCause::Watchdog, cfg);
+        Rig {
+            pair: Pair::with_line(
+                plc,
+                Pumped::new(drive, MAX_IDLE_US),
+                Line::new(cfg.baud, Impairments::default(), 1),
+            ),
+            screen: Screen::new(20, 4),
         }
-        let wake = self.plc_pump.service(&mut self.plc, t);
-        let block = self.take_spent();
-        self.plc_busy_until = Micros(t.0 + block);
-        self.plc_wake = wake;
     }
 
+    /// The line's events as they come; every 1 ms both applications' tasks, which then
+    /// kick their link tasks.
     fn run_for(&mut self, us: u64) {
-        let end = self.now.0 + us;
-        let mut buf = [0u8; 512];
-        while self.now.0 < end {
-            self.now = Micros(self.now.0 + 10);
-            let now = self.now;
-            self.clock.set(now.0);
+        let end = self.pair.now.0 + us;
+        while self.pair.now.0 < end {
+            let next = ((self.pair.now.0 / 1000 + 1) * 1000).min(end);
+            self.pair.run_until(Micros(next), |_| {});
+            let now = self.pair.now;
             if now.0.is_multiple_of(1000) {
-                self.drive.tick_1ms(now);
-                if now >= self.plc_busy_until {
-                    // The PLC's application task (same executor as its link task).
-                    self.spent.set(0);
-                    let _ = self.plc.tick_1ms(now, RawIo::default(), &mut self.screen);
-                    let block = self.take_spent();
-                    self.plc_busy_until = Micros(now.0 + block);
-                }
+                self.pair.drive.tick_1ms(now);
+                self.pair.plc.tick_1ms(now, &mut self.screen);
             }
-            let n = self.to_drive.receive(now, &mut buf);
-            let room = if self.to_plc.is_idle(now) {
-                MAX_WIRE_FRAME
-            } else {
-                0
-            };
-            self.drive_pump.pass(&mut self.drive, &buf[..n], room, now);
-            if !self.drive_pump.tx().is_empty() {
-                self.to_plc.send(self.drive_pump.tx(), now);
-            }
-            let arrived = self.to_plc.next_arrival().is_some_and(|a| a <= now);
-            if now >= self.plc_busy_until && (arrived || now >= self.plc_wake) {
-                self.plc_pass(now);
-            }
+            self.pair.kick();
         }
     }
 }
@@ -184,20 +200,20 @@ impl Rig {
 fn a_slow_fault_log_write_does_not_hold_back_the_acknowledgement() {
     let mut r = Rig::new();
     r.run_for(1_000_000);
-    let log: Vec<u8> = r.plc.fault_log().iter().map(|e| e.code).collect();
+    let log: Vec<u8> = r.pair.plc.app.fault_log().iter().map(|e| e.code).collect();
     assert_eq!(log, [7], "WDG logged once");
     // The EEPROM work is done in steps: no single block comes near the drive's link
     // timeout (one page transfer, a few ms at 100 kHz), however long the whole job is.
     assert!(
-        r.longest_block_us < LinkConfig::default().drive_timeout_us / 4,
+        r.pair.plc.longest_block_us < LinkConfig::default().drive_timeout_us / 4,
         "block {} us",
-        r.longest_block_us
+        r.pair.plc.longest_block_us
     );
-    assert_eq!(r.plc.link().state(), PlcLinkState::Up);
+    assert_eq!(r.pair.plc.app.link().state(), PlcLinkState::Up);
     // The report is acknowledged in the session that carried it: no session is lost.
     assert!(
-        r.drive.link().stats().link_losses == 0,
+        r.pair.drive.link().stats().link_losses == 0,
         "{:?}",
-        r.drive.link().stats()
+        r.pair.drive.link().stats()
     );
 }

@@ -14,7 +14,8 @@ use firmware_drive::{AdcSample, DriveConfig, ResetCause};
 use firmware_plc::storage::image::{program_image, ImageOptions};
 use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::channel::{Channel, Impairments};
-use shared_protocol::link::pump::is_due;
+use shared_protocol::link::line::{End, Line, LinkTask};
+use shared_protocol::link::pump::Pass;
 use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
@@ -102,14 +103,10 @@ pub struct Simulation {
     next_action: usize,
     pins: PlcPins,
     aux_counts: u16,
-    /// PLC TX -> drive RX.
-    to_drive: Channel,
-    /// Drive TX -> PLC RX.
-    to_plc: Channel,
+    /// The UART line between the two link tasks (`shared_protocol::link::line`, the
+    /// co-simulation rig's line): its wires and when each task passes next.
+    line: Line,
     cut: bool,
-    /// The link tasks' next passes (their pumps' deadlines, or a busy UART becoming free
-    /// with a frame due): [PLC, drive].
-    tx_wake_ns: [Option<u64>; 2],
     // PWM timer.
     pwm_epoch_ns: u64,
     pwm_k: u64,
@@ -218,6 +215,51 @@ fn garble_download_begin(tx: &[u8]) -> Option<Vec<u8>> {
     Some(out)
 }
 
+/// The PLC board's link task on the line; the panel's "garbled download" changes the
+/// next `DownloadBegin` on its way to the wire.
+struct PlcTask<'a> {
+    board: &'a mut SimPlc,
+    garble: &'a mut bool,
+    garbled: Option<Vec<u8>>,
+}
+
+impl LinkTask for PlcTask<'_> {
+    fn pass(&mut self, rx: &[u8], room: usize, now: Micros) -> Pass {
+        let pass = self.board.link_pass(rx, room, now);
+        self.garbled = None;
+        if *self.garble {
+            self.garbled = garble_download_begin(self.board.link_tx());
+            if self.garbled.is_some() {
+                *self.garble = false;
+            }
+        }
+        pass
+    }
+    fn tx(&self) -> &[u8] {
+        self.garbled
+            .as_deref()
+            .unwrap_or_else(|| self.board.link_tx())
+    }
+    fn timeout(&self) -> Option<Micros> {
+        self.board.link_timeout()
+    }
+}
+
+/// The drive board's link task on the line.
+struct DriveTask<'a>(&'a mut SimDrive);
+
+impl LinkTask for DriveTask<'_> {
+    fn pass(&mut self, rx: &[u8], room: usize, now: Micros) -> Pass {
+        self.0.link_pass(rx, room, now)
+    }
+    fn tx(&self) -> &[u8] {
+        self.0.link_tx()
+    }
+    fn timeout(&self) -> Option<Micros> {
+        self.0.link_timeout()
+    }
+}
+
 fn timer_period_ns(epoch: u64, k: u64, ticks: u64, f_tim: u32) -> u64 {
     let f = u128::from(f_tim.max(1));
     epoch + ((u128::from(k) * u128::from(ticks) * 1_000_000_000) / f) as u64
@@ -273,10 +315,8 @@ impl Simulation {
             next_action: 0,
             pins,
             aux_counts: 0,
-            to_drive,
-            to_plc,
+            line: Line::with_channels(to_drive, to_plc),
             cut: false,
-            tx_wake_ns: [None; 2],
             pwm_epoch_ns: 0,
             pwm_k: 0,
             pwm_key: (timing.arr, timing.psc),
@@ -302,8 +342,7 @@ impl Simulation {
     pub fn set_link_cut(&mut self, cut: bool) {
         self.cut = true;
         self.scenario.cut_at_ns = u64::MAX;
-        self.to_drive.set_cut(cut);
-        self.to_plc.set_cut(cut);
+        self.line.set_cut(cut);
     }
 
     /// Restarts the drive MCU now with reset cause `cause` (its supply cycled, or its
@@ -322,7 +361,7 @@ impl Simulation {
         self.next_pwm_ns = self.now_ns;
         self.plant.set_command(GateCommand::OFF);
         self.plant.set_brake(false);
-        self.tx_wake_ns[1] = None;
+        self.line.forget(End::Drive);
     }
 
     /// A fault of the drive's phase-1 current sensor: `counts` added to its ADC reading
@@ -463,13 +502,8 @@ impl Simulation {
         if !self.cut {
             t = t.min(self.scenario.cut_at_ns);
         }
-        for c in [&self.to_drive, &self.to_plc] {
-            if let Some(a) = c.next_arrival() {
-                t = t.min(a.0.saturating_mul(1000));
-            }
-        }
-        for w in self.tx_wake_ns.into_iter().flatten() {
-            t = t.min(w);
+        if let Some(l) = self.line.next_event_ns() {
+            t = t.min(l);
         }
         t
     }
@@ -486,14 +520,8 @@ impl Simulation {
         }
         if !self.cut && t >= self.scenario.cut_at_ns {
             self.cut = true;
-            self.to_drive.set_cut(true);
-            self.to_plc.set_cut(true);
+            self.line.set_cut(true);
         }
-        // What each UART received: the link task wakes on it (the boards' ring-buffered
-        // RX wakes on an idle line or half a ring; bytes are handed over as they arrive
-        // here, which is never later).
-        let drive_rx = receive_all(&mut self.to_drive, now);
-        let plc_rx = receive_all(&mut self.to_plc, now);
         if t >= self.next_pwm_ns {
             self.pwm_event(t);
         }
@@ -530,63 +558,24 @@ impl Simulation {
             self.next_plc_tick_ns += MS_NS;
             app_ran = true;
         }
-        // A link task passes when bytes arrived, at its pump's deadline (or when its line
-        // became free with a frame due), or when the application task that just ran left
-        // something due (the boards' tasks kick it then: `pump::is_due`).
-        let woken = self.tx_wake_ns.map(|w| w.is_some_and(|w| w <= t));
-        let kick = [app_ran && is_due(self.plc.link_timeout(), now), drive_kick];
-        if !plc_rx.is_empty() || woken[0] || kick[0] {
-            self.link_pass(0, &plc_rx, t);
-        }
-        if !drive_rx.is_empty() || woken[1] || kick[1] {
-            self.link_pass(1, &drive_rx, t);
-        }
+        // A link task passes when bytes arrived (the boards' ring-buffered RX wakes on an
+        // idle line or half a ring; bytes are handed over as they arrive here, which is
+        // never later), at its pump's deadline (or when its line became free with a frame
+        // due), or when the application task that just ran left something due (the
+        // boards' tasks kick it then: `pump::is_due`).
+        let mut plc = PlcTask {
+            board: &mut self.plc,
+            garble: &mut self.garble_download,
+            garbled: None,
+        };
+        self.line.poll(End::Plc, &mut plc, t, app_ran);
+        self.line
+            .poll(End::Drive, &mut DriveTask(&mut self.drive), t, drive_kick);
         if t >= self.next_sample_ns {
             let s = self.sample(t);
             on_sample(&s);
             self.next_sample_ns += self.sample_ns;
         }
-    }
-
-    /// One pass of side 0's (PLC) or 1's (drive) link pump, as the board's link task runs
-    /// it: the received bytes in, a frame out if the line is free (the boards' DMA
-    /// transmitter takes a whole frame once the previous one is out), and the next
-    /// wake-up: the pump's deadline, or the moment the line is free when something is due
-    /// now but the line is busy.
-    fn link_pass(&mut self, side: usize, rx: &[u8], t: u64) {
-        let now = Micros(t / 1000);
-        let chan = if side == 0 {
-            &mut self.to_drive
-        } else {
-            &mut self.to_plc
-        };
-        let room = if chan.is_idle(now) { MAX_WIRE_FRAME } else { 0 };
-        let (pass, tx) = if side == 0 {
-            let p = self.plc.link_pass(rx, room, now);
-            (p, self.plc.link_tx())
-        } else {
-            let p = self.drive.link_pass(rx, room, now);
-            (p, self.drive.link_tx())
-        };
-        if !tx.is_empty() {
-            if side == 0 && self.garble_download {
-                if let Some(bad) = garble_download_begin(tx) {
-                    self.garble_download = false;
-                    chan.send(&bad, now);
-                } else {
-                    chan.send(tx, now);
-                }
-            } else {
-                chan.send(tx, now);
-            }
-        }
-        let mut wake = pass.wake_at.0.saturating_mul(1000);
-        if wake <= t && !chan.is_idle(now) {
-            wake = chan.free_at().0.saturating_mul(1000);
-        }
-        // Never the same instant again (a pump that asks for "now" and sends nothing
-        // would otherwise stop virtual time).
-        self.tx_wake_ns[side] = Some(wake.max(t + 1));
     }
 
     /// One millisecond of the lift: door, brake, limits and sensors from the car's

@@ -46,7 +46,7 @@ fn latencies(baud: u32, writes_per_scan: u8, samples: usize, scan_us: Option<u64
             if let Some(period) = scan_us {
                 if p.now.0 >= *next_scan {
                     p.plc.quiet_for(p.now, period - 50);
-                    p.service();
+                    p.kick();
                     *next_scan += period;
                 }
                 p.step(Micros(t.min(*next_scan)));
@@ -73,7 +73,7 @@ fn latencies(baud: u32, writes_per_scan: u8, samples: usize, scan_us: Option<u64
             p.plc.quiet_for(p.now, period - 50);
             next_scan = issue + period;
         }
-        p.service();
+        p.kick();
         let last = writes_per_scan - 1;
         let limit = issue + 100_000;
         let mut done = None;
@@ -110,8 +110,8 @@ fn report(name: &str, v: &[u64]) {
 /// at that period (0 = none).
 fn bandwidth(baud: u32, secs: u64, q_every_ms: u64, scans: bool) -> (f64, f64) {
     let mut p = connected(baud);
-    let start_d = p.to_drive.stats().busy_ns;
-    let start_p = p.to_plc.stats().busy_ns;
+    let start_d = p.line.to_drive.stats().busy_ns;
+    let start_p = p.line.to_plc.stats().busy_ns;
     let t0 = p.now;
     let mut next_q = t0;
     let mut v = 0i16;
@@ -121,7 +121,7 @@ fn bandwidth(baud: u32, secs: u64, q_every_ms: u64, scans: bool) -> (f64, f64) {
         if scans && p.now >= next_scan {
             // 1 ms scans announcing their quiet window (PlcApp does this).
             p.plc.quiet_for(p.now, 950);
-            p.service();
+            p.kick();
             next_scan = Micros(next_scan.0 + 1000);
         }
         if q_every_ms > 0 && p.now >= next_q {
@@ -141,8 +141,8 @@ fn bandwidth(baud: u32, secs: u64, q_every_ms: u64, scans: bool) -> (f64, f64) {
     }
     let span_ns = (p.now.0 - t0.0) as f64 * 1000.0;
     (
-        (p.to_drive.stats().busy_ns - start_d) as f64 / span_ns * 100.0,
-        (p.to_plc.stats().busy_ns - start_p) as f64 / span_ns * 100.0,
+        (p.line.to_drive.stats().busy_ns - start_d) as f64 / span_ns * 100.0,
+        (p.line.to_plc.stats().busy_ns - start_p) as f64 / span_ns * 100.0,
     )
 }
 

@@ -184,7 +184,7 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
     let mut faults_reported = 0u32;
     let mut faults_seen: Vec<u32> = Vec::new();
     let mut drive_losses = 0;
-    while p.to_drive.stats().frames + p.to_plc.stats().frames < frames {
+    while p.line.to_drive.stats().frames + p.line.to_plc.stats().frames < frames {
         let until = Micros(p.now.0 + 1_000);
         p.step(until);
         if p.now >= next_cmd && p.plc.is_up() && p.plc.unacknowledged() < 40 {
@@ -255,8 +255,8 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
         }
     }
     // Let everything drain on a clean wire.
-    p.to_drive.set_impairments(Impairments::default());
-    p.to_plc.set_impairments(Impairments::default());
+    p.line.to_drive.set_impairments(Impairments::default());
+    p.line.to_plc.set_impairments(Impairments::default());
     let end = Micros(p.now.0 + 200_000);
     p.run_until(end, |p| {
         while let Some(e) = p.plc.poll_event() {
@@ -292,7 +292,7 @@ fn endpoints_on_noisy_wire(baud: u32, imp: Impairments, frames: u64, seed: u64) 
     eprintln!(
         "{} frames on the wire; {} commands issued, {} applied ({} Q writes superseded); \
          bad frames: drive {} plc {}; fault reports {}; retransmits: plc {} drive {}; duplicates ignored: drive {} plc {}",
-        p.to_drive.stats().frames + p.to_plc.stats().frames,
+        p.line.to_drive.stats().frames + p.line.to_plc.stats().frames,
         issued.len(),
         applied.len(),
         issued.len() - applied.len(),

@@ -4,7 +4,9 @@
 use shared_protocol::fault::FaultCode;
 use shared_protocol::link::channel::Impairments;
 use shared_protocol::link::frame::{encode_frame, Frame, FrameReader, MAX_WIRE_FRAME};
+use shared_protocol::link::line::Pumped;
 use shared_protocol::link::pair::LinkPair;
+use shared_protocol::link::pump::MAX_IDLE_US;
 use shared_protocol::link::{
     CommandError, DownloadResult, DriveEvent, DriveLinkState, DriveMsg, DriveState, DriveStatus,
     LinkConfig, PlcEvent, PlcLink, PlcLinkState, PlcMsg, RejectReason, PROTOCOL_VERSION,
@@ -56,7 +58,7 @@ fn q_write_is_applied_within_2ms_at_115200() {
         p.run_until(issue, |_| {});
         drive_events(&mut p);
         p.plc.write_q(5, k as i16).unwrap();
-        p.service();
+        p.kick();
         let t = until_drive(&mut p, Micros(issue.0 + 50_000), |e| {
             *e == DriveEvent::QWrite {
                 addr: 5,
@@ -376,8 +378,8 @@ fn cut_link_is_detected_on_both_sides_then_reconnects() {
     drive_events(&mut p);
 
     let cut = p.now;
-    p.to_drive.set_cut(true);
-    p.to_plc.set_cut(true);
+    p.line.to_drive.set_cut(true);
+    p.line.to_plc.set_cut(true);
     p.plc.write_q(7, 701).unwrap(); // while cut: kept, resent after the handshake
     let mut drive_lost = None;
     let mut plc_lost = None;
@@ -405,8 +407,8 @@ fn cut_link_is_detected_on_both_sides_then_reconnects() {
     assert_eq!(p.drive.state(), DriveLinkState::Down);
     assert_eq!(p.plc.state(), PlcLinkState::Connecting);
 
-    p.to_drive.set_cut(false);
-    p.to_plc.set_cut(false);
+    p.line.to_drive.set_cut(false);
+    p.line.to_plc.set_cut(false);
     let back = p.now;
     let end = Micros(back.0 + 100_000);
     p.run_until(end, |_| {});
@@ -430,10 +432,10 @@ fn cut_link_is_detected_on_both_sides_then_reconnects() {
 fn plc_heartbeat_gap_stays_below_10ms() {
     let mut p = connected_pair(115_200);
     let mut last = p.now;
-    let mut sent = p.to_drive.stats().frames;
+    let mut sent = p.line.to_drive.stats().frames;
     let mut worst = 0;
     p.run_until(ms(2_000), |p| {
-        let f = p.to_drive.stats().frames;
+        let f = p.line.to_drive.stats().frames;
         if f != sent {
             worst = worst.max(p.now.0 - last.0);
             last = p.now;
@@ -529,7 +531,7 @@ fn version_mismatch_is_reported_on_both_sides() {
 fn works_at_1_mbaud() {
     let mut p = connected_pair(1_000_000);
     p.plc.write_q(0, 1).unwrap();
-    p.service();
+    p.kick();
     let t0 = p.now;
     let t = until_drive(&mut p, ms(100), |e| {
         *e == DriveEvent::QWrite { addr: 0, value: 1 }
@@ -564,7 +566,10 @@ fn restart_plc(seed: Option<u8>) -> (Vec<(u64, DriveEvent)>, u64) {
     drive_events(&mut p);
     // The PLC reboots; the drive keeps running.
     let t0 = p.now;
-    p.plc = PlcLink::new(LinkConfig::default());
+    p.restart_plc(Pumped::new(
+        PlcLink::new(LinkConfig::default()),
+        MAX_IDLE_US,
+    ));
     if let Some(s) = seed {
         p.plc.seed_session(s);
     }
@@ -606,13 +611,13 @@ fn plc_restart_with_a_new_session_is_a_link_loss_for_the_drive() {
 #[test]
 fn one_way_cut_drive_to_plc_restarts_the_session_on_both_sides() {
     let mut p = connected_pair(115_200);
-    p.to_plc.set_cut(true);
+    p.line.to_plc.set_cut(true);
     let t0 = p.now;
     let (d, u) = collect(&mut p, Micros(t0.0 + 70_000));
     assert!(u
         .iter()
         .any(|(_, e)| matches!(e, PlcEvent::LinkLost { .. })));
-    p.to_plc.set_cut(false);
+    p.line.to_plc.set_cut(false);
     let (d2, u2) = collect(&mut p, Micros(t0.0 + 200_000));
     let drive: Vec<_> = d.iter().chain(&d2).map(|(_, e)| *e).collect();
     assert_eq!(
@@ -634,7 +639,10 @@ fn a_sequence_disagreement_is_detected_and_healed() {
     }
     let end = Micros(p.now.0 + 30_000);
     p.run_until(end, |_| {});
-    p.plc = PlcLink::new(LinkConfig::default());
+    p.restart_plc(Pumped::new(
+        PlcLink::new(LinkConfig::default()),
+        MAX_IDLE_US,
+    ));
     let t0 = p.now;
     let end = Micros(t0.0 + 30_000);
     p.run_until(end, |_| {});
@@ -661,15 +669,15 @@ fn a_sequence_disagreement_is_detected_and_healed() {
 fn heartbeats_use_the_quiet_windows_after_scans() {
     let mut p = connected_pair(115_200);
     let mut starts = Vec::new();
-    let mut sent = p.to_drive.stats().frames;
+    let mut sent = p.line.to_drive.stats().frames;
     let mut next_scan = p.now.0;
     while p.now.0 < 1_000_000 {
         if p.now.0 >= next_scan {
             p.plc.quiet_for(p.now, 950);
-            p.service();
+            p.kick();
             next_scan += 1_000;
         }
-        let f = p.to_drive.stats().frames;
+        let f = p.line.to_drive.stats().frames;
         if f != sent {
             starts.push(p.now.0);
             sent = f;
@@ -854,14 +862,14 @@ fn the_safety_request_is_in_order_newest_wins_and_resent_after_a_handshake() {
     }
     assert_eq!(p.plc.safety_request(), Some(0));
     // Cut, a new mask while down, reconnection: the mask goes again after the handshake.
-    p.to_drive.set_cut(true);
-    p.to_plc.set_cut(true);
+    p.line.to_drive.set_cut(true);
+    p.line.to_plc.set_cut(true);
     let end = Micros(p.now.0 + 120_000);
     p.run_until(end, |_| {});
     assert!(!p.plc.is_up());
     p.plc.set_safety_request(0x0010).unwrap();
-    p.to_drive.set_cut(false);
-    p.to_plc.set_cut(false);
+    p.line.to_drive.set_cut(false);
+    p.line.to_plc.set_cut(false);
     let end = Micros(p.now.0 + 100_000);
     p.run_until(end, |_| {});
     assert!(p.plc.is_up());

@@ -123,7 +123,7 @@ fn connected_endpoints_survive_valid_crc_garbage() {
         } else {
             p.plc.receive(&f, now);
         }
-        p.service();
+        p.kick();
         while p.plc.poll_event().is_some() {}
         while p.drive.poll_event().is_some() {}
     }

@@ -7,7 +7,7 @@
 use crate::units::Micros;
 
 /// Bytes that can be on the wire at once (a few frames).
-const IN_FLIGHT: usize = 1024;
+pub(crate) const IN_FLIGHT: usize = 1024;
 
 /// Probabilities of each impairment (0.0 = never).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -45,6 +45,8 @@ pub struct Channel {
     queue: heapless::Deque<(u64, u8), IN_FLIGHT>,
     line_free_ns: u64,
     cut: bool,
+    /// Bytes still to be hit by a noise burst ([`Channel::burst`]).
+    burst: u32,
     stats: ChannelStats,
 }
 
@@ -57,6 +59,7 @@ impl Channel {
             queue: heapless::Deque::new(),
             line_free_ns: 0,
             cut: false,
+            burst: 0,
             stats: ChannelStats::default(),
         }
     }
@@ -75,6 +78,12 @@ impl Channel {
         if cut {
             self.queue.clear();
         }
+    }
+
+    /// A noise burst: the next `bytes` bytes sent each get at least one bit flipped (a
+    /// motor's switching transient on the cable, longer than a CRC's burst guarantee).
+    pub fn burst(&mut self, bytes: u32) {
+        self.burst = self.burst.saturating_add(bytes);
     }
 
     /// Nanoseconds per byte.
@@ -139,6 +148,13 @@ impl Channel {
                         self.stats.bits_flipped += 1;
                         corrupted = true;
                     }
+                }
+                if self.burst > 0 {
+                    self.burst -= 1;
+                    let hit = (self.rand() as u8) | 1;
+                    v ^= hit;
+                    self.stats.bits_flipped += u64::from(hit.count_ones());
+                    corrupted = true;
                 }
                 if lost || self.cut || self.chance(self.imp.byte_drop) {
                     corrupted = true;

@@ -14,8 +14,10 @@
 //!   stall and loss timers, counters, encoding of what goes out).
 //! * [`plc::PlcLink`] and [`drive::DriveLink`]: the two endpoint state machines; the
 //!   firmware crates re-export them as `firmware_plc::link` and `firmware_drive::link`.
-//! * `channel` and `pair` (feature `sim`): a byte-timed, impaired in-memory UART and the
-//!   two endpoints wired over it, for tests, benchmarks and hil-sim; never in the images.
+//! * `channel`, `line` and `pair` (feature `sim`): a byte-timed, impaired in-memory UART,
+//!   the line of two such wires with the link tasks' wake-up rule, and the co-simulation
+//!   rig that steps two link tasks (endpoints or applications, each with its pump) over
+//!   it; for tests, benchmarks and hil-sim, never in the images (`docs/cosim.md`).
 //!
 //! The full description (frame layout, messages, timing, decisions) is `docs/link.md`
 //! in this crate.
@@ -25,6 +27,8 @@ pub mod channel;
 pub mod config;
 pub mod drive;
 pub mod frame;
+#[cfg(any(test, feature = "sim"))]
+pub mod line;
 pub mod message;
 #[cfg(any(test, feature = "sim"))]
 pub mod pair;
