@@ -31,9 +31,10 @@
 
 use std::collections::VecDeque;
 
-use super::tim_gp::{cr1, ocm, Channels, CountMode, Reports, TimeBase, EVENT_QUEUE_LIMIT};
+use super::reports::Reports;
+use super::tim_gp::{cr1, ocm, Channels, CountMode, TimeBase, EVENT_QUEUE_LIMIT};
 use crate::names;
-use crate::periph::{IrqLines, Peripheral, Write};
+use crate::periph::{IrqLines, Peripheral, Signal, Write};
 use crate::time::Cycles;
 
 /// SR bits.
@@ -591,11 +592,6 @@ impl TimAdv {
     /// Timed events since the last call, in time order.
     pub fn take_events(&mut self) -> impl Iterator<Item = TimEvent> + '_ {
         self.events.drain(..)
-    }
-
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
     }
 
     /// The comparator output COMPn (n = 1..=7, after its polarity and blanking) changed.
@@ -1249,6 +1245,15 @@ fn same_gate(a: &GateState, b: &GateState) -> bool {
 }
 
 impl Peripheral for TimAdv {
+    fn take_signals(&mut self, out: &mut Vec<Signal>) {
+        out.extend(self.events.drain(..).map(Signal::Timer));
+    }
+
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, now: Cycles) -> Option<u32> {
         let ccr = |i: usize| self.ch.ccr_pre.get(i).copied().unwrap_or(0);
         Some(match offset {

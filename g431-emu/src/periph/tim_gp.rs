@@ -23,6 +23,7 @@
 //! * a compare match is the step onto CCRx; in centre-aligned mode n the flag is set on
 //!   down-steps (n = 1), up-steps (2) or both (3).
 
+use super::reports::Reports;
 use std::collections::VecDeque;
 
 use crate::names;
@@ -44,42 +45,6 @@ pub(crate) mod cr1 {
     pub const DITHEN: u32 = 1 << 12;
     /// Bits the register holds (bit 10 is reserved).
     pub const MASK: u32 = 0x1bff;
-}
-
-/// Misuse and unsupported-feature reports of a model, for the SoC to print by name. Each kind
-/// is reported once (a driver polling in a loop would otherwise flood the log).
-#[derive(Debug, Clone, Default)]
-pub struct Reports {
-    name: &'static str,
-    seen: Vec<&'static str>,
-    pending: Vec<String>,
-}
-
-impl Reports {
-    pub fn new(name: &'static str) -> Self {
-        Reports {
-            name,
-            seen: Vec::new(),
-            pending: Vec::new(),
-        }
-    }
-
-    /// Records `detail` under `kind` unless that kind was already reported.
-    pub fn once(&mut self, now: Cycles, kind: &'static str, detail: impl FnOnce() -> String) {
-        if self.seen.contains(&kind) {
-            return;
-        }
-        self.seen.push(kind);
-        if self.pending.len() < 256 {
-            self.pending
-                .push(format!("{} @{}: {}", self.name, now, detail()));
-        }
-    }
-
-    /// The reports since the last call.
-    pub fn take(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.pending)
-    }
 }
 
 /// How the counter moves (CR1.CMS and, in edge-aligned mode, CR1.DIR).
@@ -969,11 +934,6 @@ impl TimGp {
         self.trgo_events.drain(..)
     }
 
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
-    }
-
     fn mms(&self) -> u32 {
         ((self.cr2 >> 4) & 7) | ((self.cr2 >> 25) & 1) << 3
     }
@@ -1098,6 +1058,11 @@ impl TimGp {
 }
 
 impl Peripheral for TimGp {
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, now: Cycles) -> Option<u32> {
         let ccr = |i: usize| self.ch.ccr_pre.get(i).copied().unwrap_or(0);
         Some(match offset {
