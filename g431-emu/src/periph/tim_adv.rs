@@ -32,7 +32,10 @@
 use std::collections::VecDeque;
 
 use super::reports::Reports;
-use super::tim_gp::{cr1, ocm, Channels, CountMode, TimeBase, EVENT_QUEUE_LIMIT};
+use super::tim_gp::{
+    advance_events, cr1, ocm, Channels, CountMode, EventTimer, StoredRegs, TimeBase,
+    EVENT_QUEUE_LIMIT,
+};
 use crate::names;
 use crate::periph::{IrqLines, Peripheral, Signal, Write};
 use crate::time::Cycles;
@@ -468,10 +471,6 @@ pub struct TimAdv {
     gc5: u32,
     af1: u32,
     af2: u32,
-    ecr: u32,
-    tisel: u32,
-    or1: u32,
-    dcr: u32,
     lock_written: bool,
     // Inputs.
     bkin: bool,
@@ -490,6 +489,7 @@ pub struct TimAdv {
     blank: bool,
     refs: [bool; 6],
     gate: GateState,
+    stored: StoredRegs,
     last: Cycles,
     events: VecDeque<TimEvent>,
     reports: Reports,
@@ -532,10 +532,6 @@ impl TimAdv {
             // BKINE / BK2INE reset to 1.
             af1: 1,
             af2: 1,
-            ecr: 0,
-            tisel: 0,
-            or1: 0,
-            dcr: 0,
             lock_written: false,
             bkin: false,
             bkin2: false,
@@ -578,6 +574,7 @@ impl TimAdv {
                     held: false,
                 },
             },
+            stored: StoredRegs::default(),
             last: 0,
             events: VecDeque::new(),
             reports: Reports::new(name),
@@ -1244,6 +1241,18 @@ fn same_gate(a: &GateState, b: &GateState) -> bool {
     GateState { since: 0, ..*a } == GateState { since: 0, ..*b }
 }
 
+impl EventTimer for TimAdv {
+    fn next_candidate(&self, visible_only: bool) -> Option<Cycles> {
+        TimAdv::next_candidate(self, visible_only)
+    }
+    fn process_at(&mut self, t: Cycles) {
+        TimAdv::process_at(self, t);
+    }
+    fn last_mut(&mut self) -> &mut Cycles {
+        &mut self.last
+    }
+}
+
 impl Peripheral for TimAdv {
     fn take_signals(&mut self, out: &mut Vec<Signal>) {
         out.extend(self.events.drain(..).map(Signal::Timer));
@@ -1285,13 +1294,9 @@ impl Peripheral for TimAdv {
             0x4c => ccr(5),
             0x50 => self.ccmr[2],
             0x54 => self.dtr2,
-            0x58 => self.ecr,
-            0x5c => self.tisel,
             0x60 => self.af1,
             0x64 => self.af2,
-            0x68 => self.or1,
-            0x3dc => self.dcr,
-            _ => return None,
+            o => return self.stored.read(o),
         })
     }
 
@@ -1448,8 +1453,6 @@ impl Peripheral for TimAdv {
                 }
                 self.dtr2 = n;
             }
-            0x58 => self.ecr = v & 0x07ff_00ff,
-            0x5c => self.tisel = v & 0x0f0f_0f0f,
             0x60 => {
                 let mut n = v & AF1_MASK;
                 if lock >= 1 {
@@ -1466,9 +1469,11 @@ impl Peripheral for TimAdv {
                 self.af2 = n;
                 self.update_break_inputs(now);
             }
-            0x68 => self.or1 = v,
-            0x3dc => self.dcr = v & 0x1f1f,
-            _ => return false,
+            o => {
+                if !self.stored.write(o, v) {
+                    return false;
+                }
+            }
         }
         self.settle(now);
         true
@@ -1479,14 +1484,7 @@ impl Peripheral for TimAdv {
     }
 
     fn advance(&mut self, now: Cycles) {
-        while let Some(t) = self.next_candidate(false) {
-            if t > now {
-                break;
-            }
-            self.process_at(t);
-            self.last = t;
-        }
-        self.last = self.last.max(now);
+        advance_events(self, now);
     }
 
     fn irq_lines(&self, lines: &mut IrqLines) {

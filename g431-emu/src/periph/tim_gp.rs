@@ -80,6 +80,66 @@ struct Excursion {
     wraps: bool,
 }
 
+/// The registers both timer kinds only store (their effects are not modelled): ECR, TISEL,
+/// OR1, DCR, with the bits RM0440 defines.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StoredRegs {
+    ecr: u32,
+    tisel: u32,
+    or1: u32,
+    dcr: u32,
+}
+
+impl StoredRegs {
+    pub fn read(&self, offset: u32) -> Option<u32> {
+        Some(match offset {
+            0x58 => self.ecr,
+            0x5c => self.tisel,
+            0x68 => self.or1,
+            0x3dc => self.dcr,
+            _ => return None,
+        })
+    }
+
+    /// `false`: not one of these registers.
+    pub fn write(&mut self, offset: u32, v: u32) -> bool {
+        match offset {
+            0x58 => self.ecr = v & 0x07ff_00ff,
+            0x5c => self.tisel = v & 0x0f0f_0f0f,
+            0x68 => self.or1 = v,
+            0x3dc => self.dcr = v & 0x1f1f,
+            _ => return false,
+        }
+        true
+    }
+}
+
+/// A timer that computes its next event analytically from its present state (both timer
+/// kinds): [`advance_events`] runs it forward.
+pub trait EventTimer {
+    /// The earliest event after the last processed cycle; with `visible_only`, only those
+    /// seen outside the timer.
+    fn next_candidate(&self, visible_only: bool) -> Option<Cycles>;
+    /// Everything that happens at `t`.
+    fn process_at(&mut self, t: Cycles);
+    /// The cycle the timer has been brought to.
+    fn last_mut(&mut self) -> &mut Cycles;
+}
+
+/// [`Peripheral::advance`] of a timer: every event due up to `now`, in time order.
+#[inline]
+pub fn advance_events(tim: &mut impl EventTimer, now: Cycles) {
+    while let Some(t) = tim.next_candidate(false) {
+        if t > now {
+            break;
+        }
+        tim.process_at(t);
+        *tim.last_mut() = t;
+    }
+    let last = tim.last_mut();
+    *last = (*last).max(now);
+}
+
 /// The time base (RM0440 "Time-base unit"): CR1, PSC, ARR, RCR with their preloads, the
 /// counter, the prescaler and the repetition counter, with analytical timing.
 #[derive(Debug, Clone)]
@@ -864,13 +924,10 @@ pub struct TimGp {
     sr: u32,
     ccmr: [u32; 2],
     ccer: u32,
-    ecr: u32,
-    tisel: u32,
     af1: u32,
     af2: u32,
-    or1: u32,
-    dcr: u32,
     /// Everything up to this cycle has been processed.
+    stored: StoredRegs,
     last: Cycles,
     trgo: bool,
     trgo_events: VecDeque<TrgoEdge>,
@@ -902,12 +959,9 @@ impl TimGp {
             sr: 0,
             ccmr: [0; 2],
             ccer: 0,
-            ecr: 0,
-            tisel: 0,
             af1: 0,
             af2: 0,
-            or1: 0,
-            dcr: 0,
+            stored: StoredRegs::default(),
             last: 0,
             trgo: false,
             trgo_events: VecDeque::new(),
@@ -1057,6 +1111,18 @@ impl TimGp {
     }
 }
 
+impl EventTimer for TimGp {
+    fn next_candidate(&self, visible_only: bool) -> Option<Cycles> {
+        TimGp::next_candidate(self, visible_only)
+    }
+    fn process_at(&mut self, t: Cycles) {
+        TimGp::process_at(self, t);
+    }
+    fn last_mut(&mut self) -> &mut Cycles {
+        &mut self.last
+    }
+}
+
 impl Peripheral for TimGp {
     /// Misuse and unsupported-feature reports since the last call.
     fn take_reports(&mut self) -> Vec<String> {
@@ -1094,13 +1160,9 @@ impl Peripheral for TimGp {
             0x38 => ccr(1),
             0x3c => ccr(2),
             0x40 => ccr(3),
-            0x58 => self.ecr,
-            0x5c => self.tisel,
             0x60 => self.af1,
             0x64 => self.af2,
-            0x68 => self.or1,
-            0x3dc => self.dcr,
-            _ => return None,
+            o => return self.stored.read(o),
         })
     }
 
@@ -1167,13 +1229,13 @@ impl Peripheral for TimGp {
                     *p = val;
                 }
             }
-            0x58 => self.ecr = v & 0x07ff_00ff,
-            0x5c => self.tisel = v & 0x0f0f_0f0f,
             0x60 => self.af1 = v & 0x0003_c000,
             0x64 => self.af2 = v & 0x0007_0000,
-            0x68 => self.or1 = v,
-            0x3dc => self.dcr = v & 0x1f1f,
-            _ => return false,
+            o => {
+                if !self.stored.write(o, v) {
+                    return false;
+                }
+            }
         }
         self.refresh_trgo(now);
         true
@@ -1184,14 +1246,7 @@ impl Peripheral for TimGp {
     }
 
     fn advance(&mut self, now: Cycles) {
-        while let Some(t) = self.next_candidate(false) {
-            if t > now {
-                break;
-            }
-            self.process_at(t);
-            self.last = t;
-        }
-        self.last = self.last.max(now);
+        advance_events(self, now);
     }
 
     fn irq_lines(&self, lines: &mut IrqLines) {

@@ -224,6 +224,8 @@ impl Soc {
         all
     }
 
+    /// The slot mapped at `addr`: a linear search in insertion order (a few dozen slots,
+    /// the busiest first), so the slot indices kept in `Soc` and `Slots` stay valid.
     pub(super) fn find(&self, addr: u32) -> Option<usize> {
         self.slots
             .iter()
