@@ -30,7 +30,7 @@
 //! to 0..4095, then shifted right to the resolution.
 
 use crate::names;
-use crate::periph::tim_gp::Reports;
+use crate::periph::reports::Reports;
 use crate::periph::{DmaRequests, IrqLines, Peripheral, Write};
 use crate::time::{cycles_for, Cycles, HCLK_HZ};
 
@@ -380,11 +380,6 @@ impl Adc12 {
     /// reports it). [`Adc12::advance_with`] takes one per call instead.
     pub fn set_source(&mut self, source: Box<dyn AnalogSource>) {
         self.source = Some(source);
-    }
-
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
     }
 
     /// CCR.VREFEN, VSENSEEN, VBATEN: whether the internal channels are connected.
@@ -1029,6 +1024,11 @@ impl Adc12 {
 }
 
 impl Peripheral for Adc12 {
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         match offset {
             0x000..=0x0ff => self.read_unit(0, offset, true),

@@ -39,8 +39,8 @@
 
 use crate::periph::analog_errors::AnalogErrors;
 use crate::periph::dac::DacId;
-use crate::periph::tim_gp::Reports;
-use crate::periph::{Peripheral, Write};
+use crate::periph::reports::Reports;
+use crate::periph::{Peripheral, Signal, Write};
 use crate::time::Cycles;
 
 /// CSR bits.
@@ -344,14 +344,18 @@ impl CompBank {
     pub fn take_edges(&mut self) -> Vec<CompEdge> {
         std::mem::take(&mut self.edges)
     }
-
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
-    }
 }
 
 impl Peripheral for CompBank {
+    fn take_signals(&mut self, out: &mut Vec<Signal>) {
+        out.extend(self.edges.drain(..).map(Signal::Comparator));
+    }
+
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         let i = match offset {
             0x0 | 0x4 | 0x8 | 0xc => (offset / 4) as usize,

@@ -21,7 +21,7 @@
 
 use crate::names;
 use crate::periph::analog_errors::AnalogErrors;
-use crate::periph::tim_gp::Reports;
+use crate::periph::reports::Reports;
 use crate::periph::{DmaRequests, Peripheral, Write};
 use crate::time::{cycles_for, Cycles};
 
@@ -210,11 +210,6 @@ impl Dac {
         }
     }
 
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
-    }
-
     fn triggered(&mut self, ch: usize, now: Cycles) {
         let v = self.dhr[ch & 1];
         self.pending[ch & 1] = Some((now + 3, v));
@@ -280,6 +275,11 @@ impl Dac {
 }
 
 impl Peripheral for Dac {
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         Some(match offset {
             0x00 => self.cr,

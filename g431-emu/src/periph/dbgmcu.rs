@@ -47,11 +47,6 @@ impl Dbgmcu {
         self.apb1fzr1 & (1 << 2) != 0
     }
 
-    /// What the software turned on that this model does not do, since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.reports)
-    }
-
     /// Reports the bits of `reg` (named `name`) newly set outside `modelled`.
     fn check(&mut self, name: &str, old: u32, new: u32, modelled: u32) {
         let fresh = new & !old & !modelled;
@@ -64,6 +59,11 @@ impl Dbgmcu {
 }
 
 impl Peripheral for Dbgmcu {
+    /// What the software turned on that this model does not do, since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.reports)
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         Some(match offset {
             0x00 => IDCODE,

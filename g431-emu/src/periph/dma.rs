@@ -42,6 +42,7 @@
 //! peripheral-to-peripheral or memory-to-memory bandwidth.
 
 use super::dmamux::Dmamux;
+use super::reports::DistinctReports;
 use super::{DmaRequests, IrqLines, Peripheral, Write};
 use crate::names;
 use crate::time::Cycles;
@@ -174,8 +175,7 @@ pub struct Dma {
     /// DMAMUX channel feeding each DMA channel (from the metadata).
     mux_channel: [Option<usize>; CHANNELS],
     irq: [Option<u16>; CHANNELS],
-    reports: Vec<String>,
-    reported: Vec<String>,
+    reports: DistinctReports,
 }
 
 impl Dma {
@@ -198,8 +198,7 @@ impl Dma {
             ch: [Channel::default(); CHANNELS],
             mux_channel,
             irq,
-            reports: Vec::new(),
-            reported: Vec::new(),
+            reports: DistinctReports::default(),
         }
     }
 
@@ -308,18 +307,6 @@ impl Dma {
         }
     }
 
-    /// Questionable or unmodelled uses, each reported once, since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.reports)
-    }
-
-    fn report(&mut self, msg: String) {
-        if !self.reported.contains(&msg) {
-            self.reported.push(msg.clone());
-            self.reports.push(msg);
-        }
-    }
-
     fn isr(&self) -> u32 {
         self.ch.iter().enumerate().fold(0, |acc, (i, c)| {
             let f = u32::from(c.flags & (FLAG_TC | FLAG_HT | FLAG_TE));
@@ -394,7 +381,7 @@ impl Dma {
             *slot = c;
         }
         for m in msgs {
-            self.report(m);
+            self.reports.once(m);
         }
     }
 
@@ -408,7 +395,7 @@ impl Dma {
                 .get(reg as usize)
                 .copied()
                 .unwrap_or("?");
-            self.report(format!(
+            self.reports.once(format!(
                 "{}.{}{}: written while the channel is enabled (read-only): ignored",
                 self.instance.name(),
                 name,
@@ -442,6 +429,11 @@ impl Dma {
 }
 
 impl Peripheral for Dma {
+    /// Questionable or unmodelled uses, each reported once, since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         match offset {
             ISR => Some(self.isr()),

@@ -11,6 +11,7 @@
 //! The DMA asks [`Dmamux::request_id`] which request feeds a multiplexer channel; which
 //! multiplexer channel a DMA channel hangs off comes from the metadata (see `dma.rs`).
 
+use super::reports::DistinctReports;
 use super::{Peripheral, Write};
 use crate::time::Cycles;
 
@@ -43,8 +44,7 @@ const RGCR_VALID: u32 = 0x00ff_011f;
 pub struct Dmamux {
     ccr: [u32; MUX_CHANNELS],
     rgcr: [u32; GENERATORS],
-    reports: Vec<String>,
-    reported: Vec<String>,
+    reports: DistinctReports,
 }
 
 impl Dmamux {
@@ -60,21 +60,14 @@ impl Dmamux {
             .map(|c| (c & CCR_DMAREQ_ID) as u8)
             .filter(|id| *id != 0)
     }
-
-    /// Uses of the synchronisation and request generator features, each reported once.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.reports)
-    }
-
-    fn report(&mut self, msg: String) {
-        if !self.reported.contains(&msg) {
-            self.reported.push(msg.clone());
-            self.reports.push(msg);
-        }
-    }
 }
 
 impl Peripheral for Dmamux {
+    /// Uses of the synchronisation and request generator features, each reported once.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         let idx = (offset / 4) as usize;
         match offset {
@@ -105,7 +98,7 @@ impl Peripheral for Dmamux {
                     *c = new;
                 }
                 if new & (CCR_SE | CCR_SOIE) != 0 {
-                    self.report(format!(
+                    self.reports.once(format!(
                         "DMAMUX1.C{idx}CR: request synchronisation (SE/SOIE) is not modelled; \
                          requests are forwarded unsynchronised"
                     ));
@@ -128,7 +121,7 @@ impl Peripheral for Dmamux {
                     *r = new;
                 }
                 if new & (RGCR_GE | RGCR_OIE) != 0 {
-                    self.report(format!(
+                    self.reports.once(format!(
                         "DMAMUX1.RG{idx}CR: request generator is not modelled; it generates \
                          no request"
                     ));

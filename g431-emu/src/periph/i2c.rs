@@ -877,6 +877,13 @@ impl I2c {
 }
 
 impl Peripheral for I2c {
+    /// The first unsupported use, named (repeated at each call: the SoC reports it once).
+    fn take_reports(&mut self) -> Vec<String> {
+        self.unsupported
+            .map(|u| vec![format!("{}: {u}", self.name())])
+            .unwrap_or_default()
+    }
+
     fn read(&mut self, offset: u32, now: Cycles) -> Option<u32> {
         Some(match offset {
             CR1 => self.cr1,

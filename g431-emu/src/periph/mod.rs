@@ -13,8 +13,10 @@
 //!   has the same side effects as a CPU read).
 //!
 //! Cross-peripheral wiring (TIM1 TRGO2 to the ADC, comparators to the TIM1 break, a USART's
-//! TX to the other board's RX, I2C to the devices) is done by the SoC through each model's
-//! own typed methods, documented in its module.
+//! TX to the other board's RX, I2C to the devices) is done by the SoC: a model's outputs come
+//! out of [`Peripheral::take_signals`], its inputs go in through its own typed methods,
+//! documented in its module. What a model finds wrong with the software's use of it comes
+//! out of [`Peripheral::take_reports`] ([`reports`] keeps each finding once).
 //!
 //! Rules for every model (tests and reviewers hold them to these):
 //! * Reset values and bit behaviour as RM0440 documents them: rc_w0 flags clear only where
@@ -42,6 +44,7 @@ pub mod iwdg;
 pub mod opamp;
 pub mod pwr;
 pub mod rcc;
+pub mod reports;
 pub mod syscfg;
 pub mod tim_adv;
 pub mod tim_gp;
@@ -130,6 +133,16 @@ impl DmaRequests {
     }
 }
 
+/// An output of a model that the SoC's wiring carries to other models or to the board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Signal {
+    /// An advanced timer's event: its trigger outputs, the OC5 blanking window, an output
+    /// change for the power stage.
+    Timer(tim_adv::TimEvent),
+    /// A comparator's output changed.
+    Comparator(comp::CompEdge),
+}
+
 /// What every register model offers the SoC. See the module documentation for the calling
 /// rules.
 pub trait Peripheral {
@@ -161,6 +174,16 @@ pub trait Peripheral {
 
     /// Back to the reset state (system reset, or the peripheral's RCC reset bit).
     fn reset(&mut self);
+
+    /// Appends the output signals the model raised since the last call, in time order
+    /// (a model with no output to other models has none).
+    fn take_signals(&mut self, _out: &mut Vec<Signal>) {}
+
+    /// Misuse and unsupported-feature findings since the last call, each reported once
+    /// (the SoC turns them into `Diagnostic::Model`).
+    fn take_reports(&mut self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 #[cfg(test)]

@@ -36,7 +36,7 @@
 
 use crate::periph::adc::AdcId;
 use crate::periph::analog_errors::AnalogErrors;
-use crate::periph::tim_gp::Reports;
+use crate::periph::reports::Reports;
 use crate::periph::{Peripheral, Write};
 use crate::time::{cycles_for, Cycles};
 
@@ -266,11 +266,6 @@ impl OpampBank {
         })
     }
 
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
-    }
-
     /// What CALOUT will settle to with the present CSR.
     fn cal_target(a: &Opamp) -> bool {
         if a.csr & csr::CALON == 0 {
@@ -287,6 +282,11 @@ impl OpampBank {
 }
 
 impl Peripheral for OpampBank {
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         match offset {
             0x00 | 0x04 | 0x08 => {

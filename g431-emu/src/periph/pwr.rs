@@ -103,11 +103,6 @@ impl Pwr {
         self.pvd_locked = true;
     }
 
-    /// Diagnostics since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.reports)
-    }
-
     /// Re-evaluates PVDO after a change of VDD or CR2; returns whether it changed.
     fn update_pvd(&mut self) -> bool {
         let cr2 = self.cr[1];
@@ -150,6 +145,11 @@ impl Pwr {
 }
 
 impl Peripheral for Pwr {
+    /// Diagnostics since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.reports)
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         Some(match offset {
             0x00..=0x0C => self.cr.get((offset / 4) as usize).copied()?,

@@ -262,11 +262,6 @@ impl Rcc {
         std::mem::take(&mut self.clock_changes)
     }
 
-    /// Diagnostics since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.reports)
-    }
-
     /// The ready flag of system-clock source `sw` (bit of CR), if it has one.
     fn ready_bit(sw: u32) -> Option<u32> {
         match sw {
@@ -402,6 +397,11 @@ impl Rcc {
 }
 
 impl Peripheral for Rcc {
+    /// Diagnostics since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        std::mem::take(&mut self.reports)
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         Some(match offset {
             CR => self.cr,

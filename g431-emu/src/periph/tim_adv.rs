@@ -31,9 +31,13 @@
 
 use std::collections::VecDeque;
 
-use super::tim_gp::{cr1, ocm, Channels, CountMode, Reports, TimeBase, EVENT_QUEUE_LIMIT};
+use super::reports::Reports;
+use super::tim_gp::{
+    advance_events, cr1, ocm, Channels, CountMode, EventTimer, StoredRegs, TimeBase,
+    EVENT_QUEUE_LIMIT,
+};
 use crate::names;
-use crate::periph::{IrqLines, Peripheral, Write};
+use crate::periph::{IrqLines, Peripheral, Signal, Write};
 use crate::time::Cycles;
 
 /// SR bits.
@@ -467,10 +471,6 @@ pub struct TimAdv {
     gc5: u32,
     af1: u32,
     af2: u32,
-    ecr: u32,
-    tisel: u32,
-    or1: u32,
-    dcr: u32,
     lock_written: bool,
     // Inputs.
     bkin: bool,
@@ -489,6 +489,7 @@ pub struct TimAdv {
     blank: bool,
     refs: [bool; 6],
     gate: GateState,
+    stored: StoredRegs,
     last: Cycles,
     events: VecDeque<TimEvent>,
     reports: Reports,
@@ -531,10 +532,6 @@ impl TimAdv {
             // BKINE / BK2INE reset to 1.
             af1: 1,
             af2: 1,
-            ecr: 0,
-            tisel: 0,
-            or1: 0,
-            dcr: 0,
             lock_written: false,
             bkin: false,
             bkin2: false,
@@ -577,6 +574,7 @@ impl TimAdv {
                     held: false,
                 },
             },
+            stored: StoredRegs::default(),
             last: 0,
             events: VecDeque::new(),
             reports: Reports::new(name),
@@ -591,11 +589,6 @@ impl TimAdv {
     /// Timed events since the last call, in time order.
     pub fn take_events(&mut self) -> impl Iterator<Item = TimEvent> + '_ {
         self.events.drain(..)
-    }
-
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
     }
 
     /// The comparator output COMPn (n = 1..=7, after its polarity and blanking) changed.
@@ -1248,7 +1241,28 @@ fn same_gate(a: &GateState, b: &GateState) -> bool {
     GateState { since: 0, ..*a } == GateState { since: 0, ..*b }
 }
 
+impl EventTimer for TimAdv {
+    fn next_candidate(&self, visible_only: bool) -> Option<Cycles> {
+        TimAdv::next_candidate(self, visible_only)
+    }
+    fn process_at(&mut self, t: Cycles) {
+        TimAdv::process_at(self, t);
+    }
+    fn last_mut(&mut self) -> &mut Cycles {
+        &mut self.last
+    }
+}
+
 impl Peripheral for TimAdv {
+    fn take_signals(&mut self, out: &mut Vec<Signal>) {
+        out.extend(self.events.drain(..).map(Signal::Timer));
+    }
+
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, now: Cycles) -> Option<u32> {
         let ccr = |i: usize| self.ch.ccr_pre.get(i).copied().unwrap_or(0);
         Some(match offset {
@@ -1280,13 +1294,9 @@ impl Peripheral for TimAdv {
             0x4c => ccr(5),
             0x50 => self.ccmr[2],
             0x54 => self.dtr2,
-            0x58 => self.ecr,
-            0x5c => self.tisel,
             0x60 => self.af1,
             0x64 => self.af2,
-            0x68 => self.or1,
-            0x3dc => self.dcr,
-            _ => return None,
+            o => return self.stored.read(o),
         })
     }
 
@@ -1443,8 +1453,6 @@ impl Peripheral for TimAdv {
                 }
                 self.dtr2 = n;
             }
-            0x58 => self.ecr = v & 0x07ff_00ff,
-            0x5c => self.tisel = v & 0x0f0f_0f0f,
             0x60 => {
                 let mut n = v & AF1_MASK;
                 if lock >= 1 {
@@ -1461,9 +1469,11 @@ impl Peripheral for TimAdv {
                 self.af2 = n;
                 self.update_break_inputs(now);
             }
-            0x68 => self.or1 = v,
-            0x3dc => self.dcr = v & 0x1f1f,
-            _ => return false,
+            o => {
+                if !self.stored.write(o, v) {
+                    return false;
+                }
+            }
         }
         self.settle(now);
         true
@@ -1474,14 +1484,7 @@ impl Peripheral for TimAdv {
     }
 
     fn advance(&mut self, now: Cycles) {
-        while let Some(t) = self.next_candidate(false) {
-            if t > now {
-                break;
-            }
-            self.process_at(t);
-            self.last = t;
-        }
-        self.last = self.last.max(now);
+        advance_events(self, now);
     }
 
     fn irq_lines(&self, lines: &mut IrqLines) {

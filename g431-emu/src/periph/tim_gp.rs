@@ -23,6 +23,7 @@
 //! * a compare match is the step onto CCRx; in centre-aligned mode n the flag is set on
 //!   down-steps (n = 1), up-steps (2) or both (3).
 
+use super::reports::Reports;
 use std::collections::VecDeque;
 
 use crate::names;
@@ -44,42 +45,6 @@ pub(crate) mod cr1 {
     pub const DITHEN: u32 = 1 << 12;
     /// Bits the register holds (bit 10 is reserved).
     pub const MASK: u32 = 0x1bff;
-}
-
-/// Misuse and unsupported-feature reports of a model, for the SoC to print by name. Each kind
-/// is reported once (a driver polling in a loop would otherwise flood the log).
-#[derive(Debug, Clone, Default)]
-pub struct Reports {
-    name: &'static str,
-    seen: Vec<&'static str>,
-    pending: Vec<String>,
-}
-
-impl Reports {
-    pub fn new(name: &'static str) -> Self {
-        Reports {
-            name,
-            seen: Vec::new(),
-            pending: Vec::new(),
-        }
-    }
-
-    /// Records `detail` under `kind` unless that kind was already reported.
-    pub fn once(&mut self, now: Cycles, kind: &'static str, detail: impl FnOnce() -> String) {
-        if self.seen.contains(&kind) {
-            return;
-        }
-        self.seen.push(kind);
-        if self.pending.len() < 256 {
-            self.pending
-                .push(format!("{} @{}: {}", self.name, now, detail()));
-        }
-    }
-
-    /// The reports since the last call.
-    pub fn take(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.pending)
-    }
 }
 
 /// How the counter moves (CR1.CMS and, in edge-aligned mode, CR1.DIR).
@@ -113,6 +78,66 @@ struct Excursion {
     /// The join is a wrap (the counter rolls over its maximum onto 0): it counts for the
     /// repetition counter and can be the update event.
     wraps: bool,
+}
+
+/// The registers both timer kinds only store (their effects are not modelled): ECR, TISEL,
+/// OR1, DCR, with the bits RM0440 defines.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct StoredRegs {
+    ecr: u32,
+    tisel: u32,
+    or1: u32,
+    dcr: u32,
+}
+
+impl StoredRegs {
+    pub fn read(&self, offset: u32) -> Option<u32> {
+        Some(match offset {
+            0x58 => self.ecr,
+            0x5c => self.tisel,
+            0x68 => self.or1,
+            0x3dc => self.dcr,
+            _ => return None,
+        })
+    }
+
+    /// `false`: not one of these registers.
+    pub fn write(&mut self, offset: u32, v: u32) -> bool {
+        match offset {
+            0x58 => self.ecr = v & 0x07ff_00ff,
+            0x5c => self.tisel = v & 0x0f0f_0f0f,
+            0x68 => self.or1 = v,
+            0x3dc => self.dcr = v & 0x1f1f,
+            _ => return false,
+        }
+        true
+    }
+}
+
+/// A timer that computes its next event analytically from its present state (both timer
+/// kinds): [`advance_events`] runs it forward.
+pub trait EventTimer {
+    /// The earliest event after the last processed cycle; with `visible_only`, only those
+    /// seen outside the timer.
+    fn next_candidate(&self, visible_only: bool) -> Option<Cycles>;
+    /// Everything that happens at `t`.
+    fn process_at(&mut self, t: Cycles);
+    /// The cycle the timer has been brought to.
+    fn last_mut(&mut self) -> &mut Cycles;
+}
+
+/// [`Peripheral::advance`] of a timer: every event due up to `now`, in time order.
+#[inline]
+pub fn advance_events(tim: &mut impl EventTimer, now: Cycles) {
+    while let Some(t) = tim.next_candidate(false) {
+        if t > now {
+            break;
+        }
+        tim.process_at(t);
+        *tim.last_mut() = t;
+    }
+    let last = tim.last_mut();
+    *last = (*last).max(now);
 }
 
 /// The time base (RM0440 "Time-base unit"): CR1, PSC, ARR, RCR with their preloads, the
@@ -899,13 +924,10 @@ pub struct TimGp {
     sr: u32,
     ccmr: [u32; 2],
     ccer: u32,
-    ecr: u32,
-    tisel: u32,
     af1: u32,
     af2: u32,
-    or1: u32,
-    dcr: u32,
     /// Everything up to this cycle has been processed.
+    stored: StoredRegs,
     last: Cycles,
     trgo: bool,
     trgo_events: VecDeque<TrgoEdge>,
@@ -937,12 +959,9 @@ impl TimGp {
             sr: 0,
             ccmr: [0; 2],
             ccer: 0,
-            ecr: 0,
-            tisel: 0,
             af1: 0,
             af2: 0,
-            or1: 0,
-            dcr: 0,
+            stored: StoredRegs::default(),
             last: 0,
             trgo: false,
             trgo_events: VecDeque::new(),
@@ -967,11 +986,6 @@ impl TimGp {
     /// TRGO edges since the last call (MMS = enable, update, compare pulse or OCxREF).
     pub fn take_trgo(&mut self) -> impl Iterator<Item = TrgoEdge> + '_ {
         self.trgo_events.drain(..)
-    }
-
-    /// Misuse and unsupported-feature reports since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        self.reports.take()
     }
 
     fn mms(&self) -> u32 {
@@ -1097,7 +1111,24 @@ impl TimGp {
     }
 }
 
+impl EventTimer for TimGp {
+    fn next_candidate(&self, visible_only: bool) -> Option<Cycles> {
+        TimGp::next_candidate(self, visible_only)
+    }
+    fn process_at(&mut self, t: Cycles) {
+        TimGp::process_at(self, t);
+    }
+    fn last_mut(&mut self) -> &mut Cycles {
+        &mut self.last
+    }
+}
+
 impl Peripheral for TimGp {
+    /// Misuse and unsupported-feature reports since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, now: Cycles) -> Option<u32> {
         let ccr = |i: usize| self.ch.ccr_pre.get(i).copied().unwrap_or(0);
         Some(match offset {
@@ -1129,13 +1160,9 @@ impl Peripheral for TimGp {
             0x38 => ccr(1),
             0x3c => ccr(2),
             0x40 => ccr(3),
-            0x58 => self.ecr,
-            0x5c => self.tisel,
             0x60 => self.af1,
             0x64 => self.af2,
-            0x68 => self.or1,
-            0x3dc => self.dcr,
-            _ => return None,
+            o => return self.stored.read(o),
         })
     }
 
@@ -1202,13 +1229,13 @@ impl Peripheral for TimGp {
                     *p = val;
                 }
             }
-            0x58 => self.ecr = v & 0x07ff_00ff,
-            0x5c => self.tisel = v & 0x0f0f_0f0f,
             0x60 => self.af1 = v & 0x0003_c000,
             0x64 => self.af2 = v & 0x0007_0000,
-            0x68 => self.or1 = v,
-            0x3dc => self.dcr = v & 0x1f1f,
-            _ => return false,
+            o => {
+                if !self.stored.write(o, v) {
+                    return false;
+                }
+            }
         }
         self.refresh_trgo(now);
         true
@@ -1219,14 +1246,7 @@ impl Peripheral for TimGp {
     }
 
     fn advance(&mut self, now: Cycles) {
-        while let Some(t) = self.next_candidate(false) {
-            if t > now {
-                break;
-            }
-            self.process_at(t);
-            self.last = t;
-        }
-        self.last = self.last.max(now);
+        advance_events(self, now);
     }
 
     fn irq_lines(&self, lines: &mut IrqLines) {

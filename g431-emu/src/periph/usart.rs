@@ -37,6 +37,7 @@
 
 use std::collections::VecDeque;
 
+use super::reports::DistinctReports;
 use super::{DmaRequests, IrqLines, Peripheral, Write};
 use crate::names;
 use crate::time::{Cycles, HCLK_HZ};
@@ -326,8 +327,7 @@ pub struct Usart {
     /// When IDLE last set (to notice a character pushed too late to cancel it).
     idle_set_at: Option<Cycles>,
     now: Cycles,
-    reports: Vec<String>,
-    reported: Vec<String>,
+    reports: DistinctReports,
 }
 
 impl Usart {
@@ -366,8 +366,7 @@ impl Usart {
             idle_at: None,
             idle_set_at: None,
             now: 0,
-            reports: Vec::new(),
-            reported: Vec::new(),
+            reports: DistinctReports::default(),
         }
     }
 
@@ -398,7 +397,7 @@ impl Usart {
     /// one pushed for a past cycle is still received, at the next `advance`.
     pub fn push_rx(&mut self, at: Cycles, byte: RxByte) {
         if at < self.now {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}: RX character pushed for a cycle the model has passed (received late)",
                 self.instance.name()
             ));
@@ -408,7 +407,7 @@ impl Usart {
             .idle_set_at
             .is_some_and(|i| at.saturating_sub(frame) <= i && i < at)
         {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}: RX character pushed after IDLE was set although its start bit came \
                  first (push characters at their start bit)",
                 self.instance.name()
@@ -508,7 +507,7 @@ impl Usart {
     /// against a clock the silicon would not have at that rate).
     pub fn set_kernel_clock_hz(&mut self, hz: Option<u64>, source: &str) {
         if hz.is_none() {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}: kernel clock {source} is not modelled (the line stops)",
                 self.instance.name()
             ));
@@ -519,19 +518,6 @@ impl Usart {
     /// The kernel clock in Hz (`None`: not modelled).
     pub fn kernel_clock_hz(&self) -> Option<u64> {
         self.kernel_hz
-    }
-
-    /// Uses of features this model does not implement (or of values RM0440 forbids), each
-    /// reported once, since the last call.
-    pub fn take_reports(&mut self) -> Vec<String> {
-        std::mem::take(&mut self.reports)
-    }
-
-    fn report(&mut self, msg: String) {
-        if !self.reported.contains(&msg) {
-            self.reported.push(msg.clone());
-            self.reports.push(msg);
-        }
     }
 
     fn ue(&self) -> bool {
@@ -665,7 +651,7 @@ impl Usart {
             return;
         }
         let Some(cfg) = self.line_config() else {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}: transmitter enabled with BRR {:#x} below RM0440's minimum: nothing is sent",
                 self.instance.name(),
                 self.brr
@@ -746,7 +732,7 @@ impl Usart {
             return;
         }
         let Some(cfg) = self.line_config() else {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}: character received with BRR {:#x} below RM0440's minimum: dropped",
                 self.instance.name(),
                 self.brr
@@ -758,7 +744,7 @@ impl Usart {
             .rx_enabled_at
             .is_some_and(|en| at.saturating_sub(frame) < en)
         {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}: character started before the receiver was enabled: dropped (the \
                  silicon may take a data edge for a start bit)",
                 self.instance.name()
@@ -814,7 +800,7 @@ impl Usart {
         }) = self.shift
         {
             if end_sub.div_ceil(SUB) > now {
-                self.report(format!(
+                self.reports.once(format!(
                     "{}: UE cleared during a transmission: the frame is cut on the line (the \
                      model has already handed it out whole)",
                     self.instance.name()
@@ -847,7 +833,7 @@ impl Usart {
     /// UE = 1 those bits keep their value, and a change is reported.
     fn guarded(&mut self, reg: &str, old: u32, new: u32, protected: u32) -> u32 {
         if self.ue() && (old ^ new) & protected != 0 {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}.{reg}: bits {:#010x} written while UE = 1 (RM0440: only while UE = 0): ignored",
                 self.instance.name(),
                 (old ^ new) & protected
@@ -861,7 +847,7 @@ impl Usart {
     fn unmodelled(&mut self, reg: &str, value: u32, bits: &[(u32, &str)]) {
         for &(bit, what) in bits {
             if value & bit != 0 {
-                self.report(format!(
+                self.reports.once(format!(
                     "{}.{reg}: {what} is not modelled",
                     self.instance.name()
                 ));
@@ -898,7 +884,7 @@ impl Usart {
             self.idle_at = None;
         }
         if new & (CR1_M0 | CR1_M1) == CR1_M0 | CR1_M1 {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}.CR1: M1:M0 = 11 is reserved",
                 self.instance.name()
             ));
@@ -922,7 +908,7 @@ impl Usart {
         self.cr2 = new;
         let stop = (new >> CR2_STOP_SHIFT) & 3;
         if self.instance.is_lpuart() && (stop == 1 || stop == 3) {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}.CR2: STOP = {stop:#b} is reserved on LPUART1",
                 self.instance.name()
             ));
@@ -972,7 +958,7 @@ impl Usart {
         let data = (w.value & w.mask & 0x1ff) as u16;
         self.tdr = data;
         if !self.ue() {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}.TDR written while UE = 0: ignored",
                 self.instance.name()
             ));
@@ -981,7 +967,7 @@ impl Usart {
         // TC is cleared by a write to TDR.
         self.tc = false;
         if self.tx_queue.len() >= self.tx_capacity() {
-            self.report(format!(
+            self.reports.once(format!(
                 "{}.TDR written while TXE/TXFNF = 0: the word is lost",
                 self.instance.name()
             ));
@@ -1056,6 +1042,12 @@ impl Usart {
 }
 
 impl Peripheral for Usart {
+    /// Uses of features this model does not implement (or of values RM0440 forbids), each
+    /// reported once, since the last call.
+    fn take_reports(&mut self) -> Vec<String> {
+        self.reports.take()
+    }
+
     fn read(&mut self, offset: u32, _now: Cycles) -> Option<u32> {
         let lp = self.instance.is_lpuart();
         match offset {
@@ -1085,7 +1077,7 @@ impl Peripheral for Usart {
                 let old = self.brr;
                 self.brr = self.guarded("BRR", old, w.merge(old) & mask, mask);
                 if !lp && self.cr1 & CR1_OVER8 != 0 && self.brr & 0x8 != 0 {
-                    self.report(format!(
+                    self.reports.once(format!(
                         "{}.BRR: bit 3 set with OVER8 (RM0440: must be kept cleared)",
                         self.instance.name()
                     ));
@@ -1103,7 +1095,7 @@ impl Peripheral for Usart {
                 let old = self.presc;
                 self.presc = self.guarded("PRESC", old, w.merge(old) & 0xf, 0xf);
                 if self.presc >= 12 {
-                    self.report(format!(
+                    self.reports.once(format!(
                         "{}.PRESC: {} is reserved",
                         self.instance.name(),
                         self.presc
@@ -1188,14 +1180,12 @@ impl Peripheral for Usart {
     fn reset(&mut self) {
         let now = self.now;
         let reports = std::mem::take(&mut self.reports);
-        let reported = std::mem::take(&mut self.reported);
         // The kernel clock is RCC's, not the peripheral's: a peripheral reset keeps it.
         let kernel_hz = self.kernel_hz;
         *self = Usart::new(self.instance);
         self.kernel_hz = kernel_hz;
         self.now = now;
         self.reports = reports;
-        self.reported = reported;
     }
 }
 

@@ -162,21 +162,6 @@ impl Soc {
             self.after_event(k, now);
         }
     }
-
-    /// What PWR and RCC reported since the last call.
-    pub(super) fn silicon_reports(&mut self) -> Vec<String> {
-        let mut out = Vec::new();
-        if let Some(k) = self.pwr_slot() {
-            if let Some(p) = self.model_mut::<Pwr>(k) {
-                out.extend(p.take_reports());
-            }
-        }
-        let k = self.rcc;
-        if let Some(r) = self.model_mut::<crate::periph::rcc::Rcc>(k) {
-            out.extend(r.take_reports());
-        }
-        out
-    }
 }
 
 #[cfg(test)]
