@@ -259,7 +259,7 @@ impl ZeroCalibration {
 
 /// A current sensor's zero at boot was out of tolerance (the self-test fails: `BOOT`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ZeroOutOfTolerance;
 
 impl core::fmt::Display for ZeroOutOfTolerance {

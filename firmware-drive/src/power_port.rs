@@ -135,7 +135,7 @@ impl ComparatorLevels {
 
 /// One flag per hardware break cause, indexed by [`HwBreak`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Causes {
     pub overcurrent: bool,
     pub overvoltage: bool,
@@ -201,7 +201,7 @@ pub struct BreakReport {
 /// The break flags the break interrupt found, one per source of TIM1's break
 /// (the board maps its status register to these).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BreakSources {
     /// `STO_IN` (break 1, BIF).
     pub sto: bool,
