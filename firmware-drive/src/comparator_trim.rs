@@ -1,4 +1,4 @@
-//! The boot trim of the overcurrent comparators that watch a small signal (review N6). On
+//! The boot trim of the overcurrent comparators that watch a small signal. On
 //! the bare B-G431B-ESC1 the only pins of the three phases that reach a comparator input
 //! are the PGA inputs PA1, PA7, PB0 (RM0440 COMP inputs: COMP1 PA1/PB1, COMP2 PA7/PA3,
 //! COMP4 PB0/PE7; the amplifier outputs PA2/PA6 reach none, PB1 only COMP1), where 1 A is

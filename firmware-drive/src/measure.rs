@@ -80,8 +80,8 @@ pub fn com_of(counts: u16) -> u16 {
     counts.min(4095) >> 2
 }
 
-/// How a board's analog front end puts the phase currents and the DC link on the ADC
-/// (review D4). The core works in the source's scale ("canonical counts": 2048 = 0 A,
+/// How a board's analog front end puts the phase currents and the DC link on the ADC.
+/// The core works in the source's scale ("canonical counts": 2048 = 0 A,
 /// +-10 A full scale, 0-45 V); [`FrontEnd::canonical`] maps each board's raw readings onto
 /// it once per PWM period, so limits, `IMX`, `UDC` and the program's units are the same on
 /// every board.
@@ -110,7 +110,7 @@ pub const SOURCE_SCALING: SensorScaling = SensorScaling {
 
 /// The bare B-G431B-ESC1: 3 mOhm shunts whose two ends reach VINP and VINM0 through a
 /// network biased from 3V3, and the OPAMP in the VINM0-biased PGA mode, gain 16
-/// (`front_end::ESC1_PGAS`, review N5): out = 16 VINP - 15 VINM0 = the bias - 9.14 x the
+/// (`front_end::ESC1_PGAS`): out = 16 VINP - 15 VINM0 = the bias - 9.14 x the
 /// shunt's volts (-64/7: NuttX "Current sense gain = -9.14", SimpleFOC `-64.0f/7.0f`),
 /// i.e. -27.43 mV/A = -34.05 counts/A at the ADC. The bias is not in a document we
 /// reached: 64/7 over the PGA's 16 leaves 4/7 of each shunt end on its pin, the rest of a

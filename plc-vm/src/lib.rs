@@ -30,6 +30,60 @@
     )
 )]
 
+/// The drive-section mnemonics, as a pattern. The PLC VM's matches (`compile.rs`, and the
+/// test interpreter `reference.rs`) list every mnemonic, so that a new one is a compile
+/// error until it is given its op or added here (docs/contributing/add-a-plc-instruction.md).
+macro_rules! drive_mnemonics {
+    () => {
+        shared_protocol::program::Mnemonic::Pwf
+            | shared_protocol::program::Mnemonic::Pr0
+            | shared_protocol::program::Mnemonic::Pr1
+            | shared_protocol::program::Mnemonic::Pr2
+            | shared_protocol::program::Mnemonic::Pi
+            | shared_protocol::program::Mnemonic::Sn1
+            | shared_protocol::program::Mnemonic::Sn2
+            | shared_protocol::program::Mnemonic::Sn3
+            | shared_protocol::program::Mnemonic::RsSet
+            | shared_protocol::program::Mnemonic::UcSet
+            | shared_protocol::program::Mnemonic::IzSet
+            | shared_protocol::program::Mnemonic::CalcDu
+            | shared_protocol::program::Mnemonic::DuSet
+            | shared_protocol::program::Mnemonic::UMax
+            | shared_protocol::program::Mnemonic::UMin
+            | shared_protocol::program::Mnemonic::IMax
+            | shared_protocol::program::Mnemonic::IMaxHw
+            | shared_protocol::program::Mnemonic::UMaxHw
+            | shared_protocol::program::Mnemonic::Fmn
+            | shared_protocol::program::Mnemonic::Fjm
+            | shared_protocol::program::Mnemonic::Fmx
+            | shared_protocol::program::Mnemonic::Frv
+            | shared_protocol::program::Mnemonic::Fss
+            | shared_protocol::program::Mnemonic::Pss
+            | shared_protocol::program::Mnemonic::Trd
+            | shared_protocol::program::Mnemonic::Ard
+            | shared_protocol::program::Mnemonic::Tel
+            | shared_protocol::program::Mnemonic::Ts1
+            | shared_protocol::program::Mnemonic::Ts2
+            | shared_protocol::program::Mnemonic::Fl1
+            | shared_protocol::program::Mnemonic::Fl2
+            | shared_protocol::program::Mnemonic::Fl3
+            | shared_protocol::program::Mnemonic::Fl4
+            | shared_protocol::program::Mnemonic::Tl1
+            | shared_protocol::program::Mnemonic::Tl2
+            | shared_protocol::program::Mnemonic::Tl3
+            | shared_protocol::program::Mnemonic::Tl4
+            | shared_protocol::program::Mnemonic::Pli
+            | shared_protocol::program::Mnemonic::Tli
+            | shared_protocol::program::Mnemonic::Tdi
+            | shared_protocol::program::Mnemonic::Aap
+            | shared_protocol::program::Mnemonic::Adp
+            | shared_protocol::program::Mnemonic::Aan
+            | shared_protocol::program::Mnemonic::Adn
+            | shared_protocol::program::Mnemonic::Tla
+            | shared_protocol::program::Mnemonic::Asr
+    };
+}
+
 mod arith;
 mod cells;
 mod compile;

@@ -338,7 +338,7 @@ impl ReferenceVm {
                 }
             }
             M::Alm => {
-                if let (Some(Operand::K(_)), Ok(code)) = (x, u8::try_from(ins.constant)) {
+                if let (Some(Operand::K(_)), Ok(code @ 1..)) = (x, u8::try_from(ins.constant)) {
                     if out.alarm.is_none() {
                         if let Some(flags) = self.flags.get_mut(idx) {
                             if timer::rising_edge(flags, regs.top(), env.first_scan) {
@@ -357,54 +357,8 @@ impl ReferenceVm {
                     }
                 }
             }
-            // Drive-section mnemonics: the verifier keeps them out of lines 150-999. Listed
-            // one by one, as in `compile.rs`.
-            M::Pwf
-            | M::Pr0
-            | M::Pr1
-            | M::Pr2
-            | M::Pi
-            | M::Sn1
-            | M::Sn2
-            | M::Sn3
-            | M::RsSet
-            | M::UcSet
-            | M::IzSet
-            | M::CalcDu
-            | M::DuSet
-            | M::UMax
-            | M::UMin
-            | M::IMax
-            | M::IMaxHw
-            | M::UMaxHw
-            | M::Fmn
-            | M::Fjm
-            | M::Fmx
-            | M::Frv
-            | M::Fss
-            | M::Pss
-            | M::Trd
-            | M::Ard
-            | M::Tel
-            | M::Ts1
-            | M::Ts2
-            | M::Fl1
-            | M::Fl2
-            | M::Fl3
-            | M::Fl4
-            | M::Tl1
-            | M::Tl2
-            | M::Tl3
-            | M::Tl4
-            | M::Pli
-            | M::Tli
-            | M::Tdi
-            | M::Aap
-            | M::Adp
-            | M::Aan
-            | M::Adn
-            | M::Tla
-            | M::Asr => {}
+            // Drive-section mnemonics: the verifier keeps them out of lines 150-999.
+            drive_mnemonics!() => {}
         }
     }
 }

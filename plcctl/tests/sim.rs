@@ -476,7 +476,8 @@ fn exit_codes_no_device_timeout_and_version_mismatch() {
     let o = sim.plcctl(&["status"]);
     assert_eq!(code(&o), 4);
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("99") && err.contains('1'), "{err}");
+    let ours = shared_protocol::service::SERVICE_VERSION.to_string();
+    assert!(err.contains("99") && err.contains(&ours), "{err}");
     sim.finish();
 }
 

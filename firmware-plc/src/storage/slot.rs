@@ -457,19 +457,8 @@ pub fn write_copy<E: Eeprom>(
 mod tests {
     use super::super::MemEeprom;
     use super::*;
+    use shared_protocol::program::testing::sparse_program as sample;
     use shared_protocol::program::{Instruction, Mnemonic, Operand};
-
-    fn sample() -> Program {
-        let mut p = Program::default();
-        for n in [0usize, 1, 2, 150, 151, 400, 999] {
-            p.lines[n] = Some(Instruction {
-                mnemonic: Mnemonic::Ld,
-                operand: Some(Operand::K((n % 100) as u8)),
-                constant: n as u16,
-            });
-        }
-        p
-    }
 
     #[test]
     fn round_trip_and_size() {

@@ -43,6 +43,7 @@ use g431_emu::periph::usart::{RxByte, UsartInstance};
 use g431_emu::soc::{Soc, USARTS};
 use g431_emu::time::{cycles_to_ns, ns_to_cycles};
 use shared_protocol::fault::FaultCode;
+use shared_protocol::link::channel::Noise;
 use shared_protocol::link::message::{DriveMsg, DriveStatus, PlcMsg};
 use shared_protocol::link::FrameReader;
 use shared_protocol::program::Program;
@@ -75,7 +76,7 @@ struct Wire {
     /// Characters handed over, and lost on the way (cut, or no USART on the far pin).
     delivered: u64,
     lost: u64,
-    rng: u64,
+    noise: Noise,
     ber: f64,
     /// The next this many characters arrive with a framing error (injected by a test).
     force_framing: u32,
@@ -88,21 +89,11 @@ impl Wire {
         Wire {
             delivered: 0,
             lost: 0,
-            rng: seed | 1,
+            noise: Noise::from_state(seed | 1),
             ber,
             force_framing: 0,
             reader: FrameReader::new(),
         }
-    }
-
-    /// xorshift64*: a uniform draw in [0, 1).
-    fn uniform(&mut self) -> f64 {
-        let mut x = self.rng;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.rng = x;
-        (x.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
     }
 
     /// The character as the receiver sees it: each of its 10 bits flips with the bit
@@ -117,7 +108,7 @@ impl Wire {
             return b;
         }
         for bit in 0..10 {
-            if self.uniform() < self.ber {
+            if self.noise.chance(self.ber) {
                 match bit {
                     0 | 9 => b.framing_error = true,
                     k => b.data ^= 1 << (k - 1),

@@ -228,24 +228,11 @@ fn without_a_chopper_an_uncontrolled_stop_trips_ov_once() {
         .replace("015 U<  K10 0025", "015 U<  K10 0015");
     assert!(program.contains("K01 0500") && program.contains("K09 0022"));
     let p = parse_program(&program, "motor.plc").unwrap();
-    let scen = r#"
-[plant]
-dc_link_v = 20.0
-
-[[event]]
-at_s = 0.0
-set = { A00 = 980, A01 = 500 }
-
-[[event]]
-at_s = 0.3
-press = "D00"
-
-[[event]]
-at_s = 1.5
-press = "D00"
-"#;
+    let scen = format!(
+        "[plant]\ndc_link_v = 20.0\n{START_50HZ}\n[[event]]\nat_s = 1.5\npress = \"D00\"\n"
+    );
     let mut sim =
-        Simulation::new(&p, Scenario::parse(scen).unwrap(), RunOptions::default()).unwrap();
+        Simulation::new(&p, Scenario::parse(&scen).unwrap(), RunOptions::default()).unwrap();
     let mut peak = 0.0f64;
     let mut f_at_stop = 0.0;
     let mut on_at = Vec::new();

@@ -37,11 +37,37 @@ pub struct ChannelStats {
     pub busy_ns: u64,
 }
 
+/// The line's random draws (xorshift64*): one stream for every impairment of a wire, here
+/// and in hil-sim's character-timed wires between the emulated USARTs.
+#[derive(Debug, Clone)]
+pub struct Noise(u64);
+
+impl Noise {
+    /// A stream from its raw state (not 0).
+    pub const fn from_state(state: u64) -> Self {
+        Noise(state)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        let mut x = self.0;
+        x ^= x >> 12;
+        x ^= x << 25;
+        x ^= x >> 27;
+        self.0 = x;
+        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+
+    /// True with probability `p` (never for `p` <= 0, without a draw).
+    pub fn chance(&mut self, p: f64) -> bool {
+        p > 0.0 && ((self.next_u64() >> 11) as f64) < p * (1u64 << 53) as f64
+    }
+}
+
 /// One direction of the wire.
 pub struct Channel {
     byte_time_ns: u64,
     imp: Impairments,
-    rng: u64,
+    rng: Noise,
     queue: heapless::Deque<(u64, u8), IN_FLIGHT>,
     line_free_ns: u64,
     cut: bool,
@@ -55,7 +81,7 @@ impl Channel {
         Channel {
             byte_time_ns: 10_000_000_000 / u64::from(baud.max(1)),
             imp,
-            rng: seed ^ 0x9E37_79B9_7F4A_7C15,
+            rng: Noise::from_state(seed ^ 0x9E37_79B9_7F4A_7C15),
             queue: heapless::Deque::new(),
             line_free_ns: 0,
             cut: false,
@@ -107,17 +133,11 @@ impl Channel {
     }
 
     fn rand(&mut self) -> u64 {
-        // xorshift64*
-        let mut x = self.rng;
-        x ^= x >> 12;
-        x ^= x << 25;
-        x ^= x >> 27;
-        self.rng = x;
-        x.wrapping_mul(0x2545_F491_4F6C_DD1D)
+        self.rng.next_u64()
     }
 
     fn chance(&mut self, p: f64) -> bool {
-        p > 0.0 && ((self.rand() >> 11) as f64) < p * (1u64 << 53) as f64
+        self.rng.chance(p)
     }
 
     /// A frame handed to the UART at `now`: it goes out after what is already on the line.

@@ -368,6 +368,8 @@ const fn set_field(o: Option<OperandSetName>) -> u16 {
 }
 
 /// The operand set of a packed 4-bit field (0: not in the section).
+// Indexed after the bounds check just above it (`get` is not `const`).
+#[allow(clippy::indexing_slicing)]
 const fn unpack_set(field: u16) -> Option<OperandSet> {
     match (field & 0xF).checked_sub(1) {
         Some(i) if (i as usize) < OperandSetName::ALL.len() => {
@@ -394,6 +396,8 @@ impl Mnemonic {
 
     /// The smallest and largest constant a `K` operand of this mnemonic accepts.
     #[inline(never)]
+    // Indexed after the bounds check just above it (`get` is not `const`).
+    #[allow(clippy::indexing_slicing)]
     pub const fn constant_limits(self) -> (u16, u16) {
         let i = ((self.row() >> 8) & 0xF) as usize;
         if i < Constants::ALL.len() {
@@ -405,6 +409,8 @@ impl Mnemonic {
 
     /// Drive section: values it needs on the int stack, pops, pushes.
     #[inline(never)]
+    // Indexed after the bounds check just above it (`get` is not `const`).
+    #[allow(clippy::indexing_slicing)]
     pub const fn stack_effect(self) -> (u8, u8, u8) {
         let i = (self.row() >> 12) as usize;
         if i < StackEffect::ALL.len() {

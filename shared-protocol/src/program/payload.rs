@@ -255,19 +255,7 @@ impl PayloadParser {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::program::{Mnemonic, Operand};
-
-    fn sample() -> Program {
-        let mut p = Program::default();
-        for n in [0usize, 1, 2, 150, 151, 400, 999] {
-            p.lines[n] = Some(Instruction {
-                mnemonic: Mnemonic::Ld,
-                operand: Some(Operand::K((n % 100) as u8)),
-                constant: n as u16,
-            });
-        }
-        p
-    }
+    use crate::program::testing::sparse_program as sample;
 
     #[test]
     fn runs_give_the_size() {

@@ -22,6 +22,22 @@ use super::model::{
 use super::operand::OperandClass;
 use super::verify::{constant_range, drive_stack_step, mnemonics_for, operands_for};
 
+/// A program with four runs of used lines (0..=2, 150..=151, 400, 999: seven `LD K`
+/// lines), for tests of the stored form: its payload is 4 * 3 + 7 * 4 = 40 bytes.
+pub fn sparse_program() -> Program {
+    let mut p = Program::default();
+    for n in [0usize, 1, 2, 150, 151, 400, 999] {
+        if let Some(line) = p.lines.get_mut(n) {
+            *line = Some(Instruction {
+                mnemonic: Mnemonic::Ld,
+                operand: Some(Operand::K((n % 100) as u8)),
+                constant: n as u16,
+            });
+        }
+    }
+    p
+}
+
 /// Makes a drive section's stack use valid: every line that would need more values than
 /// the cycle has loaded before it (program.md 4.1, the verifier's stack check) becomes
 /// `LD K00 0000`. Generated programs stay otherwise random.
