@@ -961,8 +961,8 @@ impl<E: Eeprom> PlcApp<E> {
 }
 
 /// The steps of [`PlcApp::tick_1ms`] one by one, for test rigs that step the
-/// application outside the board's pass (the `sim` feature; never in the image).
-#[cfg(any(test, feature = "sim"))]
+/// application outside the board's pass (unit tests only; never in the image).
+#[cfg(test)]
 impl<E: Eeprom> PlcApp<E> {
     /// One scan now (see [`PlcApp::tick_1ms`] for the board's cadence).
     #[must_use = "the outputs must be written to the pins"]

@@ -21,6 +21,9 @@ pub mod pace;
 pub mod service;
 pub mod storage;
 pub mod task;
+
+#[cfg(test)]
+mod rig_tests;
 /// The PLC logic VM, from its own crate (`plc-vm`, built for speed in the image while
 /// this crate is built for size; docs/size.md).
 pub use plc_vm as vm;

@@ -20,7 +20,7 @@ use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 use shared_protocol::program::Program;
 use shared_protocol::units::Micros;
 
-use crate::mcu::{SimPlc, PlcPins, SimDrive, Warnings};
+use crate::mcu::{PlcPins, SimDrive, SimPlc, Warnings};
 use crate::plant::lift::{
     Lift, LiftSample, BRAKE_RELEASE_OUTPUT, CHAIN_INPUT, DOOR_CLOSED_INPUT, DOOR_OPEN_OUTPUT,
     LOAD_ANALOG, VANE_L_INPUT, VANE_R_INPUT,
@@ -269,12 +269,7 @@ impl Simulation {
     /// The given boards on the default models: [`Plant`] with the scenario's rig, and
     /// [`Channel`] wires with its link settings (bit errors seeded from `opts.seed`, the
     /// drive-to-PLC direction from a derived seed).
-    pub fn with_boards(
-        drive: SimDrive,
-        plc: SimPlc,
-        scenario: Scenario,
-        opts: RunOptions,
-    ) -> Self {
+    pub fn with_boards(drive: SimDrive, plc: SimPlc, scenario: Scenario, opts: RunOptions) -> Self {
         let imp = Impairments {
             bit_error_rate: scenario.bit_error_rate,
             ..Impairments::default()

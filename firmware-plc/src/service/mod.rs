@@ -74,7 +74,6 @@ impl Service {
 
     /// Another build and chip for `Identify` (hil-sim's service line brings the
     /// simulated board's when it is plugged in; the board's is fixed at [`Service::new`]).
-    #[cfg(feature = "sim")]
     pub fn set_build(&mut self, build: BuildInfo) {
         self.build = build;
     }

@@ -3,11 +3,11 @@
 //! as the boards join them): RUN handshake/download/start, Q writes reaching the drive core,
 //! a cut link tripping LINK and showing on the PLC, no automatic restart after a fault.
 
+use crate::app::{PlcApp, RunState};
+use crate::editor::{Key, Screen};
+use crate::storage::MemEeprom;
 use firmware_drive::app::DriveApp;
 use firmware_drive::{AdcSample, DriveConfig, DriveState as CoreState, FaultCode, ResetCause};
-use firmware_plc::app::{PlcApp, RunState};
-use firmware_plc::editor::{Key, Screen};
-use firmware_plc::storage::MemEeprom;
 use shared_protocol::link::channel::Impairments;
 use shared_protocol::link::line::{Line, Pumped};
 use shared_protocol::link::pair::Pair;
@@ -274,7 +274,7 @@ fn div0_warning_shows_on_the_run_screen() {
     assert_eq!(r.pair.plc.run_state(), RunState::Running);
     assert_eq!(
         r.pair.plc.status().warning,
-        Some(firmware_plc::vm::Warning::Div0 { line: 158 })
+        Some(crate::vm::Warning::Div0 { line: 158 })
     );
     let screen = r.screen();
     assert!(
@@ -289,13 +289,13 @@ fn div0_warning_shows_on_the_run_screen() {
 fn alm_logs_an_application_fault_in_the_fault_log() {
     let mut r = Rig::new(&format!("{PROGRAM}157 LD D02\n158 ALM K00 0012\n"));
     r.run_for(20_000);
-    r.plc.run(None, r.now);
+    r.pair.plc.run(None, r.pair.now);
     r.run_for(100_000);
-    assert_eq!(r.plc.run_state(), RunState::Running);
-    assert!(r.plc.fault_log().is_empty());
+    assert_eq!(r.pair.plc.run_state(), RunState::Running);
+    assert!(r.pair.plc.fault_log().is_empty());
     r.digital |= 1 << 2;
     r.run_for(50_000);
-    let codes: Vec<u8> = r.plc.fault_log().iter().map(|e| e.code).collect();
+    let codes: Vec<u8> = r.pair.plc.fault_log().iter().map(|e| e.code).collect();
     assert_eq!(codes, vec![112]);
     assert_eq!(
         shared_protocol::service::LogText(codes[0]).to_string(),
@@ -305,8 +305,12 @@ fn alm_logs_an_application_fault_in_the_fault_log() {
     r.run_for(20_000);
     r.digital |= 1 << 2;
     r.run_for(50_000);
-    assert_eq!(r.plc.fault_log().len(), 2);
-    assert_eq!(r.plc.run_state(), RunState::Running, "the program goes on");
+    assert_eq!(r.pair.plc.fault_log().len(), 2);
+    assert_eq!(
+        r.pair.plc.run_state(),
+        RunState::Running,
+        "the program goes on"
+    );
 }
 
 #[test]

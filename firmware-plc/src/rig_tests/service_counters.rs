@@ -5,12 +5,10 @@
 //! safety of the record are unit-tested next to the code (`service::counters`,
 //! `storage::counters`).
 
-mod service_support;
-
-use firmware_plc::storage::counters::{CounterValues, COUNTERS_BYTES};
-use firmware_plc::storage::layout::COUNTERS_ADDR;
-use firmware_plc::storage::Eeprom;
-use service_support::*;
+use super::service_support::*;
+use crate::storage::counters::{CounterValues, COUNTERS_BYTES};
+use crate::storage::layout::COUNTERS_ADDR;
+use crate::storage::Eeprom;
 use shared_protocol::service::{Counters, WriteResult};
 
 fn counters(rig: &mut Rig) -> Counters {

@@ -3,12 +3,10 @@
 //! or the new program loadable, never a mix, whatever cuts the write: the power at every
 //! byte, the cable at every chunk, a new `WriteBegin`, RUN on the keypad, a keypad save.
 
-mod service_support;
-
-use firmware_plc::app::RunState;
-use firmware_plc::editor::Key;
-use firmware_plc::storage::{MemEeprom, Storage, StorageError};
-use service_support::*;
+use super::service_support::*;
+use crate::app::RunState;
+use crate::editor::Key;
+use crate::storage::{MemEeprom, Storage, StorageError};
 use shared_protocol::link::message::verify_kind_code;
 use shared_protocol::program::{encode_line, verify, Program};
 use shared_protocol::service::{InvalidReason, WriteResult, EVENT_PROGRAM_WRITTEN};

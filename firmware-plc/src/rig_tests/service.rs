@@ -3,9 +3,7 @@
 //! repeated guarded request executed once; EEPROM writes refused in RUN; the event
 //! `LOGCLR`; samples; garbage on the line.
 
-mod service_support;
-
-use service_support::*;
+use super::service_support::*;
 
 #[test]
 fn requests_before_hello_are_refused_and_hello_tells_the_version() {

@@ -3,10 +3,10 @@
 
 #![allow(dead_code, unused_imports)]
 
-pub use firmware_plc::app::{BuildInfo, PlcApp, RawIo, RunState};
-pub use firmware_plc::editor::{Key, Screen};
-pub use firmware_plc::service::Service;
-pub use firmware_plc::storage::{MemEeprom, Storage};
+pub use crate::app::{BuildInfo, PlcApp, RawIo, RunState};
+pub use crate::editor::{Key, Screen};
+pub use crate::service::Service;
+pub use crate::storage::{MemEeprom, Storage};
 pub use shared_protocol::link::frame::CRC as CRC32C;
 pub use shared_protocol::link::{LinkConfig, MAX_WIRE_FRAME};
 pub use shared_protocol::program::payload::for_each_payload_byte;
