@@ -24,6 +24,8 @@ use crate::periph::dmamux::Dmamux;
 use crate::periph::gpio::GpioPort;
 use crate::periph::i2c::{I2c, I2cInstance};
 use crate::periph::opamp::OpampBank;
+use crate::periph::rtc::Rtc;
+use crate::periph::tamp::Tamp;
 use crate::periph::tim_adv::TimAdv;
 use crate::periph::tim_gp::TimGp;
 use crate::periph::usart::{Usart, UsartInstance};
@@ -35,6 +37,7 @@ use crate::time::Cycles;
 use std::collections::BTreeMap;
 
 mod analog;
+mod backup;
 mod board;
 mod bus;
 mod clocks;
@@ -81,6 +84,8 @@ pub struct Slots {
     pub dac: [usize; 2],
     pub comp: usize,
     pub opamp: usize,
+    pub rtc: usize,
+    pub tamp: usize,
 }
 
 /// The USART instances in [`Slots::usart`] order.
@@ -226,6 +231,11 @@ impl Soc {
         };
         soc.flash_slot = flash_slot;
         soc.add_wired_models();
+        let lse = soc.board.lse_hz().is_some();
+        let k = soc.rcc;
+        if let Some(r) = soc.model_mut::<Rcc>(k) {
+            r.set_lse_fitted(lse);
+        }
         soc.flash.resize(FLASH_BYTES, 0xFF);
         soc
     }
@@ -270,6 +280,8 @@ impl Soc {
             Some("SYSCFG"),
             Box::new(OpampBank::new()),
         );
+        idx.rtc = self.add("RTC", Box::new(Rtc::new()));
+        idx.tamp = self.add("TAMP", Box::new(Tamp::new()));
         self.wired = idx;
     }
 
@@ -316,6 +328,8 @@ impl Soc {
         self.ipsr = 0;
         self.poll = Poll::default();
         self.stop = StopRequest::default();
+        let now = self.now;
+        self.sync_backup_domain(now);
         self.cycles.reset();
     }
 }

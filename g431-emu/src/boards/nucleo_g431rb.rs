@@ -20,6 +20,11 @@ pub const LD2: (u8, u8) = (0, 5);
 /// modelled: no image reads PC13.
 pub const B1: (u8, u8) = (2, 13);
 
+/// The LSE crystal X2, 32.768 kHz on PC14/PC15 (OSC32_IN/OSC32_OUT), fitted by default
+/// \[UM2505\] ("LSE clock" / OSC 32 kHz): the RTC's clock, the backup domain kept across
+/// resets.
+pub const LSE_HZ: u64 = 32_768;
+
 /// Pins the board itself uses besides those above \[UM2505\], `lift.md`: SWD (PA13, PA14),
 /// SWO (PB3), BOOT0 (PB8), the 32.768 kHz and 24 MHz crystals (PC14, PC15, PF0, PF1), NRST
 /// (PG10). A rig wire on them would fight the board.

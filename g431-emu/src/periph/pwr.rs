@@ -125,6 +125,11 @@ impl Pwr {
         old != self.pvdo
     }
 
+    /// CR1.DBP: the backup domain (RCC_BDCR, RTC, TAMP's backup registers) takes writes.
+    pub fn dbp(&self) -> bool {
+        self.cr[0] & (1 << 8) != 0
+    }
+
     /// Boost mode (range 1 boost) is on: CR5.R1MODE = 0.
     pub fn boost(&self) -> bool {
         self.cr5 & (1 << 8) == 0

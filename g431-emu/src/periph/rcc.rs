@@ -26,6 +26,10 @@ const PLL_LOCK: Cycles = 40 * CYCLES_PER_US;
 const LSI_STARTUP: Cycles = 130 * CYCLES_PER_US;
 /// HSI48 start-up time, maximum (DS12589 tsu(HSI48) 6 µs).
 const HSI48_STARTUP: Cycles = 6 * CYCLES_PER_US;
+/// LSE start-up time with a 32.768 kHz crystal (DS12589 "LSE oscillator characteristics",
+/// tSU(LSE): 2 s typical; no maximum is given, and the start-up "can vary significantly with
+/// the crystal").
+pub const LSE_STARTUP: Cycles = 2 * crate::time::HCLK_HZ;
 /// A system-clock switch takes effect after a few cycles of both clocks.
 const SWITCH: Cycles = 16;
 
@@ -39,6 +43,19 @@ const CICR: u32 = 0x20;
 const CCIPR: u32 = 0x88;
 const CSR: u32 = 0x94;
 const CRRCR: u32 = 0x98;
+/// RCC_BDCR, in the backup domain (RM0440 "RCC backup domain control register").
+const BDCR: u32 = 0x90;
+
+/// RCC_BDCR bits.
+pub mod bdcr {
+    pub const LSEON: u32 = 1 << 0;
+    pub const LSERDY: u32 = 1 << 1;
+    pub const RTCSEL_SHIFT: u32 = 8;
+    pub const RTCEN: u32 = 1 << 15;
+    pub const BDRST: u32 = 1 << 16;
+    /// Read-only: LSERDY, LSECSSD (6), LSESYSRDY (11).
+    pub const READ_ONLY: u32 = LSERDY | (1 << 6) | (1 << 11);
+}
 
 /// Why the MCU last reset, as RCC_CSR reports it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -85,6 +102,12 @@ pub struct Rcc {
     clock_changes: Vec<ClockChange>,
     /// Diagnostics for the SoC.
     reports: Vec<String>,
+    /// A 32.768 kHz crystal is fitted on the board (LSERDY can set).
+    lse_fitted: bool,
+    /// PWR_CR1.DBP: BDCR takes writes.
+    backup_writable: bool,
+    /// A write set BDRST: the SoC resets the backup domain's models.
+    backup_domain_reset: bool,
 }
 
 /// One change of HCLK (a system-clock switch or an AHB prescaler write).
@@ -188,6 +211,9 @@ impl Rcc {
             resets_asserted: Vec::new(),
             clock_changes: Vec::new(),
             reports: Vec::new(),
+            lse_fitted: false,
+            backup_writable: false,
+            backup_domain_reset: false,
         };
         r.reset_to(why);
         r
@@ -280,7 +306,14 @@ impl Rcc {
         self.pllcfgr = 0x0000_1000;
         self.cier = 0;
         self.cifr = 0;
+        // BDCR is in the backup domain: only a power-on resets it, and a starting LSE goes
+        // on starting.
+        let bdcr = self.reg(BDCR);
+        let lse_ready_at = self.settle.ready_at(BDCR, 1);
         self.regs = storage_reset();
+        if why != ResetKind::PowerOn {
+            *self.reg_mut(BDCR) = bdcr;
+        }
         // CSR keeps the reset flags of earlier resets until RMVF (they live in the
         // backup/always-on domain); LSI stops.
         let keep = self.csr & 0xFE80_0000;
@@ -296,9 +329,63 @@ impl Rcc {
             keep | flag
         };
         self.settle.clear();
+        if let (Some(at), true) = (lse_ready_at, why != ResetKind::PowerOn) {
+            self.settle.push(Settle {
+                at,
+                reg: BDCR,
+                bit: 1,
+                value: true,
+            });
+        }
+        self.backup_writable = false;
         self.sws_at = None;
         self.resets_asserted.clear();
         self.clock_changes.clear();
+    }
+
+    /// Whether the board has a 32.768 kHz crystal on OSC32_IN/OUT (a board's property).
+    pub fn set_lse_fitted(&mut self, fitted: bool) {
+        self.lse_fitted = fitted;
+    }
+
+    /// PWR_CR1.DBP (the SoC passes it on after each PWR write).
+    pub fn set_backup_writable(&mut self, writable: bool) {
+        self.backup_writable = writable;
+    }
+
+    /// RCC_BDCR now.
+    pub fn bdcr(&self) -> u32 {
+        self.reg(BDCR)
+    }
+
+    /// A write set BDRST since the last call: the backup domain's models go back to reset.
+    pub fn take_backup_domain_reset(&mut self) -> bool {
+        core::mem::take(&mut self.backup_domain_reset)
+    }
+
+    fn write_bdcr(&mut self, w: Write, now: Cycles) {
+        if !self.backup_writable {
+            self.reports.push(
+                "RCC.BDCR written while PWR_CR1.DBP = 0: the backup domain ignores it".into(),
+            );
+            return;
+        }
+        let old = self.reg(BDCR);
+        let v = w.merge(old);
+        if v & bdcr::BDRST != 0 {
+            // The whole backup domain resets, BDCR with it (BDRST stays as written).
+            *self.reg_mut(BDCR) = bdcr::BDRST;
+            self.settle.cancel(BDCR, 1);
+            self.backup_domain_reset = true;
+            return;
+        }
+        *self.reg_mut(BDCR) = (v & !bdcr::READ_ONLY) | (old & bdcr::READ_ONLY);
+        let on = v & bdcr::LSEON != 0;
+        if !on {
+            *self.reg_mut(BDCR) &= !bdcr::LSERDY;
+        }
+        // Without a crystal LSERDY never sets (the board documents none on the ESC1).
+        self.request(now, BDCR, 1, on && self.lse_fitted, LSE_STARTUP);
     }
 
     /// A system reset of kind `why` (the RCC itself resets with everything else).
@@ -364,7 +451,7 @@ impl Rcc {
     fn reg(&self, reg: u32) -> u32 {
         match reg {
             CSR => self.csr,
-            CRRCR => self.regs.get((CRRCR / 4) as usize).copied().unwrap_or(0),
+            CRRCR | BDCR => self.regs.get((reg / 4) as usize).copied().unwrap_or(0),
             _ => self.cr,
         }
     }
@@ -372,7 +459,7 @@ impl Rcc {
     fn reg_mut(&mut self, reg: u32) -> &mut u32 {
         match reg {
             CSR => &mut self.csr,
-            CRRCR => match self.regs.get_mut((CRRCR / 4) as usize) {
+            CRRCR | BDCR => match self.regs.get_mut((reg / 4) as usize) {
                 Some(r) => r,
                 None => &mut self.cr,
             },
@@ -467,6 +554,7 @@ impl Peripheral for Rcc {
                 let lsion = csr & 1 != 0;
                 self.request(now, CSR, 1, lsion, LSI_STARTUP);
             }
+            BDCR => self.write_bdcr(w, now),
             CRRCR => {
                 let Some(r) = self.regs.get_mut((CRRCR / 4) as usize) else {
                     return false;

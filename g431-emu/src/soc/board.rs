@@ -38,6 +38,12 @@ pub trait Board: PinReader {
     fn next_input_change(&self, _after: Cycles) -> Option<Cycles> {
         None
     }
+
+    /// The frequency of the crystal on OSC32_IN/OSC32_OUT, `None` where the board fits none:
+    /// the LSE then never becomes ready.
+    fn lse_hz(&self) -> Option<u64> {
+        None
+    }
 }
 
 /// VREFINT (DS12589 typical), for the comparators' scaled references and the ADC.

@@ -27,7 +27,6 @@ pub const STORED_ONLY: &[(&str, u32, &str)] = &[
     ("RCC", 0x78, "APB1SMENR1"),
     ("RCC", 0x7C, "APB1SMENR2"),
     ("RCC", 0x80, "APB2SMENR"),
-    ("RCC", 0x90, "BDCR: LSE, RTC clock, backup domain reset"),
     ("RCC", 0x9C, "CCIPR2: I2C4 and QUADSPI kernel clocks"),
 ];
 

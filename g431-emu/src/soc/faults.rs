@@ -45,7 +45,7 @@ impl SystemBreakSources {
 }
 
 impl Soc {
-    fn pwr_slot(&self) -> Option<usize> {
+    pub(super) fn pwr_slot(&self) -> Option<usize> {
         self.slot_of("PWR")
     }
 

@@ -330,4 +330,28 @@ mod tests {
         let mut s = soc();
         s.add_at("X", 0x4001_0010, 4, None, Box::new(Dbgmcu::default()));
     }
+
+    /// The address map `docs/models.md` gives ("Address map"), as the registry has it.
+    fn address_map(s: &Soc) -> String {
+        let mut out = String::from("| block | base | bytes |\n| --- | --- | --- |\n");
+        for slot in &s.slots {
+            out += &format!(
+                "| {} | {:#010x} | {:#x} |\n",
+                slot.name, slot.base, slot.len
+            );
+        }
+        out
+    }
+
+    /// A model added to the SoC without its row in `docs/models.md` (the recipe's step
+    /// "document it") fails here, with the table to paste.
+    #[test]
+    fn every_registered_model_is_listed_in_models_md() {
+        let doc = include_str!("../../docs/models.md");
+        let map = address_map(&soc());
+        assert!(
+            doc.contains(&map),
+            "docs/models.md's \"Address map\" differs from the registry; it should read:\n{map}"
+        );
+    }
 }

@@ -56,6 +56,9 @@ impl Soc {
             self.update_system_break();
         }
         self.clock_tree_changed(k, t);
+        if k == self.rcc || self.pwr_slot() == Some(k) {
+            self.sync_backup_domain(t);
+        }
     }
 
     /// Slot `k` can raise or drop a DMA request, or is a DMA controller.

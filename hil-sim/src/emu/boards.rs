@@ -509,6 +509,10 @@ impl PinReader for PlcBoard {
 }
 
 impl Board for PlcBoard {
+    fn lse_hz(&self) -> Option<u64> {
+        Some(g431_emu::boards::nucleo_g431rb::LSE_HZ)
+    }
+
     fn outputs_changed(&mut self, _now: Cycles, drives: &dyn Fn(u8, u8) -> Drive) {
         let mut out = 0u8;
         for (k, &(p, n)) in plc_pins::OUTPUTS.iter().enumerate() {
