@@ -116,7 +116,7 @@ impl SimDrive {
         self.app.poll_timeout()
     }
 
-    /// TIM1 setup the board's init programs (later changes come as [`PeriodAction`]s).
+    /// TIM1 setup the board's init programs (later changes come as [`PeriodAction`](firmware_drive::power_port::PeriodAction)s).
     pub fn pwm_timing(&self) -> PwmTiming {
         self.app.pwm_timing()
     }
