@@ -8,7 +8,7 @@ use crate::{banner, clocks, reset_cause};
 
 /// NVIC priority of every interrupt except the drive's TIM1 (P0): DMA, the link USART,
 /// the embassy time driver (TIM4). TIM1's update and break interrupts
-/// then preempt all of them (review D13). The PLC has no TIM1 interrupt; the same
+/// then preempt all of them. The PLC has no TIM1 interrupt; the same
 /// priorities there cost nothing.
 pub const BACKGROUND: Priority = Priority::P2;
 

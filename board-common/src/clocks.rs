@@ -6,9 +6,9 @@
 //! vendored embassy-stm32 0.6.0 with two fixes (`vendor/README.md`): stm32-metapac 21
 //! places R1MODE at bit 0 of PWR_CR5, where RM0440 ("PWR control register 5 (PWR_CR5)":
 //! bit 8 R1MODE, reset value 0x0000_0100) and ST's CMSIS header (`PWR_CR5_R1MODE_Pos` 8)
-//! have it, so upstream never entered boost mode (review E7); and upstream switched
+//! have it, so upstream never entered boost mode; and upstream switched
 //! SW = PLL and HPRE = /1 in one CFGR write, where RM0440 §6.1.5 keeps HPRE = /2 across
-//! the switch and for 1 us after it (review N9). One `embassy_stm32::init` with
+//! the switch and for 1 us after it. One `embassy_stm32::init` with
 //! [`config`] does both.
 
 use embassy_stm32::pac;
@@ -24,7 +24,7 @@ pub const SYSCLK_HZ: u32 = 170_000_000;
 /// "Adaptive real-time memory accelerator (ART Accelerator)"): at 4 wait states every
 /// instruction fetch that misses the ART's instruction cache otherwise stalls the core for
 /// the full latency. The instruction and data caches (ICEN, DCEN) are on from reset
-/// (FLASH_ACR reset value 0x0000_0600) and embassy-stm32 0.6 never sets PRFTEN (review N8:
+/// (FLASH_ACR reset value 0x0000_0600) and embassy-stm32 0.6 never sets PRFTEN (
 /// with it, the longest critical sections fit one PWM period at 20 kHz,
 /// `firmware-drive/docs/critical-sections.md`). Call after embassy set the wait states.
 pub fn enable_prefetch() {

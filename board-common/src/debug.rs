@@ -1,7 +1,7 @@
 //! What stops while a debugger halts the core (DBGMCU, RM0440 §47.16), and [`halt`], the
 //! end of both images' panic and fault handlers.
 //!
-//! Review D15: the IWDG keeps counting while the core is halted, so about 100 ms after a
+//! The IWDG keeps counting while the core is halted, so about 100 ms after a
 //! breakpoint (or the `bkpt` after a panic) the MCU resets, every breakpoint reboots the
 //! board and probe-rs can lose the backtrace. So the IWDG is frozen while halted whenever a
 //! debugger is attached (DHCSR.C_DEBUGEN, which only a probe sets), in every build: a
@@ -59,7 +59,7 @@ pub fn log_panic(_info: &core::panic::PanicInfo) {
 static FAULT_LOGGED: AtomicBool = AtomicBool::new(false);
 
 /// Whether this is the first fault path to log: the fault handlers log only then and go
-/// straight to [`halt`] otherwise. Review N11: a fault inside a defmt frame (the logger
+/// straight to [`halt`] otherwise. A fault inside a defmt frame (the logger
 /// taken) makes the handler's own log panic with "defmt logger taken reentrantly"; that
 /// nested panic, and any fault while logging, must reach `halt` (the reset), not recurse
 /// into the logger until the core locks up.

@@ -10,12 +10,12 @@
 //! they are logged: all of that is the pump's, host-tested, and hil-sim runs the same
 //! pump.
 //!
-//! Review D12:
+//! Why one task per line:
 //! * RX has the internal pull-up: with the peer unplugged or unpowered a floating RX pin
 //!   would read a storm of framing and noise errors.
 //! * A line error (framing, noise, overrun, parity) never stops reception. The link
 //!   and the PLC's service port receive into DMA rings of their own
-//!   ([`crate::link_rx`], review N13) that a line error never stops.
+//!   ([`crate::link_rx`]) that a line error never stops.
 //! * Errors are counted by the endpoint (`LinkStats::line_errors`) and logged at most
 //!   once a second with the count (`Pump::line_error`).
 
@@ -91,7 +91,7 @@ pub type LinkPort = Port<RingRx<Link>>;
 pub type ServicePort = Port<RingRx<Service>>;
 
 /// Opens the link USART 8N1 at `baud` with the RX pull-up and starts its ring receiver
-/// ([`link_rx`], review N13).
+/// ([`link_rx`]).
 pub fn open<Tx, Rx>(l: LinkPins<Peri<'static, Tx>, Peri<'static, Rx>>, baud: u32) -> LinkPort
 where
     Tx: usart::TxPin<peripherals::USART1>,
@@ -281,7 +281,7 @@ pub async fn run_task<S: SharedEndpoint, R: ByteRx>(
             Either::First(Err(_)) | Either::Second(()) => 0,
         };
         let rx = rx_buf.get(..n).unwrap_or(&[]);
-        // One frame at most per call (one critical section on the drive, review N8).
+        // One frame at most per call (one critical section on the drive).
         for piece in frame_pieces(rx) {
             let t = now();
             #[cfg(feature = "dwt-cycles")]

@@ -20,7 +20,7 @@
 //! | heartbeat LED (toggles while the watchdog is fed) | PC6 | GPIO out | LED |
 //! | `STO_IN` (safety.md 6, NOT RATED): active low, pull-down (a broken wire requests STO) | PA15 | TIM1_BKIN (AF9), break 1; read every 1 ms | `PWM`, the ESC's command input pad |
 //!
-//! `STO_IN` (review N1): UM2516's pin table and stm32duino's `variant_B_G431B_ESC1.h`
+//! `STO_IN`: UM2516's pin table and stm32duino's `variant_B_G431B_ESC1.h`
 //! name PA11 `CAN_RX`, the CAN transceiver's RXD output, which drives the net (a broken
 //! STO wire would read "not requested"); the only TIM1_BKIN2 pin of the STM32G431CBU6 is
 //! PA11 (stm32-metapac 21, `STM32G431CB`: BKIN2 on PA11 AF12 only). PA15 is the ESC1's
@@ -37,7 +37,7 @@
 //!
 //! The link is not on USART2 (PB3/PB4): those are the virtual COM port of the ST-LINK on the
 //! ESC1's detachable daughterboard, whose TX drives PB4 push-pull while it is attached, so
-//! the PLC could never pull that line low (board review D3). PB6/PB7 are the encoder/Hall
+//! the PLC could never pull that line low. PB6/PB7 are the encoder/Hall
 //! inputs H1/H2, free without an encoder.
 
 use embassy_stm32::{peripherals as p, Peri, Peripherals};
@@ -74,7 +74,7 @@ pub struct Analog {
 pub struct Protection {
     /// Phase current a against DAC3 CH1.
     pub comp_ia: Peri<'static, p::COMP1>,
-    /// Phase current b against DAC1 CH2 (its own channel: the boot trim, review N6).
+    /// Phase current b against DAC1 CH2 (its own channel: the boot trim).
     pub comp_ib: Peri<'static, p::COMP2>,
     /// DC link against DAC1 CH1.
     pub comp_udc: Peri<'static, p::COMP3>,

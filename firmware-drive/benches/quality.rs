@@ -1,4 +1,4 @@
-//! Quality report of the modulator (issue 4): frequency accuracy, THD of the
+//! Quality report of the modulator: frequency accuracy, THD of the
 //! PWM-period-averaged phase voltage next to the source's method, and host cost per call.
 //!
 //! `cargo bench -p firmware-drive --bench quality`

@@ -1,4 +1,4 @@
-//! Comparator blanking around the switching edges (review D10): TIM1's OC5 as a window in
+//! Comparator blanking around the switching edges: TIM1's OC5 as a window in
 //! which COMP1/2/4 (the phase currents) are forced low, so that the current spike and
 //! ringing at each turn-on do not trip `OC_HW` (RM0440 §24.3 "Comparator output blanking
 //! function": BLANKSEL = TIM1_OC5, the output is 0 while OC5 is active).

@@ -101,15 +101,15 @@ pub struct ComparatorSpec {
     /// watches the ADC's own pin, 16 when it watches the input of a PGA of gain 16 (whose
     /// output the ADC reads).
     pub input_divider: u16,
-    /// Its DAC counts from the zero code found at boot with 0 A (`crate::comparator_trim`,
-    /// review N6) rather than from the ADC's calibrated zero: a comparator on a signal
+    /// Its DAC counts from the zero code found at boot with 0 A (`crate::comparator_trim`)
+    /// rather than from the ADC's calibrated zero: a comparator on a signal
     /// whose 0 A level is not known to a few counts (the ESC1's biased PGA inputs).
     pub zero_trim: bool,
     /// COMPx_CSR.HYST, mV (0, 10 .. 70). The hysteresis lies below the inverting input on
     /// the way down of the raw comparison (RM0440 "Comparator hysteresis" figure, ST's HAL
     /// "hysteresis of the input minus"): for a `Below` comparator on the trip edge.
     pub hysteresis_mv: u8,
-    /// Blanked by TIM1's OC5 around the switching edges (`crate::blanking`, review D10):
+    /// Blanked by TIM1's OC5 around the switching edges (`crate::blanking`):
     /// the phase-current comparators, whose shunts ring at every turn-on.
     pub blanked: bool,
 }
@@ -224,7 +224,7 @@ pub struct BoardProfile {
     /// The amplifiers the board enables and the ADC channels it reads.
     pub front_end: FrontEndSpec,
     /// The board has a brake chopper (`U>` switches it); without one `U>` caps the
-    /// overvoltage controller's level (`crate::overvoltage`, review N7).
+    /// overvoltage controller's level (`crate::overvoltage`).
     pub brake_chopper: bool,
     /// `U>>` while the program sets none, V (at most `DriveConfig::ov_hw_default_volts`).
     pub ov_hw_default_volts: u16,
@@ -311,7 +311,7 @@ pub const SOURCE_SENSORS: BoardProfile = BoardProfile {
     ],
 };
 
-/// The bare B-G431B-ESC1 (reviews D4, N5, N6). The ADC reads the OPAMPs' outputs (PGA x16
+/// The bare B-G431B-ESC1. The ADC reads the OPAMPs' outputs (PGA x16
 /// with the network's foot on VINM0, [`ESC1_SCALING`]); the comparators watch the OPAMPs'
 /// inputs PA1, PA7, PB0, the only pins of the three phases that reach COMP1/2/4 (OPAMP1/2
 /// outputs PA2/PA6 reach no comparator input; OPAMP3's PB1 reaches COMP1 only). The

@@ -281,7 +281,7 @@ pub struct DriveCore {
     trim: TrimmedZeros,
     /// The boot trim failed: `BOOT`.
     trim_failed: bool,
-    /// The overvoltage controller (a board without a brake chopper, review N7).
+    /// The overvoltage controller (a board without a brake chopper).
     ovc: OvController,
     /// The frequency and amplitude applied in the last tick (the V/f ratio while the
     /// overvoltage controller holds the frequency above the command).
@@ -295,7 +295,7 @@ fn hw_thresholds(s: &Settings, cfg: &DriveConfig) -> HwThresholds {
         let v = if set > 0 { set } else { default };
         v.clamp(1, max) as i16
     };
-    // `U>>` inside the DC link's measuring range (review N7: on the ESC1 34.3 V, where
+    // `U>>` inside the DC link's measuring range (on the ESC1 34.3 V, where
     // the DAC would clamp a higher level and the comparator never trip), and the board's
     // default when the program sets none.
     let ov_max = ((cfg.board.scaling.udc_full_decivolts / 10) as u16).min(U_MAX_HW_LIMIT);
@@ -474,7 +474,7 @@ impl DriveCore {
     }
 
     /// [`Self::load_program`] for a section the link has verified (it does so in a step
-    /// of its own: the verifier is too long to run again here, review D13).
+    /// of its own: the verifier is too long to run again here).
     // One copy, not inlined at each caller: the drive image's 64 KiB budget.
     #[inline(never)]
     pub fn load_verified(&mut self, v: &VerifiedDriveSection) {
@@ -482,7 +482,7 @@ impl DriveCore {
         self.load_checked(v.section());
     }
 
-    /// [`Self::load_verified`] in steps, each a call of its own (review N8: the whole
+    /// [`Self::load_verified`] in steps, each a call of its own (the whole
     /// load, ~6 900 Cortex-M4 instructions, held the drive's PWM interrupt off for ~1.5
     /// periods at 20 kHz). This first step stops a RUN and moves the section in; then
     /// [`LoadStep::Vm`] (the VM's settings), [`LoadStep::Safety`] (the safety settings and
@@ -660,7 +660,7 @@ impl DriveCore {
 
     /// The `STO_IN` break fired (safety.md 6; the hardware has already opened every
     /// switch): the input was low, however briefly. Code 9 latches at once in RUN, so no
-    /// later PWM period sets the outputs again (review N2: a pulse shorter than the 1 ms
+    /// later PWM period sets the outputs again (a pulse shorter than the 1 ms
     /// read was lost), and until the board's next [`DriveCore::set_sto_input`] the input
     /// counts as low (RUN refused).
     pub fn sto_break(&mut self) {
@@ -670,7 +670,7 @@ impl DriveCore {
         }
     }
 
-    /// TIM1's system break fired (review N4: a PVD dip, an SRAM parity or flash double-ECC
+    /// TIM1's system break fired (a PVD dip, an SRAM parity or flash double-ECC
     /// error, routed by SYSCFG_CFGR2; the hardware has already opened every switch): the
     /// MCU itself is not sound, so `BOOT` latches, which only a power cycle clears.
     pub fn system_break(&mut self) {
@@ -697,7 +697,7 @@ impl DriveCore {
 
     /// The first half of the millisecond: the end of the boot, a pending reversal at
     /// standstill and the drive section's pass. A call of its own so that the board can
-    /// run it in a critical section of its own (review N8: the whole tick at the start of
+    /// run it in a critical section of its own (the whole tick at the start of
     /// RUN held the PWM interrupt off for ~1.5 periods at 20 kHz). Between the halves the
     /// PWM interrupt runs on the last millisecond's modulator, as before the tick.
     /// Not inlined into the board's 1 ms task (flash: 64 KiB budget; one call per ms).
@@ -788,7 +788,7 @@ impl DriveCore {
                 if self.limits.overcurrent(abs_i) {
                     self.trip(FaultCode::Oc);
                 }
-                // The software twin of the overvoltage comparator (review N7): the same
+                // The software twin of the overvoltage comparator: the same
                 // `U>>`, code 3, whichever sees it first.
                 if self.limits.overvoltage(s) {
                     self.trip(FaultCode::OvHw);
@@ -797,7 +797,7 @@ impl DriveCore {
             DriveState::Fault => {}
         }
         // Only a board with a chopper switches one (on the ESC1 PB5 is the BEMF dividers'
-        // enable: review N7).
+        // enable).
         self.brake = self.cfg.board.brake_chopper && self.limits.brake(self.brake, s);
         let mut on = self.state == DriveState::Run && self.outputs_on;
         if on && self.limits.undervoltage(s) {
@@ -1388,7 +1388,7 @@ mod tests {
         }
     }
 
-    /// Review N7: the ESC1 (no chopper) never switches one; `U>>` is 32 V by default and
+    /// The ESC1 (no chopper) never switches one; `U>>` is 32 V by default and
     /// inside the 34.3 V range when the program sets more, and its software twin trips
     /// code 3 from the ADC reading.
     #[test]
@@ -1494,7 +1494,7 @@ mod tests {
         assert_eq!(core.fault(), Some(FaultCode::Boot));
     }
 
-    /// Review N7: on the ESC1 the overvoltage controller takes the applied frequency over
+    /// On the ESC1 the overvoltage controller takes the applied frequency over
     /// while the DC link is above its level (the supply's 20 V + 2 V), keeping V/f.
     #[test]
     fn the_esc1_holds_a_deceleration_while_the_dc_link_is_high() {

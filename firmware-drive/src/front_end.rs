@@ -12,7 +12,7 @@
 //!   G x VINP), 01 on the VINM0 pin ("input/bias connected to VINM0", stm32-metapac 21
 //!   `PgaGain::GAIN16_INPUT_VINM0` = 0x0B, embassy-stm32 0.6 `pga_biased_int`): output
 //!   G x VINP - (G - 1) x VINM0, which is what a board that brings a biased shunt to VINP
-//!   and VINM0 needs (review N5).
+//!   and VINM0 needs.
 //! * With OPAINTOEN = 1 the output reaches an ADC channel internally, not the VOUT pin
 //!   (PA2, PA6, PB1): OPAMP1 = ADC1_IN13, OPAMP2 = ADC2_IN16, OPAMP3 = ADC2_IN18 (RM0440
 //!   ADC1/ADC2 channel tables, "VOPAMP1", "VOPAMP2", "VOPAMP3"; the same numbers as ST's
@@ -153,7 +153,7 @@ pub const DIRECT_PINS: FrontEndSpec = FrontEndSpec {
 /// `OPAMP_PGA_GAIN_16_OR_MINUS_15`, `OPAMP_PGA_CONNECT_INVERTINGINPUT_IO0_BIAS`; the
 /// UM2516 pin table brings each shunt's minus side to VINM0). The board biases both pins of
 /// a leg from 3V3; only this mode subtracts that bias (the grounded-input mode outputs
-/// 16 x 1.4 V: the rail, review N5). ADC1 reads
+/// 16 x 1.4 V: the rail). ADC1 reads
 /// OPAMP1 (IN13), ADC2 reads OPAMP2 (IN16); OPAMP3 (ADC2 IN18) is enabled for the bench
 /// check and the W comparator's future use, the core does not sample it.
 pub const ESC1_PGAS: FrontEndSpec = FrontEndSpec {

@@ -12,7 +12,7 @@
     )
 )]
 
-// Drive core modules (issue 4). Units, scaling and every decision: `docs/drive-core.md`.
+// Drive core modules. Units, scaling and every decision: `docs/drive-core.md`.
 pub mod app;
 pub mod blanking;
 pub mod bodies;

@@ -154,7 +154,7 @@ fn accepted_section_runs_and_stops() {
     assert!(!r.pwm_on);
 }
 
-/// Review D13/N8: the core's load (~6 900 instructions) is neither in the critical section
+/// The core's load (~6 900 instructions) is neither in the critical section
 /// of the pass that sends the result nor in one of its own: it runs in four passes of its
 /// own (`load_begin`, the VM's settings, the safety settings, the limits), each due at
 /// once and sending no frame.

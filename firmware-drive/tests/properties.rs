@@ -347,7 +347,7 @@ fn raw_section() -> impl Strategy<Value = DriveSection> {
 proptest! {
     #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
 
-    /// Item 9: the verifier's stack count is what the VM does. A section the verifier
+    /// The verifier's stack count is what the VM does. A section the verifier
     /// accepts never runs an instruction with fewer values than it needs, and one it
     /// rejects for the stack does, at the line it names.
     #[test]

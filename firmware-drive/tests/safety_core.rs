@@ -141,7 +141,7 @@ fn sto_in_refuses_run_latches_code_9_in_run_and_blocks_its_ack() {
     core.command(DriveCommand::Ack).unwrap();
 }
 
-/// Review N2: the `STO_IN` break seen by the break interrupt, with the input high again
+/// The `STO_IN` break seen by the break interrupt, with the input high again
 /// by the next tick (a pulse shorter than the 1 ms read): code 9 at once, no PWM period
 /// enables the outputs, ACK and a new RUN bring them back.
 #[test]
@@ -185,7 +185,7 @@ fn an_sto_break_in_idle_refuses_run_until_the_input_reads_high() {
     core.command(DriveCommand::Run).unwrap();
 }
 
-/// Review N4: a system break latches `BOOT`, whose ACK is refused (a power cycle).
+/// A system break latches `BOOT`, whose ACK is refused (a power cycle).
 #[test]
 fn a_system_break_latches_boot_for_good() {
     let mut core = core_with(LAB, 100);

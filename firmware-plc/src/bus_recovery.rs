@@ -1,4 +1,4 @@
-//! I2C bus clear, at boot (review D6) and after a broken transaction (review N12).
+//! I2C bus clear, at boot and after a broken transaction.
 //!
 //! A reset (watchdog, debugger, NRST) in the middle of an EEPROM read can leave the 24C256
 //! shifting out a 0 bit: it holds SDA low until it sees more SCL clocks, and every master
@@ -91,7 +91,7 @@ pub enum Failure {
     Broken,
 }
 
-/// What the board does after a failed transaction (review N12).
+/// What the board does after a failed transaction.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AfterFailure {
     /// Nothing: the bus is idle and the peripheral ready.

@@ -1,4 +1,4 @@
-//! When the board's periodic tasks run next (review D5): a pass schedule that never
+//! When the board's periodic tasks run next: a pass schedule that never
 //! replays missed periods, and a retry timer for a device that stopped answering.
 //!
 //! embassy's `Ticker` returns at once for every period that has passed, so a pass that
@@ -62,7 +62,7 @@ impl Pacer {
     }
 }
 
-/// Retries a device that stopped answering (the LCD after an I2C error, review D6/D14)
+/// Retries a device that stopped answering (the LCD after an I2C error)
 /// every [`RetryTimer::interval_us`] instead of giving up until the next reset.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct RetryTimer {

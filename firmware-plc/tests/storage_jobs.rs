@@ -1,4 +1,4 @@
-//! The stepped storage jobs (board review D5/D11): at most one EEPROM transfer of at most
+//! The stepped storage jobs: at most one EEPROM transfer of at most
 //! one page per step, never an access during a write cycle, the same bytes and the same
 //! power-fail safety as the synchronous operations.
 
@@ -36,8 +36,8 @@ struct Counting {
     polls: u32,
     /// Write cycles that never end (the chip is gone after a write).
     stuck: bool,
-    /// The page write with this number (0 = the first) breaks on the bus (an I2C timeout,
-    /// review N12): the chip has latched the first half of its bytes, the board's bus
+    /// The page write with this number (0 = the first) breaks on the bus (an I2C
+    /// timeout): the chip has latched the first half of its bytes, the board's bus
     /// clear ends it with a STOP (which starts the write cycle) and the call returns
     /// `Bus`.
     break_write: Option<u32>,
@@ -186,7 +186,7 @@ fn a_write_cycle_that_never_ends_fails_the_job_after_the_limit_and_the_next_job_
     );
 }
 
-/// Review N12, the storage side of the run-time I2C recovery: a page write that breaks on
+/// The storage side of the run-time I2C recovery: a page write that breaks on
 /// the bus is not repeated; the save reports `Eeprom(Bus)` (the LCD shows it, the user
 /// saves again), the torn page's write cycle is waited for before any other access, the
 /// slot still loads the program saved before, and the next save works.

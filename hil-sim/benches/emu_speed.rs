@@ -1,7 +1,7 @@
 //! Speed of the emulator: both real release images co-simulated with the plant, in
 //! emulated seconds per wall-clock second, for the full motor example at 16 kHz PWM (the
 //! variant of `benches/speed.rs`: line 171 writes 1600 x 10 Hz into Q00), with the
-//! averaged and the switching inverter model. Target (issue 12): at least 0.5x real time
+//! averaged and the switching inverter model. Target: at least 0.5x real time
 //! on one core.
 //!
 //! `cargo bench -p hil-sim --bench emu_speed` (builds the images first if needed).

@@ -1,4 +1,4 @@
-//! Samples kept for the plot of a run of any length in bounded memory (issue 20): at most
+//! Samples kept for the plot of a run of any length in bounded memory: at most
 //! `cap` samples, evenly spaced. When the buffer is full every other sample is dropped and
 //! from then on only every second (then fourth, ...) new one is kept. The CSV is written
 //! from the full stream, so it keeps every sample.

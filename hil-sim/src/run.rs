@@ -410,7 +410,7 @@ mod tests {
     const LIFT_PLC: &str = include_str!("../../shared-protocol/programs/lift.plc");
 
     /// A valid `.plc` text padded with a comment line to exactly `IMAGE_BYTES` bytes (the
-    /// EEPROM image's size): issue 31 saw such a text taken for an image.
+    /// EEPROM image's size): such a text was once taken for an image.
     fn text_of_image_size() -> String {
         let mut text = LIFT_PLC.to_string();
         if !text.ends_with('\n') {

@@ -144,7 +144,7 @@ pub struct EmuKeys {
     #[serde(default)]
     pub expect: Vec<ImageTrouble>,
     /// What the bare ESC1's amplifier input pins carry: `documented` (the default: the
-    /// board's network) or `as_image_assumes` (what the image before issue 29 assumed, not
+    /// board's network) or `as_image_assumes` (what an earlier image assumed, not
     /// the board: a what-if, `docs/cli.md`).
     #[serde(default)]
     pub esc1_amplifier_inputs: crate::emu::boards::Esc1Sense,

@@ -1,4 +1,4 @@
-//! Issue 20 item 5: every fault the drive has is triggered from the panel with the rig's
+//! Every fault the drive has is triggered from the panel with the rig's
 //! keys (the table in `hil-sim/docs/cli.md`), seen on the LCD, and acknowledged with `*`
 //! `9` once its cause is removed.
 
@@ -134,7 +134,7 @@ fn ov_hw_from_a_voltage_spike_and_from_the_supply() {
     let mut app = motor_panel();
     run_motor(&mut app, 300);
     // At 1000 ms the spike lands in a period 1 ns longer than the one it was sized in
-    // (issue 17's merge found it: `SimBackend::UNTIL_PERIOD_END_NS`).
+    // (`SimBackend::UNTIL_PERIOD_END_NS`).
     app.advance(1000);
     keys(&mut app, "H");
     wait_for_fault_on_lcd(&mut app, FaultCode::OvHw, 3000);
@@ -147,9 +147,9 @@ fn ov_hw_from_a_voltage_spike_and_from_the_supply() {
     ack_refused(&mut app, FaultCode::OvHw, "ACK REFUSED: CAUSE");
     keys(&mut app, "{{{");
     app.advance(500);
-    // The supply is back at 30 V, but on the bare ESC1 (the default board, issue 36)
+    // The supply is back at 30 V, but on the bare ESC1 (the default board)
     // nothing discharges the DC link: the board has no brake chopper and its 34.3 V range
-    // hides the 45 V from the drive's `U>` chopper (board review N7, issue 29). The
+    // hides the 45 V from the drive's `U>` chopper. The
     // comparator stays high and the ACK stays refused; on the source's rig the chopper
     // brought the link down and the ACK was accepted here.
     assert!(app.status().u_dc_v > 40.0, "{:?}", app.status());

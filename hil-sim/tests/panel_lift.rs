@@ -43,7 +43,7 @@ fn the_panel_runs_the_lift_and_a_key_calls_it() {
     assert!(l.at_floor == 1 && l.brake_engaged, "{l:?}");
     let t = text(&app);
     assert!(t.contains("floor 1") && t.contains("brake on"), "{t}");
-    // The D08-D15 row shows what the PLC reads from the plant (issue 31: it showed the
+    // The D08-D15 row shows what the PLC reads from the plant (it showed the
     // keys' toggles, all off): at rest at floor 1 the door-closed switch (D12) and the
     // safety chain (D15) are on, and no key was touched.
     let d = app.status().digital_in;

@@ -1,4 +1,4 @@
-//! Issue 20 item 5 for the safety functions' codes 9-16 (issue 16): in the panel they are
+//! The safety functions' codes 9-16: in the panel they are
 //! caused by a program, not by the rig. Each test loads `safety_lab.plc` with the function
 //! under test on line 197 into the panel, plays the inputs of that function's hil-sim
 //! scenario (`hil-sim/scenarios/safety/`) through the panel's own inputs (toggles, push

@@ -1,4 +1,4 @@
-//! The panel on the co-simulation: what a new user does (issue 7 "done when"): type a
+//! The panel on the co-simulation: what a new user does: type a
 //! short program, run it, see it work; and run the motor example from its file.
 
 use hil_sim::panel::keys::{map_char, Input};
@@ -113,7 +113,7 @@ fn bit_flip_in_the_eeprom_is_reported_on_the_lcd_at_power_up() {
     assert!(app.status().plc_running, "{}", lcd_text(&app));
 }
 
-/// Issue 20 item 5: the RMS phase current stands still in steady state (over whole
+/// The RMS phase current stands still in steady state (over whole
 /// periods), where the instantaneous peak of the three phases moved by 13 %.
 #[test]
 fn the_rms_current_is_steady_where_the_instantaneous_peak_is_not() {

@@ -49,7 +49,7 @@ fn typing_a_short_program_shows_on_the_lcd() {
         "{t}"
     );
     assert!(t.contains("D00-07"), "{t}");
-    // Acknowledging a fault is discoverable in the key box (issue 20 item 3).
+    // Acknowledging a fault is discoverable in the key box.
     assert!(t.contains("*9 acknowledge the drive's fault"), "{t}");
     // Save into slot 2 (the board's storage writes a page per millisecond): the LCD says
     // so.
@@ -105,7 +105,7 @@ fn program_file_loads_into_the_panel() {
     assert!(t.contains(" 151 LET  B00"), "{t}");
 }
 
-/// Issue 20 item 5: a terminal too small for the LCD and the key box gets one message
+/// A terminal too small for the LCD and the key box gets one message
 /// with the size needed, not a clipped LCD; at the minimum size everything is drawn.
 #[test]
 fn a_too_small_terminal_says_so_instead_of_clipping() {

@@ -1,4 +1,4 @@
-//! Issue 20 item 4, "work is never lost in the panel": the EEPROM kept in a file across
+//! "Work is never lost in the panel": the EEPROM kept in a file across
 //! sessions, export to `.plc`, Esc cancelling an edit, and questions before unsaved work
 //! is discarded (quit on the PC, `D` `0` / `D` `n` on the keypad).
 

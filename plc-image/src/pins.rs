@@ -19,8 +19,8 @@
 //! | heartbeat LED (toggles while the watchdog is fed) | PA5 | GPIO out | LD2 |
 //!
 //! The I2C bus is not on PB8/PB9 (I2C1): PB8 is BOOT0 with the factory option bytes
-//! (nSWBOOT0 = 1), and the bus's pull-ups would make every reset boot the ROM bootloader
-//! (board review D2). PB8 must never be an input that can be high at reset.
+//! (nSWBOOT0 = 1), and the bus's pull-ups would make every reset boot the ROM bootloader.
+//! PB8 must never be an input that can be high at reset.
 //!
 //! # D08-D15 and O06-O07 (lift.md 1)
 //!
@@ -28,7 +28,7 @@
 //! solder bridges (UM2505: PA13/PA14 SWD, PB3 SWO, PA2/PA3 the ST-LINK virtual COM port =
 //! LPUART1, the service port; PC13 button B1; PC14/PC15 and PF0/PF1 the crystals; PG10
 //! NRST), lift.md 1 lists ten free pins: PA4, PA8, PA11, PA12, PA15, PB1, PB2, PB4, PB5,
-//! PC0. PA8/PB5 became the I2C3 bus (board review D2), which freed PB8/PB9. That leaves
+//! PC0. PA8/PB5 became the I2C3 bus, which freed PB8/PB9. That leaves
 //! PA4, PA11, PA12, PA15, PB1, PB2, PB4, PC0, PB8, PB9: ten again, 8 inputs + 2 outputs, so
 //! no SPI shift registers are needed.
 //!

@@ -1,5 +1,5 @@
 //! The compiled form of the PLC section: at most one 4-byte [`Op`] per line that does
-//! something, built once at RUN from the stored lines (issue 21, docs/vm.md).
+//! something, built once at RUN from the stored lines (docs/vm.md).
 //!
 //! What compiling decides once instead of every scan:
 //! * empty lines, drive mnemonics and lines with invalid operands (no-ops in the VM) are

@@ -1,4 +1,4 @@
-//! Differential test of the compiled form (issue 21): random programs run side by side on
+//! Differential test of the compiled form: random programs run side by side on
 //! [`PlcVm`] (compiled at RUN) and on [`ReferenceVm`] (the direct interpreter the VM used
 //! before, kept as the oracle), scan after scan with random inputs and scan times
 //! (including 0, jumps of days and clock wraps), and everything a scan produces is

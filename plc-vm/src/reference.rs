@@ -1,6 +1,6 @@
 //! The first PLC VM, kept as the test oracle of the compiled form (`cfg(test)` only: the
 //! image does not carry it). It interprets the stored [`Program`] lines directly, exactly
-//! as the VM did before issue 21 (the code below is that interpreter, renamed
+//! as the first VM did, before the compiled form (the code below is that interpreter, renamed
 //! `ReferenceVm`, with its timer functions below as they were); `differential.rs` runs
 //! random programs on both and compares everything a scan produces. It shares only the
 //! saturating arithmetic (`arith.rs`) and the input/output types with the VM.
@@ -423,7 +423,7 @@ fn write_q(mem: &mut Memory, out: &mut ScanOutputs, n: u8, value: i16) {
     }
 }
 
-/// The interpreter's timer and edge functions, as they were (`timer.rs` before issue 21).
+/// The interpreter's timer and edge functions, as they were (`timer.rs` before the compiled form).
 mod timer {
     use shared_protocol::units::Millis;
 

@@ -1,5 +1,5 @@
 //! `plcctl` against a fake PLC on a pty that sends absurd but well-formed data: no
-//! command may panic on what a device says (issue 31: `faults` panicked with
+//! command may panic on what a device says (`faults` panicked with
 //! `DateTime + TimeDelta overflowed` on a huge `uptime_ms`).
 
 use std::io::{Read, Write};

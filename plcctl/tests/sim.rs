@@ -694,7 +694,7 @@ fn counters_after_lift_l3_equal_the_arrivals_in_the_csv() {
 mod serve;
 
 /// README "Connect a PC": its commands one after another, each a new client of one
-/// `hil-sim run --service-pty`, none holding the pty in between (issue 31: after one
+/// `hil-sim run --service-pty`, none holding the pty in between (after one
 /// short client the run raced to its end and the second command found no device). The
 /// run's duration ends during the sequence: the linger takes the later clients.
 #[test]
@@ -744,7 +744,7 @@ fn the_readmes_commands_run_one_after_another_against_one_simulator() {
     assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
     assert!(std::fs::read_to_string(&pulled).unwrap().contains("000 "));
     // The log's wall-clock times (LOGCLR, PGMSVC of this sequence) fall within the run,
-    // never before the simulation started (issue 31: virtual time raced ahead of the
+    // never before the simulation started (virtual time raced ahead of the
     // wall clock between clients).
     let o = sim.plcctl(&["faults", "--json"]);
     let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
@@ -791,7 +791,7 @@ fn bad_numbers_are_refused_with_exit_1() {
 }
 
 /// `trend --csv keep.csv` on a port that does not open leaves `keep.csv` as it was
-/// (issue 31: it was replaced by a header line), and no temporary file.
+/// (it was replaced by a header line), and no temporary file.
 #[test]
 fn a_failed_trend_or_pull_keeps_the_users_file() {
     let dir = temp("keep");

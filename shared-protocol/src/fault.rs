@@ -4,7 +4,7 @@
 //! The code is what `FLT` reads, what the fault log stores and what the link carries (one
 //! byte, see `docs/link.md` "Fault codes on the wire").
 //!
-//! **One table.** [`fault_table!`] below is the only list of codes: it makes the enum,
+//! **One table.** `fault_table!` below is the only list of codes: it makes the enum,
 //! [`FaultCode::ALL`], [`FaultCode::COUNT`], [`FaultCode::from_code`], the names and the
 //! texts. Everything sized per code follows [`FaultCode::COUNT`]: the PLC's trip counters
 //! (`firmware_plc::storage::counters::TRIP_CODES`, its EEPROM record), the service's

@@ -4,7 +4,7 @@
 //! board only calls `defmt::warn!` when [`RateLimit::hit`] says so.
 //!
 //! Why: every defmt log takes a critical section for the whole frame (interrupts masked),
-//! so a storm of logs delays the drive's PWM interrupt (review D8, D12).
+//! so a storm of logs delays the drive's PWM interrupt.
 
 use crate::units::Micros;
 

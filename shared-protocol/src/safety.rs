@@ -256,7 +256,7 @@ impl Default for SafetySettings {
 /// The signature's CRC: CRC-16/IBM-3740 (poly 0x1021, init 0xFFFF, not reflected,
 /// xorout 0; check 0x29B1), safety.md 8. With the crate's 256-entry table (512 bytes of
 /// flash): bitwise, the 48 bytes cost ~2 300 instructions in the drive's load of a new
-/// section, a critical section against the PWM interrupt (review D13; the emulated link
+/// section, a critical section against the PWM interrupt (the emulated link
 /// section reached 9 872 instructions, over the 8 500-cycle budget).
 const SIGNATURE_CRC: crc::Crc<u16, crc::Table<1>> =
     crc::Crc::<u16, crc::Table<1>>::new(&crc::CRC_16_IBM_3740);

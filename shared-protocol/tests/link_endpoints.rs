@@ -722,7 +722,7 @@ fn a_plc_with_another_version_ends_a_running_session() {
 
 /// The drive checks a complete download in steps, one per `poll_transmit` (CRC, decode,
 /// verifier, then the result), never inside `receive`: on the board each call is one
-/// critical section against the PWM interrupt (review D13). Raw PLC frames, so that the
+/// critical section against the PWM interrupt. Raw PLC frames, so that the
 /// calls can be counted.
 #[test]
 fn the_drive_checks_a_download_one_step_per_transmit_call() {

@@ -12,7 +12,7 @@
 //! program (lines 000-025); 7 = 1000 x `PeriodAction::from_command` of a running period
 //! (the compare clamp and the blanking window's CCR5). A mark 0x10 after section 1 confirms
 //! the outputs were on.
-//! The end of a download, part by part (review D13; `docs/critical-sections.md`): 20 = the
+//! The end of a download, part by part (`docs/critical-sections.md`): 20 = the
 //! section CRC, 21 = decoding 150 slots, 22 = `verify_drive`, 23 = `DriveCore::load_program`
 //! (verifies again; the link path uses `load_verified`).
 //! 30 = 1000 x `safety::Monitor::tick` with every function but STO requested (mask 0x0FFE,
@@ -143,7 +143,7 @@ mod target {
         }
         bench_mark(8);
         black_box(blank);
-        // The end of a download (review D13), part by part: the section CRC, the slot
+        // The end of a download, part by part: the section CRC, the slot
         // decoding, the verifier, the core's load (which verifies again).
         let section = program.drive_section();
         let mut bytes = [0u8; DRIVE_LINES * LINE_BYTES];
@@ -164,7 +164,7 @@ mod target {
         let _ = core.command(DriveCommand::Stop);
         black_box(core.load_program(black_box(&section)).is_ok());
         bench_mark(24);
-        // The safety monitor (issue 16): every function requested but STO.
+        // The safety monitor: every function requested but STO.
         let mut settings = SafetySettings::default();
         for (k, v) in [
             (S::Fss, 40u16),

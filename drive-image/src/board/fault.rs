@@ -1,28 +1,28 @@
 //! Panics, fatal errors and HardFault: the power stage goes off before anything else,
-//! before any logging (review D7).
+//! before any logging.
 //!
 //! * `core::panic!` (an `expect`, an embassy/PAC assertion, an index out of range) reaches
 //!   [`panic`], this image's own `#[panic_handler]`: outputs off, then `panic` over defmt
 //!   (no message or location: probe-rs's backtrace at the breakpoint has them), then [`halt`].
 //! * The board's own fatal checks call [`fatal`]: the same order.
 //! * `defmt::panic!`/`unwrap!` inside embassy log their message first and then reach
-//!   [`defmt_panic`]; with RTT in non-blocking mode (`disable-blocking-mode`, review D8)
+//!   [`defmt_panic`]; with RTT in non-blocking mode (`disable-blocking-mode`)
 //!   that log costs a few microseconds, never a wait for the probe.
 //! * A HardFault turns the outputs off in [`HardFault`]; the NMI in [`NonMaskableInt`] and every
-//!   exception without a handler of its own in [`DefaultHandler`], before anything else
-//!   (review N10). A flash double-ECC error or an SRAM parity error (the NMI's sources on
+//!   exception without a handler of its own in [`DefaultHandler`], before anything else.
+//!   A flash double-ECC error or an SRAM parity error (the NMI's sources on
 //!   this image) also reach TIM1's system break (`power_stage::route_system_faults_to_break`):
 //!   the NMI clears its flag and returns, and the break interrupt has the core latch
-//!   `BOOT` and report it (review N4); any other NMI halts.
+//!   `BOOT` and report it; any other NMI halts.
 //! * Only the first fault path logs (`board_common::debug::first_fault`): a fault inside a
 //!   defmt frame makes the log panic ("logger taken reentrantly"), and that nested panic
-//!   goes straight to [`halt`] (review N11).
+//!   goes straight to [`halt`].
 //! * A lockup (a fault while the
 //!   HardFault handler cannot run, e.g. a stack overflow) never reaches software: SYSCFG
 //!   routes it to TIM1's break in hardware (`power_stage::route_system_faults_to_break`).
 //!
-//! [`halt`] then stops for a debugger (`bkpt`; TIM1 is frozen with its outputs disabled,
-//! review D1) or, without one, resets the MCU at once: the reset cause reads as a software
+//! [`halt`] then stops for a debugger (`bkpt`; TIM1 is frozen with its outputs disabled)
+//! or, without one, resets the MCU at once: the reset cause reads as a software
 //! reset and the core reports it. It does not wait for the watchdog, which may not have
 //! been started yet (a panic during start-up).
 
@@ -96,7 +96,7 @@ unsafe fn NonMaskableInt() {
     }
 }
 
-/// Every exception and interrupt without a handler of its own (review N10).
+/// Every exception and interrupt without a handler of its own.
 #[exception]
 unsafe fn DefaultHandler(_irqn: i16) -> ! {
     unknown_exception("unexpected exception")

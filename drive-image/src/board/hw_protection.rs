@@ -9,7 +9,7 @@
 //! few tens of nanoseconds without software; automatic output enable is off, so the break
 //! latches until the core acknowledges the fault and a new RUN sets MOE again.
 //!
-//! COMP1/2/4 are blanked by TIM1's OC5 around the switching edges (review D10,
+//! COMP1/2/4 are blanked by TIM1's OC5 around the switching edges (
 //! `firmware_drive::blanking`; the window is the core's, per period), COMP3 is not.
 //!
 //! The thresholds are the core's decision (`DriveCore::comparator_dacs`: the program's
@@ -197,7 +197,7 @@ const COMPS: [(pac::comp::Comp, u8); 4] = [
     (pac::COMP4, 4),
 ];
 
-/// TIM1 break-input comparator indices (AF2.BK2CMPxE since issue 29: break 2; 0-based) of the profile.
+/// TIM1 break-input comparator indices (AF2.BK2CMPxE break 2; 0-based) of the profile.
 pub fn break_comparators(board: &BoardProfile) -> heapless::Vec<usize, 7> {
     board
         .comparators

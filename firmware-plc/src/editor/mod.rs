@@ -306,7 +306,7 @@ impl Editor {
     /// before each key): while a save reads it or a load rewrites it, edits, NEW, save and
     /// load are refused ("EEPROM BUSY"); RUN is refused only while a load rewrites it.
     /// A save may start, and run, in RUN: it is done a page per pass and never
-    /// starves the link (review D5).
+    /// starves the link.
     pub fn set_program_use(&mut self, u: Option<ProgramUse>) {
         self.program_use = u;
     }
@@ -660,7 +660,7 @@ impl Editor {
         };
         match p {
             Prefix::Save if (1..=SLOTS).contains(&d) => {
-                // Allowed in RUN: the save runs a page per pass (review D5).
+                // Allowed in RUN: the save runs a page per pass.
                 if self.refuse_while_storage_busy() {
                     return None;
                 }

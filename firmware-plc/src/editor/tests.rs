@@ -296,7 +296,7 @@ fn run_page_shows_fields_state_and_faults_without_lcd_instructions() {
         rows,
         ["F2 overcurrent (HW)", "W:DIV0 @ 163", "*9=ACK FAULT A=RUN"]
     );
-    // The drive's warning (item 5 of issue 15: a clamped PWF) takes its turn too.
+    // The drive's warning (a clamped PWF) takes its turn too.
     let both = RunView {
         drive_warning: Some(Warning {
             text: "PWF 488Hz @ 000",
@@ -511,7 +511,7 @@ fn load_and_new_are_refused_while_running_save_is_not() {
         assert_eq!(ed.message(), Some("STOP FIRST (A)"), "{keys}");
     }
     assert_eq!(p, before);
-    // A save runs a page per pass (review D5): allowed in RUN.
+    // A save runs a page per pass: allowed in RUN.
     assert_eq!(press(&mut ed, &mut p, true, "C1"), vec![Request::Save(1)]);
     // Stopped, the same keys work.
     assert_eq!(press(&mut ed, &mut p, false, "D2"), vec![Request::Load(2)]);
@@ -596,7 +596,7 @@ fn star_7_toggles_remote_service_on_every_page_and_the_run_page_marks_it() {
     assert_eq!(draw(&narrow, &p, run, &[], 0).row(0), "RUN RUN   42.3*F");
 }
 
-/// Issue 20 item 3: with a fault standing, `*` `9` is offered in the `*` prompt (listing
+/// With a fault standing, `*` `9` is offered in the `*` prompt (listing
 /// and fault log) and in the hint that takes turns with the fault.
 #[test]
 fn acknowledging_is_offered_wherever_a_fault_is_shown() {

@@ -388,11 +388,11 @@ fn memory_footprint() {
         eprintln!("{name}: {bytes} bytes");
     }
     // The drive's static RAM budget is 16 KiB, the PLC's 24 KiB (CI checks the images).
-    // The PLC application holds the PLC section compiled at RUN (issue 21: 6.8 KiB for
+    // The PLC application holds the PLC section compiled at RUN (6.8 KiB for
     // 850 lines with their timer start times, 3 KiB more than the interpreter's state;
     // plc-vm/docs/vm.md, "RAM").
     assert!(size_of::<DriveApp>() < 8 * 1024);
-    // 17.5 KiB since the safety functions (issue 16: the status's safety fields, the
+    // 17.5 KiB since the safety functions (the status's safety fields, the
     // `S:` items' request times); the image's static RAM is what CI budgets.
     assert!(size_of::<PlcApp<MemEeprom>>() - size_of::<MemEeprom>() < 17 * 1024 + 512);
 }

@@ -32,7 +32,7 @@
 //!   0x40, 0x14, 0x54 and writing past 0x13 continues on the third row (0x14), not the
 //!   second. Display shift moves the 40-character window of both lines.
 //!
-//! # Timing checks (board review D14)
+//! # Timing checks
 //! * [`setup_violations`]: a PCF8574 write that raises E and, in the same write, changes RS,
 //!   R/W or D4..D7 (tAS, the set-up before E rises, cannot be met: the pins change together).
 //!   The fixed driver's `[b, b | E, b]` per nibble makes none.

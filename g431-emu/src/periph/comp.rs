@@ -7,7 +7,7 @@
 //! each CSR once with INPSEL = 0 (COMP1 PA1, COMP2 PA7, COMP3 PA0), INMSEL = DAC (100 for
 //! COMP1/2 = DAC3 CH1/CH2, 101 for COMP3 = DAC1 CH1), HYST = 20 mV, the polarity of its board
 //! profile (inverted on the bare ESC1), BLANKSEL = 0 and EN, then sets EN again; the board then
-//! writes BLANKSEL = TIM1_OC5 on COMP1/2/4 (review D10) with a read-modify-write; it reads
+//! writes BLANKSEL = TIM1_OC5 on COMP1/2/4 with a read-modify-write; it reads
 //! VALUE in the break interrupt. The comparators' outputs
 //! are ORed into TIM1's break input (AF1.BKCMPxE).
 //!
@@ -580,7 +580,7 @@ mod tests {
         );
     }
 
-    /// Board review D10: TIM1 OC5 as the blanking window of COMP1 (BLANKSEL = 001), COMP1 into
+    /// TIM1 OC5 as the blanking window of COMP1 (BLANKSEL = 001), COMP1 into
     /// TIM1's break; a spike inside the window does not trip, one outside does.
     #[test]
     fn tim1_oc5_blanks_the_comparator_break() {

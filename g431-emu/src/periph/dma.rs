@@ -34,7 +34,7 @@
 //! is "not supported by the DMA hardware" (RM0440 "Channel state and disabling a channel"):
 //! what the silicon then does is undefined, so the model reports it and **stops the
 //! channel**: EN reads 1 but no request is served until the channel is disabled and CNDTR,
-//! CPAR or CMAR is written again (review E9, N13). embassy's `RingBufferedUartRx` does
+//! CPAR or CMAR is written again. embassy's `RingBufferedUartRx` does
 //! exactly this after every RX error (`dma_bdma.rs` `request_pause` + `start`, which only
 //! sets EN).
 //!

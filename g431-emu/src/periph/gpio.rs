@@ -13,7 +13,7 @@
 //! A floating input reads 0 here and is reported once by the SoC: real silicon reads noise.
 //! A pin in alternate-function mode is not reported: the software reads it through its
 //! peripheral, and an IDR read of the port only samples it along with the pins it wants
-//! (review E12: the PLC's USART TX pins were reported as floating inputs).
+//! (the PLC's USART TX pins were reported as floating inputs).
 //! The board's side is asked through [`PinReader`] when IDR is read, so that a keypad matrix
 //! (columns that follow the rows the same MCU drives) is evaluated at the instant of the read.
 

@@ -38,7 +38,7 @@
 //!   ADDR, NACKF, TCR, TC, STOPF, BERR, ARLO, OVR, PECERR, TIMEOUT, ALERT) back to reset, the
 //!   lines released; the other registers keep their values.
 //!
-//! # The bus and stuck SDA (board review D6)
+//! # The bus and stuck SDA
 //! [`I2cBus`] holds the attached devices ([`I2cDevice`], shared as [`SharedDevice`] so the
 //! host keeps its own handle). While every device is in step with the master, transfers are
 //! byte-level (fast). When the master goes away in the middle of a byte (MCU reset, PE=0),
@@ -51,7 +51,7 @@
 //! the devices and make START/STOP conditions, so a 9-pulse + STOP recovery works as on the
 //! board.
 //!
-//! # Injected faults (review E10)
+//! # Injected faults
 //! [`I2c::inject_fault`] arms a NACK, a clock stretch by the device, an arbitration loss or
 //! a bus error (misplaced STOP) for one device address; it hits the last byte of the next
 //! write chunk without RELOAD to that device, where embassy's blocking master waits for TC

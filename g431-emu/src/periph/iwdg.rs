@@ -4,7 +4,7 @@
 //! performs it and RCC_CSR shows IWDGRSTF. It can be frozen while the core is halted by a
 //! debugger (DBGMCU_APB1FZR1.DBG_IWDG_STOP, the SoC calls [`Iwdg::set_frozen`]).
 //!
-//! Review E8, as RM0440 §42.3 describes it:
+//! As RM0440 §42.3 describes it:
 //! * the LSI frequency is a setting ([`Iwdg::set_lsi_hz`], 32 kHz typical; the datasheet
 //!   DS12589 gives 29.5 to 34 kHz over the operating conditions, so embassy's 100 ms
 //!   (PR = 0, RLR = 799) lasts 94.1 to 108.5 ms);

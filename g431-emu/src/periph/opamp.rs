@@ -3,8 +3,8 @@
 //! One [`OpampBank`] covers OPAMP1-3_CSR (offsets 0x00, 0x04, 0x08 from 0x4001_0300) and
 //! OPAMP1-3_TCMR (0x18, 0x1C, 0x20); OPAMP4-6 do not exist on the G431.
 //!
-//! The drive image puts OPAMP1-3 in PGA mode on the B-G431B-ESC1's shunt amplifiers (board
-//! review D4): its `board/analog.rs` takes the ADC channel tokens from embassy's driver, then
+//! The drive image puts OPAMP1-3 in PGA mode on the B-G431B-ESC1's shunt
+//! amplifiers: its `board/analog.rs` takes the ADC channel tokens from embassy's driver, then
 //! `board/opamps.rs` writes each CSR (VP_SEL 00, VM_SEL PGA, PGA_GAIN x16, OPAHSM, OPAINTOEN,
 //! OPAEN) with one read-modify-write. embassy-stm32 0.6 `opamp.rs` writes one
 //! CSR modify per configuration (VP_SEL, VM_SEL = PGA, PGA_GAIN, OPAINTOEN, OPAEN) and

@@ -6,7 +6,7 @@
 //! `crate::time`), but the RCC knows the frequencies the configuration gives
 //! ([`Rcc::sysclk_hz`], [`Rcc::hclk_hz`], [`Rcc::adc12_kernel_hz`]) and records each change
 //! of HCLK ([`Rcc::take_clock_changes`]) for the SoC to check against the flash latency and
-//! the voltage range (review E7). [`Rcc::sysclk_is_pll`] lets the SoC report an image that
+//! the voltage range. [`Rcc::sysclk_is_pll`] lets the SoC report an image that
 //! runs the PLL-dependent peripherals without switching to the PLL.
 //!
 //! A system-clock switch completes only once its source is ready (RM0440 §7.4.3 RCC_CFGR.SW:

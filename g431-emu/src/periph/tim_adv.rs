@@ -461,7 +461,7 @@ pub struct TimAdv {
     ccer_pre: u32,
     ccer: u32,
     bdtr: u32,
-    /// Reads of BDTR by the bus since reset (review D9: a read-modify-write of BDTR can
+    /// Reads of BDTR by the bus since reset (a read-modify-write of BDTR can
     /// write a MOE back that a break cleared in between; the drive writes it whole).
     bdtr_reads: u64,
     dtr2: u32,
@@ -645,7 +645,7 @@ impl TimAdv {
         self.bdtr
     }
 
-    /// How often the bus read BDTR since reset (review D9).
+    /// How often the bus read BDTR since reset.
     pub fn bdtr_reads(&self) -> u64 {
         self.bdtr_reads
     }
@@ -781,7 +781,7 @@ impl TimAdv {
             // hardware as soon as the break input goes active", SBIF "as soon as the system
             // break input goes active"; "the break status flag (SBIF, BIF and B2IF bits in
             // the TIMx_SR register) is set", §29.3.18). A system break alone leaves BIF at 0:
-            // the reading that does not hide an interrupt handler blind to SBIF (review N4,
+            // the reading that does not hide an interrupt handler blind to SBIF (
             // E3), see docs/models.md "TIM1/TIM8".
             if self.brk.out {
                 if self.sr & sr::BIF == 0 {
@@ -2193,7 +2193,7 @@ mod tests {
         }
     }
 
-    /// Board review D9: `apply_timing`'s `bdtr().modify(..)` reads MOE = 1, a break pulse
+    /// `apply_timing`'s `bdtr().modify(..)` reads MOE = 1, a break pulse
     /// clears MOE and ends, the write-back sets MOE again (accepted: the break is over) while
     /// BIF stays set for the break interrupt.
     #[test]

@@ -1,4 +1,4 @@
-//! The clock tree as the other models see it (review E7, N9):
+//! The clock tree as the other models see it:
 //! * the LSI (its frequency, a setting of the part, and whether it runs) forwarded to the
 //!   IWDG;
 //! * every change of HCLK (RCC) and every write to FLASH_ACR or PWR checked against the
@@ -11,7 +11,7 @@
 //!   1 µs; RM0440 §7.2.7 "System clock (SYSCLK) selection" gives the same transition for a
 //!   switch to a clock above 80 MHz (ST's HAL `HAL_RCC_ClockConfig`: "target frequency
 //!   above 80MHz"; the L5's RM0438 §9.3.9 words it the same): a switch of SYSCLK from at most
-//!   80 MHz to above 80 MHz with HPRE = /1 in boost mode is reported (review N9).
+//!   80 MHz to above 80 MHz with HPRE = /1 in boost mode is reported.
 //!
 //! Findings are model diagnostics (`Diagnostic::Model`), one per distinct message.
 
@@ -159,7 +159,7 @@ mod tests {
             .collect()
     }
 
-    /// embassy's sequence on the G4 as review N9 describes it: boost, 4 wait states, PLL,
+    /// embassy's sequence on the G4 as `vendor/README.md` describes it: boost, 4 wait states, PLL,
     /// switch with HPRE = /1. Latency and range are right; the missing /2 step is reported.
     #[test]
     fn embassy_like_switch_to_170_mhz_reports_only_the_missing_hpre_step() {

@@ -7,7 +7,7 @@ use super::{Soc, FLASH_BASE, RAM_BASE, RAM_BYTES};
 use crate::names;
 
 /// Registers of the RCC and PWR models that are plain storage: their value changes nothing
-/// in the emulator, so the first change of each is reported (review E5: they were
+/// in the emulator, so the first change of each is reported (they were
 /// accepted silently). (block, offset, what the silicon would do with it.)
 pub const STORED_ONLY: &[(&str, u32, &str)] = &[
     (

@@ -311,7 +311,7 @@ mod tests {
                 );
             }
         }
-        // Review E13: the TIM4 the debug freeze acts on is the one the bus reaches.
+        // The TIM4 the debug freeze acts on is the one the bus reaches.
         let tim4 = s.slot_of("TIM4").expect("TIM4");
         assert_eq!(s.wired.tim_gp[2], tim4);
         assert_eq!(s.find(0x4000_0800), Some(tim4));

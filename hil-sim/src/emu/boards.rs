@@ -59,10 +59,10 @@ pub enum Esc1Sense {
     /// pins of each leg at the network's bias.
     #[default]
     Documented,
-    /// The voltages the drive image before issue 29 assumed (0.103 V at 0 A on VINP,
+    /// The voltages the drive image once assumed (0.103 V at 0 A on VINP,
     /// -1.714 mV/A, VINM0 pins at 0 V): **not the board**. A what-if only: the emulator
     /// tests ran on it while the image's amplifier mode was wrong for the documented board
-    /// (board review N5); since the fix they run on the documented network.
+    ///; since the fix they run on the documented network.
     AsImageAssumes,
 }
 
@@ -185,7 +185,7 @@ impl Rig {
     /// The level of the net the STO wire is brought to.
     pub fn sto_net(&self) -> NetLevel {
         if drive_pins::STO_IN == esc1::CAN_RX {
-            // Both drive boards keep the ESC1's CAN transceiver on PA11 (review N1: where
+            // Both drive boards keep the ESC1's CAN transceiver on PA11 (where
             // STO_IN was).
             esc1::can_rx_net(self.can_shdn, Some(self.sto_wire))
         } else {
@@ -286,7 +286,7 @@ pub struct DriveBoard {
 pub mod drive_pins {
     /// The rig's STO wire (safety.md 6): brought to PA15 (`STO_IN` in the README's pin
     /// map), TIM1_BKIN and, on the ESC1, the `PWM` command pad
-    /// (`g431_emu::boards::b_g431b_esc1::PWM_INPUT`; review N1: no longer PA11, the CAN
+    /// (`g431_emu::boards::b_g431b_esc1::PWM_INPUT`; no longer PA11, the CAN
     /// transceiver's RX net).
     pub const STO_IN: (u8, u8) = (0, 15);
     /// The link's wires: TX and RX of the drive.
@@ -558,7 +558,7 @@ mod tests {
         assert_eq!(pin_id("PC13"), Some((2, 13)));
     }
 
-    /// Review N1: the STO wire is on PA15, the ESC1's `PWM` pad, with nothing of the board
+    /// The STO wire is on PA15, the ESC1's `PWM` pad, with nothing of the board
     /// on its net: an open wire floats (the image's pull-down then reads STO requested),
     /// and the CAN transceiver (PA11) no longer meets it.
     #[test]

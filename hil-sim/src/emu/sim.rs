@@ -303,7 +303,7 @@ impl EmuSim {
 
     /// The rig's STO wire: the level its net settles to (with the board's own driver on
     /// it, `Rig::sto_net`, and the image's pull on the pin) reaches the plant and TIM1's
-    /// BKIN (PA15, review N1).
+    /// BKIN (PA15).
     pub fn set_sto_wire(&mut self, wire: ExternalWire) {
         let shdn = {
             let (p, n) = g431_emu::boards::b_g431b_esc1::CAN_SHDN;

@@ -1,11 +1,11 @@
 //! The second board review's findings N1, N2, N5 and N7 (`shared/notes/board-review-2.md`)
 //! on the real drive image, on the boards as documented (`g431_emu::boards`). Each test
 //! states what the documented board requires; those that today's image fails wait for
-//! issue 29 ("The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage,
+//! ("The drive safe at first power-up on a bare B-G431B-ESC1: STO, overvoltage,
 //! current sensing") and are ignored until then (run them with `--ignored`); N1 and N2 are
 //! fixed (STO_IN on PA15, the STO break latched by the core).
 //!
-//! All run on the documented boards (`common::emu`, since issue 29 put the ESC1's
+//! All run on the documented boards (`common::emu` put the ESC1's
 //! amplifiers in the mode the board is wired for: N5).
 
 use g431_emu::boards::b_g431b_esc1::DC_LINK_MAX_VOLTS;
@@ -58,7 +58,7 @@ fn sto_pulse_latches(width_ns: u64) -> Result<(), String> {
     }
 }
 
-/// Review E4, on the documented board glue: the plant's break latch follows the image's
+/// On the documented board glue: the plant's break latch follows the image's
 /// MOE, so the record shows the gates as they are. A short STO pulse sets the latch; were
 /// the image to set MOE again (it did before N2's fix) the plant would switch again, and
 /// while the image keeps MOE off the plant stays open.
@@ -166,7 +166,7 @@ fn n5_the_image_measures_current_on_the_documented_amplifier_network() {
 /// N7: stopping from 50 Hz on a supply that cannot absorb energy (the rig's rectified
 /// supply; the ESC1 has no brake chopper, PB5 enables its BEMF dividers) must not pump
 /// the DC link above the board's rating: the drive stops at 0 Hz with the DC link at
-/// most [`DC_LINK_MAX_VOLTS`], without a trip (issue 29: an overvoltage controller).
+/// most [`DC_LINK_MAX_VOLTS`], without a trip (an overvoltage controller).
 /// Without a chopper only the motor's losses take the energy: the stop lengthens from
 /// the program's 5.4 s to about 19 s (hil-sim's host test of the same stop), so the run
 /// lasts 30 s.

@@ -90,7 +90,7 @@ fn both_images_boot_to_idle_and_stop() {
             .collect::<Vec<_>>(),
         sim.plc().diagnostics()
     );
-    // Review D14: the LCD driver meets the HD44780's timing (RS and data stable before E
+    // The LCD driver meets the HD44780's timing (RS and data stable before E
     // rises, held while it falls, nothing sent while the controller is busy).
     let lcd = sim.lcd_device();
     assert_eq!(
@@ -104,7 +104,7 @@ fn both_images_boot_to_idle_and_stop() {
     );
 }
 
-/// Review D4/N5: the image users flash is for the bare B-G431B-ESC1. It puts OPAMP1-3 in
+/// The image users flash is for the bare B-G431B-ESC1. It puts OPAMP1-3 in
 /// the VINM0-biased PGA mode (gain 16, VINP0 = PA1, PA7, PB0, VINM0 = PA3, PA5, PB2,
 /// output to the ADC internally), the ADCs read the amplifier outputs (ADC1 IN13, ADC2
 /// IN16), and with the plant at 0 A on the documented network the boot zero calibration
@@ -140,7 +140,7 @@ fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current()
     );
     let amps = sim.drive().soc().opamps().expect("OPAMP model");
     // UM2516 / the public ESC1 ports: each shunt's network on VINP (PA1, PA7, PB0) and its
-    // foot on VINM0 (PA3, PA5, PB2), the PGA in the VINM0-biased mode (review N5).
+    // foot on VINM0 (PA3, PA5, PB2), the PGA in the VINM0-biased mode.
     for (n, pin, foot) in [(1, "PA1", "PA3"), (2, "PA7", "PA5"), (3, "PB0", "PB2")] {
         let c = amps.config(n).expect("OPAMPn");
         assert!(c.enabled && c.internal_only && !c.calibrating, "{c:?}");
@@ -156,7 +156,7 @@ fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current()
     }
     // At 0 A both ends of the network sit at its bias (3/7 of 3.3 V, 1.414 V): the PGA
     // output is the bias, about 1755 counts on both current channels (in the grounded
-    // mode it rails at 4095, review N5).
+    // mode it rails at 4095).
     let adc = sim.drive().soc().adc12().expect("ADC model");
     for (id, what) in [(AdcId::Adc1, "i_a"), (AdcId::Adc2, "i_b")] {
         let c = adc.jdr(id, 1);
@@ -166,7 +166,7 @@ fn the_esc1_image_reads_its_shunt_amplifiers_and_boots_to_idle_at_zero_current()
     assert!(sim.faults().is_empty(), "{:?}", sim.faults());
 }
 
-/// Review D15: with a probe attached from power-up (DHCSR.C_DEBUGEN), a breakpoint that
+/// With a probe attached from power-up (DHCSR.C_DEBUGEN), a breakpoint that
 /// holds both release images halted for 300 ms, three times the IWDG's 100 ms timeout,
 /// resets neither: the image froze its IWDG for the halt (DBGMCU_APB1FZR1.DBG_IWDG_STOP).
 /// Without a probe the core cannot halt, and the watchdog runs as before (every other

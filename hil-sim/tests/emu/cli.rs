@@ -56,7 +56,7 @@ fn emu(drive: &Path, name: &str, scenario: &str) -> Output {
         .expect("hil-sim runs")
 }
 
-/// Issue 36: `emu` exits with status 2 when an image locks up (or takes a HardFault, or is
+/// `emu` exits with status 2 when an image locks up (or takes a HardFault, or is
 /// reset by its watchdog or by itself) unless the scenario expects it; the summary is
 /// printed either way.
 #[test]

@@ -121,7 +121,7 @@ impl Drop for Checked {
 }
 
 /// The emulated pair on the boards as documented ([`emu_on_documented_boards`]). Until
-/// issue 29 fixed the ESC1's amplifier mode (review N5) this put on the amplifier pins
+/// the ESC1's amplifier mode was fixed, this put on the amplifier pins
 /// what the image assumed (`Esc1Sense::AsImageAssumes`), because on the documented network
 /// the image stopped at boot; no test needs that any more.
 pub fn emu(program: &str, scenario: &str) -> Checked {
@@ -134,7 +134,7 @@ pub fn ns(s: f64) -> u64 {
 }
 
 /// RAM bytes each image must never have used, of its 32 KiB: static RAM plus the deepest
-/// stack at most 28 KiB (issue 28; flip-link puts the stack below the statics, so what
+/// stack at most 28 KiB (flip-link puts the stack below the statics, so what
 /// the stack never reached is the RAM never used). An overflow is a HardFault at once;
 /// this catches a run that came close, before a new frame or a bigger static makes it a
 /// boot loop. Every emulator test checks it at its end ([`Emu`]).

@@ -1,4 +1,4 @@
-//! Exceptions without a job on the real images (review N10, N11): the NMI and every
+//! Exceptions without a job on the real images: the NMI and every
 //! exception without a handler of its own turn the outputs off before anything else, on
 //! both images, and then reset (no spinning in cortex-m-rt's default `loop {}` until the
 //! watchdog); a fault while the defmt logger is taken still reaches the reset.

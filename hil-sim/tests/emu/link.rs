@@ -40,7 +40,7 @@ fn the_download_completes_and_the_drive_runs() {
     assert!(gap_ms < 50, "PLC watchdog feed gap {gap_ms} ms");
 }
 
-/// Review D12/N13: a line error (here a framing error: a stop bit read low) is counted and
+/// A line error (here a framing error: a stop bit read low) is counted and
 /// logged by both link tasks, reception goes on with the next character (the link's own
 /// DMA ring never stops: `board_common::link_rx`; embassy's stopped and re-enabled its
 /// channel by EN only, which the emulator rejects as RM0440 does), and the link stays up:

@@ -1,4 +1,4 @@
-//! The drive's power stage under the real image (review D1, D7, D9, D17): what TIM1's
+//! The drive's power stage under the real image: what TIM1's
 //! outputs do when the core halts, locks up or faults, and when the switching frequency
 //! changes in RUN.
 
@@ -213,7 +213,7 @@ fn a_switching_frequency_change_in_run_pauses_the_outputs_for_one_period() {
     assert!(sim.faults().is_empty(), "{:?}", sim.faults());
 }
 
-/// Review D9 on the real image: once the drive runs, TIM1_BDTR is never read, so never
+/// The real image: once the drive runs, TIM1_BDTR is never read, so never
 /// read-modify-written. A read-modify-write that straddles a break pulse writes back the
 /// MOE = 1 it read after the break cleared it (the g431-emu TIM1 test
 /// `bdtr_read_modify_write_across_a_break_pulse_re_sets_moe`); the image writes the

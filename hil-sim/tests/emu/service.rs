@@ -1,4 +1,4 @@
-//! The service port of the real PLC image (service.md 1, issue 18): `plcctl status`, the
+//! The service port of the real PLC image (service.md 1): `plcctl status`, the
 //! host tool's binary, through a real pty whose other end is the emulated LPUART1 (PA2/PA3)
 //! of the exact release PLC image, with the drive image on the link.
 //!
@@ -48,12 +48,12 @@ fn plcctl_on_the_image(sim: &mut EmuSim, args: &[&str]) -> (ExitStatus, String, 
         )
         // The image in the emulator answers later in wall-clock time than plcctl's 300 ms
         // retry since virtual time counts modelled cycles (g431-emu docs/emulator.md);
-        // plcctl's retries are wall-clock times (issue 32). The longest wait is push's
+        // plcctl's retries are wall-clock times. The longest wait is push's
         // read-back: its first ReadProgram checks both copies of the slot, one 64-byte
         // read (6.6 ms on the bus) per pass, about 0.7 s of virtual time for lift.plc. On
         // a loaded 2-core machine the emulator ran at 0.08x real time, and 3 x 3 s (scale
         // 10) left about 0.75 s: `push` failed now and then with "no valid answer to
-        // ReadProgram after 3 attempts" (review N12's first fix was taken out for it; it
+        // ReadProgram after 3 attempts" (an earlier I2C fix was taken out for it; it
         // never ran in this test). Scale 40 allows 36 s; a test that passes waits for no
         // retry, so it costs nothing.
         .env("PLCCTL_TIMEOUT_SCALE", "40")
@@ -122,7 +122,7 @@ fn plcctl_status_answers_through_the_emulated_lpuart1() {
     assert_stack_headroom(&sim);
 }
 
-/// Review N13 on the service port: a framing error on LPUART1 (the PC's line: a cable
+/// The service port: a framing error on LPUART1 (the PC's line: a cable
 /// plugged in mid-character) is counted and logged, and reception goes on with the next
 /// character: `plcctl status` afterwards still gets its answer. embassy's ring receiver
 /// restarted its channel by EN only after the error, which RM0440 does not support (the

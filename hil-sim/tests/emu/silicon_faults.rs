@@ -1,4 +1,4 @@
-//! Faults of the silicon on the real images (issue 36 deliverable 3 and 7, review N4, N12):
+//! Faults of the silicon on the real images:
 //! the scenario's silicon keys (`vdd_v`, `flash_ecc_error`, `sram_parity_error`,
 //! `i2c_fault`) drive g431-emu's models of the system break sources, the NMI and the I2C
 //! bus.
@@ -211,7 +211,7 @@ fn an_i2c_timeout_in_a_save_leaves_the_bus_usable_for_the_next_save_and_the_lcd(
     );
 }
 
-/// Review E7 on both images: at 170 MHz RM0440 requires range 1 boost mode (PWR_CR5.R1MODE
+/// Both images: at 170 MHz RM0440 requires range 1 boost mode (PWR_CR5.R1MODE
 /// = 0; range 1 normal mode allows 150 MHz at most, §6.1.5) and 4 flash wait states
 /// (§3.3.3). `board-common/src/clocks.rs` asks embassy for boost, and embassy-stm32 0.6's
 /// `rcc/g4.rs` writes `PWR.cr5().modify(|w| w.set_r1mode(false))`; but stm32-metapac 21
@@ -220,7 +220,7 @@ fn an_i2c_timeout_in_a_save_leaves_the_bus_usable_for_the_next_save_and_the_lcd(
 /// 0x0000_0100) put it at bit 8. The write clears a reserved bit and leaves R1MODE at 1:
 /// both images ran 170 MHz in range 1 normal mode, out of specification. The images now
 /// use a vendored embassy-stm32 whose G4 set-up writes PWR_CR5 whole (and keeps the AHB /2
-/// step across the switch, review N9: `vendor/README.md`). The model follows RM0440
+/// step across the switch, `vendor/README.md`). The model follows RM0440
 /// (bit 8) and reports a switch above 150 MHz in normal mode.
 #[test]
 fn both_images_run_170_mhz_in_boost_mode_with_4_wait_states_and_the_prefetch() {
@@ -248,7 +248,7 @@ fn both_images_run_170_mhz_in_boost_mode_with_4_wait_states_and_the_prefetch() {
             Some(4),
             "{name}: wait states"
         );
-        // Review N8: the prefetch on (FLASH_ACR.PRFTEN, bit 8; embassy never sets it).
+        // The prefetch on (FLASH_ACR.PRFTEN, bit 8; embassy never sets it).
         let acr = m.soc().flash_acr();
         assert!(
             acr & (1 << 8) != 0,

@@ -1,4 +1,4 @@
-//! The drive's time budget in cycles (review D13/N8): no critical section and no PWM
+//! The drive's time budget in cycles: no critical section and no PWM
 //! interrupt may take longer than one PWM period at the highest switching frequency, or a
 //! period is skipped. Measured by the emulator's cycle model (`g431-emu/src/cycles.rs`) on
 //! the real image, through the motor example's download, start and run.
@@ -70,10 +70,10 @@ fn no_critical_section_or_pwm_interrupt_is_longer_than_a_pwm_period() {
 }
 
 /// The same image with FLASH_ACR.PRFTEN cleared, as embassy leaves it (a what-if of the
-/// cycle model: the image before issue 29 set the prefetch, review N8): the PWM interrupt
+/// cycle model: an earlier image set the prefetch): the PWM interrupt
 /// and the sections are longer.
 #[test]
-#[ignore = "Emulated boards built from the boards' documents, not from the firmware's assumptions: a what-if figure for review N8 (the image with PRFTEN cleared), not the image's behaviour"]
+#[ignore = "Emulated boards built from the boards' documents, not from the firmware's assumptions: a what-if figure (the image with PRFTEN cleared), not the image's behaviour"]
 fn without_the_prefetch_the_sections_would_be_longer() {
     let (pwm_on, section_on, _) = measure(None);
     let (pwm_off, section_off, report) = measure(Some(ACR_4WS_CACHES));

@@ -109,7 +109,7 @@ fn a_link_cut_trips_link_within_50_ms() {
     );
     let g = sim.drive().soc().tim1().expect("TIM1").gate();
     assert!(!g.outputs_enabled);
-    // Issue 36: the record observes the drive image itself, not the PLC's view of it
+    // The record observes the drive image itself, not the PLC's view of it
     // (which the cut froze): the LINK trip is in the faults and the `fault` column from
     // the moment the image latched it, as in `hil-sim run`.
     let codes: Vec<(u64, u8)> = sim.faults().iter().map(|f| (f.t_ns, f.code)).collect();
@@ -178,7 +178,7 @@ fn a_late_watchdog_feed_resets_the_drive_and_the_plc_shows_wdg() {
     );
 }
 
-/// Review D10 on the real image: TIM1's OC5 (CCR5 from the core every period) blanks
+/// The real image: TIM1's OC5 (CCR5 from the core every period) blanks
 /// COMP1/2/4 in a window around the counter's valley that holds every switching edge. A
 /// 0.8 us, +3 A spike on phase a's sense signal centred on the valley, in 20 periods,
 /// trips nothing; the same spike centred on the peak, where the comparators stay live,
@@ -242,7 +242,7 @@ fn a_spike_inside_the_blanking_window_does_not_trip_outside_it_trips_oc_hw() {
     assert_eq!(codes, vec![2], "faults {:?}", sim.faults());
 }
 
-/// Issue 36: `hil-sim emu`'s summary lists the drive's LINK trip after a link cut, read
+/// `hil-sim emu`'s summary lists the drive's LINK trip after a link cut, read
 /// from the drive image, as `hil-sim run` does (`2.045 s  5 LINK` there).
 #[test]
 fn the_emu_summary_shows_the_link_trip_after_a_cut() {

@@ -122,7 +122,7 @@ press = "D01"
     assert!(a == b, "two runs differ");
 }
 
-/// Review N7 on the bare ESC1 (the default board: no chopper, `OV_HW` 28 V by default):
+/// The bare ESC1 (the default board: no chopper, `OV_HW` 28 V by default):
 /// stopping from 50 Hz on a supply that cannot absorb energy (the rig's rectified 20 V
 /// supply) with six times the rig's inertia. The overvoltage controller lengthens the
 /// deceleration while the DC link is above its level (1 V above the supply): the

@@ -53,7 +53,7 @@ fn run_writes_csv_and_plot_and_prints_a_summary() {
     assert!(stdout.contains("simulated 2.000 s"), "{stdout}");
     assert!(stdout.contains("faults: none"), "{stdout}");
     // The board it simulated: motor.toml asks for the source's rig (the default is the
-    // bare ESC1, issue 36).
+    // bare ESC1).
     assert!(
         stdout.contains("drive board: source sensors on B-G431B-ESC1 pins\n"),
         "{stdout}"
@@ -156,7 +156,7 @@ fn asm_writes_the_eeprom_image_and_disasm_reads_it_back() {
 #[test]
 fn a_drive_stack_underflow_is_refused_with_its_text_line() {
     // SN1 needs frequency, amplitude and phase: with two values the motor would never
-    // turn (issue 15 item 9).
+    // turn.
     let bad = tmp("sn1.plc");
     std::fs::write(
         &bad,
@@ -172,14 +172,14 @@ fn a_drive_stack_underflow_is_refused_with_its_text_line() {
             "{err}"
         );
     }
-    // disasm prints it (to fix it), but says that the PLC would refuse it (issue 20).
+    // disasm prints it (to fix it), but says that the PLC would refuse it.
     let out = bin().arg("disasm").arg(&bad).output().unwrap();
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stdout).contains("002 SN1"));
     assert!(String::from_utf8_lossy(&out.stderr).contains("the PLC would refuse this program"));
 }
 
-/// Issue 20: without a terminal (piped stdin, CI, ssh without -t) the panel exits 1 with
+/// Without a terminal (piped stdin, CI, ssh without -t) the panel exits 1 with
 /// one clear line instead of panicking inside ratatui (exit 101).
 #[test]
 fn the_panel_without_a_terminal_exits_1_with_one_line() {
@@ -194,7 +194,7 @@ fn the_panel_without_a_terminal_exits_1_with_one_line() {
     assert!(err.contains("interactive terminal"), "{err}");
 }
 
-/// Issue 20: `panel --eeprom FILE` refuses a file that is not a 32 KiB 24C256 image with
+/// `panel --eeprom FILE` refuses a file that is not a 32 KiB 24C256 image with
 /// one line and exit 1, before anything else, and leaves the file as it was.
 #[test]
 fn the_panel_refuses_an_eeprom_file_of_the_wrong_size_and_leaves_it_alone() {
@@ -217,7 +217,7 @@ fn the_panel_refuses_an_eeprom_file_of_the_wrong_size_and_leaves_it_alone() {
     assert_eq!(std::fs::read(&f).unwrap(), vec![0u8; 1000]);
 }
 
-/// Issue 20: a sampling period below the simulation's 1 us step is refused before the run
+/// A sampling period below the simulation's 1 us step is refused before the run
 /// (0.0001 ms once wrote 1.18 GB for one simulated second), and so is a plot format that
 /// cannot be written; neither leaves a file behind.
 #[test]
@@ -252,7 +252,7 @@ fn a_too_fine_sampling_or_an_unknown_plot_format_is_refused_before_the_run() {
     assert!(out.stdout.is_empty(), "nothing simulated");
 }
 
-/// Issue 20: `--plot x.svg` writes an SVG, complete (no `.partial` left), and the summary.
+/// `--plot x.svg` writes an SVG, complete (no `.partial` left), and the summary.
 #[test]
 fn an_svg_plot_is_written_complete_with_the_summary() {
     let svg = tmp("motor.svg");
@@ -274,7 +274,7 @@ fn an_svg_plot_is_written_complete_with_the_summary() {
         "captions name the traces"
     );
     assert!(!tmp("motor.partial.svg").exists());
-    // Limits, events and the zoom (issue 20 item 8).
+    // Limits, events and the zoom.
     let has = |a: &str, b: &str| text.contains(a) || text.contains(b);
     assert!(
         has("dashed: I&gt; 2.0, OC_HW", "dashed: I> 2.0, OC_HW"),
@@ -292,7 +292,7 @@ fn an_svg_plot_is_written_complete_with_the_summary() {
     );
 }
 
-/// Issue 20 item 7: an EEPROM image that the PLC would refuse (a PLC instruction in the
+/// An EEPROM image that the PLC would refuse (a PLC instruction in the
 /// drive section) is refused by `run` and `asm`, and `disasm` prints it but says so and
 /// exits non-zero.
 #[test]
@@ -320,7 +320,7 @@ fn an_image_the_plc_would_refuse_is_reported_by_every_command() {
     assert!(String::from_utf8_lossy(&out.stdout).contains("000 NOT"));
 }
 
-/// Issue 31: NaN, infinity and huge numbers are refused with a message naming the option
+/// NaN, infinity and huge numbers are refused with a message naming the option
 /// (exit 1), never a panic (`--service-linger 1e20` panicked converting to a Duration).
 #[test]
 fn bad_numbers_on_the_command_line_are_refused_without_a_panic() {
@@ -346,7 +346,7 @@ fn bad_numbers_on_the_command_line_are_refused_without_a_panic() {
     }
 }
 
-/// Issue 31 item 4: plant values outside physics are refused, naming the key and its
+/// Plant values outside physics are refused, naming the key and its
 /// range, before anything runs; a failed run leaves the user's CSV as it was.
 #[test]
 fn scenario_values_outside_physics_are_refused_and_the_csv_is_kept() {
@@ -376,7 +376,7 @@ fn scenario_values_outside_physics_are_refused_and_the_csv_is_kept() {
     }
 }
 
-/// Issue 31 item 4: a plant that diverges stops the simulation at the first 1 ms check
+/// A plant that diverges stops the simulation at the first 1 ms check
 /// (`model unstable`), before the drive's tick could latch a trip from it.
 #[test]
 fn a_diverging_plant_is_caught_before_any_trip() {

@@ -1,4 +1,4 @@
-//! The PLC's input debouncing in simulation is the board's (issue 14): hil-sim hands the
+//! The PLC's input debouncing in simulation is the board's: hil-sim hands the
 //! raw pin levels to `PlcApp::tick_1ms`, so a pulse shorter than the 5 samples never
 //! reaches the scan, as on the board.
 

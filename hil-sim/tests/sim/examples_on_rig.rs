@@ -1,4 +1,4 @@
-//! The source's drive examples run as the source describes them (issue 15 item 6), on the
+//! The source's drive examples run as the source describes them, on the
 //! rig variant their scenarios name (`hil-sim/scenarios/pi_ramp.toml`,
 //! `three_phase_sine.toml`: a star RL load), with the waveforms in the CSV
 //! (`duty_a duty_b duty_c`, `u_ab_v`).

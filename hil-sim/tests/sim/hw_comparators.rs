@@ -1,5 +1,5 @@
 //! The hardware trip levels as drive settings (`I>>`, `U>>`, the source's trimmers) and the
-//! board's comparators as they are (issue 15 items 3 and 4): on the B-G431B-ESC1 the
+//! board's comparators as they are: on the B-G431B-ESC1 the
 //! positive half-wave of each phase and the DC link; a negative half-wave is the software
 //! check's (`I>`).
 
@@ -17,7 +17,7 @@ fn the_trimmer_levels_are_settings_the_plc_reads() {
     );
     assert!(r.faults.is_empty());
     let end = r.samples.last().unwrap();
-    // U>> 38 V is beyond the bare ESC1's 34.3 V range: clamped to 34 V (review N7).
+    // U>> 38 V is beyond the bare ESC1's 34.3 V range: clamped to 34 V.
     assert_eq!(end.lcd, [Some(682), Some(300), Some(250), Some(34)]);
     assert!(
         r.lcd.row(2).contains("250") && r.lcd.row(2).contains("34"),
@@ -30,7 +30,7 @@ fn the_trimmer_levels_are_settings_the_plc_reads() {
         .filter(|l| !l.starts_with("00"))
         .collect::<Vec<_>>()
         .join("\n");
-    // On the bare ESC1 the default U>> is at most the board's 32 V (review N7).
+    // On the bare ESC1 the default U>> is at most the board's 32 V.
     let r = run_text(&plc_only, "", 0.5);
     assert_eq!(r.samples.last().unwrap().lcd[2..], [Some(300), Some(32)]);
     let r = run_text(&plc_only, "[plant]\noc_hw_a = 1.5\nov_hw_v = 31.0\n", 0.5);
@@ -41,7 +41,7 @@ fn the_trimmer_levels_are_settings_the_plc_reads() {
 fn i_hw_in_the_program_sets_the_comparator() {
     // The motor example with a 1.20 A hardware level: a locked rotor trips OC_HW (code 2),
     // below the software I> of 2.00 A, on the positive half-wave in the ESC1's 0.47 A step
-    // that holds 1.2 A (0.94-1.41 A, review N6).
+    // that holds 1.2 A (0.94-1.41 A).
     let program = format!("{MOTOR_PLC}\n026 I>> K21 0120\n");
     let scen = "[plant]\nlocked_rotor = true\n[[event]]\nat_s = 0\nset = { A00 = 980, A01 = 500 }\n[[event]]\nat_s = 0.2\npress = \"D00\"\n";
     let r = run_text(&program, scen, 2.0);
@@ -132,8 +132,8 @@ fn the_esc1_front_end_measures_what_the_source_sensors_do() {
 }
 
 /// On the ESC1 the hardware overcurrent acts at the PGA input, in steps of about 0.47 A,
-/// counted from the trimmed zero so that the trip lies in the step that holds the setting
-/// (review N6): `I>>` 1.20 A trips at 1.41 A on the host's ideal sensors (the step's top);
+/// counted from the trimmed zero so that the trip lies in the step that holds the setting:
+/// `I>>` 1.20 A trips at 1.41 A on the host's ideal sensors (the step's top);
 /// a locked rotor trips `OC_HW` on the positive half-wave, before the software `I>` (2 A).
 #[test]
 fn on_the_esc1_i_hw_trips_at_the_pga_input() {
@@ -151,7 +151,7 @@ fn on_the_esc1_i_hw_trips_at_the_pga_input() {
     assert!(peak_pos > 1.2 && peak_pos < 1.6, "peak {peak_pos}");
 }
 
-/// Review D10 on the host cores: TIM1's OC5 window (CCR5 from the core, around the valley,
+/// The host cores: TIM1's OC5 window (CCR5 from the core, around the valley,
 /// covering every switching edge plus dead time and ringing) blanks the phase-current
 /// comparators (`I>>` 1.50 A: 1.88 A on the ESC1's steps, above the start-up current). A 0.8 us, +3 A disturbance of the sensed phase-a current at the valley
 /// (inside the window) does not trip; the same disturbance next to the counter's peak,

@@ -1,4 +1,4 @@
-//! The source's lab chapter (§5, Obr 5.1-5.7) as acceptance tests (issue 15 item 7):
+//! The source's lab chapter (§5, Obr 5.1-5.7) as acceptance tests:
 //! the programs `shared-protocol/programs/lab_*.plc` and the motor example under the
 //! scenarios `hil-sim/scenarios/lab_*.toml`. The figures and the measured values are in
 //! `hil-sim/docs/lab.md` (`cargo run --release -p hil-sim --example lab_figures`).

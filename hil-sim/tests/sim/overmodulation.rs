@@ -1,4 +1,4 @@
-//! Overmodulation as the source did it (program.md 4.3, issue 15 item 2): the motor
+//! Overmodulation as the source did it (program.md 4.3): the motor
 //! example at 70 Hz asks for m = 1.4 + dU/1023 = 1.465; the duties clip at the carrier
 //! limits and the fundamental keeps rising.
 

@@ -57,7 +57,7 @@ fn hardware_comparator_below_the_software_limit_trips_oc_hw() {
     let r = run_text(MOTOR_PLC, &scen, 3.0);
     let t = single_trip(&r, 2);
     let before: Vec<_> = r.samples.iter().filter(|x| t_s(x) < t).cloned().collect();
-    // The ESC1's trimmed comparator trips in the 0.47 A step that holds 1.2 A (review N6).
+    // The ESC1's trimmed comparator trips in the 0.47 A step that holds 1.2 A.
     assert!(peak_current(&before) < 1.5);
 }
 
@@ -167,7 +167,7 @@ fn the_sources_du_512_alternative_trips_oc_at_the_start() {
     assert!(r.faults.is_empty());
 }
 
-/// Issue 20 item 2: a refused ACK says why on the PLC's LCD, and an ACK is accepted once
+/// A refused ACK says why on the PLC's LCD, and an ACK is accepted once
 /// the cause is gone and the frequency command is below fmn (keymap.md, `*` `9`).
 #[test]
 fn a_refused_ack_says_why_and_a_later_one_is_accepted() {

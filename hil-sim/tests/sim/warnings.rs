@@ -1,4 +1,4 @@
-//! Run-time warnings reach the user (issue 15 item 5): the drive's clamped `PWF` and the
+//! Run-time warnings reach the user: the drive's clamped `PWF` and the
 //! PLC's `DIV0 @ line` show on the LCD status line, in the run summary and in the CSV's
 //! `warn` column.
 

@@ -2,7 +2,7 @@
 //! implements): random reads, page writes that only latch the data, and one ACK poll per
 //! [`Eeprom::ready`]. No call here waits for the write cycle or feeds the watchdog: the
 //! storage core (`storage::job`) moves one page per pass of the application task and asks
-//! `ready` on later passes (review D5/D11).
+//! `ready` on later passes.
 
 use embassy_stm32::i2c::Error as I2cError;
 use firmware_plc::storage::eeprom::{

@@ -1,5 +1,5 @@
 //! Panics and HardFault: the outputs Q0-Q5 go off before anything else, before any
-//! logging (review D7), as on the drive (`drive-image/src/board/fault.rs`).
+//! logging, as on the drive (`drive-image/src/board/fault.rs`).
 //!
 //! * `core::panic!` (an `expect`, an embassy/PAC assertion) reaches [`panic`], this image's
 //!   own `#[panic_handler]`: outputs off, then `panic` over defmt (no message or location:
@@ -8,10 +8,10 @@
 //!   [`defmt_panic`]: outputs off, [`halt`].
 //! * A HardFault turns the outputs off in [`HardFault`], the NMI (a flash double-ECC or SRAM
 //!   parity error) in [`NonMaskableInt`] and every exception without a handler of its own in
-//!   [`DefaultHandler`], before anything else, then halt (review N10).
+//!   [`DefaultHandler`], before anything else, then halt.
 //! * Only the first fault path logs (`board_common::debug::first_fault`): a fault inside a
 //!   defmt frame makes the log panic ("logger taken reentrantly"), and that nested panic
-//!   goes straight to [`halt`] (review N11).
+//!   goes straight to [`halt`].
 //!
 //! [`halt`] stops for a debugger (`bkpt`) or, without one, resets the MCU at once: it does
 //! not wait for the watchdog, which may not have been started yet (a panic during

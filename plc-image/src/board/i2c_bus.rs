@@ -3,13 +3,13 @@
 //! Both users run in the application task, so the bus is a `RefCell` borrowed for one
 //! blocking transaction at a time and never across an `await`.
 //!
-//! Bus voltage (review D16): the usual PCF8574 LCD backpack and 24C256 module run at 5 V
+//! Bus voltage: the usual PCF8574 LCD backpack and 24C256 module run at 5 V
 //! with their 4.7-10 kΩ pull-ups to 5 V; PA8 and PB5 are 5 V tolerant (FT), which allows
 //! this only with the pins' internal pull-up and pull-down **off** (datasheet: a pin
 //! driven above VDD + 0.3 V). So the internal pull-ups stay off; a bus without external
 //! pull-ups (a bare breadboard) needs 4.7 kΩ to 3.3 V fitted. See the README.
 //!
-//! Bus clear (review D6, N12): a reset in the middle of an EEPROM read can leave the chip
+//! Bus clear: a reset in the middle of an EEPROM read can leave the chip
 //! holding SDA low, and a transaction that broke at run time (a device holding SCL low
 //! past the timeout, a bus error) leaves embassy-stm32 0.6's blocking master as it was
 //! (`i2c/v2.rs`: `wait_tc`'s timeout sends no STOP, BUSY stays set, a later `master_stop`

@@ -82,7 +82,7 @@ struct DownloadRx {
     crc: u32,
     /// The CRC of the chunks received so far, in order: a complete download's is the
     /// section's (`section_crc` of `buf`), computed one chunk per receive call instead
-    /// of ~4 200 instructions in one check step (review N8).
+    /// of ~4 200 instructions in one check step.
     running: Digest<256>,
     next_line: usize,
     /// Set when a chunk was out of place: the download will be refused at its end.
@@ -116,14 +116,14 @@ enum Check {
 }
 
 /// Used lines verified per check step: `verify_drive` of the motor example took ~4 900
-/// instructions in one step (m4bench), ~190 per used line (review N8).
+/// instructions in one step (m4bench), ~190 per used line.
 pub const VERIFY_USED_LINES_PER_STEP: u16 = 10;
 
 /// Lines decoded per check step: the 150 lines in one step took ~7 600 instructions with
 /// the safety settings' mnemonics (m4bench), and the link's critical section around it
-/// ~9 900 in the emulator, over the 8 500-cycle budget (review D13). In steps of 50, the
+/// ~9 900 in the emulator, over the 8 500-cycle budget. In steps of 50, the
 /// first step of the motor example (its 26 used lines are 000-025) still took 6 771
-/// instructions, 9 187 cycles in the emulator's cycle model (review N8): a used line costs
+/// instructions, 9 187 cycles in the emulator's cycle model: a used line costs
 /// ~250 instructions, an empty one ~20. Fifteen steps of 10 (~2 600 at most each).
 pub const DECODE_LINES_PER_STEP: u16 = 10;
 
@@ -564,7 +564,7 @@ impl DriveLink {
             self.check_step();
             // A step is a call of its own, without a frame: a step (CRC ~4 800
             // instructions at opt-level "s") plus a frame (~1 900) in one critical section
-            // held the drive's PWM interrupt off for ~6 700 (review D13). The next call is
+            // held the drive's PWM interrupt off for ~6 700. The next call is
             // due at once (`poll_timeout`).
             return 0;
         }

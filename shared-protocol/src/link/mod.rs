@@ -5,7 +5,7 @@
 //! * [`plc_decode`]: the drive's decoder of the PLC's frames, written out (postcard's
 //!   format, checked against postcard's decoder). It stays next to [`wire`]: the drive
 //!   decoding with `wire`'s serde decoder instead was 892 B larger (53 788 -> 54 680 B of
-//!   flash, issue 28, `CI_STEPS="build_firmware sizes" bash .ci/run`).
+//!   flash, `CI_STEPS="build_firmware sizes" bash .ci/run`).
 //! * [`wire`]: postcard's format written by a serializer that is small in flash.
 //! * [`rx_ring`]: the reader's side of a DMA-filled receive ring (the boards' receiver).
 //! * [`reliable`]: sequencing, acknowledgement, go-back-N retransmission.

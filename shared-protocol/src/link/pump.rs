@@ -87,7 +87,7 @@ pub fn is_due(deadline: Option<Micros>, now: Micros) -> bool {
 
 /// `rx` cut after each frame delimiter (0x00, `frame.rs`): a board that feeds each piece
 /// to [`Pump::receive`] in a critical section of its own never decodes more than one frame
-/// in one (review N8: 64 bytes of download frames in one section held the drive's PWM
+/// in one (64 bytes of download frames in one section held the drive's PWM
 /// interrupt off for more than a period at 20 kHz).
 pub fn frame_pieces(rx: &[u8]) -> impl Iterator<Item = &[u8]> {
     rx.split_inclusive(|&b| b == 0)

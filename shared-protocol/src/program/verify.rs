@@ -597,7 +597,7 @@ pub fn verify_drive(d: &DriveSection) -> Result<(), VerifyError> {
 
 /// A drive section that passed [`verify_drive`]. The drive's link verifies a download in
 /// its own step; the core then loads this without verifying again (the verifier is
-/// ~3 800 Cortex-M4 instructions, a large part of a PWM period: review D13).
+/// ~3 800 Cortex-M4 instructions, a large part of a PWM period).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct VerifiedDriveSection(DriveSection);
 

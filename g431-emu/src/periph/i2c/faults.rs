@@ -1,4 +1,4 @@
-//! Bus faults the host injects (review E10): what a real bus does to a master now and
+//! Bus faults the host injects: what a real bus does to a master now and
 //! then, so that a driver's error and timeout paths run.
 //!
 //! A fault is armed for one device address and hits the **last byte of the next write chunk

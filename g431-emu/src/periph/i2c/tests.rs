@@ -495,7 +495,7 @@ fn eeprom_page_write_ack_polling_and_read_back_through_embassy() {
 
 /// The MCU resets while the 24C256 shifts out a 0 bit of a read: it keeps SDA low. The
 /// image's next transaction (the LCD's first nibble) loses arbitration; 9 SCL pulses and a
-/// STOP made with the pins as GPIO free the bus (board review D6).
+/// STOP made with the pins as GPIO free the bus.
 #[test]
 fn stuck_sda_after_a_reset_mid_read_and_its_recovery() {
     let (mut i2c, eeprom, lcd) = board();
@@ -761,7 +761,7 @@ fn reset_during_a_page_write_then_recovery_endings() {
 }
 
 // ---------------------------------------------------------------------------------------
-// Injected faults (review E10)
+// Injected faults
 
 /// The PLC image's bus: embassy with the 20 ms transaction timeout (`i2c_bus.rs`).
 fn plc_driver(i2c: &mut I2c) -> Embassy<'_> {
@@ -774,7 +774,7 @@ fn plc_driver(i2c: &mut I2c) -> Embassy<'_> {
 /// A 30 ms stretch at the end of `blocking_write_read`'s write phase: embassy times out in
 /// `wait_tc` and returns without STOP. When the device lets go the master completes the
 /// chunk and holds the bus (TC, BUSY): every later `blocking_write` waits for BUSY and
-/// times out too (review N12), until the peripheral is reset and a STOP is sent.
+/// times out too, until the peripheral is reset and a STOP is sent.
 #[test]
 fn a_stretch_in_the_write_phase_times_out_and_leaves_the_bus_busy() {
     let (mut i2c, eeprom, lcd) = board();
