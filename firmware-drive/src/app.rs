@@ -44,7 +44,7 @@ use shared_protocol::units::Micros;
 use crate::comparators::DacValues;
 use crate::config::{DriveConfig, ResetCause};
 use crate::drive::{
-    CommandError, CoreStatus, DriveCommand, DriveCore, DriveEvent, LoadStep, PwmCommand,
+    CoreStatus, DriveCommand, DriveCore, DriveEvent, DriveRefusal, LoadStep, PwmCommand,
     EVENT_QUEUE,
 };
 use crate::measure::AdcSample;
@@ -70,7 +70,7 @@ pub enum AppEvent {
     /// PLC sees the outcome in the status.
     Refused {
         command: DriveCommand,
-        error: CommandError,
+        error: DriveRefusal,
     },
     /// An ACK was refused but the link's queue had no room for the reason (16 reports
     /// waiting): the PLC shows no reason this time.
@@ -406,8 +406,8 @@ impl DriveApp {
             // The PLC shows why an ACK was refused: the fault stays latched
             // and the user must know what to change.
             let why = match error {
-                CommandError::CauseActive(f) => Some(AckRefusal::CauseActive(f)),
-                CommandError::FrequencyNotBelowFmn => Some(AckRefusal::FrequencyNotBelowFmn),
+                DriveRefusal::CauseActive(f) => Some(AckRefusal::CauseActive(f)),
+                DriveRefusal::FrequencyNotBelowFmn => Some(AckRefusal::FrequencyNotBelowFmn),
                 _ => None,
             };
             if let Some(why) = why {

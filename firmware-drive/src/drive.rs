@@ -58,10 +58,11 @@ pub enum DriveCommand {
     SafetyRequest { requested: u16 },
 }
 
-/// Why a command was not carried out.
+/// Why the drive core did not carry out a command (the link's own refusals are
+/// `shared_protocol::link::plc::CommandError`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum CommandError {
+pub enum DriveRefusal {
     /// Still in BOOT.
     Booting,
     /// RUN while a fault is latched (ACK first).
@@ -78,23 +79,23 @@ pub enum CommandError {
     StoInput,
 }
 
-impl core::fmt::Display for CommandError {
+impl core::fmt::Display for DriveRefusal {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            CommandError::Booting => f.write_str("the drive is still booting"),
-            CommandError::Faulted => f.write_str("a fault is latched: acknowledge it first"),
-            CommandError::NoProgram => f.write_str("no accepted drive section"),
-            CommandError::CauseActive(c) => write!(f, "the cause of {} is still present", c.name()),
-            CommandError::FrequencyNotBelowFmn => {
+            DriveRefusal::Booting => f.write_str("the drive is still booting"),
+            DriveRefusal::Faulted => f.write_str("a fault is latched: acknowledge it first"),
+            DriveRefusal::NoProgram => f.write_str("no accepted drive section"),
+            DriveRefusal::CauseActive(c) => write!(f, "the cause of {} is still present", c.name()),
+            DriveRefusal::FrequencyNotBelowFmn => {
                 f.write_str("the frequency command is not below fmn")
             }
-            CommandError::BadAddress => f.write_str("Q index beyond Q63"),
-            CommandError::StoInput => f.write_str("STO_IN is low"),
+            DriveRefusal::BadAddress => f.write_str("Q index beyond Q63"),
+            DriveRefusal::StoInput => f.write_str("STO_IN is low"),
         }
     }
 }
 
-impl core::error::Error for CommandError {}
+impl core::error::Error for DriveRefusal {}
 
 /// Warnings: reported, nothing latched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -585,18 +586,18 @@ impl DriveCore {
 
     // One copy, not inlined at each caller: the drive image's 64 KiB budget.
     #[inline(never)]
-    pub fn command(&mut self, c: DriveCommand) -> Result<(), CommandError> {
+    pub fn command(&mut self, c: DriveCommand) -> Result<(), DriveRefusal> {
         match c {
             DriveCommand::Run => match self.state {
-                DriveState::Boot => Err(CommandError::Booting),
-                DriveState::Fault => Err(CommandError::Faulted),
+                DriveState::Boot => Err(DriveRefusal::Booting),
+                DriveState::Fault => Err(DriveRefusal::Faulted),
                 DriveState::Run => Ok(()),
                 DriveState::Idle => {
                     if self.program.is_none() || self.loading {
-                        return Err(CommandError::NoProgram);
+                        return Err(DriveRefusal::NoProgram);
                     }
                     if self.sto_in_low {
-                        return Err(CommandError::StoInput);
+                        return Err(DriveRefusal::StoInput);
                     }
                     self.vm.start_run();
                     self.safety.start_run();
@@ -621,11 +622,11 @@ impl DriveCore {
                     return Ok(());
                 };
                 if !self.cause_gone(f) {
-                    return Err(CommandError::CauseActive(f));
+                    return Err(DriveRefusal::CauseActive(f));
                 }
                 let cmd = self.f_command();
                 if cmd != 0 && cmd >= self.vm.settings().fmn {
-                    return Err(CommandError::FrequencyNotBelowFmn);
+                    return Err(DriveRefusal::FrequencyNotBelowFmn);
                 }
                 self.fault = None;
                 self.run_requested = false;
@@ -637,7 +638,7 @@ impl DriveCore {
                 if self.vm.set_q(addr, value) {
                     Ok(())
                 } else {
-                    Err(CommandError::BadAddress)
+                    Err(DriveRefusal::BadAddress)
                 }
             }
             DriveCommand::Direction { reverse } => {
@@ -1120,7 +1121,7 @@ mod tests {
     fn boots_to_idle_and_reports_the_transition() {
         let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
         assert_eq!(core.state(), DriveState::Boot);
-        assert_eq!(core.command(DriveCommand::Run), Err(CommandError::Booting));
+        assert_eq!(core.command(DriveCommand::Run), Err(DriveRefusal::Booting));
         assert!(!core.pwm_period(&ok_sample()).enable);
         let ev = events(&mut core);
         assert_eq!(
@@ -1132,7 +1133,7 @@ mod tests {
         );
         assert_eq!(
             core.command(DriveCommand::Run),
-            Err(CommandError::NoProgram)
+            Err(DriveRefusal::NoProgram)
         );
     }
 
@@ -1241,15 +1242,15 @@ mod tests {
         // Cause still present.
         assert_eq!(
             core.command(DriveCommand::Ack),
-            Err(CommandError::CauseActive(FaultCode::Oc))
+            Err(DriveRefusal::CauseActive(FaultCode::Oc))
         );
         let _ = core.pwm_period(&ok_sample());
         // The PLC still commands 50 Hz: refused.
         assert_eq!(
             core.command(DriveCommand::Ack),
-            Err(CommandError::FrequencyNotBelowFmn)
+            Err(DriveRefusal::FrequencyNotBelowFmn)
         );
-        assert_eq!(core.command(DriveCommand::Run), Err(CommandError::Faulted));
+        assert_eq!(core.command(DriveCommand::Run), Err(DriveRefusal::Faulted));
         core.command(DriveCommand::SetQ { addr: 1, value: 0 })
             .unwrap();
         events(&mut core);
@@ -1302,7 +1303,7 @@ mod tests {
         core.command(DriveCommand::Stop).unwrap();
         assert_eq!(
             core.command(DriveCommand::Ack),
-            Err(CommandError::CauseActive(FaultCode::OvHw))
+            Err(DriveRefusal::CauseActive(FaultCode::OvHw))
         );
         core.hardware_break_released(HwBreak::Overvoltage);
         core.command(DriveCommand::Ack).unwrap();
@@ -1338,7 +1339,7 @@ mod tests {
         assert!(!core.pwm_period(&ok_sample()).enable);
         assert_eq!(
             core.command(DriveCommand::Ack),
-            Err(CommandError::CauseActive(FaultCode::Prog))
+            Err(DriveRefusal::CauseActive(FaultCode::Prog))
         );
         core.load_program(&section(SINE)).unwrap();
         core.command(DriveCommand::Ack).unwrap();
@@ -1459,7 +1460,7 @@ mod tests {
         events(&mut core);
         assert_eq!(
             core.command(DriveCommand::Ack),
-            Err(CommandError::CauseActive(FaultCode::Ov))
+            Err(DriveRefusal::CauseActive(FaultCode::Ov))
         );
         let _ = core.pwm_period(&esc1_at(supply));
         core.command(DriveCommand::Ack).unwrap();
@@ -1579,7 +1580,7 @@ mod tests {
         events(&mut core);
         assert_eq!(
             core.command(DriveCommand::Ack),
-            Err(CommandError::FrequencyNotBelowFmn)
+            Err(DriveRefusal::FrequencyNotBelowFmn)
         );
         core.command(DriveCommand::SetQ { addr: 1, value: 0 })
             .unwrap();

@@ -36,7 +36,7 @@ pub mod vm;
 
 pub use crate::config::{DriveConfig, ResetCause};
 pub use crate::drive::{
-    CommandError, CoreStatus, DriveCommand, DriveCore, DriveEvent, DriveWarning, PwmCommand,
+    CoreStatus, DriveCommand, DriveCore, DriveEvent, DriveRefusal, DriveWarning, PwmCommand,
 };
 pub use crate::measure::AdcSample;
 pub use crate::protection::{FaultCode, HwBreak};

@@ -3,7 +3,7 @@
 //! and a property test over random requests, inputs and commands.
 
 use firmware_drive::{
-    AdcSample, CommandError, DriveCommand, DriveConfig, DriveCore, DriveEvent, DriveState,
+    AdcSample, DriveCommand, DriveConfig, DriveCore, DriveEvent, DriveRefusal, DriveState,
     FaultCode, ResetCause,
 };
 use proptest::prelude::*;
@@ -92,7 +92,7 @@ fn sto_opens_the_outputs_in_the_tick_of_the_request_and_needs_its_release_to_ack
     tick(&mut core);
     assert_eq!(
         core.command(DriveCommand::Ack),
-        Err(CommandError::CauseActive(FaultCode::Sto))
+        Err(DriveRefusal::CauseActive(FaultCode::Sto))
     );
     request(&mut core, 0);
     core.command(DriveCommand::Ack).unwrap();
@@ -117,7 +117,7 @@ fn sto_in_refuses_run_latches_code_9_in_run_and_blocks_its_ack() {
     let mut core = core_with(LAB, 100);
     core.command(DriveCommand::Stop).unwrap();
     core.set_sto_input(true);
-    assert_eq!(core.command(DriveCommand::Run), Err(CommandError::StoInput));
+    assert_eq!(core.command(DriveCommand::Run), Err(DriveRefusal::StoInput));
     let s = core.status();
     assert!(s.sto_in_low);
     assert_eq!(s.sf_requested, 1);
@@ -135,7 +135,7 @@ fn sto_in_refuses_run_latches_code_9_in_run_and_blocks_its_ack() {
     tick(&mut core);
     assert_eq!(
         core.command(DriveCommand::Ack),
-        Err(CommandError::CauseActive(FaultCode::Sto))
+        Err(DriveRefusal::CauseActive(FaultCode::Sto))
     );
     core.set_sto_input(false);
     core.command(DriveCommand::Ack).unwrap();
@@ -152,7 +152,7 @@ fn an_sto_break_shorter_than_a_tick_latches_code_9_until_ack_and_run() {
     core.sto_break();
     assert_eq!(core.fault(), Some(FaultCode::Sto));
     assert!(!core.pwm_period(&ok()).enable, "no period after the break");
-    assert_eq!(core.command(DriveCommand::Run), Err(CommandError::Faulted));
+    assert_eq!(core.command(DriveCommand::Run), Err(DriveRefusal::Faulted));
     core.set_sto_input(false);
     for _ in 0..10 {
         tick(&mut core);
@@ -180,7 +180,7 @@ fn an_sto_break_in_idle_refuses_run_until_the_input_reads_high() {
     core.command(DriveCommand::Stop).unwrap();
     core.sto_break();
     assert_eq!(core.fault(), None);
-    assert_eq!(core.command(DriveCommand::Run), Err(CommandError::StoInput));
+    assert_eq!(core.command(DriveCommand::Run), Err(DriveRefusal::StoInput));
     core.set_sto_input(false);
     core.command(DriveCommand::Run).unwrap();
 }
@@ -195,7 +195,7 @@ fn a_system_break_latches_boot_for_good() {
     assert!(!core.pwm_period(&ok()).enable);
     assert_eq!(
         core.command(DriveCommand::Ack),
-        Err(CommandError::CauseActive(FaultCode::Boot))
+        Err(DriveRefusal::CauseActive(FaultCode::Boot))
     );
 }
 
@@ -225,7 +225,7 @@ fn the_lab_ss1_ends_15000_ticks_after_the_request_with_code_10() {
     tick(&mut core);
     assert_eq!(
         core.command(DriveCommand::Ack),
-        Err(CommandError::CauseActive(FaultCode::Ss1))
+        Err(DriveRefusal::CauseActive(FaultCode::Ss1))
     );
     request(&mut core, 0);
     core.command(DriveCommand::Ack).unwrap();
