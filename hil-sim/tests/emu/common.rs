@@ -44,12 +44,6 @@ pub const ALLOWED_IN_EVERY_TEST: &[(&str, &str)] = &[
          from this write on it matches the silicon (before it, during the first \
          microseconds of init, it is kinder: no image reads PB4/PB6 then)",
     ),
-    (
-        "RCC.BDCR set to 0x00010000",
-        "model limit: embassy's low-speed clock init pulses BDRST (backup domain reset); \
-         the backup domain (LSE, RTC, TAMP registers) is not modelled and neither image \
-         uses it",
-    ),
     ("plc: input PA6 read while floating", KEYPAD_ROW_RELEASED),
     ("plc: input PA7 read while floating", KEYPAD_ROW_RELEASED),
     ("plc: input PB6 read while floating", KEYPAD_ROW_RELEASED),
