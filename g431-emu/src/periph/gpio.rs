@@ -68,24 +68,25 @@ pub enum Mode {
 pub trait PinReader {
     /// The board's level on `pin` (0..16) of port `port` (0 = A) at `now`. `drives` tells
     /// how the MCU drives every pin of every port now (for wiring between the MCU's own
-    /// pins, such as a keypad matrix).
+    /// pins, such as a keypad matrix). By default nothing is connected: every pin floats
+    /// (a floating input that the MCU reads is reported as a diagnostic, so a board model
+    /// that forgets a pin is seen).
     fn external(
         &mut self,
         port: u8,
         pin: u8,
         now: Cycles,
         drives: &dyn Fn(u8, u8) -> Drive,
-    ) -> External;
+    ) -> External {
+        let _ = (port, pin, now, drives);
+        External::Floating
+    }
 }
 
 /// Reads every pin as floating (a bare MCU).
 pub struct NoBoard;
 
-impl PinReader for NoBoard {
-    fn external(&mut self, _: u8, _: u8, _: Cycles, _: &dyn Fn(u8, u8) -> Drive) -> External {
-        External::Floating
-    }
-}
+impl PinReader for NoBoard {}
 
 /// One GPIO port.
 #[derive(Debug, Clone)]

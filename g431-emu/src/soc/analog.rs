@@ -108,17 +108,7 @@ mod tests {
     /// A board with 0.1 V on the ESC1's PGA inputs and 1.0 V on PB1.
     struct AnalogBoard;
 
-    impl PinReader for AnalogBoard {
-        fn external(
-            &mut self,
-            _: u8,
-            _: u8,
-            _: Cycles,
-            _: &dyn Fn(u8, u8) -> Drive,
-        ) -> crate::periph::gpio::External {
-            crate::periph::gpio::External::Floating
-        }
-    }
+    impl PinReader for AnalogBoard {}
 
     impl Board for AnalogBoard {
         fn pin_volts(&mut self, pin: &str, _at: Cycles) -> f64 {
@@ -209,17 +199,7 @@ mod tests {
         vinm0: f64,
     }
 
-    impl PinReader for ShuntPins {
-        fn external(
-            &mut self,
-            _: u8,
-            _: u8,
-            _: Cycles,
-            _: &dyn Fn(u8, u8) -> Drive,
-        ) -> crate::periph::gpio::External {
-            crate::periph::gpio::External::Floating
-        }
-    }
+    impl PinReader for ShuntPins {}
 
     impl Board for ShuntPins {
         fn pin_volts(&mut self, pin: &str, _at: Cycles) -> f64 {

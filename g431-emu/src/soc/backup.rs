@@ -60,18 +60,14 @@ impl Soc {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::periph::gpio::{Drive, External, PinReader};
+    use crate::periph::gpio::PinReader;
     use crate::soc::{BareBoard, Board};
     use crate::time::HCLK_HZ;
 
     /// A board with the NUCLEO-G431RB's 32.768 kHz crystal X2.
     struct WithLse;
 
-    impl PinReader for WithLse {
-        fn external(&mut self, _: u8, _: u8, _: Cycles, _: &dyn Fn(u8, u8) -> Drive) -> External {
-            External::Floating
-        }
-    }
+    impl PinReader for WithLse {}
 
     impl Board for WithLse {
         fn lse_hz(&self) -> Option<u64> {

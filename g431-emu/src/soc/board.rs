@@ -52,17 +52,7 @@ pub const VREFINT_VOLTS: f64 = 1.212;
 /// A bare board: nothing connected.
 pub struct BareBoard;
 
-impl PinReader for BareBoard {
-    fn external(
-        &mut self,
-        _: u8,
-        _: u8,
-        _: Cycles,
-        _: &dyn Fn(u8, u8) -> Drive,
-    ) -> crate::periph::gpio::External {
-        crate::periph::gpio::External::Floating
-    }
-}
+impl PinReader for BareBoard {}
 
 impl Board for BareBoard {}
 

@@ -560,17 +560,7 @@ mod tests {
         to: Cycles,
     }
 
-    impl PinReader for Pulse {
-        fn external(
-            &mut self,
-            _: u8,
-            _: u8,
-            _: Cycles,
-            _: &dyn Fn(u8, u8) -> Drive,
-        ) -> crate::periph::gpio::External {
-            crate::periph::gpio::External::Floating
-        }
-    }
+    impl PinReader for Pulse {}
 
     impl Board for Pulse {
         fn pin_volts(&mut self, pin: &str, at: Cycles) -> f64 {
