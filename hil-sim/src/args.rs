@@ -30,6 +30,15 @@ pub fn time_s(s: &str) -> Result<f64, String> {
     Ok(v)
 }
 
+/// `--service-speed`: virtual seconds per wall-clock second, 0.1 to 100.
+pub fn speed_factor(s: &str) -> Result<f64, String> {
+    let v = number(s)?;
+    if !(v.is_finite() && (0.1..=100.0).contains(&v)) {
+        return Err(format!("{s}: a speed of 0.1 to 100 (1 = real time)"));
+    }
+    Ok(v)
+}
+
 /// `--duration`: above 0, finite, at most [`MAX_TIME_S`].
 pub fn duration_s(s: &str) -> Result<f64, String> {
     let v = number(s)?;
@@ -66,7 +75,12 @@ mod tests {
             assert!(time_s(bad).is_err(), "{bad}");
             assert!(duration_s(bad).is_err(), "{bad}");
             assert!(sample_ms(bad).is_err(), "{bad}");
+            assert!(speed_factor(bad).is_err(), "{bad}");
         }
+        assert!(speed_factor("0").is_err());
+        assert!(speed_factor("0.09").is_err());
+        assert_eq!(speed_factor("0.1"), Ok(0.1));
+        assert_eq!(speed_factor("100"), Ok(100.0));
         assert!(duration_s("0").is_err());
         assert_eq!(time_s("0"), Ok(0.0));
         assert_eq!(time_s("1e6"), Ok(1e6));

@@ -113,6 +113,11 @@ struct ServiceArgs {
     /// After the duration, keep serving clients (inputs held) this long, s (at most 1e6).
     #[arg(long, default_value_t = 5.0, requires = "service_pty", value_parser = hil_sim::args::time_s)]
     service_linger: f64,
+    /// Virtual seconds per wall-clock second while serving (0.1 to 100; 1 = real time).
+    /// Above 1 for scripts and tests that wait for simulated events: the PLC's byte timing
+    /// stays virtual, only the wait for it shortens.
+    #[arg(long, default_value_t = 1.0, requires = "service_pty", value_parser = hil_sim::args::speed_factor)]
+    service_speed: f64,
     /// The service version the simulated PLC announces (tests of version mismatch).
     #[arg(long, default_value_t = shared_protocol::service::SERVICE_VERSION)]
     service_version: u16,
@@ -146,7 +151,7 @@ impl ServiceArgs {
             PtyOptions {
                 wait_for_client: true,
                 linger: std::time::Duration::from_secs_f64(self.service_linger),
-                pace: true,
+                pace_virtual_per_wall: Some(self.service_speed),
             },
         )))
     }

@@ -116,7 +116,7 @@ pub fn run_with_service(
     let opts = PtyOptions {
         wait_for_client: false,
         linger: Duration::ZERO,
-        pace: false,
+        pace_virtual_per_wall: None,
     };
     let mut app = open_with(
         program,

@@ -21,8 +21,10 @@ pub struct PtyOptions {
     pub wait_for_client: bool,
     /// After the duration, keep serving (inputs held) this long, clients coming and going.
     pub linger: Duration,
-    /// Follow the wall clock (`run`; the panel runs in real time by itself).
-    pub pace: bool,
+    /// Follow the wall clock at this many virtual seconds per wall second (`run`: 1 unless
+    /// `--service-speed` says otherwise); `None`: run free (the panel runs in real time by
+    /// itself).
+    pub pace_virtual_per_wall: Option<f64>,
 }
 
 /// A service line in a run, with its host end.
@@ -102,13 +104,14 @@ impl Attached {
     /// Virtual time follows the wall clock, with or without a client (a run that raced
     /// ahead while nobody was attached left the next command without a device).
     fn pace(&mut self, now_ns: u64) {
-        if !self.pty.as_ref().is_some_and(|(_, o)| o.pace) {
+        let Some(speed) = self.pty.as_ref().and_then(|(_, o)| o.pace_virtual_per_wall) else {
             return;
-        }
+        };
         let (wall0, virt0) = *self
             .paced_since
             .get_or_insert_with(|| (Instant::now(), now_ns));
-        let due = wall0 + Duration::from_nanos(now_ns.saturating_sub(virt0));
+        let virt_s = now_ns.saturating_sub(virt0) as f64 * 1e-9;
+        let due = wall0 + Duration::from_secs_f64(virt_s / speed);
         let wall = Instant::now();
         if due > wall {
             std::thread::sleep(due - wall);

@@ -165,7 +165,7 @@ fn the_panel_serves_the_service_port_on_a_pty_and_shows_its_path() {
     let opts = PtyOptions {
         wait_for_client: false,
         linger: Duration::ZERO,
-        pace: false,
+        pace_virtual_per_wall: None,
     };
     let mut app = hil_sim::panel::open_with(
         Some(std::path::Path::new(MOTOR)),
