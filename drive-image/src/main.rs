@@ -6,6 +6,7 @@
 //! so that hil-sim and the host tests exercise the same code.
 
 mod board;
+mod mem;
 mod pins;
 
 use defmt_rtt as _;
