@@ -6,7 +6,6 @@
 //! so that hil-sim and the host tests exercise the same code.
 
 mod board;
-mod mem;
 mod pins;
 
 use defmt_rtt as _;

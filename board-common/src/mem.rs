@@ -1,14 +1,15 @@
 //! The ARM EABI memory helpers the compiler calls for copies and fills
 //! (`__aeabi_memcpy{,4,8}`, `__aeabi_memset{,4,8}`, `__aeabi_memclr{,4,8}`), as two short
-//! word-then-byte loops.
+//! loops: bytes up to a word boundary, two words per step, the last bytes.
 //!
 //! Why: `compiler_builtins` (prebuilt at opt-level 3 in the standard library) links its
-//! unrolled versions, about 1.5 KiB for these seven entry points and the `memcpy` they
-//! share. Its definitions are weak, so these strong ones replace them in this image (the
+//! unrolled versions, about 1.7 KiB per image for these entry points and the `memcpy` they
+//! share. Its definitions are weak, so these strong ones replace them in both images (the
 //! linker then pulls none of them: docs/size.md). Nothing time-critical copies through them:
-//! the PWM interrupt calls none (`llvm-objdump -d` of `TIM1_UP_TIM16`), and the critical
-//! sections that do (the 1 ms tick, the link's receive and transmit) are measured by the
-//! emulator's timing test (`firmware-drive/docs/critical-sections.md`).
+//! the drive's PWM interrupt and the PLC's scan (`plc-vm`) call none (`llvm-objdump -d` of
+//! `TIM1_UP_TIM16` and of the scan), and the drive's critical sections that do (the 1 ms
+//! tick, the link's receive and transmit) are measured by the emulator's timing test
+//! (`firmware-drive/docs/critical-sections.md`).
 //!
 //! Written in assembly: a loop of loads and stores in Rust is the pattern LLVM turns back
 //! into a call to these very functions. Word accesses only at word-aligned addresses
