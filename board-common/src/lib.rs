@@ -17,6 +17,8 @@
 //! * `link_rx`: the link's receiver, a DMA ring that a line error never stops (N13).
 //! * `cycles`: DWT cycle counters (feature `dwt-cycles`).
 //! * `time`: the monotonic clock the cores take.
+//! * `mem`: the EABI copy and fill helpers (`__aeabi_memcpy` ..), smaller than
+//!   `compiler_builtins`' (linked into both images by being here; nothing calls it by name).
 //!
 //! Target only: on the host this crate is empty (so the module names above are plain text
 //! in the host docs), and `cargo test --workspace` never builds embassy.
@@ -36,6 +38,8 @@ pub mod debug;
 pub mod link;
 #[cfg(target_os = "none")]
 pub mod link_rx;
+#[cfg(target_os = "none")]
+mod mem;
 #[cfg(target_os = "none")]
 pub mod reset_cause;
 #[cfg(target_os = "none")]

@@ -38,7 +38,9 @@ impl Reader<'_> {
         }
     }
 
-    /// A varint of a `bits`-wide unsigned type (postcard's `try_take_varint_*`).
+    /// A varint of a `bits`-wide unsigned type (postcard's `try_take_varint_*`). Out of
+    /// line: one copy for every width and field (docs/size.md).
+    #[inline(never)]
     fn varint(&mut self, bits: u32) -> Option<u64> {
         let max_bytes = bits.div_ceil(7);
         let last_max = (1u8 << (bits % 7)).wrapping_sub(1);
