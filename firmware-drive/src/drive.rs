@@ -673,10 +673,11 @@ impl DriveCore {
 
     /// The automatic restart (`crate::restart`), every control tick: in FAULT, once the
     /// policy says so, the fault is reset as an ACK would (its conditions, and for `UV`
-    /// the DC link back at `U<` + 1 V), and the drive returns to RUN if the PLC still
-    /// commands RUN (and `STO_IN` is high), else to IDLE.
+    /// the DC link back at `U<` + 1 V, and `STO_IN` high), and the drive returns to RUN
+    /// if the PLC still commands RUN, else to IDLE.
     fn auto_restart(&mut self) {
-        let Some(f) = self.fault.filter(|_| self.state == DriveState::Fault) else {
+        // A fault is latched exactly while the state is FAULT.
+        let Some(f) = self.fault else {
             self.restart.out_of_fault();
             return;
         };
@@ -686,9 +687,10 @@ impl DriveCore {
         let policy = self.vm.settings().restart;
         if self.restart.in_fault(&policy, f, ready) {
             self.fault = None;
-            self.set_state(DriveState::Idle);
             if self.run_requested {
                 self.start_run();
+            } else {
+                self.set_state(DriveState::Idle);
             }
         }
     }
@@ -1823,10 +1825,6 @@ mod tests {
         assert_eq!((core.state(), core.fault()), (DriveState::Run, None));
         assert!(seen.contains(&DriveEvent::State {
             from: DriveState::Fault,
-            to: DriveState::Idle
-        }));
-        assert!(seen.contains(&DriveEvent::State {
-            from: DriveState::Idle,
             to: DriveState::Run
         }));
         assert!(!core.pwm_period(&ok_sample()).enable);

@@ -16,9 +16,6 @@ pub struct Limits {
     oc_x2048: Option<u32>,
     /// Trip when the DC-link reading is below this (counts of `U<` V).
     uv_counts: Option<u32>,
-    /// An automatic restart after `UV` waits for the reading at or above this (counts of
-    /// `U<` + 1 V, the hysteresis).
-    uv_back_counts: u32,
     /// Brake on above this reading (counts of `U>` V) ...
     brake_on_above: Option<u32>,
     /// ... and off again below this one (`U>` - 1 V).
@@ -57,14 +54,16 @@ impl Limits {
 
     /// `U<` in V (0 = no undervoltage trip).
     pub fn set_u_min(&mut self, volts: u16) {
-        let v = u32::from(volts);
-        self.uv_counts = (volts > 0).then_some(udc_counts_at_volts(v));
-        self.uv_back_counts = udc_counts_at_volts(v + 1);
+        self.uv_counts = (volts > 0).then_some(udc_counts_at_volts(u32::from(volts)));
     }
 
-    /// DC link at or above `U<` + 1 V (an automatic restart after `UV` may follow)?
+    /// DC link at or above `U<` + 1 V, the hysteresis of an automatic restart after `UV`
+    /// (91 counts are exactly 1 V)? `U<` not set: always.
     pub fn back_above_u_min(&self, s: &AdcSample) -> bool {
-        u32::from(s.u_dc) >= self.uv_back_counts
+        match self.uv_counts {
+            Some(lim) => u32::from(s.u_dc) >= lim + 91,
+            None => true,
+        }
     }
 
     /// `U>` in V (0 = no brake chopper).
