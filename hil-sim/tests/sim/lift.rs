@@ -351,7 +351,7 @@ fn l7b_the_lift_rides_through_a_supply_dip() {
         assert!(x.q[7] < 10, "fault state {} at {} s", x.q[7], t_s(x));
         if t_s(x) < t_s(resume) {
             assert!(
-                !x.pwm_on && x.q[7] == 9 || t_s(x) < t_s(brake) + 0.02,
+                (!x.pwm_on && x.q[7] == 9) || t_s(x) < t_s(brake) + 0.02,
                 "t {}",
                 t_s(x)
             );
