@@ -27,6 +27,7 @@ use crate::modulator::{LegMode, Modulator, ModulatorParams, M_LIMIT_Q16};
 use crate::overvoltage::{OvController, CAP_BELOW_OV_HW_VOLTS};
 use crate::power_port::Causes;
 use crate::protection::{FaultCode, HwBreak, Limits};
+use crate::restart::AutoRestart;
 use crate::reversal::Reversal;
 use crate::safety::{status_outside_run, Input as SafetyInput, Monitor};
 use crate::sine::phase_of_decidegrees;
@@ -287,6 +288,8 @@ pub struct DriveCore {
     /// The frequency and amplitude applied in the last tick (the V/f ratio while the
     /// overvoltage controller holds the frequency above the command).
     applied_fa: (i16, i16),
+    /// The automatic restart's counters (`arc`, `art`, `arn`).
+    restart: AutoRestart,
 }
 
 /// The comparator thresholds from the settings (`OC`/`OV` when set, else the board's
@@ -359,6 +362,7 @@ impl DriveCore {
             trim_failed: false,
             ovc: OvController::default(),
             applied_fa: (0, 0),
+            restart: AutoRestart::default(),
         }
     }
 
@@ -599,12 +603,7 @@ impl DriveCore {
                     if self.sto_in_low {
                         return Err(DriveRefusal::StoInput);
                     }
-                    self.vm.start_run();
-                    self.safety.start_run();
-                    self.reversal.restart(0);
-                    self.modulator.reset_phase();
-                    self.run_requested = true;
-                    self.set_state(DriveState::Run);
+                    self.start_run();
                     Ok(())
                 }
             },
@@ -621,16 +620,11 @@ impl DriveCore {
                 let Some(f) = self.fault else {
                     return Ok(());
                 };
-                if !self.cause_gone(f) {
-                    return Err(DriveRefusal::CauseActive(f));
-                }
-                let cmd = self.f_command();
-                if cmd != 0 && cmd >= self.vm.settings().fmn {
-                    return Err(DriveRefusal::FrequencyNotBelowFmn);
-                }
+                self.reset_allowed(f)?;
                 self.fault = None;
                 self.run_requested = false;
                 self.vm.stop_outputs();
+                self.restart.clear();
                 self.set_state(DriveState::Idle);
                 Ok(())
             }
@@ -648,6 +642,55 @@ impl DriveCore {
             DriveCommand::SafetyRequest { requested } => {
                 self.safety_requested = requested & FUNCTION_MASK;
                 Ok(())
+            }
+        }
+    }
+
+    /// IDLE -> RUN: the section starts from a clean state (stack, PI integrals, outputs),
+    /// the sine at angle 0, the reversal without a trend.
+    fn start_run(&mut self) {
+        self.vm.start_run();
+        self.safety.start_run();
+        self.reversal.restart(0);
+        self.modulator.reset_phase();
+        self.run_requested = true;
+        self.set_state(DriveState::Run);
+    }
+
+    /// Whether the latched fault `f` may be reset now (by an ACK or an automatic
+    /// restart): its cause is gone and the frequency command is below `fmn` (or 0), so
+    /// that the reset is never the start of a motor at speed.
+    fn reset_allowed(&self, f: FaultCode) -> Result<(), DriveRefusal> {
+        if !self.cause_gone(f) {
+            return Err(DriveRefusal::CauseActive(f));
+        }
+        let cmd = self.f_command();
+        if cmd != 0 && cmd >= self.vm.settings().fmn {
+            return Err(DriveRefusal::FrequencyNotBelowFmn);
+        }
+        Ok(())
+    }
+
+    /// The automatic restart (`crate::restart`), every control tick: in FAULT, once the
+    /// policy says so, the fault is reset as an ACK would (its conditions, and for `UV`
+    /// the DC link back at `U<` + 1 V, and `STO_IN` high), and the drive returns to RUN
+    /// if the PLC still commands RUN, else to IDLE.
+    fn auto_restart(&mut self) {
+        // A fault is latched exactly while the state is FAULT.
+        let Some(f) = self.fault else {
+            self.restart.out_of_fault();
+            return;
+        };
+        let ready = self.reset_allowed(f).is_ok()
+            && !self.sto_in_low
+            && (f != FaultCode::Uv || self.limits.back_above_u_min(&self.last));
+        let policy = self.vm.settings().restart;
+        if self.restart.in_fault(&policy, f, ready) {
+            self.fault = None;
+            if self.run_requested {
+                self.start_run();
+            } else {
+                self.set_state(DriveState::Idle);
             }
         }
     }
@@ -753,6 +796,7 @@ impl DriveCore {
         {
             self.trip(FaultCode::Ov);
         }
+        self.auto_restart();
         self.apply_settings();
         self.update_modulator();
         while let Some(e) = self.events.pop_front() {
@@ -1713,6 +1757,171 @@ mod tests {
                     assert_eq!(u64::from(modulation_q16(a, fjm, du)), old(a, fjm, du));
                 }
             }
+        }
+    }
+
+    /// `SINE` with the automatic restart of the classes `arc` (0.5 s, two in a row).
+    fn restarting(arc: u16) -> DriveCore {
+        let text = format!("{SINE}013 arc K08 {arc:04}\n014 art K09 0005\n015 arn K10 0002\n");
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        let _ = core.pwm_period(&ok_sample());
+        events(&mut core);
+        core.load_program(&section(&text)).unwrap();
+        set_f(&mut core, 500);
+        core.command(DriveCommand::Run).unwrap();
+        events(&mut core);
+        core
+    }
+
+    fn set_f(core: &mut DriveCore, value: i16) {
+        core.command(DriveCommand::SetQ { addr: 1, value }).unwrap();
+    }
+
+    fn at_udc(u_dc: u16) -> AdcSample {
+        AdcSample {
+            u_dc,
+            ..AdcSample::default()
+        }
+    }
+
+    /// Milliseconds with `s` until the core leaves FAULT (None: not within `max_ms`).
+    fn ms_out_of_fault(core: &mut DriveCore, s: &AdcSample, max_ms: u32) -> Option<u32> {
+        (1..=max_ms).find(|_| {
+            let _ = core.pwm_period(s);
+            events(core);
+            core.state() != DriveState::Fault
+        })
+    }
+
+    /// A UV trip (24 V < `U<` 25 V while switching).
+    fn trip_uv(core: &mut DriveCore) {
+        set_f(core, 500);
+        events(core);
+        assert!(core.pwm_period(&ok_sample()).enable);
+        assert!(!core.pwm_period(&at_udc(2184)).enable);
+        assert_eq!(core.fault(), Some(FaultCode::Uv));
+    }
+
+    /// `arc` 1: after UV the drive restarts once the DC link has been back at `U<` + 1 V
+    /// for `art`, with the frequency command below fmn, and returns to RUN with its
+    /// outputs off; the motor turns again only when the section commands it.
+    #[test]
+    fn uv_restarts_after_the_delay_and_the_run_command_decides() {
+        let mut core = restarting(1);
+        trip_uv(&mut core);
+        // The section still commands 50 Hz: no restart (as no ACK).
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 2000), None);
+        set_f(&mut core, 0);
+        // 25.5 V: above U< but below U< + 1 V.
+        assert_eq!(ms_out_of_fault(&mut core, &at_udc(2321), 2000), None);
+        // 26.0 V: out of FAULT after exactly 500 ms, in RUN (the PLC never left it).
+        let mut seen = Vec::new();
+        let ms = (1..=2000).find(|_| {
+            let _ = core.pwm_period(&at_udc(2366));
+            seen.extend(events(&mut core));
+            core.state() != DriveState::Fault
+        });
+        assert_eq!(ms, Some(500));
+        assert_eq!((core.state(), core.fault()), (DriveState::Run, None));
+        assert!(seen.contains(&DriveEvent::State {
+            from: DriveState::Fault,
+            to: DriveState::Run
+        }));
+        assert!(!core.pwm_period(&ok_sample()).enable);
+        set_f(&mut core, 500);
+        events(&mut core);
+        assert!(core.pwm_period(&ok_sample()).enable);
+    }
+
+    /// A break in the supply's return starts the delay again.
+    #[test]
+    fn the_delay_counts_from_the_last_low_sample() {
+        let mut core = restarting(1);
+        trip_uv(&mut core);
+        set_f(&mut core, 0);
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 400), None);
+        assert_eq!(ms_out_of_fault(&mut core, &at_udc(2184), 1), None);
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 2000), Some(500));
+    }
+
+    /// Without `arc`, or with other classes only, UV stays latched (drive.md's rule).
+    #[test]
+    fn without_its_class_in_arc_uv_stays_latched() {
+        for arc in [0, 2, 4, 6] {
+            let mut core = restarting(arc);
+            trip_uv(&mut core);
+            set_f(&mut core, 0);
+            assert_eq!(
+                ms_out_of_fault(&mut core, &ok_sample(), 3000),
+                None,
+                "{arc}"
+            );
+        }
+        let mut core = running(500);
+        trip_uv(&mut core);
+        set_f(&mut core, 0);
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 3000), None);
+    }
+
+    /// `arn` 2: the third UV of a row stays latched until a manual ACK, which starts a
+    /// new row.
+    #[test]
+    fn the_count_limit_latches_until_an_ack() {
+        let mut core = restarting(1);
+        for _ in 0..2 {
+            trip_uv(&mut core);
+            set_f(&mut core, 0);
+            assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 2000), Some(500));
+        }
+        trip_uv(&mut core);
+        set_f(&mut core, 0);
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 5000), None);
+        core.command(DriveCommand::Ack).unwrap();
+        assert_eq!(core.state(), DriveState::Idle);
+        core.command(DriveCommand::Run).unwrap();
+        trip_uv(&mut core);
+        set_f(&mut core, 0);
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 2000), Some(500));
+    }
+
+    /// A PLC that left RUN (STOP) during the fault gets an IDLE drive; a low `STO_IN`
+    /// holds the restart.
+    #[test]
+    fn a_restart_without_the_run_command_ends_in_idle_and_sto_in_holds_it() {
+        let mut core = restarting(1);
+        trip_uv(&mut core);
+        core.command(DriveCommand::Stop).unwrap();
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 2000), Some(500));
+        assert_eq!(core.state(), DriveState::Idle);
+        let mut core = restarting(1);
+        trip_uv(&mut core);
+        set_f(&mut core, 0);
+        core.set_sto_input(true);
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 2000), None);
+        core.set_sto_input(false);
+        assert_eq!(ms_out_of_fault(&mut core, &ok_sample(), 2000), Some(500));
+    }
+
+    /// The latched classes never restart, whatever `arc` says and whether or not an ACK
+    /// would be accepted.
+    #[test]
+    fn latched_classes_never_restart() {
+        for code in [
+            FaultCode::OcHw,
+            FaultCode::OvHw,
+            FaultCode::Link,
+            FaultCode::Sto,
+            FaultCode::Ramp,
+        ] {
+            let mut core = restarting(7);
+            set_f(&mut core, 0);
+            core.trip(code);
+            assert_eq!(
+                ms_out_of_fault(&mut core, &ok_sample(), 2000),
+                None,
+                "{code:?}"
+            );
+            core.command(DriveCommand::Ack).unwrap();
         }
     }
 }

@@ -27,6 +27,7 @@ pub mod modulator;
 pub mod overvoltage;
 pub mod power_port;
 pub mod protection;
+pub mod restart;
 pub mod reversal;
 pub mod safety;
 pub mod sine;

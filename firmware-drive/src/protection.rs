@@ -57,6 +57,15 @@ impl Limits {
         self.uv_counts = (volts > 0).then_some(udc_counts_at_volts(u32::from(volts)));
     }
 
+    /// DC link at or above `U<` + 1 V, the hysteresis of an automatic restart after `UV`
+    /// (91 counts are exactly 1 V)? `U<` not set: always.
+    pub fn back_above_u_min(&self, s: &AdcSample) -> bool {
+        match self.uv_counts {
+            Some(lim) => u32::from(s.u_dc) >= lim + 91,
+            None => true,
+        }
+    }
+
     /// `U>` in V (0 = no brake chopper).
     pub fn set_u_max(&mut self, volts: u16) {
         let v = u32::from(volts);

@@ -22,6 +22,7 @@ use shared_protocol::program::{
 };
 
 use crate::modulator::LegMode;
+use crate::restart::RestartPolicy;
 
 /// Depth of the int stack.
 pub const STACK_DEPTH: usize = 5;
@@ -66,6 +67,8 @@ pub struct Settings {
     pub oc_hw_centiamps: u16,
     /// `U>>`: hardware overvoltage threshold, V (0 = none: the board's default).
     pub ov_hw_volts: u16,
+    /// `arc`, `art`, `arn`: the automatic restart (`crate::restart`).
+    pub restart: RestartPolicy,
 }
 
 impl Settings {
@@ -86,6 +89,7 @@ impl Settings {
             prescaler: 1,
             oc_hw_centiamps: 0,
             ov_hw_volts: 0,
+            restart: RestartPolicy::OFF,
         }
     }
 
@@ -362,6 +366,9 @@ impl DriveVm {
             Mnemonic::Fjm if ki > 0 => self.settings.fjm = ki,
             Mnemonic::Fmx => self.settings.fmx = ki,
             Mnemonic::Frv => self.settings.frv = ki,
+            Mnemonic::Arc => self.settings.restart.classes = k,
+            Mnemonic::Art => self.settings.restart.delay_ds = k,
+            Mnemonic::Arn => self.settings.restart.limit = k,
             // `fjm 0` keeps the default (the verifier refuses it anyway); the safety
             // settings are read by `safety_settings`, not here; the rest are executed by
             // `exec` (not settings) or are PLC-section mnemonics the verifier keeps out.

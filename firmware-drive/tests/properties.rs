@@ -2,6 +2,7 @@
 //! program.md 4.3) over random programs, commands and measurements.
 
 use firmware_drive::modulator::dead_time_safe;
+use firmware_drive::restart::class_bit;
 use firmware_drive::{
     AdcSample, DriveCommand, DriveConfig, DriveCore, DriveEvent, DriveState, FaultCode, HwBreak,
     PwmCommand, ResetCause,
@@ -180,12 +181,21 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                 }
             }
             Op::Tick => {
+                let latched = core.fault().filter(|_| core.state() == DriveState::Fault);
+                let classes = core.vm().settings().restart.classes;
                 let mut reversed = None;
                 core.tick_1ms(&mut |e| {
                     if let DriveEvent::Reversed(d) = e {
                         reversed = Some(d);
                     }
                 });
+                let restarted = latched.filter(|_| core.state() != DriveState::Fault);
+                if let Some(code) = restarted {
+                    // An automatic restart (a random section may set `arc`): only a
+                    // class it names.
+                    prop_assert!(class_bit(code) & classes != 0, "{:?} restarted", code);
+                    latched_since_run = false;
+                }
                 let st = core.status();
                 let f = st.f_command.0;
                 let standstill = f_prev_tick == 0;
@@ -206,6 +216,10 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                     );
                 }
                 f_prev_tick = f;
+                if restarted.is_some() {
+                    // The RUN it returns to starts from standstill, as after a RUN.
+                    f_prev_tick = 0;
+                }
             }
             Op::Cmd(c) => {
                 let before = core.state();
@@ -389,5 +403,56 @@ proptest! {
             vm.run(&fixed, &mut |_| {});
         }
         prop_assert_eq!(vm.stack_underflows(), 0);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// The automatic restart (`arc`, `art`, `arn` over their whole ranges): a latched class
+    /// never leaves FAULT by itself, whatever the settings; a restartable class that `arc`
+    /// names restarts after exactly `art`, at most `arn` times in a row, and the trip after
+    /// the last one stays latched.
+    #[test]
+    fn latched_classes_never_restart_and_a_row_stops_at_arn(
+        arc in 0u16..8,
+        art in 0u16..20,
+        arn in 0u16..4,
+        code in prop::sample::select(FaultCode::ALL.to_vec()),
+        trips in 1u16..6,
+    ) {
+        let text = format!(
+            "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n004 LD K01 1200\n005 SN2\n\
+             006 LD K02 2400\n007 SN3\n008 U< K03 0025\n009 I> K04 0300\n010 U> K05 0038\n\
+             011 fmn K06 0050\n012 arc K07 {arc:04}\n013 art K08 {art:04}\n014 arn K09 {arn:04}\n"
+        );
+        let p = shared_protocol::program::assemble(&text).unwrap().drive_section();
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        let mut sink = |_e: DriveEvent| {};
+        let nominal = AdcSample { i_a: 2048, i_b: 2048, u_dc: 2730, aux: 0 };
+        let _ = core.pwm_period(&nominal);
+        core.tick_1ms(&mut sink);
+        core.load_program(&p).unwrap();
+        core.command(DriveCommand::Run).unwrap();
+        let restartable = class_bit(code) & arc != 0;
+        for n in 0..trips {
+            prop_assert_eq!(core.state(), DriveState::Run);
+            core.trip(code);
+            let mut out_after = None;
+            for ms in 1..=u32::from(art) * 100 + 50 {
+                let _ = core.pwm_period(&nominal);
+                core.tick_1ms(&mut sink);
+                if core.state() != DriveState::Fault {
+                    out_after = Some(ms);
+                    break;
+                }
+            }
+            if !restartable || n >= arn {
+                prop_assert_eq!(out_after, None, "{:?} restarted (trip {})", code, n);
+                return Ok(());
+            }
+            prop_assert_eq!(out_after, Some((u32::from(art) * 100).max(1)));
+            prop_assert_eq!(core.fault(), None);
+        }
     }
 }

@@ -81,6 +81,9 @@ macro_rules! drive_mnemonics {
             | shared_protocol::program::Mnemonic::Adn
             | shared_protocol::program::Mnemonic::Tla
             | shared_protocol::program::Mnemonic::Asr
+            | shared_protocol::program::Mnemonic::Arc
+            | shared_protocol::program::Mnemonic::Art
+            | shared_protocol::program::Mnemonic::Arn
     };
 }
 

@@ -310,6 +310,75 @@ fn l7_a_drive_trip_applies_the_brake() {
     assert!((end.car_mm - rest.car_mm).abs() <= 1.0);
 }
 
+/// L7b (firmware-drive/docs/drive-core.md "Automatic restart"): L7's supply dip, but the
+/// supply is back after 0.5 s. The drive restarts by itself after UV (`lift.plc`'s `arc`,
+/// `art` 1.0 s), the lift waits in state 9 with the brake applied and then finishes its
+/// trip: level at floor 3, the door opening only at rest, the motor never switching
+/// before the program commands it again.
+#[test]
+fn l7b_the_lift_rides_through_a_supply_dip() {
+    let s = run_lift("l7b_supply_dip", 30.0);
+    let trip = first(&s, 13.0, |x| x.fault != 0);
+    assert_eq!(trip.fault, 4);
+    let brake = first(&s, t_s(trip), |x| !out(x, 1));
+    assert!(t_s(brake) - t_s(trip) <= 0.010);
+    let end = s.last().unwrap();
+    let arrival = s
+        .iter()
+        .find(|x| t_s(x) > t_s(trip) && out(x, 0))
+        .unwrap_or_else(|| {
+            panic!(
+                "the lift never reached floor 3 after the dip: state {}, fault {}, car at {:.1} mm",
+                end.q[7],
+                end.fault,
+                lift(end).car_mm
+            )
+        });
+    assert_eq!(arrival.q[4], 3);
+    let rest = rest_after(&s, t_s(arrival) - 0.010);
+    assert!(
+        (rest.car_mm - 600.0).abs() <= 5.0,
+        "level error {}",
+        rest.car_mm - 600.0
+    );
+    // The drive restarted by itself, `art` after the supply came back (14.72 s).
+    let restart = first(&s, t_s(trip), |x| x.fault == 0);
+    assert!(t_s(restart) >= 15.72, "restart at {} s", t_s(restart));
+    // Waiting in 9 (never a fault state), the motor off until the program resumes.
+    let resume = first(&s, t_s(restart), |x| out(x, 1));
+    assert!(matches!(resume.q[7], 3 | 5), "resumed in {}", resume.q[7]);
+    for x in s.iter().filter(|x| t_s(x) > t_s(trip)) {
+        assert!(x.q[7] < 10, "fault state {} at {} s", x.q[7], t_s(x));
+        if t_s(x) < t_s(resume) {
+            assert!(
+                (!x.pwm_on && x.q[7] == 9) || t_s(x) < t_s(brake) + 0.02,
+                "t {}",
+                t_s(x)
+            );
+        }
+    }
+    // No motion with the door open (the door starts to open at the level stop while the
+    // brake catches the creeping car: 10 % open is 0.2 s after O00); no roll-back after
+    // the dip.
+    for x in &s {
+        assert!(
+            lift(x).door <= 0.1 || lift(x).car_mms == 0.0,
+            "t {}: door {}, car {} mm/s",
+            t_s(x),
+            lift(x).door,
+            lift(x).car_mms
+        );
+    }
+    let mut top = lift(trip).car_mm;
+    for x in s
+        .iter()
+        .filter(|x| t_s(x) > t_s(trip) && t_s(x) < t_s(arrival))
+    {
+        assert!(lift(x).car_mm >= top - 1.0, "roll-back at {} s", t_s(x));
+        top = top.max(lift(x).car_mm);
+    }
+}
+
 #[test]
 fn l8_overhauling_init_run_is_held_by_the_chopper() {
     let s = run_lift("l8_overhauling", 20.0);

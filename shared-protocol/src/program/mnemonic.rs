@@ -120,11 +120,13 @@ pub enum Constants {
     UHW,
     /// `ALM`: application faults 0001-0099.
     ALM,
+    /// `arc`: a mask of the three restartable fault classes, 0000-0007.
+    ARC,
 }
 
 impl Constants {
     /// Every name, in discriminant order (a test checks it).
-    const ALL: [Constants; 7] = [
+    const ALL: [Constants; 8] = [
         Constants::ANY,
         Constants::FROM_1,
         Constants::PWF,
@@ -132,6 +134,7 @@ impl Constants {
         Constants::IHW,
         Constants::UHW,
         Constants::ALM,
+        Constants::ARC,
     ];
 
     /// The smallest and largest constant.
@@ -144,6 +147,7 @@ impl Constants {
             Constants::IHW => (1, I_MAX_HW_LIMIT),
             Constants::UHW => (1, U_MAX_HW_LIMIT),
             Constants::ALM => (1, 99),
+            Constants::ARC => (0, 7),
         }
     }
 }
@@ -322,6 +326,13 @@ mnemonic_table! {
     Fjm     = 57, "fjm"  plc -         drive K_ONLY    k FROM_1  stack -;
     Fmx     = 58, "fmx"  plc -         drive K_ONLY    k FROM_1  stack -;
     Frv     = 59, "frv"  plc -         drive K_ONLY    k -       stack -;
+    /// `arc`: the fault classes that restart automatically (bit 0 `UV`, 1 `OV`, 2 `OC`;
+    /// 0 = none), `firmware-drive/docs/drive-core.md` "Automatic restart".
+    Arc     = 86, "arc"  plc -         drive K_ONLY    k ARC     stack -;
+    /// `art`: the automatic restart's delay after the cause has gone, 0.1 s.
+    Art     = 87, "art"  plc -         drive K_ONLY    k -       stack -;
+    /// `arn`: automatic restarts in a row before the fault stays latched.
+    Arn     = 88, "arn"  plc -         drive K_ONLY    k -       stack -;
     /// The safety settings (safety.md 4), in signature order: see
     /// [`crate::safety::SafetySetting`] for each one's meaning and unit.
     Fss     = 62, "fss"  plc -         drive K_ONLY    k -       stack -;

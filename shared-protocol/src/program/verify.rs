@@ -747,7 +747,7 @@ mod tests {
         assert_eq!(not, std::vec![None]);
         assert_eq!(operands_for(Mnemonic::Pwf, Section::Plc).count(), 0);
         assert_eq!(mnemonics_for(Section::Plc).count(), 31);
-        assert_eq!(mnemonics_for(Section::Drive).count(), 48);
+        assert_eq!(mnemonics_for(Section::Drive).count(), 51);
         // The safety settings: drive section, K only, 0000-9999.
         for setting in crate::safety::SafetySetting::ALL {
             let m = Mnemonic::of_setting(setting);
