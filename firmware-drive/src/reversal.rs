@@ -1,21 +1,31 @@
-//! Direction changes (program.md 4.2 `frv`): a request from the PLC stays pending until
-//! the frequency is below `frv` and not falling, so the phases are never swapped while the
-//! motor is being braked down ("reversal happens only when the frequency starts rising
-//! again").
+//! Direction changes (program.md 4.2 `frv`): "if the frequency falls below frv and the PLC
+//! sends a reversal request, the reversal happens only when the frequency starts rising
+//! again; the PLC must provide the decrease and increase". A request stays pending until
+//! the turning point of the commanded frequency below `frv`: the first cycle in which it
+//! rises after it has been falling. So the phases are never swapped while the motor turns
+//! at a steady speed it was run up to, nor while it is being braked: a request at a steady
+//! 8 Hz waits for the program to lower the frequency and raise it again (or to stop),
+//! instead of plugging the motor at speed.
 //!
-//! "Not falling" is kept as a trend, not a one-cycle comparison: f changes by less than
-//! one 0.1 Hz step per millisecond on a slow ramp (the motor example's 2.333 s lag), so
-//! comparing with the previous cycle alone would see "equal" in the middle of a ramp-down
-//! and reverse there. The trend is "falling" from the first cycle in which f decreases
-//! until the first cycle in which it increases; cycles with equal f keep it. This is
-//! stricter than the letter of program.md and never weaker: a cycle with f lower than
-//! the previous one always counts as falling.
+//! "Falling" is a trend, not a one-cycle comparison: f changes by less than one 0.1 Hz
+//! step per millisecond on a slow ramp (the motor example's 2.333 s lag), so cycles with
+//! an equal f keep the trend; it is set by a cycle with a lower f and cleared by a cycle
+//! with a higher one. The turning point is a cycle with a higher f than the previous one
+//! while the trend was falling. A request that reaches the drive within
+//! [`TURN_GRACE_MS`] of the turning point applies at the next rise: a program that writes
+//! its setpoint before its `REV` in the same scan sends the two in different link frames,
+//! and the rise may reach the drive a few milliseconds before the request.
 //!
 //! **Standstill** (program.md 4.2, lift.md 2.2): a cycle that starts with the previous
 //! cycle's f at 0 applies a pending request at once, before the drive section computes
-//! the new f ([`Reversal::start_cycle`]), and clears the trend. Without this the trend
-//! stays "falling" at f = 0 after a stop, the first rising cycle has f >= 0.1 Hz (not
-//! below the default frv), and the motor would restart in the old direction.
+//! the new f ([`Reversal::start_cycle`]), so that the first PWM period of a restart already
+//! runs in the requested direction; a cycle whose command is 0 applies it too, and so does
+//! a cycle below `fmn` in which f is not falling (the outputs are off below `fmn`: nothing
+//! is plugged; a command that dithers between 0 and 0.1 Hz after a stop is such a case).
+
+/// How long after the turning point a request still applies at a rise: the link's skew
+/// between two writes of one PLC scan (about 1.2 ms worst case, `docs/link.md`) with room.
+pub const TURN_GRACE_MS: u8 = 10;
 
 #[derive(Debug, Clone, Default)]
 pub struct Reversal {
@@ -23,6 +33,8 @@ pub struct Reversal {
     applied: bool,
     f_prev: i16,
     falling: bool,
+    /// Cycles since the last turning point while f has not fallen since (`None`: none).
+    since_turn_ms: Option<u8>,
 }
 
 impl Reversal {
@@ -44,6 +56,7 @@ impl Reversal {
     pub fn restart(&mut self, f: i16) {
         self.f_prev = f;
         self.falling = false;
+        self.since_turn_ms = None;
     }
 
     /// The start of a 1 ms cycle, before the drive section runs: at standstill (the
@@ -55,6 +68,7 @@ impl Reversal {
             return None;
         }
         self.falling = false;
+        self.since_turn_ms = None;
         if self.pending() {
             self.applied = self.requested;
             Some(self.applied)
@@ -64,15 +78,28 @@ impl Reversal {
     }
 
     /// The end of a 1 ms cycle with commanded frequency `f`; returns the new direction when
-    /// the pending request is applied in this cycle (f below frv and not falling).
-    pub fn cycle(&mut self, f: i16, frv: i16) -> Option<bool> {
+    /// the pending request is applied in this cycle: at standstill, at the turning point
+    /// below `frv` (f rises after a falling trend), or below `fmn` while f is not falling
+    /// (the outputs are off there: no motor is plugged; while f falls below fmn the request
+    /// waits for the turning point, as the source's figure shows).
+    pub fn cycle(&mut self, f: i16, frv: i16, fmn: i16) -> Option<bool> {
+        let rising = f > self.f_prev;
+        if rising && self.falling {
+            self.since_turn_ms = Some(0);
+        } else if f < self.f_prev {
+            self.since_turn_ms = None;
+        } else if let Some(n) = self.since_turn_ms {
+            self.since_turn_ms = Some(n.saturating_add(1));
+        }
         if f < self.f_prev {
             self.falling = true;
-        } else if f > self.f_prev {
+        } else if rising {
             self.falling = false;
         }
         self.f_prev = f;
-        if self.pending() && f < frv && !self.falling {
+        let at_turn = self.since_turn_ms.is_some_and(|n| n <= TURN_GRACE_MS);
+        let outputs_off_steady = f < fmn && !self.falling;
+        if self.pending() && (f == 0 || outputs_off_steady || (f < frv && rising && at_turn)) {
             self.applied = self.requested;
             Some(self.applied)
         } else {
@@ -88,20 +115,20 @@ mod tests {
     #[test]
     fn waits_for_the_turning_point_below_frv() {
         let mut r = Reversal::default();
-        r.cycle(400, 200);
+        r.cycle(400, 200, 0);
         r.request(true);
         // Ramp down 40 Hz -> 2 Hz with plateaus: never applies.
         let mut f = 400;
         while f > 20 {
             for _ in 0..5 {
-                assert_eq!(r.cycle(f, 200), None, "f = {f}");
+                assert_eq!(r.cycle(f, 200, 0), None, "f = {f}");
             }
             f -= 1;
         }
         assert!(r.pending());
         // Turning point: rising again below frv.
-        assert_eq!(r.cycle(21, 200), None);
-        assert_eq!(r.cycle(22, 200), Some(true));
+        assert_eq!(r.cycle(21, 200, 0), None);
+        assert_eq!(r.cycle(22, 200, 0), Some(true));
         assert!(r.applied() && !r.pending());
     }
 
@@ -110,7 +137,7 @@ mod tests {
         let mut r = Reversal::default();
         r.request(true);
         for f in 200..300 {
-            assert_eq!(r.cycle(f, 200), None);
+            assert_eq!(r.cycle(f, 200, 0), None);
         }
     }
 
@@ -122,16 +149,16 @@ mod tests {
         let mut r = Reversal::default();
         for f in [100, 100, 0, 0] {
             r.start_cycle();
-            r.cycle(f, 1);
+            r.cycle(f, 1, 0);
         }
         r.request(true);
         assert_eq!(r.start_cycle(), Some(true));
-        assert_eq!(r.cycle(100, 1), None);
+        assert_eq!(r.cycle(100, 1, 0), None);
         assert!(r.applied());
         // Not at standstill: the request waits for the frv rule.
         r.request(false);
         assert_eq!(r.start_cycle(), None);
-        assert_eq!(r.cycle(100, 1), None);
+        assert_eq!(r.cycle(100, 1, 0), None);
         assert!(r.pending());
     }
 
@@ -139,8 +166,118 @@ mod tests {
     fn at_standstill_it_applies_at_once() {
         let mut r = Reversal::default();
         r.request(true);
-        assert_eq!(r.cycle(0, 1), Some(true));
+        assert_eq!(r.cycle(0, 1, 0), Some(true));
         r.request(false);
-        assert_eq!(r.cycle(0, 1), Some(false));
+        assert_eq!(r.cycle(0, 1, 0), Some(false));
+    }
+
+    #[test]
+    fn a_request_at_a_steady_speed_below_frv_waits_for_the_decrease_and_increase() {
+        // The source's motor.plc at a steady 8 Hz with frv = 20 Hz: the request alone
+        // never swaps the phases at speed.
+        let mut r = Reversal::default();
+        for _ in 0..10 {
+            r.cycle(80, 200, 0);
+        }
+        r.request(true);
+        for _ in 0..100 {
+            assert_eq!(r.cycle(80, 200, 0), None);
+        }
+        // A rise without a fall first is no turning point either.
+        assert_eq!(r.cycle(81, 200, 0), None);
+        // The PLC lowers the command and raises it again: the turning point applies it.
+        assert_eq!(r.cycle(70, 200, 0), None);
+        assert_eq!(r.cycle(70, 200, 0), None);
+        assert_eq!(r.cycle(71, 200, 0), Some(true));
+    }
+
+    #[test]
+    fn a_request_during_the_ramp_down_applies_at_the_turning_point_or_at_standstill() {
+        let mut r = Reversal::default();
+        r.cycle(300, 200, 0);
+        r.cycle(250, 200, 0);
+        r.request(true);
+        for f in (0..250).rev() {
+            let got = r.cycle(f, 200, 0);
+            if f == 0 {
+                assert_eq!(got, Some(true));
+            } else {
+                assert_eq!(got, None, "f = {f}");
+            }
+        }
+    }
+
+    #[test]
+    fn below_fmn_a_steady_command_applies_at_once_a_falling_one_waits() {
+        let mut r = Reversal::default();
+        for f in [0, 1] {
+            r.start_cycle();
+            r.cycle(f, 200, 50);
+        }
+        r.request(true);
+        assert_eq!(r.cycle(1, 200, 50), Some(true), "outputs off, steady");
+        let mut r = Reversal::default();
+        r.cycle(300, 200, 50);
+        r.request(true);
+        for f in (10..300).rev() {
+            assert_eq!(r.cycle(f, 200, 50), None, "falling at {f}");
+        }
+        assert_eq!(r.cycle(11, 200, 50), Some(true), "the turning point");
+    }
+
+    #[test]
+    fn a_request_just_after_the_turning_point_applies_at_the_next_rise() {
+        let mut r = Reversal::default();
+        for f in [80, 60, 40, 40, 41, 41] {
+            r.cycle(f, 200, 0);
+        }
+        r.request(true);
+        assert_eq!(r.cycle(41, 200, 0), None, "not rising");
+        assert_eq!(r.cycle(42, 200, 0), Some(true));
+        // Long after the turn, a request waits for the next decrease and increase.
+        let mut r = Reversal::default();
+        for f in [80, 60, 40, 41] {
+            r.cycle(f, 200, 0);
+        }
+        for _ in 0..=TURN_GRACE_MS {
+            r.cycle(41, 200, 0);
+        }
+        r.request(true);
+        assert_eq!(r.cycle(42, 200, 0), None);
+    }
+
+    proptest::proptest! {
+        /// Over random ramps and request times: the phase order changes only at standstill
+        /// (this cycle's or the previous cycle's command 0), below fmn (outputs off) or
+        /// when the command rises below frv; never above fmn while it is not rising.
+        #[test]
+        fn never_swaps_while_turning_and_not_rising(
+            steps in proptest::collection::vec((-3i16..=3, 0u8..20), 1..400),
+            frv in 1i16..300,
+            fmn in 0i16..100,
+        ) {
+            let mut r = Reversal::default();
+            let mut f: i16 = 0;
+            let mut want = false;
+            for (df, req) in steps {
+                let prev = f;
+                if r.start_cycle().is_some() {
+                    proptest::prop_assert_eq!(prev, 0);
+                }
+                if req == 0 {
+                    want = !want;
+                    r.request(want);
+                }
+                f = (f + df * 10).clamp(0, 600);
+                if r.cycle(f, frv, fmn).is_some() {
+                    proptest::prop_assert!(
+                        f == 0 || f < fmn || (f > prev && f < frv),
+                        "swapped at f = {} after {}",
+                        f,
+                        prev
+                    );
+                }
+            }
+        }
     }
 }

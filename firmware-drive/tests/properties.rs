@@ -198,9 +198,11 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                 }
                 if !standstill && reversed.is_some() {
                     prop_assert!(f < core.vm().settings().frv, "reversed at f {} >= frv", f);
+                    // 002 4.2: only when the command rises again, at standstill or below fmn
+                    // (outputs off); never above fmn at a steady speed or while it falls.
                     prop_assert!(
-                        f >= f_prev_tick,
-                        "reversed while falling {} -> {}",
+                        f == 0 || f > f_prev_tick || f < core.vm().settings().fmn,
+                        "reversed while not rising {} -> {}",
                         f_prev_tick,
                         f
                     );
