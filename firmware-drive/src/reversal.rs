@@ -27,14 +27,18 @@
 /// between two writes of one PLC scan (about 1.2 ms worst case, `docs/link.md`) with room.
 pub const TURN_GRACE_MS: u8 = 10;
 
+/// [`Reversal::trend`] while the command falls.
+const FALLING: u8 = u8::MAX;
+
+/// One byte of trend keeps the rule small in flash (the drive image's budget).
 #[derive(Debug, Clone, Default)]
 pub struct Reversal {
     requested: bool,
     applied: bool,
     f_prev: i16,
-    falling: bool,
-    /// Cycles since the last turning point while f has not fallen since (`None`: none).
-    since_turn_ms: Option<u8>,
+    /// [`FALLING`], or the milliseconds of the grace after the last turning point still
+    /// left (`TURN_GRACE_MS + 1` in the cycle of the turn, down to 0: no turn to apply at).
+    trend: u8,
 }
 
 impl Reversal {
@@ -55,8 +59,17 @@ impl Reversal {
     /// A RUN starts from standstill: no trend yet.
     pub fn restart(&mut self, f: i16) {
         self.f_prev = f;
-        self.falling = false;
-        self.since_turn_ms = None;
+        self.trend = 0;
+    }
+
+    /// The pending request takes effect if `now`; returns the new direction then.
+    fn apply_if(&mut self, now: bool) -> Option<bool> {
+        if now && self.pending() {
+            self.applied = self.requested;
+            Some(self.applied)
+        } else {
+            None
+        }
     }
 
     /// The start of a 1 ms cycle, before the drive section runs: at standstill (the
@@ -67,44 +80,35 @@ impl Reversal {
         if self.f_prev != 0 {
             return None;
         }
-        self.falling = false;
-        self.since_turn_ms = None;
-        if self.pending() {
-            self.applied = self.requested;
-            Some(self.applied)
-        } else {
-            None
-        }
+        self.trend = 0;
+        self.apply_if(true)
     }
 
     /// The end of a 1 ms cycle with commanded frequency `f`; returns the new direction when
     /// the pending request is applied in this cycle: at standstill, at the turning point
-    /// below `frv` (f rises after a falling trend), or below `fmn` while f is not falling
-    /// (the outputs are off there: no motor is plugged; while f falls below fmn the request
-    /// waits for the turning point, as the source's figure shows).
+    /// below `frv` (f rises after a falling trend, or within the grace after it), or below
+    /// `fmn` while f is not falling (the outputs are off there: no motor is plugged; while
+    /// f falls below fmn the request waits for the turning point, as the source's figure
+    /// shows).
     pub fn cycle(&mut self, f: i16, frv: i16, fmn: i16) -> Option<bool> {
         let rising = f > self.f_prev;
-        if rising && self.falling {
-            self.since_turn_ms = Some(0);
-        } else if f < self.f_prev {
-            self.since_turn_ms = None;
-        } else if let Some(n) = self.since_turn_ms {
-            self.since_turn_ms = Some(n.saturating_add(1));
-        }
-        if f < self.f_prev {
-            self.falling = true;
-        } else if rising {
-            self.falling = false;
-        }
-        self.f_prev = f;
-        let at_turn = self.since_turn_ms.is_some_and(|n| n <= TURN_GRACE_MS);
-        let outputs_off_steady = f < fmn && !self.falling;
-        if self.pending() && (f == 0 || outputs_off_steady || (f < frv && rising && at_turn)) {
-            self.applied = self.requested;
-            Some(self.applied)
+        self.trend = if f < self.f_prev {
+            FALLING
+        } else if self.trend == FALLING {
+            if rising {
+                TURN_GRACE_MS + 1
+            } else {
+                FALLING
+            }
         } else {
-            None
-        }
+            self.trend.saturating_sub(1)
+        };
+        self.f_prev = f;
+        let not_falling = self.trend != FALLING;
+        // `rising` implies `not_falling`: a grace left (trend > 0) is a recent turn.
+        self.apply_if(
+            f == 0 || (not_falling && (f < fmn || (rising && f < frv && self.trend != 0))),
+        )
     }
 }
 
