@@ -15,6 +15,7 @@ mod link;
 mod motor;
 mod oc_levels;
 mod power_stage;
+mod reversal;
 mod safety;
 mod service;
 mod silicon_faults;
