@@ -250,29 +250,74 @@ mod tests {
         assert_eq!(r.cycle(42, 200, 0), None);
     }
 
+    /// A command profile of ramp segments: to `target` (0.1 Hz) by `step` every `every_ms`,
+    /// then held `hold_ms`: slow ramps with plateaus (the motor example's lag), fast ones,
+    /// steps, stops.
+    fn profile(segments: &[(i16, i16, u8, u8)]) -> std::vec::Vec<i16> {
+        let mut f = 0i16;
+        let mut out = std::vec::Vec::new();
+        for &(target, step, every_ms, hold_ms) in segments {
+            while f != target {
+                f = if f < target {
+                    (f + step).min(target)
+                } else {
+                    (f - step).max(target)
+                };
+                for _ in 0..every_ms {
+                    out.push(f);
+                }
+            }
+            for _ in 0..hold_ms {
+                out.push(f);
+            }
+        }
+        out
+    }
+
+    fn segments() -> impl proptest::strategy::Strategy<Value = std::vec::Vec<(i16, i16, u8, u8)>> {
+        use proptest::prelude::*;
+        proptest::collection::vec(
+            (
+                prop_oneof![1 => Just(0i16), 3 => 0i16..=300, 1 => 300i16..=600],
+                prop_oneof![3 => Just(1i16), 1 => 1i16..=50],
+                1u8..=6,
+                0u8..=60,
+            ),
+            1..10,
+        )
+    }
+
     proptest::proptest! {
-        /// Over random ramps and request times: the phase order changes only at standstill
+        /// 002 4.2 over random ramps and request times (before a ramp-down, during it, at
+        /// a steady speed, at standstill): the phase order changes only at standstill
         /// (this cycle's or the previous cycle's command 0), below fmn (outputs off) or
-        /// when the command rises below frv; never above fmn while it is not rising.
+        /// when the command rises below frv; never above fmn while it is not rising. And
+        /// the rule does not just refuse: a request pending while the command falls
+        /// applies at the first rise below frv, and one pending at a command of 0 applies.
         #[test]
-        fn never_swaps_while_turning_and_not_rising(
-            steps in proptest::collection::vec((-3i16..=3, 0u8..20), 1..400),
+        fn swaps_only_when_rising_below_frv_or_at_standstill(
+            segs in segments(),
+            requests in proptest::collection::vec(0u16..1000, 0..8),
             frv in 1i16..300,
             fmn in 0i16..100,
         ) {
+            let fs = profile(&segs);
+            let n = fs.len();
+            // Request times as fractions of the profile (toggling the direction).
+            let at: std::vec::Vec<usize> =
+                requests.iter().map(|r| usize::from(*r) * n / 1000).collect();
             let mut r = Reversal::default();
-            let mut f: i16 = 0;
-            let mut want = false;
-            for (df, req) in steps {
-                let prev = f;
+            let (mut prev, mut want) = (0i16, false);
+            // A request was pending in a cycle in which the command fell.
+            let mut armed = false;
+            for (k, &f) in fs.iter().enumerate() {
                 if r.start_cycle().is_some() {
                     proptest::prop_assert_eq!(prev, 0);
                 }
-                if req == 0 {
+                for _ in at.iter().filter(|&&t| t == k) {
                     want = !want;
                     r.request(want);
                 }
-                f = (f + df * 10).clamp(0, 600);
                 if r.cycle(f, frv, fmn).is_some() {
                     proptest::prop_assert!(
                         f == 0 || f < fmn || (f > prev && f < frv),
@@ -281,6 +326,24 @@ mod tests {
                         prev
                     );
                 }
+                if f == 0 {
+                    proptest::prop_assert!(!r.pending(), "pending at standstill");
+                }
+                if f > prev {
+                    proptest::prop_assert!(
+                        !(armed && f < frv && r.pending()),
+                        "still pending at the turning point {} -> {} (frv {})",
+                        prev,
+                        f,
+                        frv
+                    );
+                    armed = false;
+                }
+                if f < prev {
+                    armed = r.pending();
+                }
+                armed &= r.pending();
+                prev = f;
             }
         }
     }

@@ -124,7 +124,12 @@ fn rev_at_a_steady_15_hz_does_not_swap_the_phases_at_speed() {
 fn rev_at_a_steady_19_hz_reverses_at_the_turning_point_without_a_trip() {
     let end_s = REV_S + PULSE_S + 0.9;
     let (after, sim) = run_rev_at(190, end_s);
-    assert!(sim.faults().is_empty(), "{:?}", sim.faults());
+    assert!(
+        sim.faults().is_empty(),
+        "REV at 19 Hz: faults {:?}, phases swapped at {:?} s",
+        sim.faults(),
+        first_reversed(&after).map(|s| s.t_ns as f64 * 1e-9)
+    );
     let flip = first_reversed(&after).unwrap_or_else(|| panic!("never reversed"));
     let flip_s = flip.t_ns as f64 * 1e-9;
     assert!(
