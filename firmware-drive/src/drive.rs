@@ -780,7 +780,10 @@ impl DriveCore {
     #[inline(never)]
     pub fn tick_1ms_control(&mut self, events: &mut impl FnMut(DriveEvent)) {
         let f = self.f_command();
-        if let Some(dir) = self.reversal.cycle(f, self.vm.settings().frv) {
+        if let Some(dir) = self
+            .reversal
+            .cycle(f, self.vm.settings().frv, self.vm.settings().fmn)
+        {
             self.push_event(DriveEvent::Reversed(dir));
         }
         self.f_out = f;

@@ -208,9 +208,11 @@ fn check_sequence(first: DriveSection, ops: Vec<Op>) -> Result<(), TestCaseError
                 }
                 if !standstill && reversed.is_some() {
                     prop_assert!(f < core.vm().settings().frv, "reversed at f {} >= frv", f);
+                    // 002 4.2: only when the command rises again, at standstill or below fmn
+                    // (outputs off); never above fmn at a steady speed or while it falls.
                     prop_assert!(
-                        f >= f_prev_tick,
-                        "reversed while falling {} -> {}",
+                        f == 0 || f > f_prev_tick || f < core.vm().settings().fmn,
+                        "reversed while not rising {} -> {}",
                         f_prev_tick,
                         f
                     );
@@ -453,6 +455,109 @@ proptest! {
             }
             prop_assert_eq!(out_after, Some((u32::from(art) * 100).max(1)));
             prop_assert_eq!(core.fault(), None);
+        }
+    }
+}
+
+/// A command profile of ramp segments: to `target` (0.1 Hz) by `step` every `every_ms`,
+/// then held `hold_ms` (slow ramps with plateaus, fast ones, steps, stops).
+fn ramp_profile(segments: &[(i16, i16, u8, u8)]) -> Vec<i16> {
+    let mut f = 0i16;
+    let mut out = Vec::new();
+    for &(target, step, every_ms, hold_ms) in segments {
+        while f != target {
+            f = if f < target {
+                (f + step).min(target)
+            } else {
+                (f - step).max(target)
+            };
+            out.extend(std::iter::repeat_n(f, usize::from(every_ms)));
+        }
+        out.extend(std::iter::repeat_n(f, usize::from(hold_ms)));
+    }
+    out
+}
+
+fn ramp_segments() -> impl Strategy<Value = Vec<(i16, i16, u8, u8)>> {
+    prop::collection::vec(
+        (
+            prop_oneof![1 => Just(0i16), 3 => 0i16..=300, 1 => 300i16..=600],
+            prop_oneof![3 => Just(1i16), 1 => 1i16..=50],
+            1u8..=6,
+            0u8..=60,
+        ),
+        1..8,
+    )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+    /// 002 4.2 (`frv`) on the core, over random ramps of the commanded frequency (the PLC's
+    /// Q01 every millisecond) and random times of the direction requests (before a
+    /// ramp-down, during it, at a steady speed, at standstill), with random frv and fmn:
+    /// the modulator's phase order never changes while the command is above fmn and not
+    /// rising, nor at or above frv, except from standstill (the previous millisecond's
+    /// command 0); a request is in effect whenever the command is 0, and one that was
+    /// pending while the command fell is in effect at the first rise below frv.
+    #[test]
+    fn the_phase_order_changes_only_when_the_command_rises_below_frv_or_at_standstill(
+        segs in ramp_segments(),
+        requests in prop::collection::vec(0u16..1000, 0..8),
+        frv in 1i16..300,
+        fmn in 0i16..100,
+    ) {
+        let text = format!(
+            "000 LD Q01\n001 LD Q01\n002 LD K00 0000\n003 SN1\n004 LD K01 1200\n005 SN2\n\
+             006 LD K02 2400\n007 SN3\n008 fmn K03 {fmn:04}\n009 frv K04 {frv:04}\n"
+        );
+        let section = shared_protocol::program::assemble(&text).unwrap().drive_section();
+        let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+        let mut sink = |_e: DriveEvent| {};
+        core.tick_1ms(&mut sink);
+        prop_assert!(core.load_program(&section).is_ok());
+        prop_assert!(core.command(DriveCommand::Run).is_ok());
+        let fs = ramp_profile(&segs);
+        let n = fs.len();
+        let at: Vec<usize> = requests.iter().map(|r| usize::from(*r) * n / 1000).collect();
+        let (mut prev, mut want, mut armed) = (0i16, false, false);
+        let mut swapped = core.modulator().params().swap_1_2;
+        for (k, &q) in fs.iter().enumerate() {
+            for _ in at.iter().filter(|&&t| t == k) {
+                want = !want;
+                let dir = DriveCommand::Direction { reverse: want };
+                prop_assert!(core.command(dir).is_ok());
+            }
+            let set = DriveCommand::SetQ { addr: 1, value: q };
+            prop_assert!(core.command(set).is_ok());
+            core.tick_1ms(&mut sink);
+            prop_assert_eq!(core.state(), DriveState::Run);
+            let f = core.status().f_command.0;
+            prop_assert_eq!(f, q);
+            let now = core.modulator().params().swap_1_2;
+            if now != swapped {
+                prop_assert!(
+                    prev == 0 || f == 0 || f < fmn || (f > prev && f < frv),
+                    "phase order changed at {} ms, command {} -> {} (fmn {}, frv {})",
+                    k, prev, f, fmn, frv
+                );
+            }
+            let pending = now != want;
+            prop_assert!(f != 0 || !pending, "pending at standstill ({} ms)", k);
+            if f > prev {
+                prop_assert!(
+                    !(armed && f < frv && pending),
+                    "still pending at the turning point {} -> {} ({} ms, frv {})",
+                    prev, f, k, frv
+                );
+                armed = false;
+            }
+            if f < prev {
+                armed = pending;
+            }
+            armed &= pending;
+            swapped = now;
+            prev = f;
         }
     }
 }

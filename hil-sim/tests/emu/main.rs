@@ -22,6 +22,7 @@ mod link;
 mod motor;
 mod oc_levels;
 mod power_stage;
+mod reversal;
 mod safety;
 mod service;
 mod silicon_faults;

@@ -99,3 +99,85 @@ fn stop_then_reverse_then_start_runs_reversed() {
 fn reverse_and_start_in_the_same_scan_run_reversed() {
     check_restart_reverse(5.0, 5.0);
 }
+
+/// The source's motor example at a steady setpoint, `REV` at 8 s: the program sets the
+/// setpoint to 0 for 7 s (its lag ramps the command down) and back (up again). 002 4.2
+/// (`frv` = 20 Hz here): the phases swap only when the command rises again below frv, or
+/// at standstill, never at a steady speed (plugging: an OC trip 14-30 ms later at 15 and
+/// 19 Hz before this rule) nor while the command falls. On the source's board (its
+/// sensors and brake chopper: `motor.plc`'s `U>` is the chopper's level); on the bare
+/// ESC1, without a chopper, the run-down from 50 Hz on a 30 V supply trips `OV_HW`
+/// whatever the direction (`docs/drive-core.md`, "Overvoltage without a chopper").
+fn reverse_motor_example_at(setpoint_dhz: u16) {
+    let scenario = format!(
+        r#"
+duration_s = 22.0
+
+[plant]
+board = "source"
+
+[[event]]
+at_s = 0.0
+set = {{ A00 = 980, A01 = {setpoint_dhz} }}
+
+[[event]]
+at_s = 0.5
+press = "D00"
+
+[[event]]
+at_s = 8.0
+press = "D01"
+hold_s = 0.2
+"#
+    );
+    let r = run_text(MOTOR_PLC, &scenario, 22.0);
+    let hz = f64::from(setpoint_dhz) / 10.0;
+    assert!(r.faults.is_empty(), "at {hz} Hz: {:?}", r.faults);
+    let s = &r.samples;
+    let flip = hil_sim::lab::first(s, 0.0, |x| x.dir == -1)
+        .unwrap_or_else(|| panic!("at {hz} Hz: never reversed"));
+    // The setpoint comes back at 15 s: the command's turning point.
+    assert!(
+        flip >= 14.99,
+        "at {hz} Hz the phases swapped at {flip:.3} s, before the turning point (15 s)"
+    );
+    let before = at(s, flip - 0.01);
+    let here = at(s, flip);
+    assert!(
+        here.f_cmd_hz < 20.0 && (here.f_cmd_hz > before.f_cmd_hz || before.f_cmd_hz == 0.0),
+        "at {hz} Hz: swapped at {} Hz after {} Hz",
+        here.f_cmd_hz,
+        before.f_cmd_hz
+    );
+    let end = s.last().unwrap();
+    assert!(
+        end.speed_rpm < -0.8 * hz * 30.0,
+        "at {hz} Hz: the shaft ends at {} rpm",
+        end.speed_rpm
+    );
+}
+
+#[test]
+fn rev_at_a_steady_8_hz_waits_for_the_turning_point() {
+    reverse_motor_example_at(80);
+}
+
+#[test]
+fn rev_at_a_steady_15_hz_waits_for_the_turning_point() {
+    reverse_motor_example_at(150);
+}
+
+#[test]
+fn rev_at_a_steady_19_hz_waits_for_the_turning_point() {
+    reverse_motor_example_at(190);
+}
+
+#[test]
+fn rev_at_25_hz_reverses_at_the_turning_point() {
+    reverse_motor_example_at(250);
+}
+
+#[test]
+fn rev_at_50_hz_reverses_at_the_turning_point() {
+    reverse_motor_example_at(500);
+}
