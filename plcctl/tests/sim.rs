@@ -159,6 +159,14 @@ impl Sim {
     }
 }
 
+/// A test that fails leaves no hil-sim behind (a browser run's lasts minutes).
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 fn text(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
