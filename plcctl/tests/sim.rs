@@ -765,9 +765,7 @@ fn the_readmes_commands_run_one_after_another_against_one_simulator() {
                 .unwrap();
         assert!(t >= started && t <= now, "{t} outside {started} .. {now}");
     }
-    let mut child = sim.child;
-    let _ = child.kill();
-    let _ = child.wait();
+    drop(sim);
 }
 
 /// Bad numbers are usage errors (exit 1) before any port is opened, NaN and infinity
