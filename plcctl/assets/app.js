@@ -1,7 +1,7 @@
 // plcctl serve: the monitor page (service.md 12). Plain JavaScript, no library, no build
 // step. Data: /api/profile once, /api/trend once, then the /api/stream events (status and
-// samples at 10 Hz, the counters when they change); /api/faults when the newest log
-// position changes. Tests read the state from the `data-*` attributes and
+// samples at 10 Hz, the fault log and the counters when they change: nothing is polled,
+// so nothing is older than the status). Tests read the state from the `data-*` attributes and
 // `window.monitor`. The server's Content-Security-Policy allows no inline script or
 // style attribute: styles are set through the CSSOM (`style.setProperty`).
 "use strict";
@@ -16,13 +16,13 @@ const monitor = {
   status: null,        // the last status event
   statusAt: 0,         // page clock (ms) when it arrived
   values: {},          // operand name -> value (D00, O00, A00, lcd0, Q04, ...)
-  faults: [],
-  newestLog: undefined,
+  faults: null,        // the fault log (faults --json rows); null until the stream brings it
   doorCmdSince: null,  // wall-clock ms when the door command went on
   lastDir: 0,          // the lift's last travel direction seen (1 up, -1 down)
   paused: false,
   zoom: null,          // [t0, t1] in t_s, or null = the last 60 s
   serverLost: false,
+  actionResult: "",    // the last action's answer ("stop: done", or the refusal), kept shown
 };
 window.monitor = monitor;
 
@@ -96,8 +96,9 @@ function renderBanner() {
   const remote = up && ev.status.remote;
   $("act-stop").disabled = !up;
   for (const id of ["act-run", "act-ack", "act-clear-faults"]) $(id).disabled = !remote;
-  $("action-note").textContent = !up ? "no PLC" :
+  const why = !up ? "no PLC" :
     remote ? "" : "Run, Ack and Clear log need remote service: keys * 7 on the PLC";
+  $("action-note").textContent = [monitor.actionResult, why].filter((t) => t).join(" · ");
 }
 
 // ---------------------------------------------------------------- age of the values
@@ -267,11 +268,53 @@ function renderLift() {
   }
   s.appendChild(car);
   box.textContent = "";
-  box.appendChild(s);
+  const row = el("div", { class: "mimic-row" });
+  row.appendChild(s);
+  row.appendChild(carPanel(known ? floor : null, up, down, target));
+  box.appendChild(row);
   const st = stateInfo();
   box.appendChild(el("div", { class: "mimic-info" },
     `floor ${known ? floor : "unknown"}${known && !level && !moving ? " (stopped between floors)" : ""} · target ${target || "—"} · door ${door} · ` +
     `load ${load === null ? "—" : LOAD_TEXT[load] || load}${st ? " · " + st.text : ""}`));
+}
+
+/** The car's panel (004 §2.7.1, right of the car): the floor display with the travel
+ * direction and the target, the floor buttons (`call_buttons`), then the elements of
+ * `[lift.car_panel]` the lift has (alarm, its bell, door open, priority key, STOP), each
+ * lit while its bit is 1. An element the profile does not name is not drawn. */
+const PANEL_ITEMS = [
+  ["door_open", "◀ ▶", "door open"],
+  ["alarm", "ALARM", "alarm"],
+  ["alarm_bell", "bell", "alarm bell ringing"],
+  ["priority_key", "KEY", "priority key"],
+  ["stop", "STOP", "in-car STOP"],
+];
+function carPanel(floor, up, down, target) {
+  const l = monitor.profile.lift;
+  const items = l.car_panel || {};
+  const panel = el("div", { class: "car-panel", "data-car-panel": "" });
+  const arrow = up ? "▲" : down ? "▼" : "";
+  const disp = el("div", { class: "panel-display", "data-panel": "display" });
+  disp.appendChild(el("span", { class: "panel-floor" }, floor === null ? "–" : String(floor)));
+  disp.appendChild(el("span", { class: "panel-arrow" }, arrow));
+  disp.appendChild(el("div", { class: "panel-target" },
+    target !== null && target >= 1 && target !== floor ? `→ ${target}` : ""));
+  panel.appendChild(disp);
+  const lamp = (key, label, title, op) => {
+    const on = op ? val(op) === 1 : false;
+    const name = op ? nameOf(op) : null;
+    return el("div", {
+      class: "pbtn", "data-panel": key, "data-on": on ? "1" : "0",
+      title: op ? `${title}: ${op}${name ? " " + name : ""}` : title,
+    }, label);
+  };
+  const floors = el("div", { class: "panel-floors" });
+  for (let f = l.floors; f >= 1; f--) floors.appendChild(lamp("floor-" + f, String(f), "floor " + f, l.call_buttons[f - 1]));
+  panel.appendChild(floors);
+  for (const [key, label, title] of PANEL_ITEMS) {
+    if (items[key]) panel.appendChild(lamp(key, label, title, items[key]));
+  }
+  return panel;
 }
 
 function renderTable() {
@@ -486,6 +529,7 @@ function splitTime(t) {
   return m ? [m[1], m[2]] : ["", t];
 }
 function renderFaults() {
+  if (monitor.faults === null) return;
   const body = $("faults").tBodies[0];
   body.textContent = "";
   for (const f of monitor.faults) {
@@ -498,21 +542,13 @@ function renderFaults() {
     const tr = el("tr"); tr.appendChild(el("td", { colspan: "4" }, "fault log empty")); body.appendChild(tr);
   }
 }
-async function loadFaults() {
-  try { monitor.faults = await getJson("/api/faults"); renderFaults(); } catch (e) { /* next change */ }
-}
 function faultsCsv() {
   const q = (s) => (/[",\n]/.test(s) ? `"${s.replace(/"/g, '""')}"` : s);
   const lines = ["pos,time,power_up,uptime_s,code,name,text"];
-  for (const f of monitor.faults) {
+  for (const f of monitor.faults || []) {
     lines.push([f.pos, q(f.time), f.power_up, f.uptime_s, f.code, f.name, q(f.text)].join(","));
   }
   return lines.join("\n") + "\n";
-}
-async function loadCounters() {
-  let k;
-  try { k = await getJson("/api/counters"); } catch (e) { return; }
-  renderCounters(k);
 }
 function renderCounters(k) {
   const box = $("counters");
@@ -563,10 +599,16 @@ async function act(action) {
   const words = { stop: stopWords(), run: "Start RUN?", ack: "Acknowledge the drive fault?",
     "clear-faults": "Erase the fault log?" };
   if (!(await confirmBox(words[action]))) return;
-  $("action-note").textContent = action + "…";
-  const r = await fetch("/api/" + action, { method: "POST", headers: { "Content-Type": "application/json" }, body: "{}" });
-  const body = await r.json().catch(() => ({}));
-  $("action-note").textContent = r.ok ? action + ": done" : action + ": " + (body.error || r.status);
+  monitor.actionResult = action + "…";
+  renderBanner();
+  try {
+    const r = await fetch("/api/" + action, { method: "POST", headers: { "Content-Type": "application/json" }, body: "{}" });
+    const body = await r.json().catch(() => ({}));
+    monitor.actionResult = r.ok ? action + ": done" : action + ": " + (body.error || r.status);
+  } catch (e) {
+    monitor.actionResult = action + ": no answer from the monitor";
+  }
+  renderBanner();
 }
 
 // ---------------------------------------------------------------- data flow
@@ -579,8 +621,6 @@ function onStatus(ev) {
     for (let n = 0; n < 8; n++) monitor.values[opName("O", n)] = (s.o >> n) & 1;
     s.a.forEach((v, n) => { monitor.values[opName("A", n)] = v; });
     s.lcd.forEach((v, n) => { monitor.values["lcd" + n] = v; });
-    const key = JSON.stringify(s.newest_log);
-    if (key !== monitor.newestLog) { monitor.newestLog = key; loadFaults(); }
   }
   trackDoor();
   renderBanner();
@@ -622,9 +662,10 @@ async function start() {
   es.addEventListener("status", (e) => { monitor.serverLost = false; onStatus(JSON.parse(e.data)); });
   es.addEventListener("sample", (e) => { onSample(JSON.parse(e.data).row); });
   es.addEventListener("counters", (e) => { renderCounters(JSON.parse(e.data)); });
+  es.addEventListener("faults", (e) => { monitor.faults = JSON.parse(e.data); renderFaults(); });
   es.addEventListener("error", () => { monitor.serverLost = true; renderBanner(); });
   es.addEventListener("open", () => { monitor.serverLost = false; });
-  loadCounters();
+  renderCounters(null);
   // Redraw at 10 Hz (the door's stroke time and the values' age run on the page's clock).
   setInterval(() => {
     renderAge();

@@ -166,6 +166,14 @@ impl Sim {
     }
 }
 
+/// A test that fails leaves no hil-sim behind (a browser run's lasts minutes).
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 fn text(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
@@ -766,9 +774,7 @@ fn the_readmes_commands_run_one_after_another_against_one_simulator() {
                 .unwrap();
         assert!(t >= started && t <= now, "{t} outside {started} .. {now}");
     }
-    let mut child = sim.child;
-    let _ = child.kill();
-    let _ = child.wait();
+    drop(sim);
 }
 
 /// Bad numbers are usage errors (exit 1) before any port is opened, NaN and infinity

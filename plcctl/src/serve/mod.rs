@@ -376,14 +376,16 @@ fn action(req: &http::Request, ctx: &Ctx) -> (Response, String) {
     }
 }
 
-/// The stream: the status whenever it changes (its age at least every second while the
-/// PLC does not answer), every new sample, the counters when they change, a keep-alive
-/// comment when there was nothing for [`KEEPALIVE`].
+/// The stream: the fault log and the counters when they change (before the status that
+/// came with them), the status whenever it changes (its age at least every second while
+/// the PLC does not answer), every new sample, a keep-alive comment when there was nothing
+/// for [`KEEPALIVE`]. A new stream starts with all of them.
 fn stream_events(stream: &mut TcpStream, shared: &Shared) -> std::io::Result<()> {
     use std::io::Write as _;
     http::start_events(stream)?;
     let mut last_status = Value::Null;
     let mut last_counters = Value::Null;
+    let mut last_faults = Value::Null;
     let mut next_serial = shared.lock().samples.back().map_or(0, |(n, _)| n + 1);
     let mut generation = u64::MAX;
     let mut last_write = Instant::now();
@@ -399,14 +401,18 @@ fn stream_events(stream: &mut TcpStream, shared: &Shared) -> std::io::Result<()>
                 s = g;
             }
             generation = s.generation;
-            let status = status_view(&s);
-            if status != last_status {
-                out += &http::event("status", &status.to_string());
-                last_status = status;
+            if s.faults != last_faults && !s.faults.is_null() {
+                out += &http::event("faults", &s.faults.to_string());
+                last_faults = s.faults.clone();
             }
             if s.counters != last_counters {
                 out += &http::event("counters", &s.counters.to_string());
                 last_counters = s.counters.clone();
+            }
+            let status = status_view(&s);
+            if status != last_status {
+                out += &http::event("status", &status.to_string());
+                last_status = status;
             }
             let from = next_serial;
             for (n, x) in s.samples.iter().filter(|(n, _)| *n >= from) {

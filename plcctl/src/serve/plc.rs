@@ -1,8 +1,7 @@
 //! The one connection to the PLC behind `serve`: a thread that owns the [`Client`]
-//! (one outstanding request, service.md 2), polls the status at 10 Hz, keeps a trend of
-//! samples, re-reads the fault log when its newest position changes and the counters
-//! every few seconds and whenever the PLC's state changes, reads the LCD's rows, and
-//! executes the page's actions between polls. It reconnects every second like `watch`
+//! (one outstanding request, service.md 2), polls the status and the counters at 10 Hz,
+//! keeps a trend of samples, re-reads the fault log when its newest entry changes or an
+//! action was done, reads the LCD's rows, and executes the page's actions between polls. It reconnects every second like `watch`
 //! (service.md 8); a panic in it is reported as a lost connection and the thread's work
 //! starts again ([`keep_running`]). The HTTP side only reads [`Shared`].
 
@@ -22,8 +21,6 @@ use crate::trend;
 pub const PERIOD: Duration = Duration::from_millis(100);
 /// Samples kept for `/api/trend` (10 minutes at 10 Hz).
 const TREND_KEEP: usize = 6000;
-/// Counters are read this often (they change by the minute).
-const COUNTERS_EVERY: Duration = Duration::from_secs(5);
 /// The LCD's rows are read this often.
 const SCREEN_EVERY: Duration = Duration::from_millis(200);
 /// How long a reconnection waits after a failure.
@@ -58,7 +55,7 @@ pub struct State {
     pub status_at: Option<Instant>,
     /// The LCD's rows as shown (`GetScreen`), `null` before the first or when refused.
     pub screen: Value,
-    /// `faults --json` rows, newest first.
+    /// `faults --json` rows, newest first (`null` before the first read).
     pub faults: Value,
     pub counters: Value,
     /// The trend's column names (hil-sim's, as `trend --csv`).
@@ -87,7 +84,7 @@ impl Shared {
                 status: Value::Null,
                 status_at: None,
                 screen: Value::Null,
-                faults: json!([]),
+                faults: Value::Null,
                 counters: Value::Null,
                 columns: trend::header(q).split(',').map(String::from).collect(),
                 samples: VecDeque::new(),
@@ -247,8 +244,6 @@ fn refuse_waiting(actions: &Receiver<Action>, why: &str) {
 /// Polls one connection until it fails; returns why.
 fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>) -> Fail {
     let mut newest_log: Option<Option<(u8, u8)>> = None;
-    let mut counters_at: Option<Instant> = None;
-    let mut plc_state = None;
     let mut screen_at: Option<Instant> = None;
     let mut screen_refused = false;
     loop {
@@ -258,8 +253,9 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
             Ok(other) => return crate::client::unexpected("GetStatus", &other),
             Err(e) => return e,
         };
-        let log_changed = newest_log != Some(status.newest_log);
-        if log_changed {
+        // The log is re-read when its newest entry changes (a trip, an event, a clear)
+        // and after an action (a clear that leaves the same newest entry).
+        if newest_log != Some(status.newest_log) {
             match crate::faults::rows(c) {
                 Ok(rows) => {
                     let rows = serde_json::to_value(rows).unwrap_or(Value::Null);
@@ -269,20 +265,15 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
                 Err(e) => return e,
             }
         }
-        // The counters change with the PLC's state (a RUN start) and its log (a trip):
-        // read them then, not only on the clock.
-        let state_changed = plc_state != Some(status.plc) || log_changed;
-        plc_state = Some(status.plc);
-        if state_changed || counters_at.is_none_or(|t| t.elapsed() >= COUNTERS_EVERY) {
-            let v = match c.request(Request::GetCounters) {
-                Ok(Answer::Counters(k)) => crate::status::counters_json(&k),
-                Ok(Answer::Refused(r)) => json!({ "error": r.text() }),
-                Ok(other) => return crate::client::unexpected("GetCounters", &other),
-                Err(e) => return e,
-            };
-            shared.update(|s| s.counters = v);
-            counters_at = Some(Instant::now());
-        }
+        // The counters with every status: they change on events serve cannot see (an
+        // application counter's Q rising, a minute in RUN, a link error), so they are
+        // as fresh as the status, never older (answered from the PLC's RAM).
+        let counters = match c.request(Request::GetCounters) {
+            Ok(Answer::Counters(k)) => crate::status::counters_json(&k),
+            Ok(Answer::Refused(r)) => json!({ "error": r.text() }),
+            Ok(other) => return crate::client::unexpected("GetCounters", &other),
+            Err(e) => return e,
+        };
         if !screen_refused && screen_at.is_none_or(|t| t.elapsed() >= SCREEN_EVERY) {
             let rows = match c.request(Request::GetScreen) {
                 Ok(Answer::Screen(s)) => {
@@ -305,6 +296,7 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
         shared.update(|s| {
             s.status = status;
             s.status_at = Some(Instant::now());
+            s.counters = counters;
             for x in samples {
                 let n = s.next_serial;
                 s.next_serial += 1;
@@ -332,6 +324,9 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
                         return e;
                     }
                 };
+                if r.is_ok() {
+                    newest_log = None;
+                }
                 let _ = a.reply.send(r);
             }
             Err(RecvTimeoutError::Timeout) => {}

@@ -88,7 +88,16 @@ pub struct Lift {
     /// mimic draws the car between floors when it stands with one of them off (a trip
     /// mid-shaft). Empty: level whenever it is not moving.
     pub level_inputs: Vec<Operand>,
+    /// `[lift.car_panel]`: the car's panel elements the lift has, each a D or O bit
+    /// ([`CAR_PANEL`]); the floor buttons are `call_buttons`, the floor display the
+    /// `floor` variable.
+    pub car_panel: BTreeMap<String, Operand>,
 }
+
+/// The car panel's elements besides the floor buttons and the floor display (004 §2.7.1:
+/// the alarm for a passenger trapped in the car, the door-open button, the priority
+/// key; and the in-car STOP a lift may have), each shown lit while its bit is 1.
+pub const CAR_PANEL: [&str; 5] = ["alarm", "alarm_bell", "door_open", "priority_key", "stop"];
 
 /// A parsed profile (sent to the page as JSON).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -285,6 +294,7 @@ fn lift(file: &str, t: &Table) -> Result<Lift> {
         door_fault_states: Vec::new(),
         call_buttons: Vec::new(),
         level_inputs: Vec::new(),
+        car_panel: BTreeMap::new(),
     };
     for (k, v) in t {
         let kk = format!("lift.{k}");
@@ -311,6 +321,7 @@ fn lift(file: &str, t: &Table) -> Result<Lift> {
             }
             "call_buttons" => l.call_buttons = d_inputs(file, &kk, v, "a call button")?,
             "level_inputs" => l.level_inputs = d_inputs(file, &kk, v, "a level input")?,
+            "car_panel" => l.car_panel = car_panel(file, &kk, v)?,
             _ => return Err(err(file, &kk, "unknown key")),
         }
     }
@@ -318,6 +329,24 @@ fn lift(file: &str, t: &Table) -> Result<Lift> {
         return Err(err(file, "lift.floors", "missing"));
     }
     Ok(l)
+}
+
+/// `[lift.car_panel]`: element name → a D input or an O output.
+fn car_panel(file: &str, key: &str, v: &Value) -> Result<BTreeMap<String, Operand>> {
+    let mut out = BTreeMap::new();
+    for (name, v) in table(file, key, v)? {
+        let k = format!("{key}.{name}");
+        if !CAR_PANEL.contains(&name.as_str()) {
+            let known = CAR_PANEL.join(", ");
+            return Err(err(file, &k, format!("unknown key (one of {known})")));
+        }
+        let o = operand(file, &k, v)?;
+        if !matches!(o, Operand::D(_) | Operand::O(_)) {
+            return Err(err(file, &k, "a panel element is a D input or an O output"));
+        }
+        out.insert(name.clone(), o);
+    }
+    Ok(out)
 }
 
 /// A list of D inputs (`what` names one in the error).
@@ -379,6 +408,25 @@ mod tests {
         assert_eq!(l.floors, 4);
         assert_eq!(l.door_fault_states, [10]);
         assert_eq!(l.level_inputs, [Operand::D(10), Operand::D(11)]);
+        // The car panel: what lift.plc has (lift.md 3.2: the in-car bell D14 ringing
+        // O06, the in-car STOP D13); no door-open button and no priority key.
+        let panel: Vec<(&str, Operand)> =
+            l.car_panel.iter().map(|(k, o)| (k.as_str(), *o)).collect();
+        assert_eq!(
+            panel,
+            [
+                ("alarm", Operand::D(14)),
+                ("alarm_bell", Operand::O(6)),
+                ("stop", Operand::D(13))
+            ]
+        );
+        for (role, o) in [
+            ("in-car bell", "D14"),
+            ("alarm bell", "O06"),
+            ("in-car STOP", "D13"),
+        ] {
+            assert_eq!(p.vars[role].name(), o, "{role}");
+        }
         assert_eq!(p.counters.len(), 4);
         assert_eq!(p.states[&12].level, Level::Fault);
         assert_eq!(p.states[&7].level, Level::Warning);
@@ -403,6 +451,18 @@ mod tests {
         assert!(error("[lift]\nfloors = 4\nspeed = 1").contains("lift.speed: unknown key"));
         assert!(
             error("[lift]\nfloors = 4\ncall_buttons = [\"O00\"]").contains("lift.call_buttons[0]")
+        );
+        assert!(
+            error("[lift]\nfloors = 4\n[lift.car_panel]\nhorn = \"D14\"")
+                .contains("lift.car_panel.horn: unknown key (one of alarm, ")
+        );
+        assert!(
+            error("[lift]\nfloors = 4\n[lift.car_panel]\nalarm = \"Q04\"")
+                .contains("lift.car_panel.alarm: a panel element is a D input or an O output")
+        );
+        assert!(
+            error("[lift]\nfloors = 4\n[lift.car_panel]\nstop = \"D16\"")
+                .contains("lift.car_panel.stop: \"D16\" is not a variable")
         );
         assert!(error("[states]\nx = { text = \"a\" }").contains("states.x"));
         assert!(error("[states]\n3 = { text = \"a\", level = \"bad\" }").contains("states.3.level"));

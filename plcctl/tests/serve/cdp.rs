@@ -151,6 +151,16 @@ impl Browser {
         s
     }
 
+    /// Runs `script` in the page at the start of every document it loads, before the
+    /// page's own scripts (a DevTools script: the page's CSP does not apply to it).
+    pub fn on_new_document(&mut self, s: &str, script: &str) {
+        self.call(
+            Some(s),
+            "Page.addScriptToEvaluateOnNewDocument",
+            json!({ "source": script }),
+        );
+    }
+
     pub fn navigate(&mut self, s: &str, url: &str) {
         self.call(Some(s), "Page.navigate", json!({ "url": url }));
     }
@@ -174,7 +184,8 @@ impl Browser {
         let r = self.call(
             Some(s),
             "Page.captureScreenshot",
-            json!({ "format": "png" }),
+            // Lossless still (the banner's pixel is checked), encoded fast.
+            json!({ "format": "png", "optimizeForSpeed": true }),
         );
         base64::engine::general_purpose::STANDARD
             .decode(r["data"].as_str().unwrap())

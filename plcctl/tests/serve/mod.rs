@@ -293,6 +293,14 @@ fn serve_api_stream_actions_and_token_against_the_simulator() {
         "{} samples in 2 s",
         samples.len()
     );
+    // A new stream starts with the fault log and the counters, each before the first
+    // status (the page needs no other request for them).
+    let at = |name: &str| ev.iter().position(|(n, _)| n == name);
+    let (faults, counters, status) = (at("faults"), at("counters"), at("status"));
+    assert!(faults.is_some() && counters.is_some(), "{ev:?}");
+    assert!(faults < status && counters < status, "{ev:?}");
+    assert!(ev[faults.unwrap()].1.is_array(), "{ev:?}");
+    assert!(ev[counters.unwrap()].1["run_starts"].is_u64(), "{ev:?}");
     let serials: Vec<u64> = samples
         .iter()
         .map(|(_, d)| d["serial"].as_u64().unwrap())
