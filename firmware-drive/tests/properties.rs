@@ -483,10 +483,10 @@ proptest! {
         let mut sink = |_e: DriveEvent| {};
         core.tick_1ms(&mut sink);
         match (verify_drive(&s), twice) {
-            (Err(e), Some((_, (p, second, _)))) => {
+            (Err(e), Some((_, (p, second, i)))) => {
                 let first = set.iter().find(|(q, _, _)| q == p).unwrap().1;
                 prop_assert_eq!(e.line, *second);
-                prop_assert_eq!(e.kind, VerifyErrorKind::SettingTwice { mnemonic: *p, first });
+                prop_assert_eq!(e.kind, VerifyErrorKind::SettingTwice { mnemonic: i.mnemonic, first });
                 prop_assert_eq!(core.load_program(&s), Err(e));
                 prop_assert_eq!(core.fault(), Some(FaultCode::Prog));
             }

@@ -459,11 +459,33 @@ impl Mnemonic {
         }
     }
 
-    /// The verifier's bit of a drive parameter ([`Mnemonic::drive_setting`]): the code
-    /// above `PWF`'s, which the settings' codes start at (a test checks that every one fits
-    /// 64 bits).
-    pub const fn setting_bit(self) -> u64 {
-        1u64 << (self.code().wrapping_sub(Mnemonic::Pwf.code()) & 63)
+    /// The verifier's bit of the drive parameter this line sets, other than the safety
+    /// settings ([`Mnemonic::safety_setting`] gives theirs), 0 when it sets none
+    /// ([`Mnemonic::drive_setting`], from the codes alone: `PWF` .. `U>>` are codes 40-61,
+    /// and `PI`, `SN1`-`SN3` the four after the prescalers; a test checks it against
+    /// `drive_setting` for every mnemonic). Small: the drive's verifier runs it.
+    pub const fn setting_bit(self) -> u32 {
+        let c = self
+            .same_setting()
+            .code()
+            .wrapping_sub(Mnemonic::Pwf.code());
+        let sn3 = Mnemonic::Sn3.code() - Mnemonic::Pwf.code();
+        let pi = Mnemonic::Pi.code() - Mnemonic::Pwf.code();
+        if c > Mnemonic::UMaxHw.code() - Mnemonic::Pwf.code() || (c >= pi && c <= sn3) {
+            0
+        } else {
+            1u32 << c
+        }
+    }
+
+    /// The mnemonic that names the parameter this one sets: `PR0` for `PR1`/`PR2`, `=dU`
+    /// for `dU=`, itself otherwise (for the error path of the verifier).
+    pub const fn same_setting(self) -> Mnemonic {
+        match self {
+            Mnemonic::Pr1 | Mnemonic::Pr2 => Mnemonic::Pr0,
+            Mnemonic::DuSet => Mnemonic::CalcDu,
+            m => m,
+        }
     }
 
     /// The safety setting this mnemonic sets (drive section, safety.md 4). The settings'
@@ -603,6 +625,7 @@ mod tests {
         let mut seen: std::vec::Vec<(u64, Mnemonic)> = std::vec::Vec::new();
         for m in Mnemonic::ALL {
             let Some(p) = m.drive_setting() else {
+                assert_eq!(m.setting_bit(), 0, "{m:?}");
                 assert!(
                     m.drive_operands().is_none()
                         || matches!(
@@ -618,15 +641,18 @@ mod tests {
                 );
                 continue;
             };
-            assert!(
-                (Mnemonic::Pwf.code()..Mnemonic::Pwf.code() + 64).contains(&p.code()),
-                "{m:?}: its bit must fit 64 bits"
-            );
             assert_eq!(p.drive_setting(), Some(p));
+            assert_eq!(m.same_setting(), p);
+            assert_eq!(m.setting_bit(), p.setting_bit());
+            assert_eq!(m.setting_bit() != 0, m.safety_setting().is_none(), "{m:?}");
             assert_eq!(p.setting_name(), m.setting_name());
-            match seen.iter().find(|(b, _)| *b == p.setting_bit()) {
+            let bit = match p.safety_setting() {
+                Some(s) => 1u64 << (32 + s.index()),
+                None => u64::from(p.setting_bit()),
+            };
+            match seen.iter().find(|(b, _)| *b == bit) {
                 Some((_, q)) => assert_eq!(*q, p, "{m:?}"),
-                None => seen.push((p.setting_bit(), p)),
+                None => seen.push((bit, p)),
             }
         }
         assert_eq!(Mnemonic::Pr2.drive_setting(), Some(Mnemonic::Pr0));

@@ -66,17 +66,17 @@ pub fn fix_drive_stack(lines: &mut [Option<Instruction>]) {
 pub fn fix_safety(lines: &mut [Option<Instruction>]) {
     use crate::safety::{SafetyFunction, SafetySettings};
     let mut settings = SafetySettings::default();
-    let mut present = 0u64;
+    let mut present = std::vec::Vec::new();
     let mut direct = false;
     for (n, slot) in lines.iter_mut().enumerate() {
         let Some(i) = slot else { continue };
         if n < DRIVE_LINES {
             if let Some(p) = i.mnemonic.drive_setting() {
-                if present & p.setting_bit() != 0 {
+                if present.contains(&p) {
                     *slot = None;
                     continue;
                 }
-                present |= p.setting_bit();
+                present.push(p);
             }
             if let Some(s) = i.mnemonic.safety_setting() {
                 settings.set(s, Some(i.constant));

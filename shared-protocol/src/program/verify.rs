@@ -219,7 +219,7 @@ pub enum VerifyErrorKind {
     },
     /// A drive parameter set a second time in the drive section (safety.md 4 for the
     /// safety settings, docs/program-format.md "Settings once per section" for all of
-    /// them): `mnemonic` names the parameter ([`Mnemonic::drive_setting`]), `first` is the
+    /// them): `mnemonic` is the second line's ([`Mnemonic::setting_name`] names the parameter), `first` is the
     /// line that set it first.
     SettingTwice { mnemonic: Mnemonic, first: u16 },
     /// `SFR x` for a function whose needed setting the drive section lacks (the first
@@ -493,11 +493,13 @@ fn first_error<const PLC: bool>(lines: &[Option<Instruction>]) -> Result<(), Ver
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Verifier<const PLC: bool> {
     depth: u8,
-    // The drive parameters the drive section has set (`Mnemonic::setting_bit`), whether
+    // The safety settings the drive section has set (bit = signature position), whether
     // SS1 then needs `fss` (early limit or ramp monitoring on), and whether a leg is in
     // direct mode: the PLC section's `SFR` lines are checked against them (the drive
     // section comes first in line order).
-    present: u64,
+    present: u32,
+    // The other drive parameters it has set (`Mnemonic::setting_bit`).
+    params: u32,
     ss1_needs_fss: bool,
     direct: bool,
 }
@@ -510,6 +512,7 @@ impl<const PLC: bool> Verifier<PLC> {
         Verifier {
             depth: 0,
             present: 0,
+            params: 0,
             ss1_needs_fss: false,
             direct: false,
         }
@@ -527,17 +530,19 @@ impl<const PLC: bool> Verifier<PLC> {
                     loaded,
                 })
             })?;
-            if let Some(p) = i.mnemonic.drive_setting() {
-                let bit = p.setting_bit();
-                if self.present & bit != 0 {
-                    return Err(fail(VerifyErrorKind::SettingTwice {
-                        mnemonic: p,
-                        first: line,
-                    }));
-                }
-                self.present |= bit;
-                self.ss1_needs_fss |= matches!(p, Mnemonic::Tel | Mnemonic::Ard) && i.constant > 0;
+            let (present, bit) = match i.mnemonic.safety_setting() {
+                Some(s) => (&mut self.present, 1u32 << s.index()),
+                None => (&mut self.params, i.mnemonic.setting_bit()),
+            };
+            if *present & bit != 0 {
+                return Err(fail(VerifyErrorKind::SettingTwice {
+                    mnemonic: i.mnemonic,
+                    first: line,
+                }));
             }
+            *present |= bit;
+            self.ss1_needs_fss |=
+                matches!(i.mnemonic, Mnemonic::Tel | Mnemonic::Ard) && i.constant > 0;
             self.direct |= i.mnemonic == Mnemonic::Wr
                 && matches!(i.operand, Some(Operand::Pw1 | Operand::Pw3 | Operand::Pw5));
         } else if PLC {
@@ -548,7 +553,7 @@ impl<const PLC: bool> Verifier<PLC> {
                 let missing = function
                     .needed(self.ss1_needs_fss)
                     .iter()
-                    .find(|s| self.present & Mnemonic::of_setting(**s).setting_bit() == 0);
+                    .find(|s| self.present & (1 << s.index()) == 0);
                 if let Some(&setting) = missing {
                     return Err(fail(VerifyErrorKind::SafetyNeeds { function, setting }));
                 }
@@ -558,14 +563,14 @@ impl<const PLC: bool> Verifier<PLC> {
     }
 }
 
-/// The line that first set parameter `m` ([`Mnemonic::drive_setting`]), for the error at
+/// The line that first set the parameter `m` sets ([`Mnemonic::same_setting`]), for the error at
 /// the second one (`line`): the verifier keeps only a bit per parameter and finds the
 /// line again on this error path.
 fn first_line_of(lines: &[Option<Instruction>], m: Mnemonic, line: u16) -> u16 {
     lines
         .iter()
         .take(usize::from(line))
-        .position(|l| l.is_some_and(|i| i.mnemonic.drive_setting() == Some(m)))
+        .position(|l| l.is_some_and(|i| i.mnemonic.same_setting() == m.same_setting()))
         .map_or(line, |n| n as u16)
 }
 
