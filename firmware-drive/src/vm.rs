@@ -5,9 +5,10 @@
 //!
 //! Decisions where program.md is silent (also in `docs/drive-core.md`):
 //! * Popping (only `PI` pops) shifts the stack up and fills element 4 with 0.
-//! * Settings (`Rs=` .. `frv`, `PRx`, `PWF` from K) are sticky: the section runs every
-//!   cycle, so the last executed value wins. They are also applied once when a program
-//!   is loaded, so protection limits and the brake chopper work before the first RUN.
+//! * Settings (`Rs=` .. `frv`, `PRx`, `PWF` from K) are sticky. The verifier lets each
+//!   parameter be set by one line only (`Mnemonic::drive_setting`), so the value is the
+//!   same on every line and in every cycle. They are also applied once when a program is
+//!   loaded, so protection limits and the brake chopper work before the first RUN.
 //! * Instructions the verifier would reject (wrong section or operand) do nothing.
 //! * `SN1` clamps f to 0..=fmx and A to >= 0.
 //! * `=dU` with `Uc=` unset (0) leaves dU unchanged; `fjm` 0 keeps 50.0 Hz.

@@ -354,7 +354,7 @@ fn raw_section() -> impl Strategy<Value = DriveSection> {
         for (n, i) in lines {
             s.lines[usize::from(n)] = Some(i);
         }
-        // A safety setting set twice is the other whole-section rule: not this test's.
+        // A setting set twice is the other whole-section rule: not this test's.
         shared_protocol::program::testing::fix_safety(&mut s.lines);
         s
     })
@@ -560,4 +560,169 @@ proptest! {
             prev = f;
         }
     }
+}
+
+/// A line setting one of the limits the drive reports (`fmn`, `fjm`, `fmx`, `frv`, the
+/// trips and the hardware levels), any constant the verifier allows.
+fn limit_line() -> impl Strategy<Value = (u16, Instruction)> {
+    use shared_protocol::program::Mnemonic as M;
+    let ms = [
+        M::Fmn,
+        M::Fjm,
+        M::Fmx,
+        M::Frv,
+        M::IMax,
+        M::UMin,
+        M::UMax,
+        M::IMaxHw,
+        M::UMaxHw,
+    ];
+    (0u16..150, 0..ms.len(), any::<u16>()).prop_map(move |(n, mi, c)| {
+        let m = ms[mi];
+        let r = constant_range(m, Section::Drive, Some(Operand::K(0))).unwrap();
+        (
+            n,
+            Instruction {
+                mnemonic: m,
+                operand: Some(Operand::K(0)),
+                constant: r.start() + c % (r.end() - r.start() + 1),
+            },
+        )
+    })
+}
+
+/// Any stack-valid section, settings anywhere and as often as they fall (so that about
+/// half of them set something twice), often with the sine of `program()` on Q01.
+fn section_with_settings() -> impl Strategy<Value = DriveSection> {
+    (
+        prop::collection::vec(
+            prop_oneof![3 => (0u16..150, instruction()), 2 => limit_line()],
+            0..14,
+        ),
+        any::<bool>(),
+    )
+        .prop_map(|(lines, with_sine)| {
+            let mut s = DriveSection::default();
+            if with_sine {
+                let text = "100 LD Q01\n101 LD Q01\n102 LD K00 0000\n103 SN1\n\
+                    104 LD K01 1200\n105 SN2\n106 LD K02 2400\n107 SN3\n";
+                s = shared_protocol::program::assemble(text)
+                    .unwrap()
+                    .drive_section();
+            }
+            for (n, i) in lines {
+                s.lines[usize::from(n)] = Some(i);
+            }
+            shared_protocol::program::testing::fix_drive_stack(&mut s.lines);
+            s
+        })
+}
+
+/// The line of each parameter's first and second setting (`Mnemonic::drive_setting`), in
+/// line order.
+fn setting_lines(s: &DriveSection) -> Vec<(shared_protocol::program::Mnemonic, u16, Instruction)> {
+    (0u16..)
+        .zip(s.lines.iter())
+        .filter_map(|(n, l)| l.and_then(|i| i.mnemonic.drive_setting().map(|p| (p, n, i))))
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 1000, ..ProptestConfig::default() })]
+
+    /// Settings once per section (shared-protocol docs/program-format.md): a random
+    /// section is either refused, at the second line of a parameter set twice and naming
+    /// the first, or the drive reports, in every cycle, the `fmn`/`fjm`/`fmx`/`frv`, trip
+    /// limits and hardware levels its lines set (the defaults for those it does not), and
+    /// never commands or applies a frequency above the `fmx` it reports.
+    #[test]
+    fn the_settings_reported_are_the_settings_in_force(
+        s in section_with_settings(),
+        f in 0i16..2000,
+        ticks in 1usize..12,
+    ) {
+        use firmware_drive::vm::{Settings, FJM_DEFAULT};
+        use shared_protocol::program::{Mnemonic as M, VerifyErrorKind};
+        let set = setting_lines(&s);
+        let twice = set
+            .iter()
+            .enumerate()
+            .find(|(k, (p, _, _))| set[..*k].iter().any(|(q, _, _)| q == p));
+        let cfg = DriveConfig::default();
+        let mut core = DriveCore::new(cfg, ResetCause::PowerOn);
+        let mut sink = |_e: DriveEvent| {};
+        core.tick_1ms(&mut sink);
+        match (verify_drive(&s), twice) {
+            (Err(e), Some((_, (p, second, i)))) => {
+                let first = set.iter().find(|(q, _, _)| q == p).unwrap().1;
+                prop_assert_eq!(e.line, *second);
+                prop_assert_eq!(e.kind, VerifyErrorKind::SettingTwice { mnemonic: i.mnemonic, first });
+                prop_assert_eq!(core.load_program(&s), Err(e));
+                prop_assert_eq!(core.fault(), Some(FaultCode::Prog));
+            }
+            (Ok(()), None) => {
+                // What each line sets, over the defaults.
+                let mut want = Settings::new(cfg.default_pwm_hz);
+                for (p, _, i) in &set {
+                    let k = i.constant as i16;
+                    match p {
+                        M::Fmn => want.fmn = k,
+                        M::Fjm => want.fjm = if k > 0 { k } else { FJM_DEFAULT },
+                        M::Fmx => want.fmx = k,
+                        M::Frv => want.frv = k,
+                        M::IMax => want.i_max_centiamps = i.constant,
+                        M::UMin => want.u_min_volts = i.constant,
+                        M::UMax => want.u_max_volts = i.constant,
+                        M::IMaxHw => want.oc_hw_centiamps = i.constant,
+                        M::UMaxHw => want.ov_hw_volts = i.constant,
+                        _ => {}
+                    }
+                }
+                let limits = |s: &Settings| {
+                    (s.fmn, s.fjm, s.fmx, s.frv, s.i_max_centiamps, s.u_min_volts,
+                     s.u_max_volts, s.oc_hw_centiamps, s.ov_hw_volts)
+                };
+                prop_assert_eq!(core.load_program(&s), Ok(()));
+                let hw = core.hw_thresholds();
+                prop_assert_eq!(limits(core.vm().settings()), limits(&want));
+                prop_assert_eq!(core.command(DriveCommand::SetQ { addr: 1, value: f }), Ok(()));
+                let _ = core.command(DriveCommand::Run);
+                let nominal = AdcSample { i_a: 2048, i_b: 2048, u_dc: 2700, aux: 0 };
+                for _ in 0..ticks {
+                    core.tick_1ms(&mut sink);
+                    for _ in 0..3 {
+                        let _ = core.pwm_period(&nominal);
+                    }
+                    let reported = *core.vm().settings();
+                    prop_assert_eq!(limits(&reported), limits(&want));
+                    prop_assert_eq!(core.hw_thresholds(), hw);
+                    let st = core.status();
+                    prop_assert!(core.vm().outputs().f <= reported.fmx);
+                    prop_assert!(st.f_command.0 <= reported.fmx, "{:?}", st.f_command);
+                    prop_assert!(st.f_applied.0 <= reported.fmx, "{:?}", st.f_applied);
+                }
+            }
+            (v, t) => prop_assert!(false, "verifier {:?}, a parameter set twice {:?}", v, t),
+        }
+    }
+}
+
+/// The section of issue 35's item 7, as the drive receives it: refused, `PROG`.
+#[test]
+fn the_drive_refuses_a_section_that_sets_fmx_twice() {
+    let s = shared_protocol::program::assemble(
+        "000 FMX K00 0900\n001 LD K00 0800\n002 LD K00 0800\n003 LD K00 0000\n\
+         004 SN1\n005 FMX K00 0500\n",
+    )
+    .unwrap()
+    .drive_section();
+    let mut core = DriveCore::new(DriveConfig::default(), ResetCause::PowerOn);
+    core.tick_1ms(&mut |_| {});
+    let e = core.load_program(&s).unwrap_err();
+    assert_eq!(e.to_string(), "line 005: fmx set twice (000)");
+    assert_eq!(core.fault(), Some(FaultCode::Prog));
+    assert_eq!(
+        core.command(DriveCommand::Run),
+        Err(firmware_drive::DriveRefusal::Faulted)
+    );
 }

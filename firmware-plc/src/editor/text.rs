@@ -141,11 +141,11 @@ impl Text {
         }
     }
 
-    /// A verifier error's LCD text (`fss twice`): [`ShortText`]'s `Display`.
+    /// A verifier error's LCD text (`fss twice`, `PRx twice`): [`ShortText`]'s `Display`.
     pub fn short_text(&mut self, t: ShortText) -> &mut Self {
         match t {
             ShortText::Fixed(s) => self.str(s),
-            ShortText::Twice(m) => self.str(m.text()).str(" twice"),
+            ShortText::Twice(m) => self.str(m.setting_name()).str(" twice"),
             ShortText::Needs(func, s) => self.str(func.name()).str(" needs ").str(s.text()),
             ShortText::NeedsSine(func) => self.str(func.name()).str(" needs sine"),
         }

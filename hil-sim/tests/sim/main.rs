@@ -22,6 +22,7 @@ mod plc_task;
 mod reversal;
 mod safety;
 mod service;
+mod settings;
 mod shipped_scenarios;
 mod trips;
 mod warnings;

@@ -442,6 +442,69 @@ impl Mnemonic {
         Mnemonic::ALL.iter().copied().find(|m| m.code() == code)
     }
 
+    /// The drive parameter this drive-section line sets, named by the first mnemonic that
+    /// sets it; `None` for a line that is not a setting. A setting is a drive instruction
+    /// that leaves the int stack alone (everything but `LD`, `WR`, `PI`, `SNx`); `PR0`,
+    /// `PR1`, `PR2` all set the prescaler (`PR0`) and `=dU`, `dU=` both set dU (`=dU`), the
+    /// source's "second option" (002 4.2). The verifier lets each parameter be set by one
+    /// line only, so the value in force is the same on every line and in every cycle
+    /// (docs/program-format.md "Settings once per section").
+    pub fn drive_setting(self) -> Option<Mnemonic> {
+        if self.drive_operands().is_none() || self.stack_effect() != (0, 0, 0) {
+            return None;
+        }
+        Some(match self {
+            Mnemonic::Pr1 | Mnemonic::Pr2 => Mnemonic::Pr0,
+            Mnemonic::DuSet => Mnemonic::CalcDu,
+            m => m,
+        })
+    }
+
+    /// The name of the parameter [`Mnemonic::drive_setting`] returns `self` for, in a
+    /// verifier error: `PRx` for the prescaler, `dU` for dU, the text otherwise.
+    pub const fn setting_name(self) -> &'static str {
+        match self {
+            Mnemonic::Pr0 | Mnemonic::Pr1 | Mnemonic::Pr2 => "PRx",
+            Mnemonic::CalcDu | Mnemonic::DuSet => "dU",
+            m => m.text(),
+        }
+    }
+
+    /// The verifier's bit of the drive parameter this line sets, other than the safety
+    /// settings ([`Mnemonic::safety_setting`] gives theirs), 0 when it sets none
+    /// ([`Mnemonic::drive_setting`], from the codes alone: `PWF` .. `U>>` are codes 40-61,
+    /// and `PI`, `SN1`-`SN3` the four after the prescalers, bits 0-21; the restart settings
+    /// `arc` .. `arn`, codes 86-88, bits 22-24; a test checks it against `drive_setting`
+    /// for every mnemonic). Small: the drive's verifier runs it.
+    pub const fn setting_bit(self) -> u32 {
+        let c = self
+            .same_setting()
+            .code()
+            .wrapping_sub(Mnemonic::Pwf.code());
+        let sn3 = Mnemonic::Sn3.code() - Mnemonic::Pwf.code();
+        let pi = Mnemonic::Pi.code() - Mnemonic::Pwf.code();
+        let last = Mnemonic::UMaxHw.code() - Mnemonic::Pwf.code();
+        let arc = Mnemonic::Arc.code() - Mnemonic::Pwf.code();
+        let arn = Mnemonic::Arn.code() - Mnemonic::Pwf.code();
+        if c >= arc && c <= arn {
+            1u32 << (c - arc + last + 1)
+        } else if c > last || (c >= pi && c <= sn3) {
+            0
+        } else {
+            1u32 << c
+        }
+    }
+
+    /// The mnemonic that names the parameter this one sets: `PR0` for `PR1`/`PR2`, `=dU`
+    /// for `dU=`, itself otherwise (for the error path of the verifier).
+    pub const fn same_setting(self) -> Mnemonic {
+        match self {
+            Mnemonic::Pr1 | Mnemonic::Pr2 => Mnemonic::Pr0,
+            Mnemonic::DuSet => Mnemonic::CalcDu,
+            m => m,
+        }
+    }
+
     /// The safety setting this mnemonic sets (drive section, safety.md 4). The settings'
     /// codes are consecutive in signature order (62 `fss` .. 85 `asr`): one table lookup,
     /// which keeps the drive's verifier small.
@@ -570,6 +633,55 @@ mod tests {
         assert_eq!(Mnemonic::Div.constant_limits(), (1, 9999));
         assert_eq!(Mnemonic::Pi.stack_effect(), (4, 4, 1));
         assert_eq!(Mnemonic::Pwf.plc_operands(), None);
+    }
+
+    /// The settings: every drive instruction that leaves the stack alone, each with a
+    /// bit of its own but the prescaler's and dU's alternatives; no other mnemonic.
+    #[test]
+    fn drive_settings_have_distinct_bits_but_the_alternatives() {
+        let mut seen: std::vec::Vec<(u64, Mnemonic)> = std::vec::Vec::new();
+        for m in Mnemonic::ALL {
+            let Some(p) = m.drive_setting() else {
+                assert_eq!(m.setting_bit(), 0, "{m:?}");
+                assert!(
+                    m.drive_operands().is_none()
+                        || matches!(
+                            m,
+                            Mnemonic::Ld
+                                | Mnemonic::Wr
+                                | Mnemonic::Pi
+                                | Mnemonic::Sn1
+                                | Mnemonic::Sn2
+                                | Mnemonic::Sn3
+                        ),
+                    "{m:?}"
+                );
+                continue;
+            };
+            assert_eq!(p.drive_setting(), Some(p));
+            assert_eq!(m.same_setting(), p);
+            assert_eq!(m.setting_bit(), p.setting_bit());
+            assert_eq!(m.setting_bit() != 0, m.safety_setting().is_none(), "{m:?}");
+            assert_eq!(p.setting_name(), m.setting_name());
+            let bit = match p.safety_setting() {
+                Some(s) => 1u64 << (32 + s.index()),
+                None => u64::from(p.setting_bit()),
+            };
+            match seen.iter().find(|(b, _)| *b == bit) {
+                Some((_, q)) => assert_eq!(*q, p, "{m:?}"),
+                None => seen.push((bit, p)),
+            }
+        }
+        assert_eq!(Mnemonic::Pr2.drive_setting(), Some(Mnemonic::Pr0));
+        assert_eq!(Mnemonic::DuSet.drive_setting(), Some(Mnemonic::CalcDu));
+        assert_eq!(Mnemonic::Fmx.drive_setting(), Some(Mnemonic::Fmx));
+        assert_eq!(Mnemonic::Fss.drive_setting(), Some(Mnemonic::Fss));
+        assert_eq!(Mnemonic::Pwf.drive_setting(), Some(Mnemonic::Pwf));
+        assert_eq!(Mnemonic::Sn1.drive_setting(), None);
+        assert_eq!(Mnemonic::Alm.drive_setting(), None);
+        // 15 drive parameters (`PWF` .. `frv`, `I>>`, `U>>`), 3 restart settings (`arc`,
+        // `art`, `arn`), 24 safety settings.
+        assert_eq!(seen.len(), 15 + 3 + 24);
     }
 
     /// The drive's stack use is declared only for drive instructions.

@@ -59,22 +59,26 @@ pub fn fix_drive_stack(lines: &mut [Option<Instruction>]) {
     }
 }
 
-/// Makes the safety rules hold (safety.md 4): a safety setting set again is removed, and
-/// an `SFR x` whose function lacks a needed setting (or any but `STO` with a direct-mode
-/// `WR PWx` in the drive section) becomes `SFR STO`. Settings take no stack values, so
-/// the stack check stays valid.
+/// Makes the settings rules hold (safety.md 4, docs/program-format.md "Settings once per
+/// section"): a drive parameter set again is removed, and an `SFR x` whose function lacks
+/// a needed setting (or any but `STO` with a direct-mode `WR PWx` in the drive section)
+/// becomes `SFR STO`. Settings take no stack values, so the stack check stays valid.
 pub fn fix_safety(lines: &mut [Option<Instruction>]) {
     use crate::safety::{SafetyFunction, SafetySettings};
     let mut settings = SafetySettings::default();
+    let mut present = std::vec::Vec::new();
     let mut direct = false;
     for (n, slot) in lines.iter_mut().enumerate() {
         let Some(i) = slot else { continue };
         if n < DRIVE_LINES {
-            if let Some(s) = i.mnemonic.safety_setting() {
-                if settings.get(s).is_some() {
+            if let Some(p) = i.mnemonic.drive_setting() {
+                if present.contains(&p) {
                     *slot = None;
                     continue;
                 }
+                present.push(p);
+            }
+            if let Some(s) = i.mnemonic.safety_setting() {
                 settings.set(s, Some(i.constant));
             }
             direct |= i.mnemonic == Mnemonic::Wr

@@ -19,6 +19,12 @@
 //!   (0.1 s units, 0000-9999 = 0-999.9 s) take 0000-9999.
 //! * A constant on a line without a `K` operand must be 0 (the text format has no column
 //!   for it).
+//! * Every drive parameter is set by one line at most ([`Mnemonic::drive_setting`]; the
+//!   safety settings were the first, safety.md 4): a second line is
+//!   [`VerifyErrorKind::SettingTwice`], naming the first. The section runs every cycle and
+//!   its settings are applied once at load, so the value in force is then the same on
+//!   every line and in every cycle, and what the drive reports is what it uses (a second
+//!   `fmx` after `SN1` made the drive run above the `fmx` it reported).
 //! * The drive section's int stack (program.md 4.1) is tracked line by line
 //!   ([`drive_stack_use`]): each 1 ms cycle starts counting from 0 values, `LD` adds one
 //!   (at most 5 are kept), `PI` needs four and leaves one, `SN1` needs three, `SN2`/`SN3`
@@ -211,8 +217,10 @@ pub enum VerifyErrorKind {
         needs: u8,
         loaded: u8,
     },
-    /// A safety setting set a second time in the drive section (safety.md 4); `first` is
-    /// the line that set it first.
+    /// A drive parameter set a second time in the drive section (safety.md 4 for the
+    /// safety settings, docs/program-format.md "Settings once per section" for all of
+    /// them): `mnemonic` is the second line's ([`Mnemonic::setting_name`] names the parameter), `first` is the
+    /// line that set it first.
     SettingTwice { mnemonic: Mnemonic, first: u16 },
     /// `SFR x` for a function whose needed setting the drive section lacks (the first
     /// missing one in safety.md 4's order).
@@ -231,7 +239,7 @@ pub enum VerifyErrorKind {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ShortText {
     Fixed(&'static str),
-    /// `fss twice`
+    /// `fss twice`, `PRx twice` (the parameter, [`Mnemonic::setting_name`])
     Twice(Mnemonic),
     /// `SS2 needs ts2`
     Needs(SafetyFunction, SafetySetting),
@@ -243,7 +251,7 @@ impl core::fmt::Display for ShortText {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
             ShortText::Fixed(t) => f.write_str(t),
-            ShortText::Twice(m) => write!(f, "{} twice", m.text()),
+            ShortText::Twice(m) => write!(f, "{} twice", m.setting_name()),
             ShortText::Needs(func, s) => write!(f, "{} needs {}", func.name(), s.text()),
             ShortText::NeedsSine(func) => write!(f, "{} needs sine", func.name()),
         }
@@ -380,7 +388,7 @@ impl core::fmt::Display for VerifyErrorKind {
                 "constant {value:04} not allowed: only a K operand takes a constant"
             ),
             VerifyErrorKind::SettingTwice { mnemonic, first } => {
-                write!(f, "{} set twice ({first:03})", mnemonic.text())
+                write!(f, "{} set twice ({first:03})", mnemonic.setting_name())
             }
             VerifyErrorKind::SafetyNeeds { function, setting } => {
                 write!(f, "{} needs {}", function.name(), setting.text())
@@ -490,6 +498,8 @@ pub struct Verifier<const PLC: bool> {
     // direct mode: the PLC section's `SFR` lines are checked against them (the drive
     // section comes first in line order).
     present: u32,
+    // The other drive parameters it has set (`Mnemonic::setting_bit`).
+    params: u32,
     ss1_needs_fss: bool,
     direct: bool,
 }
@@ -502,6 +512,7 @@ impl<const PLC: bool> Verifier<PLC> {
         Verifier {
             depth: 0,
             present: 0,
+            params: 0,
             ss1_needs_fss: false,
             direct: false,
         }
@@ -519,18 +530,19 @@ impl<const PLC: bool> Verifier<PLC> {
                     loaded,
                 })
             })?;
-            if let Some(s) = i.mnemonic.safety_setting() {
-                let bit = 1u32 << s.index();
-                if self.present & bit != 0 {
-                    return Err(fail(VerifyErrorKind::SettingTwice {
-                        mnemonic: i.mnemonic,
-                        first: line,
-                    }));
-                }
-                self.present |= bit;
-                self.ss1_needs_fss |=
-                    matches!(s, SafetySetting::Tel | SafetySetting::Ard) && i.constant > 0;
+            let (present, bit) = match i.mnemonic.safety_setting() {
+                Some(s) => (&mut self.present, 1u32 << s.index()),
+                None => (&mut self.params, i.mnemonic.setting_bit()),
+            };
+            if *present & bit != 0 {
+                return Err(fail(VerifyErrorKind::SettingTwice {
+                    mnemonic: i.mnemonic,
+                    first: line,
+                }));
             }
+            *present |= bit;
+            self.ss1_needs_fss |=
+                matches!(i.mnemonic, Mnemonic::Tel | Mnemonic::Ard) && i.constant > 0;
             self.direct |= i.mnemonic == Mnemonic::Wr
                 && matches!(i.operand, Some(Operand::Pw1 | Operand::Pw3 | Operand::Pw5));
         } else if PLC {
@@ -551,13 +563,14 @@ impl<const PLC: bool> Verifier<PLC> {
     }
 }
 
-/// The line that first set `m`, for the error at the second one (`line`): the verifier
-/// keeps only a bit per setting and finds the line again on this error path.
+/// The line that first set the parameter `m` sets ([`Mnemonic::same_setting`]), for the error at
+/// the second one (`line`): the verifier keeps only a bit per parameter and finds the
+/// line again on this error path.
 fn first_line_of(lines: &[Option<Instruction>], m: Mnemonic, line: u16) -> u16 {
     lines
         .iter()
         .take(usize::from(line))
-        .position(|l| l.is_some_and(|i| i.mnemonic == m))
+        .position(|l| l.is_some_and(|i| i.mnemonic.same_setting() == m.same_setting()))
         .map_or(line, |n| n as u16)
 }
 
@@ -1053,6 +1066,74 @@ mod safety_tests {
         assert_eq!(verify_drive(&p.drive_section()), Err(e));
         // Different settings, and the same K label, are fine.
         let p = assemble("030 fss K00 0040\n031 pss K00 0200\n").unwrap();
+        assert_eq!(verify(&p), Ok(()));
+    }
+
+    /// Every drive parameter once per section (docs/program-format.md "Settings once per
+    /// section"): the issue's section, whose second `fmx` made the drive run at 80.0 Hz
+    /// while it reported 50.0 Hz, is refused at the second line, naming the first, by
+    /// the PLC and by the drive.
+    #[test]
+    fn every_drive_setting_twice_is_an_error_naming_both_lines() {
+        let p = assemble(
+            "000 FMX K00 0900\n001 LD K00 0800\n002 LD K00 0800\n003 LD K00 0000\n\
+             004 SN1\n005 FMX K00 0500\n",
+        )
+        .unwrap();
+        let e = verify(&p).unwrap_err();
+        assert_eq!(e.to_string(), "line 005: fmx set twice (000)");
+        assert_eq!(
+            std::format!("{:03}:{}", e.line, e.kind.short()),
+            "005:fmx twice"
+        );
+        assert_eq!(verify_drive(&p.drive_section()), Err(e));
+        // Each setting, the same constant or not, K or Q.
+        for m in mnemonics_for(Section::Drive).filter(|m| m.drive_setting().is_some()) {
+            let operand = operands_for(m, Section::Drive).next().unwrap();
+            let i = Instruction {
+                mnemonic: m,
+                operand,
+                constant: constant_range(m, Section::Drive, operand).map_or(0, |r| *r.start()),
+            };
+            let mut d = DriveSection::default();
+            d.lines[7] = Some(i);
+            assert_eq!(verify_drive(&d), Ok(()), "{m:?}");
+            d.lines[120] = Some(i);
+            let e = verify_drive(&d).unwrap_err();
+            assert_eq!(
+                (e.line, e.kind.to_string()),
+                (120, std::format!("{} set twice (007)", m.setting_name()))
+            );
+        }
+        // The alternatives of one parameter: `PR0`/`PR1`/`PR2`, `=dU`/`dU=`, `PWF` K/Q.
+        for (text, error, short) in [
+            (
+                "041 PR0\n043 PR2\n",
+                "line 043: PRx set twice (041)",
+                "PRx twice",
+            ),
+            (
+                "003 =dU\n004 dU= K03 0512\n",
+                "line 004: dU set twice (003)",
+                "dU twice",
+            ),
+            (
+                "000 PWF K00 1500\n009 PWF Q00\n",
+                "line 009: PWF set twice (000)",
+                "PWF twice",
+            ),
+        ] {
+            let p = assemble(text).unwrap();
+            let e = verify(&p).unwrap_err();
+            assert_eq!(e.to_string(), error);
+            assert_eq!(e.kind.short().to_string(), short);
+            assert_eq!(verify_drive(&p.drive_section()), Err(e));
+        }
+        // What the source's examples do stays valid: each parameter once, `=dU` from
+        // `Rs=`, `Uc=`, `Iz=`.
+        let p =
+            assemble("007 Rs= K03 0195\n008 Uc= K04 0030\n009 Iz= K05 0060\n010 =dU\n011 PR1\n")
+                .unwrap();
         assert_eq!(verify(&p), Ok(()));
     }
 
