@@ -1,9 +1,11 @@
 //! Drawing: listing columns, the status row, the run page and the fault log page.
 
+use super::calendar;
 use super::text::Text;
 use super::{Editor, Field, Mode, Page, Prefix, Screen, View, MAX_COLS};
-use shared_protocol::link::{fault_name, fault_text};
+use shared_protocol::link::fault_text;
 use shared_protocol::safety::{SafetyFunction, FUNCTION_MASK};
+use shared_protocol::service::{app_fault_of, log_name, EVENT_LOG_CLEARED, EVENT_PROGRAM_WRITTEN};
 
 /// One row of text, long enough for any row before clipping.
 pub(super) type Line = Text;
@@ -331,7 +333,12 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
 fn fields_row(view: &View<'_>, first: usize, narrow: bool, s: &mut Line) {
     let a = view.run.lcd.get(first).copied().flatten();
     let b = view.run.lcd.get(first + 1).copied().flatten();
-    let (na, nb) = (first as u32 + 1, first as u32 + 2);
+    field_pair(a, b, first as u32 + 1, narrow, s);
+}
+
+/// Fields `na` and `na + 1` with their values (`-` for none), as the run page shows them.
+fn field_pair(a: Option<i16>, b: Option<i16>, na: u32, narrow: bool, s: &mut Line) {
+    let nb = na + 1;
     let (a, b) = (field_value(a), field_value(b));
     if narrow {
         s.dec(na)
@@ -413,7 +420,10 @@ pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     pad_row(out, last, &s);
 }
 
-/// Fault log page: one entry (newest first), scrolled with 2/8.
+/// Fault log page: one entry (newest first), scrolled with 2/8. Each entry rotates two
+/// pairs of rows: its text and its values (the first two `LCD` fields when it was
+/// logged, as the run page shows them), and its time of day (`CLOCK NOT SET` without)
+/// and its power-up and uptime.
 pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     let narrow = ed.cols < 20;
     let n = view.fault_log.len();
@@ -423,6 +433,8 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     let entry = view.fault_log.get(index);
     let mut head = Line::new();
     let mut text = Line::new();
+    let mut values = Line::new();
+    let mut wall = Line::new();
     let mut time = Line::new();
     match entry {
         None => {
@@ -438,8 +450,12 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
                 .str(" F")
                 .dec(u32::from(e.code))
                 .char(' ')
-                .str(fault_name(e.code));
-            text.str(fault_text(e.code));
+                .str(log_name(e.code));
+            log_text(e.code, &mut text);
+            if e.value(0).is_some() || e.value(1).is_some() {
+                field_pair(e.value(0), e.value(1), 1, narrow, &mut values);
+            }
+            wall_line(e.wall(), narrow, &mut wall);
             let t = e.uptime_s;
             time.str("PWR ")
                 .dec(u32::from(e.power_cycle))
@@ -451,11 +467,16 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
                 .dec0(t % 60, 2);
         }
     }
+    if values.is_empty() {
+        values = text.clone();
+    }
+    let tick = (view.now_ms / ROTATE_MS) as usize;
+    let odd = tick % 2 == 1;
     pad_row(out, 0, &head);
     let mut status = Line::new();
     if ed.rows >= 4 {
-        pad_row(out, 1, &text);
-        pad_row(out, 2, &time);
+        pad_row(out, 1, if odd { &values } else { &text });
+        pad_row(out, 2, if odd { &time } else { &wall });
         status_text(ed, view, &mut status);
         pad_row(out, last, &status);
         return;
@@ -470,13 +491,53 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
         pad_row(out, last, &status);
         return;
     }
-    let tick = (view.now_ms / ROTATE_MS) as usize;
-    match tick % 3 {
+    match tick % 5 {
         0 => pad_row(out, last, &text),
-        1 => pad_row(out, last, &time),
+        1 => pad_row(out, last, &values),
+        2 => pad_row(out, last, &wall),
+        3 => pad_row(out, last, &time),
         _ => {
             main_hint(ed, view, &mut status);
             pad_row(out, last, &status);
         }
     }
+}
+
+/// A log entry's text: the drive's fault text, `application fault n` (the texts of an
+/// application's faults are in its profile, on the PC), or the event's.
+fn log_text(code: u8, s: &mut Line) {
+    match app_fault_of(code) {
+        Some(n) => {
+            s.str("application fault ").dec(u32::from(n));
+        }
+        None => {
+            s.str(match code {
+                EVENT_LOG_CLEARED => "fault log cleared",
+                EVENT_PROGRAM_WRITTEN => "program written svc",
+                c => fault_text(c),
+            });
+        }
+    }
+}
+
+/// The time of day of `wall` (seconds since 2000-01-01 00:00:00 UTC) as
+/// `2026-11-29 10:15:07` (16 columns: `11-29 10:15:07`), or `CLOCK NOT SET`.
+fn wall_line(wall: Option<u32>, narrow: bool, s: &mut Line) {
+    let Some(t) = wall else {
+        s.str("CLOCK NOT SET");
+        return;
+    };
+    let (y, m, d) = calendar::date(t / 86_400);
+    if !narrow {
+        s.dec(y).char('-');
+    }
+    s.dec0(m, 2)
+        .char('-')
+        .dec0(d, 2)
+        .char(' ')
+        .dec0(t / 3600 % 24, 2)
+        .char(':')
+        .dec0(t / 60 % 60, 2)
+        .char(':')
+        .dec0(t % 60, 2);
 }

@@ -60,6 +60,8 @@ pub struct State {
     pub screen: Value,
     /// `faults --json` rows, newest first.
     pub faults: Value,
+    /// The profile's texts and value names for them.
+    pub log_names: crate::faults::LogNames,
     pub counters: Value,
     /// The trend's column names (hil-sim's, as `trend --csv`).
     pub columns: Vec<String>,
@@ -88,6 +90,7 @@ impl Shared {
                 status_at: None,
                 screen: Value::Null,
                 faults: json!([]),
+                log_names: crate::faults::LogNames::default(),
                 counters: Value::Null,
                 columns: trend::header(q).split(',').map(String::from).collect(),
                 samples: VecDeque::new(),
@@ -260,7 +263,8 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
         };
         let log_changed = newest_log != Some(status.newest_log);
         if log_changed {
-            match crate::faults::rows(c) {
+            let names = shared.lock().log_names.clone();
+            match crate::faults::rows(c, &names) {
                 Ok(rows) => {
                     let rows = serde_json::to_value(rows).unwrap_or(Value::Null);
                     shared.update(|s| s.faults = rows);
