@@ -455,7 +455,7 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
             if e.value(0).is_some() || e.value(1).is_some() {
                 field_pair(e.value(0), e.value(1), 1, narrow, &mut values);
             }
-            wall_line(e.wall(), narrow, &mut wall);
+            wall_line(e.wall(), &mut wall);
             let t = e.uptime_s;
             time.str("PWR ")
                 .dec(u32::from(e.power_cycle))
@@ -521,17 +521,16 @@ fn log_text(code: u8, s: &mut Line) {
 }
 
 /// The time of day of `wall` (seconds since 2000-01-01 00:00:00 UTC) as
-/// `2026-11-29 10:15:07` (16 columns: `11-29 10:15:07`), or `CLOCK NOT SET`.
-fn wall_line(wall: Option<u32>, narrow: bool, s: &mut Line) {
+/// `2026-11-29 10:15:07` (16 columns: `2026-11-29 10:15`), or `CLOCK NOT SET`.
+fn wall_line(wall: Option<u32>, s: &mut Line) {
     let Some(t) = wall else {
         s.str("CLOCK NOT SET");
         return;
     };
     let (y, m, d) = calendar::date(t / 86_400);
-    if !narrow {
-        s.dec(y).char('-');
-    }
-    s.dec0(m, 2)
+    s.dec(y)
+        .char('-')
+        .dec0(m, 2)
         .char('-')
         .dec0(d, 2)
         .char(' ')

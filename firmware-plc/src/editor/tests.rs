@@ -1056,7 +1056,7 @@ fn fault_log_shows_the_time_of_day_and_the_values() {
         .collect();
     assert_eq!(rows[0], "application faul");
     assert_eq!(rows[1], "1=2     2=3     ");
-    assert_eq!(rows[2], "11-29 10:15:07  ");
+    assert_eq!(rows[2], "2026-11-29 10:15");
     assert_eq!(rows[3], "PWR 7 UP 1:02:05");
     // One value only; extremes.
     let mut x = FaultEntry::new(240, 0, 0);

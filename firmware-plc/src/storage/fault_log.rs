@@ -11,10 +11,18 @@
 //!
 //! Format 1 (firmware before format 2: 32 entries of 8 bytes in the same pages, no time of
 //! day, no values) is still read, never rewritten: a slot that is not a format-2 entry is
-//! read as two format-1 entries. The firmware that writes format 2 never writes format 1,
-//! so every format-2 entry is newer than every format-1 entry: the log lists format 2
-//! newest first, then format 1 newest first, and the first format-2 entry goes into the
-//! slot after the newest format-1 entry's, so that new entries replace the oldest ones.
+//! read as two format-1 entries. A format-2 entry is a format-1 entry with 8 more bytes
+//! before its CRC, which covers all 14: the length is the version. A slot of two valid
+//! format-1 entries never passes as format 2: the CRC (CRC-16/IBM-3740) has no final XOR,
+//! so after the first entry (6 bytes and their CRC) its register is 0, and the second
+//! entry's CRC is that of its 6 bytes from the initial 0xFFFF, never the one from 0 (the
+//! two differ by what the initial value adds to any 6-byte message, a constant other than
+//! 0); nor does a valid entry followed by an erased one (test
+//! `format_1_slots_never_pass_as_format_2`). The firmware that writes format 2 never
+//! writes format 1, so every format-2 entry is newer than every format-1 entry: the log
+//! lists format 2 newest first, then format 1 newest first, and the first format-2 entry
+//! goes into the slot after the newest format-1 entry's, so that new entries replace the
+//! oldest ones.
 
 use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::{FAULT_ENTRY_BYTES, FAULT_LOG_ADDR, FAULT_LOG_ENTRIES};
@@ -28,9 +36,6 @@ pub const UPTIME_MAX_S: u32 = 0x00FF_FFFF;
 pub const WALL_UNSET: u32 = u32::MAX;
 /// [`FaultEntry::values`]: no value (the field was not written, or the PLC was stopped).
 pub const NO_VALUE: i16 = i16::MIN;
-/// The format number, first in the CRC of a format-2 entry, so that a CRC over the same
-/// bytes in another format differs.
-const FORMAT: u8 = 2;
 /// Bytes of a format-1 entry.
 const V1_ENTRY_BYTES: usize = 8;
 /// Format-1 entries the area holds.
@@ -79,50 +84,41 @@ impl FaultEntry {
     }
 
     pub(crate) fn to_bytes(self) -> [u8; FAULT_ENTRY_BYTES] {
-        let mut b = [0u8; FAULT_ENTRY_BYTES];
-        let p = self.power_cycle.to_be_bytes();
-        let u = self.uptime_s.min(UPTIME_MAX_S).to_be_bytes();
-        let w = self.wall_s.to_be_bytes();
+        let [p0, p1] = self.power_cycle.to_be_bytes();
+        let [_, u0, u1, u2] = self.uptime_s.min(UPTIME_MAX_S).to_be_bytes();
+        let [w0, w1, w2, w3] = self.wall_s.to_be_bytes();
         let [a0, a1] = self.values[0].to_be_bytes();
         let [b0, b1] = self.values[1].to_be_bytes();
         let body = [
-            self.code, p[0], p[1], u[1], u[2], u[3], w[0], w[1], w[2], w[3], a0, a1, b0, b1,
+            self.code, p0, p1, u0, u1, u2, w0, w1, w2, w3, a0, a1, b0, b1,
         ];
-        let c = crc2(&body).to_be_bytes();
-        for (to, from) in b.iter_mut().zip(body.iter().chain(c.iter())) {
-            *to = *from;
-        }
-        b
+        let [c0, c1] = CRC16.checksum(&body).to_be_bytes();
+        [
+            self.code, p0, p1, u0, u1, u2, w0, w1, w2, w3, a0, a1, b0, b1, c0, c1,
+        ]
     }
 
-    /// A format-2 entry.
+    /// A format-2 entry (16 bytes) or a format-1 entry (8 bytes: code, power cycle,
+    /// uptime, CRC-16 over those 6 bytes), told apart by the length only: format 2 is
+    /// format 1 with the time of day and the values before the CRC.
     pub(crate) fn parse(b: &[u8]) -> Option<FaultEntry> {
-        let b = <&[u8; FAULT_ENTRY_BYTES]>::try_from(b).ok()?;
-        let [code, p0, p1, u0, u1, u2, w0, w1, w2, w3, a0, a1, b0, b1, c0, c1] = *b;
-        if code == 0 || code == 0xFF || crc2(b.get(..14)?) != u16::from_be_bytes([c0, c1]) {
+        let (body, crc) = b.split_last_chunk::<2>()?;
+        let [code, p0, p1, u0, u1, u2] = *body.first_chunk::<6>()?;
+        if code == 0 || code == 0xFF || CRC16.checksum(body) != u16::from_be_bytes(*crc) {
             return None;
         }
-        Some(FaultEntry {
-            code,
-            power_cycle: u16::from_be_bytes([p0, p1]),
-            uptime_s: u32::from_be_bytes([0, u0, u1, u2]),
-            wall_s: u32::from_be_bytes([w0, w1, w2, w3]),
-            values: [i16::from_be_bytes([a0, a1]), i16::from_be_bytes([b0, b1])],
-        })
-    }
-
-    /// A format-1 entry: code, power cycle, uptime (24 bits), CRC-16 over those 6 bytes.
-    fn parse_v1(b: &[u8]) -> Option<FaultEntry> {
-        let [code, p0, p1, u0, u1, u2, c0, c1] = <[u8; V1_ENTRY_BYTES]>::try_from(b).ok()?;
-        if code == 0 || code == 0xFF || CRC16.checksum(b.get(..6)?) != u16::from_be_bytes([c0, c1])
-        {
-            return None;
-        }
-        Some(FaultEntry::new(
+        let mut e = FaultEntry::new(
             code,
             u16::from_be_bytes([p0, p1]),
             u32::from_be_bytes([0, u0, u1, u2]),
-        ))
+        );
+        if let Some(&[w0, w1, w2, w3, a0, a1, b0, b1]) =
+            body.get(6..).and_then(|x| x.first_chunk::<8>())
+        {
+            e.wall_s = u32::from_be_bytes([w0, w1, w2, w3]);
+            e.values = [i16::from_be_bytes([a0, a1]), i16::from_be_bytes([b0, b1])];
+        }
+        Some(e)
     }
 
     fn stamp(&self) -> Stamp {
@@ -131,14 +127,6 @@ impl FaultEntry {
             uptime_s: self.uptime_s,
         }
     }
-}
-
-/// Format 2's CRC: the format number, then the entry's first 14 bytes.
-fn crc2(body: &[u8]) -> u16 {
-    let mut d = CRC16.digest();
-    d.update(&[FORMAT]);
-    d.update(body);
-    d.finalize()
 }
 
 /// What orders the entries of one format: when they happened since which power-up.
@@ -211,10 +199,10 @@ impl RingFinder {
     /// Feeds every entry of a chunk of raw log bytes (whole slots, from slot 0 on).
     pub(crate) fn push_bytes(&mut self, raw: &[u8]) {
         for slot in raw.chunks(FAULT_ENTRY_BYTES) {
-            let e = FaultEntry::parse(slot);
+            let e = slot.get(..FAULT_ENTRY_BYTES).and_then(FaultEntry::parse);
             self.slots.push(e.map(|e| e.stamp()));
             for half in slot.chunks(V1_ENTRY_BYTES) {
-                let v1 = e.is_none().then(|| FaultEntry::parse_v1(half)).flatten();
+                let v1 = e.is_none().then(|| FaultEntry::parse(half)).flatten();
                 self.halves.push(v1.map(|e| e.stamp()));
             }
         }
@@ -289,7 +277,7 @@ pub fn read_all_with_head<E: Eeprom>(
                 continue;
             }
             let half = raw.get(i * V1_ENTRY_BYTES..(i + 1) * V1_ENTRY_BYTES);
-            if let Some(entry) = half.and_then(FaultEntry::parse_v1) {
+            if let Some(entry) = half.and_then(FaultEntry::parse) {
                 if out.push(entry).is_err() {
                     break;
                 }

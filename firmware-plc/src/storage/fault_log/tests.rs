@@ -232,3 +232,43 @@ fn the_append_address_follows_the_newest_entry_of_either_format() {
     }
     assert_eq!(g, f);
 }
+
+/// Module doc: a slot of format-1 entries (two valid ones, or a valid one and an erased
+/// one) is never read as a format-2 entry, whatever the entries hold.
+#[test]
+fn format_1_slots_never_pass_as_format_2() {
+    fn v1(code: u8, pc: u16, up: u32) -> [u8; 8] {
+        let [p0, p1] = pc.to_be_bytes();
+        let [_, u0, u1, u2] = up.to_be_bytes();
+        let body = [code, p0, p1, u0, u1, u2];
+        let [c0, c1] = CRC16.checksum(&body).to_be_bytes();
+        [code, p0, p1, u0, u1, u2, c0, c1]
+    }
+    let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    for _ in 0..200_000 {
+        let r = next();
+        let a = v1(
+            1 + (r % 254) as u8,
+            (r >> 8) as u16,
+            (r >> 24) as u32 & UPTIME_MAX_S,
+        );
+        let r = next();
+        let b = v1(
+            1 + (r % 254) as u8,
+            (r >> 8) as u16,
+            (r >> 24) as u32 & UPTIME_MAX_S,
+        );
+        assert!(FaultEntry::parse(&a).is_some());
+        let mut slot = [0xFFu8; 16];
+        slot[..8].copy_from_slice(&a);
+        assert_eq!(FaultEntry::parse(&slot), None, "{slot:02x?}");
+        slot[8..].copy_from_slice(&b);
+        assert_eq!(FaultEntry::parse(&slot), None, "{slot:02x?}");
+    }
+}
