@@ -3,6 +3,7 @@
 use super::calendar;
 use super::text::Text;
 use super::{Editor, Field, Mode, Page, Prefix, Screen, View, MAX_COLS};
+use crate::storage::FaultEntry;
 use shared_protocol::link::fault_text;
 use shared_protocol::safety::{SafetyFunction, FUNCTION_MASK};
 use shared_protocol::service::{app_fault_of, log_name, EVENT_LOG_CLEARED, EVENT_PROGRAM_WRITTEN};
@@ -431,33 +432,68 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     let index = usize::from(ed.log_index.get()).min(n.saturating_sub(1));
     ed.log_index.set(index as u8);
     let entry = view.fault_log.get(index);
-    let mut head = Line::new();
-    let mut text = Line::new();
-    let mut values = Line::new();
-    let mut wall = Line::new();
-    let mut time = Line::new();
+    let mut s = Line::new();
     match entry {
         None => {
-            head.str("FAULT LOG EMPTY");
+            s.str("FAULT LOG EMPTY");
         }
         Some(e) => {
             if !narrow {
-                head.str("LOG ");
+                s.str("LOG ");
             }
-            head.dec0(index as u32 + 1, 2)
+            s.dec0(index as u32 + 1, 2)
                 .char('/')
                 .dec0(n as u32, 2)
                 .str(" F")
                 .dec(u32::from(e.code))
                 .char(' ')
                 .str(log_name(e.code));
-            log_text(e.code, &mut text);
-            if e.value(0).is_some() || e.value(1).is_some() {
-                field_pair(e.value(0), e.value(1), 1, narrow, &mut values);
+        }
+    }
+    pad_row(out, 0, &s);
+    let tick = (view.now_ms / ROTATE_MS) as usize;
+    // Which entry rows: 0 text, 1 values, 2 time of day, 3 power-up and uptime.
+    let (a, b) = if tick % 2 == 1 { (1, 3) } else { (0, 2) };
+    if ed.rows >= 4 {
+        for (row, item) in [(1, a), (2, b)] {
+            s = Line::new();
+            if let Some(e) = entry {
+                entry_row(e, item, narrow, &mut s);
             }
-            wall_line(e.wall(), &mut wall);
+            pad_row(out, row, &s);
+        }
+        s = Line::new();
+        status_text(ed, view, &mut s);
+        pad_row(out, last, &s);
+        return;
+    }
+    if last == 0 {
+        return;
+    }
+    s = Line::new();
+    let item = tick % 5;
+    let prompted = prompt(ed, view, &mut s);
+    match entry {
+        Some(e) if !prompted && item < 4 => entry_row(e, item, narrow, &mut s),
+        Some(_) if !prompted => main_hint(ed, view, &mut s),
+        _ if s.is_empty() => status_text(ed, view, &mut s),
+        _ => {}
+    }
+    pad_row(out, last, &s);
+}
+
+/// Row `item` of a log entry: 0 its text, 1 its values (the first two `LCD` fields when
+/// it was logged, as the run page shows them; the text when it has none), 2 its time of
+/// day (`CLOCK NOT SET` without), 3 its power-up and uptime.
+fn entry_row(e: &FaultEntry, item: usize, narrow: bool, s: &mut Line) {
+    let (v0, v1) = (e.value(0), e.value(1));
+    match item {
+        1 if v0.is_some() || v1.is_some() => field_pair(v0, v1, 1, narrow, s),
+        0 | 1 => log_text(e.code, s),
+        2 => wall_line(e.wall(), s),
+        _ => {
             let t = e.uptime_s;
-            time.str("PWR ")
+            s.str("PWR ")
                 .dec(u32::from(e.power_cycle))
                 .str(" UP ")
                 .dec(t / 3600)
@@ -465,40 +501,6 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
                 .dec0((t / 60) % 60, 2)
                 .char(':')
                 .dec0(t % 60, 2);
-        }
-    }
-    if values.is_empty() {
-        values = text.clone();
-    }
-    let tick = (view.now_ms / ROTATE_MS) as usize;
-    let odd = tick % 2 == 1;
-    pad_row(out, 0, &head);
-    let mut status = Line::new();
-    if ed.rows >= 4 {
-        pad_row(out, 1, if odd { &values } else { &text });
-        pad_row(out, 2, if odd { &time } else { &wall });
-        status_text(ed, view, &mut status);
-        pad_row(out, last, &status);
-        return;
-    }
-    if last == 0 {
-        return;
-    }
-    if prompt(ed, view, &mut status) || entry.is_none() {
-        if status.is_empty() {
-            status_text(ed, view, &mut status);
-        }
-        pad_row(out, last, &status);
-        return;
-    }
-    match tick % 5 {
-        0 => pad_row(out, last, &text),
-        1 => pad_row(out, last, &values),
-        2 => pad_row(out, last, &wall),
-        3 => pad_row(out, last, &time),
-        _ => {
-            main_hint(ed, view, &mut status);
-            pad_row(out, last, &status);
         }
     }
 }
