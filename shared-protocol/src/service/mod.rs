@@ -50,8 +50,8 @@ pub const MAX_SUBSCRIBED_Q: usize = 8;
 /// Shortest and longest sample period.
 pub const SAMPLE_PERIOD_MIN_MS: u16 = 10;
 pub const SAMPLE_PERIOD_MAX_MS: u16 = 100;
-/// Most fault-log entries per answer (4 at their largest fill a frame).
-pub const LOG_ENTRIES_PER_ANSWER: usize = 4;
+/// Most fault-log entries per answer (a fourth at its largest would not fit a frame).
+pub const LOG_ENTRIES_PER_ANSWER: usize = 3;
 /// Ring positions of fault-log entries (`LogEntry::pos`, `FaultLog::newest`) count
 /// modulo this: the entry `k` places before the newest is at `newest - k`.
 pub const LOG_POSITIONS: u8 = 32;
