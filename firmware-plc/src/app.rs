@@ -28,9 +28,10 @@
 //! A reject shows the drive's line and reason. STOP: the VM stops, the outputs go off and
 //! the drive is told STOP (PWM off).
 //!
-//! Faults: every fault the drive reports is logged in the EEPROM (newest 32, with the
-//! power-cycle count and the time since power-up) and shown on the run screen with its
-//! text. Nothing restarts by itself: after a trip (including `LINK` after a cut link) the
+//! Faults: every fault the drive reports and every application fault (`ALM`) is logged
+//! in the EEPROM (newest 16, with the time of day, the power-cycle count and the time
+//! since power-up, and the first two `LCD` fields of the last scan: the lift's floor and
+//! target) and a drive fault is shown on the run screen with its text. Nothing restarts by itself: after a trip (including `LINK` after a cut link) the
 //! drive stays in FAULT until an `ACK` (program instruction) and a new RUN from the user.
 //! A lost link does not stop the PLC's own scan (its outputs may matter on their own);
 //! the run screen shows the link state.
@@ -54,10 +55,12 @@ use crate::editor::{
 };
 use crate::storage::{
     BootChange, Eeprom, FaultEntry, Job, JobDone, Storage, StorageError, FAULT_LOG_ENTRIES,
+    NO_VALUE, WALL_UNSET,
 };
 use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 
 mod service;
+mod wall;
 
 pub(crate) use service::checked_slot;
 pub(crate) use service::up_to;
@@ -564,14 +567,6 @@ impl<E: Eeprom> PlcApp<E> {
             // drive's fault is read again after the reconnection.
             let _ = self.link.ack_fault();
         }
-        if let Some(n) = out.alarm {
-            // `ALM`: an application fault, logged like a drive fault under its own codes.
-            let code = shared_protocol::service::app_fault_code(n);
-            let entry = self.storage.fault_entry(code, now.0 / 1000);
-            if self.storage.queue(Job::LogFault(entry)).is_err() {
-                self.editor.notify(Notice::Text("FAULT LOG ERROR"));
-            }
-        }
         // No command until the next scan: a heartbeat that is due soon goes now, so it is
         // never on the wire when the next scan's writes want it.
         let quiet = self.scan_period_us.saturating_sub(QUIET_MARGIN_US);
@@ -580,7 +575,31 @@ impl<E: Eeprom> PlcApp<E> {
             self.warning = out.warning;
         }
         self.out = out;
+        if let Some(n) = out.alarm {
+            // `ALM`: an application fault, logged like a drive fault under its own codes,
+            // with this scan's `LCD` fields.
+            self.log_fault(shared_protocol::service::app_fault_code(n), now);
+        }
         out
+    }
+
+    /// The fault-log entry for `code` at `now`: the time of day, and the first two `LCD`
+    /// fields of the last scan as the application values (none while stopped).
+    pub(crate) fn log_entry(&self, code: u8, now: Micros) -> FaultEntry {
+        let lcd = |n: usize| self.out.lcd.get(n).copied().flatten().unwrap_or(NO_VALUE);
+        FaultEntry {
+            wall_s: self.wall_seconds(now).unwrap_or(WALL_UNSET),
+            values: [lcd(0), lcd(1)],
+            ..self.storage.fault_entry(code, now.0 / 1000)
+        }
+    }
+
+    /// Queue the fault-log entry for `code` at `now`.
+    pub(crate) fn log_fault(&mut self, code: u8, now: Micros) {
+        let entry = self.log_entry(code, now);
+        if self.storage.queue(Job::LogFault(entry)).is_err() {
+            self.editor.notify(Notice::Text("FAULT LOG ERROR"));
+        }
     }
 
     fn drive_view(&self) -> DriveView {
@@ -697,10 +716,7 @@ impl<E: Eeprom> PlcApp<E> {
                     // comparable across drive reboots. Queued: the job runs in
                     // `tick_1ms`, one EEPROM page per tick, so the link pass that
                     // received the report (and its acknowledgement) never waits for it.
-                    let entry = self.storage.fault_entry(code, now.0 / 1000);
-                    if self.storage.queue(Job::LogFault(entry)).is_err() {
-                        self.editor.notify(Notice::Text("FAULT LOG ERROR"));
-                    }
+                    self.log_fault(code, now);
                 }
             }
         }
@@ -760,16 +776,11 @@ impl<E: Eeprom> PlcApp<E> {
     /// entry (service.md 6), so the log itself says when and in which power-up it was
     /// cleared. Keypad `*` `0` and the service's `ClearFaultLog`.
     fn queue_clear_fault_log(&mut self, now: Micros) -> Result<(), crate::storage::QueueFull> {
-        let event = self
-            .storage
-            .fault_entry(shared_protocol::service::EVENT_LOG_CLEARED, now.0 / 1000);
         self.storage.queue(Job::ClearFaultLog)?;
         self.newest_fault = None;
         // The queue had room for the clear; the event follows it (a full queue loses
         // only the event).
-        if self.storage.queue(Job::LogFault(event)).is_err() {
-            self.editor.notify(Notice::Text("FAULT LOG ERROR"));
-        }
+        self.log_fault(shared_protocol::service::EVENT_LOG_CLEARED, now);
         Ok(())
     }
 

@@ -44,7 +44,7 @@ proptest! {
         let rows = if cols == 20 { 4 } else { 2 };
         let mut ed = Editor::new(cols, rows);
         let mut p = Program::default();
-        let log = [FaultEntry { code: 3, power_cycle: 2, uptime_s: 77 }];
+        let log = [FaultEntry::new(3, 2, 77)];
         for (k, running) in keys {
             if let Some(Request::Run { .. }) = ed.key(k, &mut p, running) {
                 prop_assert!(lines_valid(&p).is_ok());

@@ -528,25 +528,37 @@ function splitTime(t) {
   const m = /^(\d{4}-\d\d-\d\d) (\d\d:\d\d:\d\d)$/.exec(t);
   return m ? [m[1], m[2]] : ["", t];
 }
+// The PLC's time of day; without it "clock not set" and the host's estimate (~).
+function entryTime(f) {
+  if (f.wall_s !== null && f.wall_s !== undefined) return splitTime(f.time);
+  return [f.time, "~" + splitTime(f.host_time)[1]];
+}
 function renderFaults() {
   if (monitor.faults === null) return;
   const body = $("faults").tBodies[0];
   body.textContent = "";
+  const names = monitor.profile.log_values || ["lcd0", "lcd1"];
+  $("faults-v0").textContent = names[0]; $("faults-v1").textContent = names[1];
   for (const f of monitor.faults) {
-    const [date, time] = splitTime(f.time);
+    const [date, time] = entryTime(f);
+    const values = (f.values || [null, null]).map((v) => (v === null ? "" : String(v)));
     const tr = el("tr", { "data-pos": String(f.pos), "data-code": String(f.code) });
-    for (const v of [date, time, String(f.code), f.text]) tr.appendChild(el("td", {}, v));
+    for (const v of [date, time, String(f.code), f.text, ...values]) tr.appendChild(el("td", {}, v));
     body.appendChild(tr);
   }
   if (!monitor.faults.length) {
-    const tr = el("tr"); tr.appendChild(el("td", { colspan: "4" }, "fault log empty")); body.appendChild(tr);
+    const tr = el("tr"); tr.appendChild(el("td", { colspan: "6" }, "fault log empty")); body.appendChild(tr);
   }
 }
 function faultsCsv() {
   const q = (s) => (/[",\n]/.test(s) ? `"${s.replace(/"/g, '""')}"` : s);
-  const lines = ["pos,time,power_up,uptime_s,code,name,text"];
+  const names = monitor.profile.log_values || ["lcd0", "lcd1"];
+  const lines = ["pos,time,wall_s,host_time,power_up,uptime_s,code,name,text," + names.map(q).join(",")];
+  const opt = (v) => (v === null || v === undefined ? "" : String(v));
   for (const f of monitor.faults || []) {
-    lines.push([f.pos, q(f.time), f.power_up, f.uptime_s, f.code, f.name, q(f.text)].join(","));
+    const values = (f.values || [null, null]).map(opt);
+    lines.push([f.pos, q(f.time), opt(f.wall_s), q(f.host_time), f.power_up, f.uptime_s, f.code, f.name,
+      q(f.text), ...values].join(","));
   }
   return lines.join("\n") + "\n";
 }

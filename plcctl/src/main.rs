@@ -73,6 +73,10 @@ enum Cmd {
         csv: bool,
         #[arg(long)]
         json: bool,
+        /// The application profile (TOML, as `serve`'s): the texts of the application's
+        /// faults and the names of the log's two values.
+        #[arg(long)]
+        profile: Option<PathBuf>,
     },
     /// The PLC's counters.
     Counters {
@@ -178,7 +182,13 @@ fn real_main(cli: Cli) -> Result<()> {
                 port: &port,
             },
         ),
-        Cmd::Faults { csv, json } => faults::faults(&mut connect()?, csv, json),
+        Cmd::Faults { csv, json, profile } => {
+            let profile = match profile {
+                Some(p) => serve::profile::Profile::load(&p)?,
+                None => serve::profile::Profile::default(),
+            };
+            faults::faults(&mut connect()?, csv, json, &profile)
+        }
         Cmd::Counters { json } => status::counters(&mut connect()?, json),
         Cmd::Pull { slot, output } => program::pull(&mut connect()?, slot, output.as_deref()),
         Cmd::Push { file, slot, yes } => push::push(connect, &file, slot, yes),

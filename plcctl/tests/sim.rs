@@ -259,7 +259,8 @@ fn faults_json_equals_the_run_summary() {
     assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
     let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
     let csv = sim.plcctl(&["faults", "--csv"]);
-    assert!(text(&csv).starts_with("pos,time,power_up,uptime_s,code,name,text\n"));
+    assert!(text(&csv)
+        .starts_with("pos,time,wall_s,host_time,power_up,uptime_s,code,name,text,lcd0,lcd1\n"));
     // `watch` shows the LCD and the newest log entries.
     let w = sim.plcctl(&["watch", "--duration", "0.3"]);
     assert_eq!(code(&w), 0);
@@ -707,6 +708,81 @@ fn counters_after_lift_l3_equal_the_arrivals_in_the_csv() {
     assert!(got["trips"].as_array().unwrap().iter().all(|t| t == 0));
 }
 
+/// An entry's time as a date: the PLC's time of day, else the host's estimate.
+fn time_of_row(r: &serde_json::Value) -> &str {
+    if r["wall_s"].is_null() {
+        assert_eq!(r["time"], "clock not set", "{r}");
+        r["host_time"].as_str().unwrap()
+    } else {
+        r["time"].as_str().unwrap()
+    }
+}
+
+/// issue 35 item 2: a lift fault reaches the fault log and `plcctl faults` shows it with
+/// the profile's text, floor and target. `lift.plc` with the door forced open during the
+/// initialisation run (moving, floor 0 = not yet known, target 1): fault 10 at about 1.2 s.
+#[test]
+fn faults_shows_a_lift_fault_with_its_text_floor_and_target() {
+    let scen = temp("lift_door.toml");
+    std::fs::write(
+        &scen,
+        "duration_s = 2.0\n[lift]\n[[event]]\nat_s = 1.0\ndoor_block = true\n",
+    )
+    .unwrap();
+    let lift = root().join("shared-protocol/programs/lift.plc");
+    let profile = root().join("shared-protocol/programs/lift.profile.toml");
+    let profile = profile.to_str().unwrap();
+    let sim = Sim::start(&[
+        lift.to_str().unwrap(),
+        "--scenario",
+        scen.to_str().unwrap(),
+        "--service-linger",
+        "20",
+    ]);
+    let hold = sim.hold();
+    // Real time while held.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while sim.status()["status"]["uptime_ms"].as_u64().unwrap() <= 1_600 {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the run never reached 1.6 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    let o = sim.plcctl(&["faults", "--json", "--profile", profile]);
+    assert_eq!(code(&o), 0, "{}", String::from_utf8_lossy(&o.stderr));
+    let rows: Vec<serde_json::Value> = serde_json::from_str(&text(&o)).unwrap();
+    assert_eq!(rows.len(), 1, "{rows:?}");
+    let r = &rows[0];
+    assert_eq!(r["code"], 110, "{r}");
+    assert_eq!(r["name"], "ALM", "{r}");
+    assert_eq!(r["text"], "door open in travel", "{r}");
+    assert_eq!(r["values"], serde_json::json!([0, 1]), "{r}");
+    assert_eq!(
+        r["value_names"],
+        serde_json::json!(["floor", "target"]),
+        "{r}"
+    );
+    time_of_row(r);
+    // Text and CSV, with and without the profile.
+    let t = text(&sim.plcctl(&["faults", "--profile", profile]));
+    assert!(t.contains("door open in travel, floor 0, target 1"), "{t}");
+    let t = text(&sim.plcctl(&["faults"]));
+    assert!(t.contains("application fault 10, lcd0 0, lcd1 1"), "{t}");
+    let csv = text(&sim.plcctl(&["faults", "--csv", "--profile", profile]));
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some("pos,time,wall_s,host_time,power_up,uptime_s,code,name,text,floor,target")
+    );
+    let row = lines.next().unwrap();
+    assert!(row.contains(",110,ALM,door open in travel,0,1"), "{row}");
+    drop(hold);
+    let mut child = sim.child;
+    let _ = child.kill();
+    let _ = child.wait();
+}
+
 /// `plcctl serve` (service.md part B), on the helpers above.
 mod serve;
 
@@ -769,9 +845,7 @@ fn the_readmes_commands_run_one_after_another_against_one_simulator() {
     assert_eq!(names, ["PGMSVC", "LOGCLR"], "{rows:?}");
     let now = chrono::Local::now().naive_local() + chrono::Duration::seconds(1);
     for r in &rows {
-        let t =
-            chrono::NaiveDateTime::parse_from_str(r["time"].as_str().unwrap(), "%Y-%m-%d %H:%M:%S")
-                .unwrap();
+        let t = chrono::NaiveDateTime::parse_from_str(time_of_row(r), "%Y-%m-%d %H:%M:%S").unwrap();
         assert!(t >= started && t <= now, "{t} outside {started} .. {now}");
     }
     drop(sim);

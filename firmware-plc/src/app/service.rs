@@ -16,7 +16,7 @@ use shared_protocol::service::{
     Answer, DriveInfo, DriveSample, FaultLog, Identity, LinkView, LogEntry, PlcState, ProgramChunk,
     RefuseReason, Request, RunWarning, Sample, Screen as ScreenRows, SlotState, SlotSummary, Slots,
     Status, WriteResult, CHUNK_BYTES, EVENT_PROGRAM_WRITTEN, LOG_ENTRIES_PER_ANSWER,
-    LOG_FROM_NEWEST, REMOTE_TIMEOUT_MS,
+    LOG_FROM_NEWEST, LOG_POSITIONS, REMOTE_TIMEOUT_MS,
 };
 use shared_protocol::units::Micros;
 
@@ -24,7 +24,7 @@ use super::{PlcApp, RunState};
 use crate::editor::Notice;
 use crate::storage::layout::SLOTS;
 use crate::storage::reads::{SlotReads, SlotRecord};
-use crate::storage::{Eeprom, Job, StorageError, FAULT_LOG_ENTRIES};
+use crate::storage::{Eeprom, Job, StorageError};
 use crate::vm;
 use shared_protocol::program::payload::for_each_payload_byte;
 
@@ -76,9 +76,7 @@ impl Observed {
 
     /// A fault-log entry was appended after the newest one.
     pub(crate) fn logged(&mut self) {
-        let next = self
-            .log_head
-            .map_or(0, |h| (h + 1) % FAULT_LOG_ENTRIES as u8);
+        let next = self.log_head.map_or(0, |h| (h + 1) % LOG_POSITIONS);
         self.log_head = Some(next);
     }
 }
@@ -268,7 +266,7 @@ impl<E: Eeprom> PlcApp<E> {
     /// `ReadFaultLog`: up to `count` entries newest first, from ring position `from`.
     fn service_fault_log(&self, from: u8, count: u8) -> FaultLog {
         let head = self.observed.log_head;
-        let ring = FAULT_LOG_ENTRIES as u8;
+        let ring = LOG_POSITIONS;
         // Entry k of the RAM log (newest first) sits k positions before the head.
         let skip = match (head, from) {
             (_, LOG_FROM_NEWEST) | (None, _) => 0,
@@ -285,6 +283,8 @@ impl<E: Eeprom> PlcApp<E> {
                     code: e.code,
                     power_up: e.power_cycle,
                     uptime_s: e.uptime_s,
+                    wall_s: e.wall(),
+                    values: [e.value(0), e.value(1)],
                 }),
         );
         FaultLog {
@@ -493,12 +493,7 @@ impl<E: Eeprom> PlcApp<E> {
         match result {
             Ok(WriteResult::Saved { .. }) => {
                 let held = self.editor.loaded_slot() == Some(slot) && !self.editor.modified();
-                let event = self
-                    .storage
-                    .fault_entry(EVENT_PROGRAM_WRITTEN, now.0 / 1000);
-                if self.storage.queue(Job::LogFault(event)).is_err() {
-                    self.editor.notify(Notice::Text("FAULT LOG ERROR"));
-                }
+                self.log_fault(EVENT_PROGRAM_WRITTEN, now);
                 if held && self.run == RunState::Stopped {
                     match self.storage.queue(Job::Load { slot }) {
                         Ok(()) => self.observed.written_load = Some(slot),

@@ -1,9 +1,12 @@
 //! Drawing: listing columns, the status row, the run page and the fault log page.
 
+use super::calendar;
 use super::text::Text;
 use super::{Editor, Field, Mode, Page, Prefix, Screen, View, MAX_COLS};
-use shared_protocol::link::{fault_name, fault_text};
+use crate::storage::FaultEntry;
+use shared_protocol::link::fault_text;
 use shared_protocol::safety::{SafetyFunction, FUNCTION_MASK};
+use shared_protocol::service::{app_fault_of, log_name, EVENT_LOG_CLEARED, EVENT_PROGRAM_WRITTEN};
 
 /// One row of text, long enough for any row before clipping.
 pub(super) type Line = Text;
@@ -331,7 +334,12 @@ fn run_status(view: &View<'_>, narrow: bool, s: &mut Line) {
 fn fields_row(view: &View<'_>, first: usize, narrow: bool, s: &mut Line) {
     let a = view.run.lcd.get(first).copied().flatten();
     let b = view.run.lcd.get(first + 1).copied().flatten();
-    let (na, nb) = (first as u32 + 1, first as u32 + 2);
+    field_pair(a, b, first as u32 + 1, narrow, s);
+}
+
+/// Fields `na` and `na + 1` with their values (`-` for none), as the run page shows them.
+fn field_pair(a: Option<i16>, b: Option<i16>, na: u32, narrow: bool, s: &mut Line) {
+    let nb = na + 1;
     let (a, b) = (field_value(a), field_value(b));
     if narrow {
         s.dec(na)
@@ -413,7 +421,10 @@ pub(super) fn run_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     pad_row(out, last, &s);
 }
 
-/// Fault log page: one entry (newest first), scrolled with 2/8.
+/// Fault log page: one entry (newest first), scrolled with 2/8. Each entry rotates two
+/// pairs of rows: its text and its values (the first two `LCD` fields when it was
+/// logged, as the run page shows them), and its time of day (`CLOCK NOT SET` without)
+/// and its power-up and uptime.
 pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     let narrow = ed.cols < 20;
     let n = view.fault_log.len();
@@ -421,27 +432,68 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
     let index = usize::from(ed.log_index.get()).min(n.saturating_sub(1));
     ed.log_index.set(index as u8);
     let entry = view.fault_log.get(index);
-    let mut head = Line::new();
-    let mut text = Line::new();
-    let mut time = Line::new();
+    let mut s = Line::new();
     match entry {
         None => {
-            head.str("FAULT LOG EMPTY");
+            s.str("FAULT LOG EMPTY");
         }
         Some(e) => {
             if !narrow {
-                head.str("LOG ");
+                s.str("LOG ");
             }
-            head.dec0(index as u32 + 1, 2)
+            s.dec0(index as u32 + 1, 2)
                 .char('/')
                 .dec0(n as u32, 2)
                 .str(" F")
                 .dec(u32::from(e.code))
                 .char(' ')
-                .str(fault_name(e.code));
-            text.str(fault_text(e.code));
+                .str(log_name(e.code));
+        }
+    }
+    pad_row(out, 0, &s);
+    let tick = (view.now_ms / ROTATE_MS) as usize;
+    // Which entry rows: 0 text, 1 values, 2 time of day, 3 power-up and uptime.
+    let (a, b) = if tick % 2 == 1 { (1, 3) } else { (0, 2) };
+    if ed.rows >= 4 {
+        for (row, item) in [(1, a), (2, b)] {
+            s = Line::new();
+            if let Some(e) = entry {
+                entry_row(e, item, narrow, &mut s);
+            }
+            pad_row(out, row, &s);
+        }
+        s = Line::new();
+        status_text(ed, view, &mut s);
+        pad_row(out, last, &s);
+        return;
+    }
+    if last == 0 {
+        return;
+    }
+    s = Line::new();
+    let item = tick % 5;
+    let prompted = prompt(ed, view, &mut s);
+    match entry {
+        Some(e) if !prompted && item < 4 => entry_row(e, item, narrow, &mut s),
+        Some(_) if !prompted => main_hint(ed, view, &mut s),
+        _ if s.is_empty() => status_text(ed, view, &mut s),
+        _ => {}
+    }
+    pad_row(out, last, &s);
+}
+
+/// Row `item` of a log entry: 0 its text, 1 its values (the first two `LCD` fields when
+/// it was logged, as the run page shows them; the text when it has none), 2 its time of
+/// day (`CLOCK NOT SET` without), 3 its power-up and uptime.
+fn entry_row(e: &FaultEntry, item: usize, narrow: bool, s: &mut Line) {
+    let (v0, v1) = (e.value(0), e.value(1));
+    match item {
+        1 if v0.is_some() || v1.is_some() => field_pair(v0, v1, 1, narrow, s),
+        0 | 1 => log_text(e.code, s),
+        2 => wall_line(e.wall(), s),
+        _ => {
             let t = e.uptime_s;
-            time.str("PWR ")
+            s.str("PWR ")
                 .dec(u32::from(e.power_cycle))
                 .str(" UP ")
                 .dec(t / 3600)
@@ -451,32 +503,42 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
                 .dec0(t % 60, 2);
         }
     }
-    pad_row(out, 0, &head);
-    let mut status = Line::new();
-    if ed.rows >= 4 {
-        pad_row(out, 1, &text);
-        pad_row(out, 2, &time);
-        status_text(ed, view, &mut status);
-        pad_row(out, last, &status);
-        return;
-    }
-    if last == 0 {
-        return;
-    }
-    if prompt(ed, view, &mut status) || entry.is_none() {
-        if status.is_empty() {
-            status_text(ed, view, &mut status);
+}
+
+/// A log entry's text: the drive's fault text, `application fault n` (the texts of an
+/// application's faults are in its profile, on the PC), or the event's.
+fn log_text(code: u8, s: &mut Line) {
+    match app_fault_of(code) {
+        Some(n) => {
+            s.str("application fault ").dec(u32::from(n));
         }
-        pad_row(out, last, &status);
-        return;
-    }
-    let tick = (view.now_ms / ROTATE_MS) as usize;
-    match tick % 3 {
-        0 => pad_row(out, last, &text),
-        1 => pad_row(out, last, &time),
-        _ => {
-            main_hint(ed, view, &mut status);
-            pad_row(out, last, &status);
+        None => {
+            s.str(match code {
+                EVENT_LOG_CLEARED => "fault log cleared",
+                EVENT_PROGRAM_WRITTEN => "program written svc",
+                c => fault_text(c),
+            });
         }
     }
+}
+
+/// The time of day of `wall` (seconds since 2000-01-01 00:00:00 UTC) as
+/// `2026-11-29 10:15:07` (16 columns: `2026-11-29 10:15`), or `CLOCK NOT SET`.
+fn wall_line(wall: Option<u32>, s: &mut Line) {
+    let Some(t) = wall else {
+        s.str("CLOCK NOT SET");
+        return;
+    };
+    let (y, m, d) = calendar::date(t / 86_400);
+    s.dec(y)
+        .char('-')
+        .dec0(m, 2)
+        .char('-')
+        .dec0(d, 2)
+        .char(' ')
+        .dec0(t / 3600 % 24, 2)
+        .char(':')
+        .dec0(t / 60 % 60, 2)
+        .char(':')
+        .dec0(t % 60, 2);
 }

@@ -342,21 +342,17 @@ fn fault_log_page_newest_first_with_time() {
     let mut ed = Editor::new(20, 4);
     let mut p = Program::default();
     let log = [
-        FaultEntry {
-            code: 4,
-            power_cycle: 12,
-            uptime_s: 3 * 3600 + 25 * 60 + 7,
-        },
-        FaultEntry {
-            code: 1,
-            power_cycle: 11,
-            uptime_s: 59,
-        },
+        FaultEntry::new(4, 12, 3 * 3600 + 25 * 60 + 7),
+        FaultEntry::new(1, 11, 59),
     ];
     press(&mut ed, &mut p, false, "BB");
     assert_eq!(ed.page(), Page::FaultLog);
     let s = draw(&ed, &p, RunView::default(), &log, 0);
     assert_eq!(s.row(0).trim_end(), "LOG 01/02 F4 UV");
+    assert_eq!(s.row(1).trim_end(), "undervoltage");
+    assert_eq!(s.row(2).trim_end(), "CLOCK NOT SET");
+    // 2 s later: the power-up and uptime (no values: the text stays).
+    let s = draw(&ed, &p, RunView::default(), &log, 2000);
     assert_eq!(s.row(1).trim_end(), "undervoltage");
     assert_eq!(s.row(2).trim_end(), "PWR 12 UP 3:25:07");
     press(&mut ed, &mut p, false, "888");
@@ -423,15 +419,14 @@ fn narrow_run_and_log_pages_rotate_what_does_not_fit() {
     assert_eq!(rows[3].lines().nth(1), Some("*9 ACK A STOP   "));
     assert_eq!(rows[4], rows[0]);
     ed.show_page(Page::FaultLog);
-    let log = [FaultEntry {
-        code: 5,
-        power_cycle: 3,
-        uptime_s: 61,
-    }];
+    let log = [FaultEntry::new(5, 3, 61)];
     let s = draw(&ed, &p, run, &log, 0);
     assert_eq!(s.row(0), "01/01 F5 LINK   ");
     assert_eq!(s.row(1), "link lost       ");
-    assert_eq!(draw(&ed, &p, run, &log, 2000).row(1), "PWR 3 UP 0:01:01");
+    // No values: the text again, then the clock, the uptime and the hint.
+    assert_eq!(draw(&ed, &p, run, &log, 2000).row(1), "link lost       ");
+    assert_eq!(draw(&ed, &p, run, &log, 4000).row(1), "CLOCK NOT SET   ");
+    assert_eq!(draw(&ed, &p, run, &log, 6000).row(1), "PWR 3 UP 0:01:01");
 }
 
 #[test]
@@ -1015,21 +1010,66 @@ fn listing_numbers_and_goto_prompt_are_exact() {
 #[test]
 fn fault_log_numbers_are_exact() {
     let log: Vec<FaultEntry> = (0..12)
-        .map(|k| FaultEntry {
-            code: if k == 0 { 255 } else { 4 },
-            power_cycle: 65535,
-            uptime_s: 1_000_000 + k,
-        })
+        .map(|k| FaultEntry::new(if k == 0 { 255 } else { 4 }, 65535, 1_000_000 + k))
         .collect();
     let mut ed = Editor::new(20, 4);
     let p = Program::default();
     ed.show_page(Page::FaultLog);
-    let s = draw(&ed, &p, RunView::default(), &log, 0);
+    let s = draw(&ed, &p, RunView::default(), &log, 2000);
     assert_eq!(s.row(0).trim_end(), "LOG 01/12 F255 ?");
     assert_eq!(s.row(2).trim_end(), "PWR 65535 UP 277:46:");
     let mut narrow = Editor::new(16, 2);
     narrow.show_page(Page::FaultLog);
-    let s = draw(&narrow, &p, RunView::default(), &log, 2000);
+    let s = draw(&narrow, &p, RunView::default(), &log, 6000);
     assert_eq!(s.row(0), "01/12 F255 ?    ");
     assert_eq!(s.row(1), "PWR 65535 UP 277");
+}
+
+/// An application fault with its time of day and values (the lift's floor and target):
+/// 20 x 4 shows the text and the date, then the values and the uptime; 16 x 2 rotates
+/// them one by one; the largest values and the last second of a u32 fit.
+#[test]
+fn fault_log_shows_the_time_of_day_and_the_values() {
+    let mut e = FaultEntry::new(110, 7, 3725);
+    // 2026-11-29 10:15:07 UTC.
+    e.wall_s = 9829 * 86_400 + 10 * 3600 + 15 * 60 + 7;
+    e.values = [2, 3];
+    let log = [e];
+    let p = Program::default();
+    let mut ed = Editor::new(20, 4);
+    ed.show_page(Page::FaultLog);
+    let s = draw(&ed, &p, RunView::default(), &log, 0);
+    assert_eq!(s.row(0).trim_end(), "LOG 01/01 F110 ALM");
+    assert_eq!(s.row(1).trim_end(), "application fault 10");
+    assert_eq!(s.row(2).trim_end(), "2026-11-29 10:15:07");
+    let s = draw(&ed, &p, RunView::default(), &log, 2000);
+    assert_eq!(s.row(1).trim_end(), "1:     2   2:     3");
+    assert_eq!(s.row(2).trim_end(), "PWR 7 UP 1:02:05");
+    let mut narrow = Editor::new(16, 2);
+    narrow.show_page(Page::FaultLog);
+    let rows: Vec<String> = (0..5)
+        .map(|k| {
+            draw(&narrow, &p, RunView::default(), &log, k * 2000)
+                .row(1)
+                .to_string()
+        })
+        .collect();
+    assert_eq!(rows[0], "application faul");
+    assert_eq!(rows[1], "1=2     2=3     ");
+    assert_eq!(rows[2], "2026-11-29 10:15");
+    assert_eq!(rows[3], "PWR 7 UP 1:02:05");
+    // One value only; extremes.
+    let mut x = FaultEntry::new(240, 0, 0);
+    x.wall_s = u32::MAX - 1;
+    x.values = [i16::MIN + 1, firmware_none()];
+    let s = draw(&ed, &p, RunView::default(), &[x], 0);
+    assert_eq!(s.row(0), "LOG 01/01 F240 LOGCL");
+    assert_eq!(s.row(1).trim_end(), "fault log cleared");
+    assert_eq!(s.row(2).trim_end(), "2136-02-07 06:28:14");
+    let s = draw(&ed, &p, RunView::default(), &[x], 2000);
+    assert_eq!(s.row(1).trim_end(), "1:-32767   2:     -");
+}
+
+fn firmware_none() -> i16 {
+    crate::storage::NO_VALUE
 }

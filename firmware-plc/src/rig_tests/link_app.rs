@@ -284,10 +284,14 @@ fn div0_warning_shows_on_the_run_screen() {
 }
 
 /// `ALM K00 0012` logs application fault 12 (code 112) in the PLC's fault log on each
-/// rising edge of its input, and nothing while the input stays on.
+/// rising edge of its input, and nothing while the input stays on; the entry holds the
+/// scan's first two `LCD` fields (A00 and 7 here) and no time of day (clock unset).
 #[test]
 fn alm_logs_an_application_fault_in_the_fault_log() {
-    let mut r = Rig::new(&format!("{PROGRAM}157 LD D02\n158 ALM K00 0012\n"));
+    let mut r = Rig::new(&format!(
+        "{PROGRAM}157 LD D02\n158 ALM K00 0012\n159 LD K00 0007\n160 LCD\n"
+    ));
+    r.analog[0] = 321;
     r.run_for(20_000);
     r.pair.plc.run(None, r.pair.now);
     r.run_for(100_000);
@@ -297,6 +301,11 @@ fn alm_logs_an_application_fault_in_the_fault_log() {
     r.run_for(50_000);
     let codes: Vec<u8> = r.pair.plc.fault_log().iter().map(|e| e.code).collect();
     assert_eq!(codes, vec![112]);
+    let e = r.pair.plc.fault_log()[0];
+    assert_eq!(
+        (e.value(0), e.value(1), e.wall()),
+        (Some(321), Some(7), None)
+    );
     assert_eq!(
         shared_protocol::service::LogText(codes[0]).to_string(),
         "application fault 12"

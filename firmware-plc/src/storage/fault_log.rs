@@ -1,11 +1,28 @@
-//! The fault log: the newest 32 faults with a timestamp, surviving power cycles.
+//! The fault log: the newest 16 faults, surviving power cycles, each with its time of day,
+//! its power-up and uptime, and two application values (004 §2.3.3: date, time, floor and
+//! target).
 //!
-//! The PLC has no real-time clock, so a timestamp is (power-cycle count, seconds since
-//! that power-up): enough to tell which faults came in the same session and how long
-//! after switching on. Entries are 8 bytes, written one at a time round the ring, each
-//! with its own CRC-16, so a power cut while logging loses at most the entry being
-//! written. The ring has no head pointer to keep consistent: the newest entry is found
-//! from the timestamps (power cycles compared modulo 2^16).
+//! Format 2 (`docs/eeprom-image.md` "Fault log"): 16-byte entries written one at a time
+//! round a ring of 16 slots in pages 2-5, each with its own CRC-16, so a power cut while
+//! logging loses at most the entry being written. The ring has no head pointer to keep
+//! consistent: the newest entry is found from (power cycle, uptime), power cycles compared
+//! modulo 2^16. The time of day is stored but not used for the order: it may be unset, and
+//! a clock set later may run backwards.
+//!
+//! Format 1 (firmware before format 2: 32 entries of 8 bytes in the same pages, no time of
+//! day, no values) is still read, never rewritten: a slot that is not a format-2 entry is
+//! read as two format-1 entries. A format-2 entry is a format-1 entry with 8 more bytes
+//! before its CRC, which covers all 14: the length is the version. A slot of two valid
+//! format-1 entries never passes as format 2: the CRC (CRC-16/IBM-3740) has no final XOR,
+//! so after the first entry (6 bytes and their CRC) its register is 0, and the second
+//! entry's CRC is that of its 6 bytes from the initial 0xFFFF, never the one from 0 (the
+//! two differ by what the initial value adds to any 6-byte message, a constant other than
+//! 0); nor does a valid entry followed by an erased one (test
+//! `format_1_slots_never_pass_as_format_2`). The firmware that writes format 2 never
+//! writes format 1, so every format-2 entry is newer than every format-1 entry: the log
+//! lists format 2 newest first, then format 1 newest first, and the first format-2 entry
+//! goes into the slot after the newest format-1 entry's, so that new entries replace the
+//! oldest ones.
 
 use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::{FAULT_ENTRY_BYTES, FAULT_LOG_ADDR, FAULT_LOG_ENTRIES};
@@ -15,6 +32,16 @@ use crc::{Crc, CRC_16_IBM_3740};
 pub(crate) static CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_IBM_3740);
 /// Largest uptime an entry can hold (24 bits of seconds, about 194 days); longer saturates.
 pub const UPTIME_MAX_S: u32 = 0x00FF_FFFF;
+/// [`FaultEntry::wall_s`] of an entry made while the PLC's clock was not set.
+pub const WALL_UNSET: u32 = u32::MAX;
+/// [`FaultEntry::values`]: no value (the field was not written, or the PLC was stopped).
+pub const NO_VALUE: i16 = i16::MIN;
+/// Bytes of a format-1 entry.
+const V1_ENTRY_BYTES: usize = 8;
+/// Format-1 entries the area holds.
+const V1_ENTRIES: usize = 2 * FAULT_LOG_ENTRIES;
+/// Bytes of the log.
+const LOG_BYTES: usize = FAULT_LOG_ENTRIES * FAULT_ENTRY_BYTES;
 
 /// One logged fault.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,122 +53,185 @@ pub struct FaultEntry {
     pub power_cycle: u16,
     /// Seconds since that power-up.
     pub uptime_s: u32,
+    /// The PLC's time of day: seconds since 2000-01-01 00:00:00 UTC, [`WALL_UNSET`] while
+    /// the clock was not set (and in every format-1 entry).
+    pub wall_s: u32,
+    /// The two application values (the program's first two `LCD` fields), [`NO_VALUE`]
+    /// for none.
+    pub values: [i16; 2],
 }
 
 impl FaultEntry {
+    /// An entry without time of day and values (as format 1's).
+    pub const fn new(code: u8, power_cycle: u16, uptime_s: u32) -> FaultEntry {
+        FaultEntry {
+            code,
+            power_cycle,
+            uptime_s,
+            wall_s: WALL_UNSET,
+            values: [NO_VALUE; 2],
+        }
+    }
+
+    /// The time of day, if the clock was set.
+    pub fn wall(&self) -> Option<u32> {
+        (self.wall_s != WALL_UNSET).then_some(self.wall_s)
+    }
+
+    /// Application value `n` (0 or 1), if there is one.
+    pub fn value(&self, n: usize) -> Option<i16> {
+        self.values.get(n).copied().filter(|v| *v != NO_VALUE)
+    }
+
     pub(crate) fn to_bytes(self) -> [u8; FAULT_ENTRY_BYTES] {
-        let p = self.power_cycle.to_be_bytes();
-        let u = self.uptime_s.min(UPTIME_MAX_S).to_be_bytes();
-        let body = [self.code, p[0], p[1], u[1], u[2], u[3]];
-        let c = CRC16.checksum(&body).to_be_bytes();
+        let [p0, p1] = self.power_cycle.to_be_bytes();
+        let [_, u0, u1, u2] = self.uptime_s.min(UPTIME_MAX_S).to_be_bytes();
+        let [w0, w1, w2, w3] = self.wall_s.to_be_bytes();
+        let [a0, a1] = self.values[0].to_be_bytes();
+        let [b0, b1] = self.values[1].to_be_bytes();
+        let body = [
+            self.code, p0, p1, u0, u1, u2, w0, w1, w2, w3, a0, a1, b0, b1,
+        ];
+        let [c0, c1] = CRC16.checksum(&body).to_be_bytes();
         [
-            body[0], body[1], body[2], body[3], body[4], body[5], c[0], c[1],
+            self.code, p0, p1, u0, u1, u2, w0, w1, w2, w3, a0, a1, b0, b1, c0, c1,
         ]
     }
 
+    /// A format-2 entry (16 bytes) or a format-1 entry (8 bytes: code, power cycle,
+    /// uptime, CRC-16 over those 6 bytes), told apart by the length only: format 2 is
+    /// format 1 with the time of day and the values before the CRC.
     pub(crate) fn parse(b: &[u8]) -> Option<FaultEntry> {
-        let [code, p0, p1, u0, u1, u2, c0, c1] = <[u8; FAULT_ENTRY_BYTES]>::try_from(b).ok()?;
-        if code == 0 || code == 0xFF || CRC16.checksum(b.get(..6)?) != u16::from_be_bytes([c0, c1])
-        {
+        let (body, crc) = b.split_last_chunk::<2>()?;
+        let [code, p0, p1, u0, u1, u2] = *body.first_chunk::<6>()?;
+        if code == 0 || code == 0xFF || CRC16.checksum(body) != u16::from_be_bytes(*crc) {
             return None;
         }
-        Some(FaultEntry {
+        let mut e = FaultEntry::new(
             code,
-            power_cycle: u16::from_be_bytes([p0, p1]),
-            uptime_s: u32::from_be_bytes([0, u0, u1, u2]),
-        })
+            u16::from_be_bytes([p0, p1]),
+            u32::from_be_bytes([0, u0, u1, u2]),
+        );
+        if let Some(&[w0, w1, w2, w3, a0, a1, b0, b1]) =
+            body.get(6..).and_then(|x| x.first_chunk::<8>())
+        {
+            e.wall_s = u32::from_be_bytes([w0, w1, w2, w3]);
+            e.values = [i16::from_be_bytes([a0, a1]), i16::from_be_bytes([b0, b1])];
+        }
+        Some(e)
     }
 
+    fn stamp(&self) -> Stamp {
+        Stamp {
+            power_cycle: self.power_cycle,
+            uptime_s: self.uptime_s,
+        }
+    }
+}
+
+/// What orders the entries of one format: when they happened since which power-up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Stamp {
+    power_cycle: u16,
+    uptime_s: u32,
+}
+
+impl Stamp {
     /// Whether `self` happened after `other`.
-    fn newer_than(&self, other: &FaultEntry) -> bool {
+    fn newer_than(self, other: Stamp) -> bool {
         let d = self.power_cycle.wrapping_sub(other.power_cycle) as i16;
         d > 0 || (d == 0 && self.uptime_s > other.uptime_s)
     }
 }
 
-type Ring = [Option<FaultEntry>; FAULT_LOG_ENTRIES];
-
-fn read_ring<E: Eeprom>(e: &mut E) -> Result<Ring, EepromError> {
-    let mut raw = [0u8; FAULT_LOG_ENTRIES * FAULT_ENTRY_BYTES];
-    e.read(FAULT_LOG_ADDR, &mut raw)?;
-    let mut ring: Ring = [None; FAULT_LOG_ENTRIES];
-    for (slot, chunk) in ring.iter_mut().zip(raw.chunks(FAULT_ENTRY_BYTES)) {
-        *slot = FaultEntry::parse(chunk);
-    }
-    Ok(ring)
-}
-
-/// Finds the newest entry while the ring is read in order, entry 0 first, so that the
-/// ring never has to be held in RAM (the job queue reads it one page per pass).
+/// Finds the newest entry of a ring while it is read in order, entry 0 first, so that
+/// the ring never has to be held in RAM (the job queue reads it one page per pass).
 ///
 /// The newest entry is the valid entry whose successor round the ring is empty, damaged
 /// or older (ties in time go to the later position), the newest of those.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub(crate) struct NewestFinder {
-    seen: usize,
-    first: Option<FaultEntry>,
-    prev: Option<FaultEntry>,
-    best: Option<(usize, FaultEntry)>,
+struct NewestFinder {
+    seen: u8,
+    first: Option<Stamp>,
+    prev: Option<Stamp>,
+    best: Option<(u8, Stamp)>,
 }
 
 impl NewestFinder {
-    fn judge(&mut self, i: usize, e: Option<FaultEntry>, next: Option<FaultEntry>) {
+    fn judge(&mut self, i: u8, e: Option<Stamp>, next: Option<Stamp>) {
         let Some(e) = e else { return };
-        let is_end = next.is_none_or(|n| e.newer_than(&n));
-        if is_end && self.best.is_none_or(|(_, b)| e.newer_than(&b)) {
+        let is_end = next.is_none_or(|n| e.newer_than(n));
+        if is_end && self.best.is_none_or(|(_, b)| e.newer_than(b)) {
             self.best = Some((i, e));
         }
     }
 
-    /// The next entry of the ring (`None` = empty or damaged).
-    pub(crate) fn push(&mut self, e: Option<FaultEntry>) {
+    /// The next entry of the ring (`None` = empty, damaged or of the other format).
+    fn push(&mut self, e: Option<Stamp>) {
         if self.seen == 0 {
             self.first = e;
         } else {
             self.judge(self.seen - 1, self.prev, e);
         }
         self.prev = e;
-        self.seen += 1;
-    }
-
-    /// Feeds every entry of a chunk of raw ring bytes.
-    pub(crate) fn push_bytes(&mut self, raw: &[u8]) {
-        for chunk in raw.chunks(FAULT_ENTRY_BYTES) {
-            self.push(FaultEntry::parse(chunk));
-        }
+        self.seen = self.seen.saturating_add(1);
     }
 
     /// Index of the newest entry, once the whole ring was pushed.
-    pub(crate) fn newest(mut self) -> Option<usize> {
+    fn newest(mut self) -> Option<u8> {
         if self.seen > 0 {
             // The last entry's successor is the first, round the ring.
             self.judge(self.seen - 1, self.prev, self.first);
         }
         self.best.map(|(i, _)| i)
     }
-
-    /// Where the next entry goes: after the newest, or at 0 in an empty log.
-    pub(crate) fn append_addr(self) -> u16 {
-        let at = self.newest().map_or(0, |i| (i + 1) % FAULT_LOG_ENTRIES);
-        FAULT_LOG_ADDR + (at * FAULT_ENTRY_BYTES) as u16
-    }
 }
 
-/// Index of the newest entry (see [`NewestFinder`]).
-fn newest(ring: &Ring) -> Option<usize> {
-    let mut f = NewestFinder::default();
-    for e in ring {
-        f.push(*e);
+/// The newest entry of each format, found while the log is read in order (see
+/// [`NewestFinder`]): the ring of 16 format-2 slots and the ring of 32 format-1 halves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct RingFinder {
+    slots: NewestFinder,
+    halves: NewestFinder,
+}
+
+impl RingFinder {
+    /// Feeds every entry of a chunk of raw log bytes (whole slots, from slot 0 on).
+    pub(crate) fn push_bytes(&mut self, raw: &[u8]) {
+        for slot in raw.chunks(FAULT_ENTRY_BYTES) {
+            let e = slot.get(..FAULT_ENTRY_BYTES).and_then(FaultEntry::parse);
+            self.slots.push(e.map(|e| e.stamp()));
+            for half in slot.chunks(V1_ENTRY_BYTES) {
+                let v1 = e.is_none().then(|| FaultEntry::parse(half)).flatten();
+                self.halves.push(v1.map(|e| e.stamp()));
+            }
+        }
     }
-    f.newest()
+
+    /// The slot (0-15) of the newest format-2 entry and the half (0-31) of the newest
+    /// format-1 entry.
+    fn heads(self) -> (Option<u8>, Option<u8>) {
+        (self.slots.newest(), self.halves.newest())
+    }
+
+    /// Where the next entry goes: after the newest format-2 entry, else in the slot after
+    /// the newest format-1 entry's, else (an empty log) in slot 0.
+    pub(crate) fn append_addr(self) -> u16 {
+        let at = match self.heads() {
+            (Some(slot), _) => usize::from(slot) + 1,
+            (None, Some(half)) => usize::from(half) / 2 + 1,
+            (None, None) => 0,
+        } % FAULT_LOG_ENTRIES;
+        FAULT_LOG_ADDR + (at * FAULT_ENTRY_BYTES) as u16
+    }
 }
 
 /// Append one entry, overwriting the oldest when the log is full, and wait for the write
 /// cycle (synchronous: tools and tests; the firmware uses the job queue).
 pub fn append<E: Eeprom>(e: &mut E, entry: FaultEntry) -> Result<(), EepromError> {
-    let mut raw = [0u8; FAULT_LOG_ENTRIES * FAULT_ENTRY_BYTES];
+    let mut raw = [0u8; LOG_BYTES];
     e.read(FAULT_LOG_ADDR, &mut raw)?;
-    let mut f = NewestFinder::default();
+    let mut f = RingFinder::default();
     f.push_bytes(&raw);
     e.start_write(f.append_addr(), &entry.to_bytes())?;
     super::slot::wait_ready(e)
@@ -155,30 +245,50 @@ pub fn read_all<E: Eeprom>(
     read_all_with_head(e, out).map(|_| ())
 }
 
-/// [`read_all`], also returning the ring position (0-31) of the newest entry: the
-/// service port reports it (`FaultLog::newest`), so that a PC sees a new entry even when
-/// the log is full and the count no longer changes.
+/// [`read_all`], also returning a ring position (below
+/// [`shared_protocol::service::LOG_POSITIONS`]) for the newest entry: the service port
+/// reports positions (`FaultLog::newest`), so that a PC sees a new entry even when the log
+/// is full and the count no longer changes. Of a log that still holds format-1 entries
+/// only the newest 16 are read.
 pub fn read_all_with_head<E: Eeprom>(
     e: &mut E,
     out: &mut heapless::Vec<FaultEntry, FAULT_LOG_ENTRIES>,
 ) -> Result<Option<u8>, EepromError> {
     out.clear();
-    let ring = read_ring(e)?;
-    let Some(head) = newest(&ring) else {
-        return Ok(None);
-    };
-    for back in 0..FAULT_LOG_ENTRIES {
-        let i = (head + FAULT_LOG_ENTRIES - back) % FAULT_LOG_ENTRIES;
-        if let Some(Some(entry)) = ring.get(i) {
-            // Capacity equals the ring size: this push cannot fail.
-            let _ = out.push(*entry);
+    let mut raw = [0u8; LOG_BYTES];
+    e.read(FAULT_LOG_ADDR, &mut raw)?;
+    let mut f = RingFinder::default();
+    f.push_bytes(&raw);
+    let (v2, v1) = f.heads();
+    let slot = |i: usize| raw.get(i * FAULT_ENTRY_BYTES..(i + 1) * FAULT_ENTRY_BYTES);
+    if let Some(head) = v2 {
+        for back in 0..FAULT_LOG_ENTRIES {
+            let i = (usize::from(head) + FAULT_LOG_ENTRIES - back) % FAULT_LOG_ENTRIES;
+            if let Some(entry) = slot(i).and_then(FaultEntry::parse) {
+                // Capacity equals the ring size: this push cannot fail.
+                let _ = out.push(entry);
+            }
         }
     }
-    Ok(Some(head as u8))
+    if let Some(head) = v1 {
+        for back in 0..V1_ENTRIES {
+            let i = (usize::from(head) + V1_ENTRIES - back) % V1_ENTRIES;
+            if slot(i / 2).and_then(FaultEntry::parse).is_some() {
+                continue;
+            }
+            let half = raw.get(i * V1_ENTRY_BYTES..(i + 1) * V1_ENTRY_BYTES);
+            if let Some(entry) = half.and_then(FaultEntry::parse) {
+                if out.push(entry).is_err() {
+                    break;
+                }
+            }
+        }
+    }
+    Ok(v2.or(v1))
 }
 
 /// Pages the log occupies.
-pub(crate) const LOG_PAGES: usize = FAULT_LOG_ENTRIES * FAULT_ENTRY_BYTES / PAGE_BYTES;
+pub(crate) const LOG_PAGES: usize = LOG_BYTES / PAGE_BYTES;
 
 /// Address of page `p` of the log.
 pub(crate) fn page_addr(p: usize) -> u16 {
@@ -196,69 +306,4 @@ pub fn clear<E: Eeprom>(e: &mut E) -> Result<(), EepromError> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::super::MemEeprom;
-    use super::*;
-
-    fn entry(code: u8, power_cycle: u16, uptime_s: u32) -> FaultEntry {
-        FaultEntry {
-            code,
-            power_cycle,
-            uptime_s,
-        }
-    }
-
-    fn all(e: &mut MemEeprom) -> heapless::Vec<FaultEntry, 32> {
-        let mut v = heapless::Vec::new();
-        read_all(e, &mut v).unwrap();
-        v
-    }
-
-    #[test]
-    fn keeps_newest_32_newest_first() {
-        let mut e = MemEeprom::new();
-        assert!(all(&mut e).is_empty());
-        for n in 0..40u32 {
-            // Two faults per second, power cycle changing every 10 entries.
-            append(&mut e, entry(1 + (n % 7) as u8, (n / 10) as u16, n / 2)).unwrap();
-        }
-        let v = all(&mut e);
-        assert_eq!(v.len(), 32);
-        let expect: heapless::Vec<FaultEntry, 32> = (8..40u32)
-            .rev()
-            .map(|n| entry(1 + (n % 7) as u8, (n / 10) as u16, n / 2))
-            .collect();
-        assert_eq!(v, expect);
-    }
-
-    #[test]
-    fn torn_entry_loses_only_itself() {
-        let mut e = MemEeprom::new();
-        for n in 0..5u32 {
-            append(&mut e, entry(3, 1, n)).unwrap();
-        }
-        for cut in 1..FAULT_ENTRY_BYTES as u32 {
-            let mut f = e.clone();
-            f.cut_power_after(cut);
-            assert!(append(&mut f, entry(4, 2, 0)).is_err());
-            f.restore_power();
-            let v = all(&mut f);
-            assert_eq!(v.len(), 5, "cut {cut}");
-            assert_eq!(v[0], entry(3, 1, 4));
-            append(&mut f, entry(5, 2, 1)).unwrap();
-            assert_eq!(all(&mut f)[0], entry(5, 2, 1));
-        }
-    }
-
-    #[test]
-    fn power_cycle_wraps() {
-        let mut e = MemEeprom::new();
-        append(&mut e, entry(1, u16::MAX, 5)).unwrap();
-        append(&mut e, entry(2, 0, 1)).unwrap();
-        append(&mut e, entry(3, 1, 1)).unwrap();
-        let codes: heapless::Vec<u8, 32> = all(&mut e).iter().map(|x| x.code).collect();
-        assert_eq!(&codes[..], &[3, 2, 1]);
-        clear(&mut e).unwrap();
-        assert!(all(&mut e).is_empty());
-    }
-}
+mod tests;

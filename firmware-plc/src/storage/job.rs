@@ -22,7 +22,7 @@ use shared_protocol::service::WriteResult;
 
 use super::boot::{self, BootRecord, RECORD_BYTES};
 use super::eeprom::{PAGE_BYTES, PAGE_WRITE_MS};
-use super::fault_log::{self, FaultEntry, NewestFinder, LOG_PAGES};
+use super::fault_log::{self, FaultEntry, RingFinder, LOG_PAGES};
 use super::layout::BOOT_ADDR;
 use super::slot::{CopyError, CopyHeader, CopyReader, CopyWriter, WriterStep};
 use super::staged::{Checked, StagedCheck};
@@ -342,7 +342,7 @@ pub(crate) enum Phase {
         best: Option<(BootRecord, usize)>,
     },
     /// Fault log: reading page `next` of the ring to find where the entry goes.
-    RingScan { next: u8, finder: NewestFinder },
+    RingScan { next: u8, finder: RingFinder },
     /// Clearing page `next` of the fault log.
     Clear { next: u8 },
     /// The last write was made: wait for its write cycle, then report `done`.
@@ -376,7 +376,7 @@ pub(crate) fn start(job: Job) -> Result<Phase, StorageError> {
         }
         Job::LogFault(_) => Phase::RingScan {
             next: 0,
-            finder: NewestFinder::default(),
+            finder: RingFinder::default(),
         },
         Job::ClearFaultLog => Phase::Clear { next: 0 },
         Job::Boot(BootChange::Run { slot: Some(s), .. }) if !(1..=super::SLOTS).contains(&s) => {
@@ -769,11 +769,7 @@ mod tests {
             ),
             (
                 JobDone::FaultLogged {
-                    entry: FaultEntry {
-                        code: 42,
-                        power_cycle: 3,
-                        uptime_s: 9,
-                    },
+                    entry: FaultEntry::new(42, 3, 9),
                     result: Ok(()),
                 },
                 s(K::FaultLogged, 42, O::Ok, 0),

@@ -13,12 +13,13 @@ pub const COPIES: u8 = 2;
 
 /// Boot record copies: pages 0 and 1.
 pub const BOOT_ADDR: [u16; 2] = [0, PAGE_BYTES as u16];
-/// Fault log: 32 entries of 8 bytes in pages 2..=5.
+/// Fault log: 16 entries of 16 bytes in pages 2..=5 (format 1: 32 of 8; every page is
+/// taken, so the entries that hold a time of day and two values are half as many).
 pub const FAULT_LOG_ADDR: u16 = 2 * PAGE_BYTES as u16;
 /// Entries kept in the fault log.
-pub const FAULT_LOG_ENTRIES: usize = 32;
+pub const FAULT_LOG_ENTRIES: usize = 16;
 /// Bytes per fault log entry.
-pub const FAULT_ENTRY_BYTES: usize = 8;
+pub const FAULT_ENTRY_BYTES: usize = 16;
 /// First page of the slot copies.
 const SLOT_FIRST_PAGE: usize = 6;
 /// Pages per copy: 63 pages = 4032 bytes, enough for all 1000 lines in the sparse form.

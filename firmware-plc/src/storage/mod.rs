@@ -8,7 +8,7 @@
 //!   and says when the other one is damaged.
 //! * A boot record (two copies) names the slot last run and whether to start RUN at
 //!   power-up, and counts power-ups (the fault log's clock).
-//! * The fault log keeps the newest 32 faults.
+//! * The fault log keeps the newest 16 faults (format 1's 32 are still read).
 //!
 //! The firmware queues every operation as a [`Job`] and moves it on one EEPROM page per
 //! pass with [`Storage::step`] (see [`job`]); the synchronous methods ([`Storage::save`],
@@ -31,7 +31,7 @@ pub mod staged;
 
 pub use boot::BootRecord;
 pub use eeprom::{Eeprom, EepromError, EEPROM_BYTES, PAGE_BYTES};
-pub use fault_log::FaultEntry;
+pub use fault_log::{FaultEntry, NO_VALUE, WALL_UNSET};
 pub use job::{
     BootChange, Job, JobDone, JobKind, JobOutcome, JobStep, JobSummary, ProgramUse,
     WRITE_CYCLE_LIMIT_US,
@@ -537,13 +537,14 @@ impl<E: Eeprom> Storage<E> {
         Ok(SlotInfo { slot, program })
     }
 
-    /// The fault-log entry for a fault that happened `uptime_ms` after this power-up.
+    /// The fault-log entry for a fault that happened `uptime_ms` after this power-up,
+    /// without time of day and values (the application adds them).
     pub fn fault_entry(&self, code: u8, uptime_ms: u64) -> FaultEntry {
-        FaultEntry {
+        FaultEntry::new(
             code,
-            power_cycle: self.power_cycle as u16,
-            uptime_s: u32::try_from(uptime_ms / 1000).unwrap_or(u32::MAX),
-        }
+            self.power_cycle as u16,
+            u32::try_from(uptime_ms / 1000).unwrap_or(u32::MAX),
+        )
     }
 
     /// Log a fault that happened `uptime_ms` after this power-up (synchronous).

@@ -286,6 +286,16 @@ fn l6_door_open_in_travel_is_a_latched_fault() {
     for x in s.iter().filter(|x| (16.0..26.0).contains(&t_s(x))) {
         assert!(lift(x).car_mms == 0.0 && x.q[7] == 10, "t {}", t_s(x));
     }
+    // The fault is in the PLC's fault log once (004 §2.3.3): application fault 10 (code
+    // 110) with the floor (2: floor 2's zone was the last entered) and the target (3);
+    // no time of day, the simulated PLC's clock is not set.
+    let logged = |sim: &Simulation| -> Vec<(u8, Option<i16>, Option<i16>, Option<u32>)> {
+        let log = sim.plc().app().fault_log();
+        log.iter()
+            .map(|e| (e.code, e.value(0), e.value(1), e.wall()))
+            .collect()
+    };
+    assert_eq!(logged(&sim), [(110, Some(2), Some(3), None)]);
     // STOP, RUN: a new initialisation run (down at 15.4 Hz).
     for (k, t) in [(true, 28.0), (false, 28.1), (true, 28.5), (false, 28.6)] {
         sim.run_until((t * 1e9) as u64, |x| s.push(x.clone()));
@@ -294,6 +304,8 @@ fn l6_door_open_in_travel_is_a_latched_fault() {
     sim.run_until(31_000_000_000, |x| s.push(x.clone()));
     let init = first(&s, 28.5, |x| x.q[7] == 1 && x.q[2] == 154);
     assert!(t_s(init) < 29.0 && out(init, 3));
+    // Once per occurrence: the latched fault and the new RUN add nothing.
+    assert_eq!(logged(&sim).len(), 1);
 }
 
 #[test]

@@ -114,6 +114,7 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
     use std::io::Write as _;
     std::io::stdout().flush()?;
     let shared = Shared::new(&q);
+    shared.update(|s| s.log_names = crate::faults::LogNames::of(&profile));
     let (tx, rx) = mpsc::channel();
     {
         let shared = Arc::clone(&shared);

@@ -57,6 +57,8 @@ pub struct State {
     pub screen: Value,
     /// `faults --json` rows, newest first (`null` before the first read).
     pub faults: Value,
+    /// The profile's texts and value names for them.
+    pub log_names: crate::faults::LogNames,
     pub counters: Value,
     /// The trend's column names (hil-sim's, as `trend --csv`).
     pub columns: Vec<String>,
@@ -85,6 +87,7 @@ impl Shared {
                 status_at: None,
                 screen: Value::Null,
                 faults: Value::Null,
+                log_names: crate::faults::LogNames::default(),
                 counters: Value::Null,
                 columns: trend::header(q).split(',').map(String::from).collect(),
                 samples: VecDeque::new(),
@@ -256,7 +259,8 @@ fn serve_connection(c: &mut Client, shared: &Shared, actions: &Receiver<Action>)
         // The log is re-read when its newest entry changes (a trip, an event, a clear)
         // and after an action (a clear that leaves the same newest entry).
         if newest_log != Some(status.newest_log) {
-            match crate::faults::rows(c) {
+            let names = shared.lock().log_names.clone();
+            match crate::faults::rows(c, &names) {
                 Ok(rows) => {
                     let rows = serde_json::to_value(rows).unwrap_or(Value::Null);
                     shared.update(|s| s.faults = rows);

@@ -1,6 +1,7 @@
-//! The application profile of `serve --profile` (service.md 13): names for the PLC's
-//! variables, the lift mimic's roles, state texts with their banner level, and the
-//! application counters' names. Every error names its key (exit 1).
+//! The application profile of `serve --profile` and `faults --profile` (service.md 13):
+//! names for the PLC's variables, the lift mimic's roles, state texts with their banner
+//! level, the application counters' names, and for the fault log the texts of the
+//! application faults and the names of its two values. Every error names its key (exit 1).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -111,6 +112,12 @@ pub struct Profile {
     pub states: BTreeMap<i64, StateText>,
     /// Name → `Q60`-`Q63`.
     pub counters: BTreeMap<String, Operand>,
+    /// `[faults]`: application fault n (1-99: `ALM K00 00nn`, fault-log code 100 + n) →
+    /// its text.
+    pub faults: BTreeMap<u8, String>,
+    /// `[log] values`: the names of a log entry's two application values (the program's
+    /// first two `LCD` fields; default `lcd0`, `lcd1`).
+    pub log_values: [String; 2],
 }
 
 /// The roles the lift mimic needs in `[vars]`.
@@ -135,6 +142,8 @@ impl Default for Profile {
             lift: None,
             states: BTreeMap::new(),
             counters: BTreeMap::new(),
+            faults: BTreeMap::new(),
+            log_values: ["lcd0".into(), "lcd1".into()],
         }
     }
 }
@@ -189,6 +198,37 @@ impl Profile {
                             return Err(err(file, &k, "application counters are Q60-Q63"));
                         }
                         p.counters.insert(name.clone(), o);
+                    }
+                }
+                "faults" => {
+                    for (n, v) in table(file, "faults", v)? {
+                        let k = format!("faults.{n}");
+                        let n: u8 = n
+                            .parse()
+                            .ok()
+                            .filter(|n| (1..=99).contains(n))
+                            .ok_or_else(|| err(file, &k, "an application fault is 1-99"))?;
+                        p.faults.insert(n, string(file, &k, v)?);
+                    }
+                }
+                "log" => {
+                    for (k, v) in table(file, "log", v)? {
+                        let kk = format!("log.{k}");
+                        match k.as_str() {
+                            "values" => {
+                                let names = v
+                                    .as_array()
+                                    .and_then(|a| {
+                                        a.iter()
+                                            .map(|x| x.as_str().map(String::from))
+                                            .collect::<Option<Vec<_>>>()
+                                    })
+                                    .and_then(|v| <[String; 2]>::try_from(v).ok())
+                                    .ok_or_else(|| err(file, &kk, "must be two names"))?;
+                                p.log_values = names;
+                            }
+                            _ => return Err(err(file, &kk, "unknown key")),
+                        }
                     }
                 }
                 other => return Err(err(file, other, "unknown key")),
@@ -432,6 +472,37 @@ mod tests {
         assert_eq!(p.states[&7].level, Level::Warning);
     }
 
+    /// Every application fault lift.plc logs (`ALM K00 00nn`) has a text, and no other;
+    /// the log's values are named as the variables lift.plc shows in its first two
+    /// `LCD` fields (floor and target, lift.md 3.3).
+    #[test]
+    fn the_lift_profile_names_what_lift_plc_logs() {
+        let p = Profile::parse(LIFT, "lift.profile.toml").unwrap();
+        let mut alarms: Vec<u8> = Vec::new();
+        let mut lcd: Vec<String> = Vec::new();
+        let mut last_load = String::new();
+        for l in LIFT_PLC.lines() {
+            // `NNN MNEMONIC [OPERAND [CONSTANT]]`, then a comment.
+            let f: Vec<&str> = l.split(';').next().unwrap().split_whitespace().collect();
+            match f.get(1).copied() {
+                Some("ALM") => alarms.push(f[3].parse().unwrap()),
+                Some("LD") => last_load = f[2].to_string(),
+                Some("LCD") => lcd.push(last_load.clone()),
+                _ => {}
+            }
+        }
+        assert_eq!(alarms, [10, 11, 12, 13, 14, 15]);
+        assert_eq!(p.faults.keys().copied().collect::<Vec<_>>(), alarms);
+        // The same words as the states of those codes (lift.md 3.6).
+        for (n, text) in &p.faults {
+            assert_eq!(text, &p.states[&i64::from(*n)].text, "fault {n}");
+        }
+        assert_eq!(p.log_values, ["floor", "target"]);
+        for (k, name) in p.log_values.iter().enumerate() {
+            assert_eq!(p.vars[name].name(), lcd[k], "value {k} = lcd{k}");
+        }
+    }
+
     #[test]
     fn the_motor_profile_is_a_table() {
         let p = Profile::parse(MOTOR, "motor.profile.toml").unwrap();
@@ -473,6 +544,10 @@ mod tests {
         assert!(error("kind = \"lift\"\n[lift]\nfloors = 4").contains("vars.floor: missing"));
         assert!(error("kind = \"lift\"").contains("lift: missing"));
         assert!(error("name = ").contains("p.toml"));
+        assert!(error("[faults]\n100 = \"x\"").contains("faults.100: an application fault"));
+        assert!(error("[faults]\n1 = 2").contains("faults.1: must be a string"));
+        assert!(error("[log]\nvalues = [\"a\"]").contains("log.values: must be two names"));
+        assert!(error("[log]\nx = 1").contains("log.x: unknown key"));
     }
 
     #[test]

@@ -604,7 +604,7 @@ fn the_page_in_headless_chromium_follows_the_lift() {
     }
     // The fault archive's rows = `plcctl faults --json` (serve gives the port up first).
     drop(run.serve.take());
-    let out = sim.plcctl(&["faults", "--json"]);
+    let out = sim.plcctl(&["faults", "--json", "--profile", &profile]);
     assert_eq!(
         crate::code(&out),
         0,
@@ -619,16 +619,36 @@ fn the_page_in_headless_chromium_follows_the_lift() {
             assert_eq!(r[0], f["pos"].to_string(), "{r} vs {f}");
             assert_eq!(r[3], f["code"].to_string(), "{r} vs {f}");
             assert_eq!(r[4], f["text"], "{r} vs {f}");
-            // The same power-up's time, mapped twice from the PLC's uptime: the second
-            // may round the other way.
-            let t = format!("{} {}", r[1].as_str().unwrap(), r[2].as_str().unwrap());
-            let page = chrono::NaiveDateTime::parse_from_str(&t, "%Y-%m-%d %H:%M:%S").unwrap();
-            let cli = chrono::NaiveDateTime::parse_from_str(
-                f["time"].as_str().unwrap(),
-                "%Y-%m-%d %H:%M:%S",
-            )
-            .unwrap();
-            assert!((page - cli).num_seconds().abs() <= 1, "{r} vs {f}");
+            // The floor and target (the lift's values) as the CLI has them.
+            for k in 0..2 {
+                let v = &f["values"][k];
+                let want = if v.is_null() {
+                    String::new()
+                } else {
+                    v.to_string()
+                };
+                assert_eq!(r[5 + k], want, "{r} vs {f}");
+            }
+            if !f["wall_s"].is_null() {
+                // The PLC's time of day: the same text.
+                assert_eq!(
+                    format!("{} {}", r[1].as_str().unwrap(), r[2].as_str().unwrap()),
+                    f["time"].as_str().unwrap(),
+                    "{r} vs {f}"
+                );
+                continue;
+            }
+            // Without the PLC's clock: "clock not set" and the host's estimate of the
+            // same power-up's time, mapped twice from the PLC's uptime (the second may
+            // round the other way).
+            assert_eq!(r[1], "clock not set", "{r}");
+            assert_eq!(f["time"], "clock not set", "{f}");
+            let t = r[2].as_str().unwrap().strip_prefix('~').unwrap();
+            let cli = f["host_time"].as_str().unwrap();
+            let cli = chrono::NaiveDateTime::parse_from_str(cli, "%Y-%m-%d %H:%M:%S").unwrap();
+            let page = chrono::NaiveTime::parse_from_str(t, "%H:%M:%S").unwrap();
+            let d = (page - cli.time()).num_seconds().rem_euclid(86_400);
+            assert!(d <= 1 || d >= 86_399, "{r} vs {f}");
         }
     }
     // A new server; the pages connect to it; then hil-sim ends: red, no answer.

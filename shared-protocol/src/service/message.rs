@@ -250,6 +250,12 @@ pub struct LogEntry {
     pub power_up: u16,
     /// Seconds since that power-up (24 bits; saturates at [`super::UPTIME_LIMIT_S`]).
     pub uptime_s: u32,
+    /// The PLC's time of day: seconds since 2000-01-01 00:00:00 UTC (`None`: the PLC's
+    /// clock was not set, or the entry predates the entries that hold it).
+    pub wall_s: Option<u32>,
+    /// The two application values at the time (the program's first two `LCD` fields,
+    /// e.g. the lift's floor and target; `None`: not written, or not in RUN).
+    pub values: [Option<i16>; 2],
 }
 
 /// `GetStatus`'s answer (service.md 3 "Status").

@@ -23,8 +23,9 @@ use crate::link::frame::{encode_frame, Frame, FrameError, FrameReader};
 /// EEPROM program slots, numbered 1..=SLOTS on the keypad, the LCD and in the requests
 /// (slot 0 is the program in RAM).
 pub const SLOTS: u8 = 4;
-/// The service protocol's version (`Hello`), independent of the link's.
-pub const SERVICE_VERSION: u16 = 2;
+/// The service protocol's version (`Hello`), independent of the link's: 3 since a
+/// fault-log entry holds the time of day and two application values (docs/service.md).
+pub const SERVICE_VERSION: u16 = 3;
 /// Default line rate (a firmware constant; `plcctl --baud` must match).
 pub const SERVICE_BAUD: u32 = 115_200;
 /// The PLC answers a request within this time...
@@ -49,8 +50,11 @@ pub const MAX_SUBSCRIBED_Q: usize = 8;
 /// Shortest and longest sample period.
 pub const SAMPLE_PERIOD_MIN_MS: u16 = 10;
 pub const SAMPLE_PERIOD_MAX_MS: u16 = 100;
-/// Most fault-log entries per answer.
-pub const LOG_ENTRIES_PER_ANSWER: usize = 8;
+/// Most fault-log entries per answer (a fourth at its largest would not fit a frame).
+pub const LOG_ENTRIES_PER_ANSWER: usize = 3;
+/// Ring positions of fault-log entries (`LogEntry::pos`, `FaultLog::newest`) count
+/// modulo this: the entry `k` places before the newest is at `newest - k`.
+pub const LOG_POSITIONS: u8 = 32;
 /// `ReadFaultLog { from }` value meaning "the newest entry".
 pub const LOG_FROM_NEWEST: u8 = 0xFF;
 /// Largest program payload (eeprom-image.md: one copy's 63 pages minus its header).
