@@ -518,5 +518,6 @@ pub fn wire_status(s: &CoreStatus) -> WireStatus {
         sf_signature: s.sf_signature,
         sto_in_low: s.sto_in_low,
         program_loaded: s.program_loaded,
+        sf_turns: s.sf_turns,
     }
 }

@@ -201,6 +201,8 @@ pub struct CoreStatus {
     pub sf_sdc: bool,
     /// `SFT`: the safety stopwatch, 0.1 s.
     pub sf_elapsed_ds: u16,
+    /// `SFP`: whole commanded field turns since the activation.
+    pub sf_turns: i16,
     /// The parameter signature of the accepted drive section (safety.md 8).
     pub sf_signature: u16,
     /// The hardware `STO_IN` input is low.
@@ -790,6 +792,7 @@ impl DriveCore {
         if self.state == DriveState::Run {
             self.monitor();
         }
+        self.safety.follow(self.safety_requested());
         // OV (shared-protocol/docs/fault-codes.md): without a chopper, the DC link above
         // `U>` while the outputs switch; the controller's level lies below it, `U>>` above.
         if self.state == DriveState::Run
@@ -913,6 +916,7 @@ impl DriveCore {
             },
             sf_sdc: self.state == DriveState::Run && self.safety.sdc(),
             sf_elapsed_ds: self.safety.elapsed_ds(),
+            sf_turns: self.safety.turns_since_activation(),
             sf_signature: self.signature,
             sto_in_low: self.sto_in_low,
         }

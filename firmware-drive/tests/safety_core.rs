@@ -216,19 +216,32 @@ fn the_lab_ss1_ends_15000_ticks_after_the_request_with_code_10() {
     let s = core.status();
     assert_eq!(s.fault, Some(FaultCode::Ss1));
     assert_eq!(s.sf_elapsed_ds, 150);
+    // `SFP`: 10.0 Hz for 15.001 s since the request: 150 turns.
+    assert_eq!(s.sf_turns, 150);
     assert!(!s.sf_sdc);
     assert_eq!(s.sf_status, F::Ss1.mask());
     assert!(!core.pwm_period(&ok()).enable);
-    // Code 10: ACK needs the SS1 request released (and f below fmn).
+    // Code 10: ACK needs the SS1 request released (and f below fmn). In FAULT the
+    // stopwatch and `SFP` hold while SS1 is requested.
     core.command(DriveCommand::SetQ { addr: 1, value: 0 })
         .unwrap();
     tick(&mut core);
+    assert_eq!(
+        (core.status().sf_elapsed_ds, core.status().sf_turns),
+        (150, 150)
+    );
     assert_eq!(
         core.command(DriveCommand::Ack),
         Err(DriveRefusal::CauseActive(FaultCode::Ss1))
     );
     request(&mut core, 0);
     core.command(DriveCommand::Ack).unwrap();
+    // Deselected: both read 0 from the next tick (001 4.2.4, A.3-A.8).
+    tick(&mut core);
+    assert_eq!(
+        (core.status().sf_elapsed_ds, core.status().sf_turns),
+        (0, 0)
+    );
 }
 
 #[test]

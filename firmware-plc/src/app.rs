@@ -618,6 +618,7 @@ impl<E: Eeprom> PlcApp<E> {
                 sf_status: s.sf_status,
                 sf_sdc: s.sf_sdc,
                 sf_elapsed_ds: s.sf_elapsed_ds,
+                sf_turns: s.sf_turns,
             },
             None => DriveView::default(),
         }

@@ -237,6 +237,7 @@ mod tests {
             sdc: true,
             sft_ds: 150,
             turns_e4: -2_000_001,
+            sf_turns: -200,
             lift: None,
         };
         let r = row(&s);

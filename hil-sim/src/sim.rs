@@ -58,13 +58,14 @@ pub struct Sample {
     /// The run-time warnings the PLC shows (its own and the drive's).
     pub warn: Warnings,
     /// Safety (NOT RATED, safety.md 11): the requested mask (`sf_req`), the status bits
-    /// (`sf_st`), SDC, the stopwatch (0.1 s) and the commanded field turns since RUN start
-    /// (10⁻⁴ turn).
+    /// (`sf_st`), SDC, the stopwatch (0.1 s), the commanded field turns since RUN start
+    /// (10⁻⁴ turn) and the whole turns since the activation (`SFP`, from the status).
     pub sf_req: u16,
     pub sf_st: u16,
     pub sdc: bool,
     pub sft_ds: u16,
     pub turns_e4: i64,
+    pub sf_turns: i16,
     /// The lift (`[lift]`), after its last 1 ms step.
     pub lift: Option<LiftSample>,
 }
@@ -700,6 +701,7 @@ impl Simulation {
             sdc: st.sf_sdc,
             sft_ds: st.sf_elapsed_ds,
             turns_e4: self.drive.turns_e4(),
+            sf_turns: st.sf_turns,
             lift: self.lift.as_ref().map(|l| l.sample()),
         }
     }

@@ -1,11 +1,11 @@
 //! The safety functions' codes 9-16: in the panel they are
-//! caused by a program, not by the rig. Each test loads `safety_lab.plc` with the function
-//! under test on line 197 into the panel, plays the inputs of that function's hil-sim
-//! scenario (`hil-sim/scenarios/safety/`) through the panel's own inputs (toggles, push
-//! buttons, pots, keypad), sees the code on the LCD, and after the scenario's Reset
+//! caused by a program, not by the rig. Each test loads `safety_lab.plc` into the panel,
+//! plays the inputs of that function's hil-sim scenario (`hil-sim/scenarios/safety/`,
+//! which turns on the function's selection switch) through the panel's own inputs
+//! (toggles in both banks, push buttons, pots, keypad), sees the code on the LCD, and after the scenario's Reset
 //! (field clear, D05), STOP, RUN and START sees the drive running again without a fault.
 
-use hil_sim::panel::keys::Input;
+use hil_sim::panel::keys::{Input, BANK_SIZE};
 use hil_sim::panel::{PanelApp, SimBackend};
 use hil_sim::scenario::ScenarioFile;
 use shared_protocol::fault::FaultCode;
@@ -13,13 +13,24 @@ use shared_protocol::program::assemble;
 
 const LAB: &str = include_str!("../../shared-protocol/programs/safety_lab.plc");
 
-/// `safety_lab.plc` with `SFR <function>` on line 197, `edit` applied to its text.
-fn lab_panel(function: &str, edit: impl Fn(String) -> String) -> PanelApp {
-    let text = edit(LAB.replace("197 SFR SS1", &format!("197 SFR {function}")));
+/// `safety_lab.plc` with `edit` applied to its text.
+fn lab_panel(edit: impl Fn(String) -> String) -> PanelApp {
+    let text = edit(LAB.to_string());
     let p = assemble(&text).unwrap();
     let mut app = PanelApp::new(SimBackend::new(Some(&p)).unwrap());
     app.advance(100);
     app
+}
+
+/// Toggles Dn, switching the panel's keys to D08-D15 and back for those.
+fn toggle(app: &mut PanelApp, n: u8) {
+    if n < BANK_SIZE {
+        app.input(Input::Toggle(n));
+    } else {
+        app.input(Input::Bank);
+        app.input(Input::Toggle(n - BANK_SIZE));
+        app.input(Input::Bank);
+    }
 }
 
 fn lcd(app: &PanelApp) -> String {
@@ -39,7 +50,7 @@ fn play(app: &mut PanelApp, name: &str, code: FaultCode) -> Option<f64> {
     events.sort_by(|a, b| a.at_s.total_cmp(&b.at_s));
     // The scenario's duration and 3 s more for the LCD's status rotation.
     let end_ms = (file.duration_s.unwrap() * 1000.0) as u32 + 3000;
-    let mut digital = [0i64; 8];
+    let mut digital = [0i64; 16];
     let mut analog = [0i64; 4];
     let mut next = events.iter().peekable();
     let want = format!("F{} ", code.code());
@@ -50,7 +61,7 @@ fn play(app: &mut PanelApp, name: &str, code: FaultCode) -> Option<f64> {
                 let n: usize = input[1..].parse().unwrap();
                 match &input[..1] {
                     "D" if digital[n] != *value => {
-                        app.input(Input::Toggle(n as u8));
+                        toggle(app, n as u8);
                         digital[n] = *value;
                     }
                     "A" => {
@@ -103,50 +114,50 @@ fn caused_and_cleared(app: &mut PanelApp, name: &str, code: FaultCode) {
 
 #[test]
 fn sto_requested_in_run_from_the_panel() {
-    let mut app = lab_panel("STO", |t| t);
+    let mut app = lab_panel(|t| t);
     wait_for_fault_on_lcd(&mut app, FaultCode::Sto, "sto");
 }
 
 #[test]
 fn ss1_ends_in_sto_from_the_panel() {
-    let mut app = lab_panel("SS1", |t| t);
+    let mut app = lab_panel(|t| t);
     wait_for_fault_on_lcd(&mut app, FaultCode::Ss1, "ss1_lab");
 }
 
 #[test]
 fn ramp_violated_from_the_panel() {
-    let mut app = lab_panel("SL2", |t| t);
+    let mut app = lab_panel(|t| t);
     wait_for_fault_on_lcd(&mut app, FaultCode::Ramp, "sls_no_decel");
 }
 
 #[test]
 fn standstill_lost_from_the_panel() {
-    let mut app = lab_panel("SOS", |t| t);
+    let mut app = lab_panel(|t| t);
     wait_for_fault_on_lcd(&mut app, FaultCode::Sos, "sos_speed");
 }
 
 #[test]
 fn over_the_sls_limit_from_the_panel() {
-    let mut app = lab_panel("SL1", |t| t);
+    let mut app = lab_panel(|t| t);
     wait_for_fault_on_lcd(&mut app, FaultCode::Sls, "sls1");
 }
 
 #[test]
 fn sli_turns_exceeded_from_the_panel() {
-    let mut app = lab_panel("SLI", |t| t);
+    let mut app = lab_panel(|t| t);
     wait_for_fault_on_lcd(&mut app, FaultCode::Sli, "sli_running");
 }
 
 #[test]
 fn wrong_direction_from_the_panel() {
-    let mut app = lab_panel("SDP", |t| t);
+    let mut app = lab_panel(|t| t);
     wait_for_fault_on_lcd(&mut app, FaultCode::Sdi, "sdp");
 }
 
 #[test]
 fn over_the_sla_limit_from_the_panel() {
     // The forward acceleration limit only (as the hil-sim test of sla_accel).
-    let mut app = lab_panel("SLA", |t| {
+    let mut app = lab_panel(|t| {
         t.replace("043 aap K34 2000", "043 aap K34 0100")
             .replace("044 adp K35 2000", "044 adp K35 9999")
             .replace("045 aan K36 2000", "045 aan K36 9999")

@@ -31,7 +31,7 @@ const SF_COUNT: u8 = SafetyFunction::ALL.len() as u8;
 const SDC: u8 = SF0 + SF_COUNT;
 const SFR0: u8 = SDC + 1;
 
-/// Int cells: Q00-Q63, then A00-A03, COM, FRQ, UDC, IMX, FLT, DIR, IHW, UHW.
+/// Int cells: Q00-Q63, then A00-A03, COM, FRQ, UDC, IMX, FLT, DIR, IHW, UHW, SFT, SFP.
 const Q0: u8 = 0;
 const A0: u8 = Q0 + Q_COUNT as u8;
 const COM: u8 = A0 + 4;
@@ -43,9 +43,10 @@ const DIR: u8 = FLT + 1;
 const IHW: u8 = DIR + 1;
 const UHW: u8 = IHW + 1;
 const SFT: u8 = UHW + 1;
+const SFP: u8 = SFT + 1;
 /// The safety request mask last reported (a cell, not a field of the VM: the VM's
 /// all-zero start state then stays one block the board's builder writes in place).
-const SF_REPORTED: u8 = SFT + 1;
+const SF_REPORTED: u8 = SFP + 1;
 
 /// B, O, Q (what RUN clears and the program keeps between scans) and the scan's inputs.
 #[derive(Clone)]
@@ -97,6 +98,7 @@ impl Cells {
         self.set_int(IHW, d.ihw.0);
         self.set_int(UHW, d.uhw.0);
         self.set_int(SFT, d.sf_elapsed_ds.min(i16::MAX as u16) as i16);
+        self.set_int(SFP, d.sf_turns);
     }
 
     /// The safety request mask the `SFR` lines have set (bit n = function n requested).
@@ -195,6 +197,7 @@ pub fn int_cell(op: Operand) -> Option<u8> {
         Operand::Ihw => Some(IHW),
         Operand::Uhw => Some(UHW),
         Operand::Sft => Some(SFT),
+        Operand::Sfp => Some(SFP),
         _ => None,
     }
 }
@@ -242,6 +245,7 @@ mod tests {
             Operand::Ihw,
             Operand::Uhw,
             Operand::Sft,
+            Operand::Sfp,
         ] {
             ints.extend(int_cell(op));
         }
@@ -249,7 +253,7 @@ mod tests {
         ints.sort();
         ints.dedup();
         assert_eq!(ints.len(), n);
-        assert_eq!(n, 4 + 64 + 9);
+        assert_eq!(n, 4 + 64 + 10);
         assert_eq!(q_cell(63), Some(63));
         assert_eq!(q_cell(64), None);
     }

@@ -26,14 +26,14 @@ fn drive_view() -> impl Strategy<Value = DriveView> {
         (any::<u16>(), any::<i16>(), any::<i16>(), any::<i16>()),
         (any::<u8>(), any::<bool>(), any::<bool>(), any::<bool>()),
         (any::<i16>(), any::<i16>()),
-        (any::<u16>(), any::<bool>(), any::<u16>()),
+        (any::<u16>(), any::<bool>(), any::<u16>(), any::<i16>()),
     )
         .prop_map(
             |(
                 (com, frq, udc, imx),
                 (flt, dir_reverse, ready, fault_latched),
                 (ihw, uhw),
-                (sf_status, sf_sdc, sf_elapsed_ds),
+                (sf_status, sf_sdc, sf_elapsed_ds, sf_turns),
             )| {
                 DriveView {
                     com,
@@ -49,6 +49,7 @@ fn drive_view() -> impl Strategy<Value = DriveView> {
                     sf_status,
                     sf_sdc,
                     sf_elapsed_ds,
+                    sf_turns,
                 }
             },
         )

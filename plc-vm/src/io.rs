@@ -50,6 +50,8 @@ pub struct DriveView {
     pub sf_sdc: bool,
     /// `LD SFT`: the safety stopwatch, 0.1 s.
     pub sf_elapsed_ds: u16,
+    /// `LD SFP`: whole commanded field turns since the safety request.
+    pub sf_turns: i16,
 }
 
 /// Everything one scan reads from the outside world.

@@ -395,6 +395,7 @@ fn read_int(mem: &Memory, env: &Env<'_>, op: Operand, constant: u16) -> Option<i
         Operand::Flt => Some(i16::from(d.flt)),
         Operand::Dir => Some(i16::from(d.dir_reverse)),
         Operand::Sft => Some(d.sf_elapsed_ds.min(i16::MAX as u16) as i16),
+        Operand::Sfp => Some(d.sf_turns),
         _ => None,
     }
 }

@@ -932,7 +932,7 @@ fn the_last_sfr_of_a_function_wins_and_functions_are_independent() {
 }
 
 #[test]
-fn status_bits_sdc_and_the_stopwatch_are_read_only_operands() {
+fn status_bits_sdc_the_stopwatch_and_the_position_are_read_only_operands() {
     let lines = vec![
         l(M::Ld, X::Sf(F::Sos)),
         l(M::Wr, X::O(0)),
@@ -942,14 +942,18 @@ fn status_bits_sdc_and_the_stopwatch_are_read_only_operands() {
         l(M::Wr, X::O(2)),
         l(M::Ld, X::Sft),
         n(M::Lcd),
+        l(M::Ld, X::Sfp),
+        n(M::Lcd),
     ];
     let mut r = Rig::new(&lines);
     r.inputs.drive.sf_status = F::Sos.mask() | F::Sl2.mask();
     r.inputs.drive.sf_sdc = true;
     r.inputs.drive.sf_elapsed_ds = 150;
+    r.inputs.drive.sf_turns = -99;
     let out = r.scan();
     assert_eq!(out.outputs & 0b111, 0b101);
     assert_eq!(out.lcd[0], Some(150));
+    assert_eq!(out.lcd[1], Some(-99));
     r.inputs.drive = DriveView {
         sf_elapsed_ds: u16::MAX,
         ..DriveView::default()

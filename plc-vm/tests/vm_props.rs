@@ -84,6 +84,7 @@ fn inputs() -> impl Strategy<Value = ScanInputs> {
                         sf_status: com,
                         sf_sdc: ready,
                         sf_elapsed_ds: frq as u16,
+                        sf_turns: udc.wrapping_neg(),
                     },
                 }
             },

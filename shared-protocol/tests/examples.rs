@@ -216,11 +216,12 @@ fn counters_follow_the_two_bit_and_the_single_bit_rule() {
 }
 
 /// safety.md 12: the lab program. Its signature is documented (README, shared-protocol
-/// docs) as 7C32; the function under test is on line 197, line 198 is free.
+/// docs) as 7C32; each function the lab configures has its selection switch (requested
+/// while the request latch B21 holds and the switch is on), STO when no switch is on.
 #[test]
-fn safety_lab_has_the_lab_settings_its_documented_signature_and_the_function_on_197() {
+fn safety_lab_has_the_lab_settings_its_documented_signature_and_a_switch_per_function() {
     use shared_protocol::program::{safety_settings, uses_safety};
-    use shared_protocol::safety::{SafetyFunction, SafetySetting as S};
+    use shared_protocol::safety::{SafetyFunction as F, SafetySetting as S};
     let p = checked("safety_lab", SAFETY_LAB);
     assert!(SAFETY_LAB.contains("NOT RATED"));
     assert!(uses_safety(&p));
@@ -245,35 +246,54 @@ fn safety_lab_has_the_lab_settings_its_documented_signature_and_the_function_on_
         assert_eq!(s.get(k), v, "{k:?}");
     }
     assert_eq!(
-        p.get(197),
-        Some(&ins(
-            Mnemonic::Sfr,
-            Some(Operand::Sf(SafetyFunction::Ss1)),
-            0
-        ))
-    );
-    assert_eq!(
-        p.get(196),
-        Some(&ins(Mnemonic::Ldc, Some(Operand::B(21)), 0))
-    );
-    assert_eq!(p.get(198), None);
-    assert_eq!(
         p.get(11),
         Some(&ins(Mnemonic::Fmn, Some(Operand::K(6)), 10))
     );
-    // Every function the lab configures runs on line 197; SL3/SL4 are not configured.
-    for f in SafetyFunction::ALL {
-        let text = SAFETY_LAB.replace("197 SFR SS1", &format!("197 SFR {}", f.name()));
-        let r = assemble_runnable(&text);
-        match f {
-            SafetyFunction::Sl3 | SafetyFunction::Sl4 => {
-                let e = r.unwrap_err().to_string();
-                assert!(
-                    e.ends_with(&format!("{} needs fl{}", f.name(), &f.name()[2..])),
-                    "{e}"
-                );
-            }
-            _ => assert!(r.is_ok(), "{f:?}"),
-        }
+    let sfr_line = |f: F| {
+        (150..shared_protocol::program::LINES as u16)
+            .find(|&n| p.get(n) == Some(&ins(Mnemonic::Sfr, Some(Operand::Sf(f)), 0)))
+            .unwrap_or_else(|| panic!("no SFR {f:?}"))
+    };
+    // LDC B21, LDC <switch>, OR, SFR <function>.
+    for (f, switch) in [
+        (F::Ss1, 8),
+        (F::Ss2, 9),
+        (F::Sos, 10),
+        (F::Sl1, 11),
+        (F::Sl2, 12),
+        (F::Sli, 13),
+        (F::Sdp, 14),
+        (F::Sdn, 15),
+        (F::Sla, 4),
+    ] {
+        let n = sfr_line(f);
+        assert_eq!(
+            [p.get(n - 3), p.get(n - 2), p.get(n - 1)],
+            [
+                Some(&ins(Mnemonic::Ldc, Some(Operand::B(21)), 0)),
+                Some(&ins(Mnemonic::Ldc, Some(Operand::D(switch)), 0)),
+                Some(&ins(Mnemonic::Or, None, 0)),
+            ],
+            "{f:?}"
+        );
+    }
+    // STO: the latch and no switch on (B25 = any switch).
+    let n = sfr_line(F::Sto);
+    assert_eq!(
+        [p.get(n - 3), p.get(n - 2), p.get(n - 1)],
+        [
+            Some(&ins(Mnemonic::Ldc, Some(Operand::B(21)), 0)),
+            Some(&ins(Mnemonic::Ld, Some(Operand::B(25)), 0)),
+            Some(&ins(Mnemonic::Or, None, 0)),
+        ]
+    );
+    // SL3/SL4 are not configured: a program requesting them does not verify.
+    for f in [F::Sl3, F::Sl4] {
+        let text = format!("{SAFETY_LAB}999 SFR {}\n", f.name());
+        let e = assemble_runnable(&text).unwrap_err().to_string();
+        assert!(
+            e.ends_with(&format!("{} needs fl{}", f.name(), &f.name()[2..])),
+            "{e}"
+        );
     }
 }

@@ -159,6 +159,7 @@ fn status_for(k: u16) -> DriveStatus {
         sf_signature: k ^ 0xA5C3,
         sto_in_low: k.is_multiple_of(5),
         program_loaded: k.is_multiple_of(2),
+        sf_turns: (k as i16).wrapping_mul(-5),
     }
 }
 

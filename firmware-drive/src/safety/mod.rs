@@ -67,6 +67,8 @@ pub struct Monitor {
     k: u32,
     /// Commanded field turns since RUN start, 10⁻⁴ turn.
     x: i64,
+    /// x when the drive last had no request: the activation's reference of `SFP`.
+    x_act: i64,
     prev_req: u16,
     /// SS1, SS2, SL1..SL4.
     ramps: [Ramp; 6],
@@ -82,8 +84,10 @@ pub struct Monitor {
     latched: Option<FaultCode>,
 }
 
-/// Ramp-function bits (a new request restarts the stopwatch).
+/// Ramp-function bits (a new request restarts the stopwatch, none clears it).
 const RAMP_MASK: u16 = 0x00F6;
+/// The stopwatch's end, 0.1 s (001 §4.2.4: `PT := T#15s`).
+const SFT_MAX_DS: u32 = 150;
 const STO: u16 = SafetyFunction::Sto.mask();
 
 impl Default for Monitor {
@@ -102,6 +106,7 @@ impl Monitor {
             lim,
             k: 0,
             x: 0,
+            x_act: 0,
             prev_req: 0,
             ramps: [Ramp::default(); 6],
             sos: Sos::default(),
@@ -126,11 +131,12 @@ impl Monitor {
         &self.lim
     }
 
-    /// Entering RUN: every function state, x, the stopwatch and a latched code are
+    /// Entering RUN: every function state, x, `SFP`, the stopwatch and a latched code are
     /// cleared (safety.md 3.1).
     pub fn start_run(&mut self) {
         self.stop();
         self.x = 0;
+        self.x_act = 0;
         self.sft_ticks = 0;
         self.latched = None;
     }
@@ -166,14 +172,36 @@ impl Monitor {
         self.sdc
     }
 
-    /// `SFT`: the stopwatch, 0.1 s, saturating at 32767.
+    /// `SFT`: the stopwatch, 0.1 s, held at 15.0 s (001 §4.2.4: a `TP` timer, PT = 15 s).
     pub fn elapsed_ds(&self) -> u16 {
-        (self.sft_ticks / 100).min(32767) as u16
+        (self.sft_ticks / 100).min(SFT_MAX_DS) as u16
     }
 
     /// Commanded field turns since RUN start, 10⁻⁴ turn.
     pub fn turns_e4(&self) -> i64 {
         self.x
+    }
+
+    /// `SFP`: whole commanded field turns since the activation (the drive's request mask
+    /// leaving 0), signed, truncated toward 0, saturating at ±32767; 0 while nothing is
+    /// requested (001 A.3-A.8, "Pohon - Pozice").
+    pub fn turns_since_activation(&self) -> i16 {
+        let d = self.x.saturating_sub(self.x_act);
+        // In i32 (no 64-bit division in the image): ±32767 turns and a fraction.
+        (d.clamp(-327_679_999, 327_679_999) as i32 / 10_000) as i16
+    }
+
+    /// Every 1 ms tick in every state, after [`Monitor::tick`], with the drive's request
+    /// mask: deselected (no request) the activation's reference follows x, so `SFP` reads
+    /// 0 and counts from the next request; with no ramp function requested the stopwatch
+    /// reads 0 (001 §4.2.4: `elapsedTime := 0` unless a ramp function is active).
+    pub fn follow(&mut self, requested: u16) {
+        if requested & FUNCTION_MASK == 0 {
+            self.x_act = self.x;
+        }
+        if requested & RAMP_MASK == 0 {
+            self.sft_ticks = 0;
+        }
     }
 
     /// The code latched since the last `start_run`.

@@ -68,10 +68,13 @@ fn inp(requested: u16, f: i16) -> Input {
     }
 }
 
-/// `n` ticks at the same input; the first tick that trips (index, code), if any.
+/// `n` ticks at the same input, each followed by [`Monitor::follow`] as the drive does;
+/// the first tick that trips (index, code), if any.
 fn run(m: &mut Monitor, n: u32, i: Input) -> Option<(u32, FaultCode)> {
     for t in 0..n {
-        if let Some(c) = m.tick(i).trip {
+        let trip = m.tick(i).trip;
+        m.follow(i.requested);
+        if let Some(c) = trip {
             return Some((t, c));
         }
     }
@@ -454,25 +457,104 @@ fn a_release_before_the_end_drops_with_no_latch_and_a_new_request_starts_afresh(
 }
 
 #[test]
-fn the_stopwatch_restarts_counts_holds_and_resets_at_run() {
+fn the_stopwatch_restarts_counts_reads_0_when_deselected_and_resets_at_run() {
     let mut m = monitor(&lab());
     run(&mut m, 2500, inp(SS2_B, 100));
     assert_eq!(m.elapsed_ds(), 25);
-    // Released: holds.
-    run(&mut m, 3000, inp(0, 100));
-    assert_eq!(m.elapsed_ds(), 25);
-    // A new ramp request restarts it; a non-ramp request does not.
+    // Released: 0 (001 4.2.4: `elapsedTime := 0` without an active ramp function).
+    run(&mut m, 1, inp(0, 100));
+    assert_eq!(m.elapsed_ds(), 0);
+    // A non-ramp request leaves it at 0; a new ramp request counts from 0.
     run(&mut m, 1000, inp(SOS_B, 0));
-    assert_eq!(m.elapsed_ds(), 25);
-    run(&mut m, 100, inp(SL1_B, 0));
+    assert_eq!(m.elapsed_ds(), 0);
+    run(&mut m, 100, inp(SOS_B | SL1_B, 0));
     assert_eq!(m.elapsed_ds(), 1);
-    // The early end at 5000 ticks holds it at 50.0 ... 5.0 s.
+    // The early end at 5000 ticks holds it at 5.0 s while SL1 stays requested, outside
+    // RUN too; deselected there, 0.
     run(&mut m, 6000, inp(SL1_B, 0));
     assert_eq!(m.elapsed_ds(), 50);
     m.stop();
+    m.follow(SL1_B);
     assert_eq!(m.elapsed_ds(), 50);
+    m.follow(SOS_B);
+    assert_eq!(m.elapsed_ds(), 0);
+    run(&mut m, 100, inp(SL1_B, 0));
     m.start_run();
     assert_eq!(m.elapsed_ds(), 0);
+}
+
+#[test]
+fn the_stopwatch_holds_at_15_s() {
+    // SS1 with a 10 s delay and a 10 s ramp time: 15.0 s from tick 15000 to the end.
+    let mut m = monitor(&with(lab(), &[(S::Trd, Some(100))]));
+    assert_eq!(run(&mut m, 14_999, inp(SS1_B, 100)), None);
+    assert_eq!(m.elapsed_ds(), 149);
+    assert_eq!(run(&mut m, 5_001, inp(SS1_B, 100)), None);
+    assert_eq!(m.elapsed_ds(), 150);
+    assert_eq!(m.tick(inp(SS1_B, 100)).trip, Some(FaultCode::Ss1));
+    assert_eq!(m.elapsed_ds(), 150);
+}
+
+#[test]
+fn sfp_counts_whole_turns_since_the_activation_and_reads_0_when_deselected() {
+    let mut m = monitor(&SafetySettings::default());
+    let i = Input {
+        requested: 0,
+        f_dhz: 100,
+        fmn_dhz: 0,
+        reverse: false,
+    };
+    run(&mut m, 1000, i); // 10 turns with nothing requested
+    assert_eq!(m.turns_e4(), 100_000);
+    assert_eq!(m.turns_since_activation(), 0);
+    // SDP (forward allowed): 999 ticks at 10 Hz are 9.99 turns, shown as 9.
+    let sdp = Input {
+        requested: SDP_B,
+        ..i
+    };
+    run(&mut m, 999, sdp);
+    assert_eq!(m.turns_since_activation(), 9);
+    run(&mut m, 1, sdp);
+    assert_eq!(m.turns_since_activation(), 10);
+    // Another function added: still since the activation.
+    run(
+        &mut m,
+        1000,
+        Input {
+            requested: SDP_B | SOS_B,
+            f_dhz: 0,
+            ..i
+        },
+    );
+    assert_eq!(m.turns_since_activation(), 10);
+    // Released: 0; SDN in reverse from there: negative, truncated toward 0.
+    run(&mut m, 1, Input { requested: 0, ..i });
+    assert_eq!(m.turns_since_activation(), 0);
+    let sdn = Input {
+        requested: SDN_B,
+        reverse: true,
+        ..i
+    };
+    run(&mut m, 1499, sdn);
+    assert_eq!(m.turns_since_activation(), -14);
+    // Outside RUN it holds while requested and reads 0 once released.
+    m.stop();
+    m.follow(SDN_B);
+    assert_eq!(m.turns_since_activation(), -14);
+    m.follow(0);
+    assert_eq!(m.turns_since_activation(), 0);
+    m.follow(SOS_B);
+    assert_eq!(m.turns_since_activation(), 0);
+    // Saturating at ±32767 turns.
+    m.x = 400_000_000;
+    assert_eq!(m.turns_since_activation(), 32767);
+    m.x = -400_000_000;
+    assert_eq!(m.turns_since_activation(), -32767);
+    // A new RUN: 0, and the first request counts from x = 0.
+    m.start_run();
+    assert_eq!(m.turns_since_activation(), 0);
+    run(&mut m, 2000, sdp);
+    assert_eq!(m.turns_since_activation(), 20);
 }
 
 #[test]

@@ -180,7 +180,7 @@ mod tests {
         );
         // Backwards from the first class wraps to the last class's first entry.
         let last = step_operand_class(ld, Section::Plc, false);
-        assert_eq!(last.operand, Some(Operand::Sft));
+        assert_eq!(last.operand, Some(Operand::Sfp));
         let mut i = ld;
         for _ in 0..400 {
             i = step_operand(i, Section::Plc, 1);

@@ -725,6 +725,7 @@ impl EmuSim {
             sdc: st.sf_sdc,
             sft_ds: st.sf_elapsed_ds,
             turns_e4: 0,
+            sf_turns: st.sf_turns,
             lift: None,
         }
     }

@@ -1,6 +1,6 @@
 //! The acceptance scenarios of safety.md 13 (NOT RATED safety functions) on the
-//! simulated rig: `safety_lab.plc` with the function under test on line 197, the
-//! scenarios in `hil-sim/scenarios/safety/`. Times measured by the drive from its request
+//! simulated rig: `safety_lab.plc` as shipped, the scenarios in `hil-sim/scenarios/safety/`
+//! (each turns on its function's selection switch at t = 0; none: STO). Times measured by the drive from its request
 //! (the rise of the bit in `sf_req`) are asserted to ±2 ms; input edges to 20 ms.
 
 use crate::common::{run_text, t_s};
@@ -17,10 +17,9 @@ fn scenario(name: &str) -> String {
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
 }
 
-/// `safety_lab.plc` with `SFR <f>` on line 197 and extra drive lines.
-fn lab(function: &str, extra: &str) -> String {
-    let text = LAB.replace("197 SFR SS1", &format!("197 SFR {function}"));
-    format!("{text}{extra}")
+/// `safety_lab.plc` with extra drive lines.
+fn lab(extra: &str) -> String {
+    format!("{LAB}{extra}")
 }
 
 fn bit(name: &str) -> u16 {
@@ -125,7 +124,7 @@ fn interrupted_field_keeps(r: &RunReport, code: u8, at_s: f64) {
 /// 13.1 (A.2): STO at 10 Hz.
 #[test]
 fn sto_opens_the_outputs_within_20_ms_and_the_rotor_coasts() {
-    let r = run_text(&lab("STO", ""), &scenario("sto"), 36.0);
+    let r = run_text(LAB, &scenario("sto"), 36.0);
     let t = trip(&r);
     assert!(in_window(t_s(t), 20.0, 0.02), "trip at {}", t_s(t));
     assert_eq!(t.fault, 9);
@@ -188,7 +187,7 @@ fn ss1_stopped_ends_5_000_s_after_the_request() {
 /// 13.2(a) (A.3): SOS holds at 2.0 Hz; a setpoint of 6.0 Hz trips where f passes 4.0 Hz.
 #[test]
 fn sos_holds_at_2_hz_and_trips_where_f_would_pass_4_hz() {
-    let r = run_text(&lab("SOS", ""), &scenario("sos_speed"), 52.0);
+    let r = run_text(LAB, &scenario("sos_speed"), 52.0);
     let req = request_at(&r, bit("SOS"));
     assert!(in_window(t_s(req), 20.0, 0.02));
     let held = crate::common::at(&r.samples, 25.0);
@@ -213,7 +212,7 @@ fn sos_holds_at_2_hz_and_trips_where_f_would_pass_4_hz() {
 /// 13.8: the honesty test. SOS reports standstill while the rotor coasts.
 #[test]
 fn sos_reports_standstill_while_the_rotor_coasts_unseen() {
-    let r = run_text(&lab("SOS", ""), &scenario("honesty"), 40.0);
+    let r = run_text(LAB, &scenario("honesty"), 40.0);
     let off = r
         .samples
         .iter()
@@ -277,7 +276,7 @@ fn run_is_refused_while_sto_in_is_low() {
 #[test]
 fn ramp_monitoring_trips_50_ms_into_the_ramp() {
     let r = run_text(
-        &lab("SS1", "048 ard K39 0020\n"),
+        &lab("048 ard K39 0020\n"),
         &scenario("ramp_monitoring"),
         27.0,
     );
@@ -292,7 +291,7 @@ fn ramp_monitoring_trips_50_ms_into_the_ramp() {
 /// 12.0 Hz then trips where f passes 10.0 Hz.
 #[test]
 fn sls_limits_at_10_hz_after_the_early_limit_and_trips_above_it() {
-    let r = run_text(&lab("SL2", ""), &scenario("sls"), 56.0);
+    let r = run_text(LAB, &scenario("sls"), 56.0);
     let req = request_at(&r, bit("SL2"));
     assert!(in_window(t_s(req), 20.0, 0.02));
     // The end: 5.000 s after the later of the request and the start of the last run of
@@ -377,7 +376,7 @@ fn ss1_early_limit_ends_5_000_s_after_f_fell_to_4_hz() {
 /// where f passes 4.0 Hz.
 #[test]
 fn ss2_reaches_standstill_and_trips_when_moved() {
-    let r = run_text(&lab("SS2", ""), &scenario("ss2"), 50.0);
+    let r = run_text(LAB, &scenario("ss2"), 50.0);
     let req = request_at(&r, bit("SS2"));
     assert!(in_window(t_s(req), 20.0, 0.02));
     assert_eq!(crate::common::at(&r.samples, 19.0).dir, -1);
@@ -404,7 +403,7 @@ fn ss2_reaches_standstill_and_trips_when_moved() {
 #[test]
 fn ss2_and_sls_without_deceleration_trip_ramp_at_15_000_s() {
     for (f, name) in [("SS2", "ss2_no_decel"), ("SL2", "sls_no_decel")] {
-        let r = run_text(&lab(f, ""), &scenario(name), 37.0);
+        let r = run_text(LAB, &scenario(name), 37.0);
         let req = request_at(&r, bit(f));
         let t = trip(&r);
         assert_eq!(t.fault, 11, "{f}");
@@ -416,7 +415,7 @@ fn ss2_and_sls_without_deceleration_trip_ramp_at_15_000_s() {
 /// 13.5(c) and (d): SL1 at 16.0 Hz; with SL2 on line 198 the lower limit governs.
 #[test]
 fn sls1_trips_at_16_hz_and_with_sl2_too_at_10_hz() {
-    let r = run_text(&lab("SL1", ""), &scenario("sls1"), 46.0);
+    let r = run_text(LAB, &scenario("sls1"), 46.0);
     let req = request_at(&r, bit("SL1"));
     let limited = r
         .samples
@@ -434,9 +433,9 @@ fn sls1_trips_at_16_hz_and_with_sl2_too_at_10_hz() {
         .rfind(|s| s.pwm_on && t_s(s) < t_s(t))
         .unwrap();
     assert!(last_on.f_cmd_hz <= 16.1 && last_on.f_cmd_hz > 15.0);
-    // (d): SL1 on 197 and SL2 on 198, run as (a) of 13.5: the trip comes at 10.0 Hz.
-    let both = lab("SL1", "").replace("199 LD  B24", "198 SFR SL2\n199 LD  B24");
-    let r = run_text(&both, &scenario("sls"), 56.0);
+    // (d): SL1's and SL2's switches on, run as (a) of 13.5: the trip comes at 10.0 Hz.
+    let both = scenario("sls").replace("D12 = 1", "D11 = 1, D12 = 1");
+    let r = run_text(LAB, &both, 56.0);
     let t = trip(&r);
     assert_eq!(t.fault, 13);
     let last_on = r
@@ -450,7 +449,7 @@ fn sls1_trips_at_16_hz_and_with_sl2_too_at_10_hz() {
 /// 13.6(a) (A.7): SLI requested at standstill; 100 turns later code 14.
 #[test]
 fn sli_trips_100_turns_from_where_it_was_requested() {
-    let r = run_text(&lab("SLI", ""), &scenario("sli_stopped"), 24.0);
+    let r = run_text(LAB, &scenario("sli_stopped"), 24.0);
     let req = request_at(&r, bit("SLI"));
     assert!(in_window(t_s(req), 5.0, 0.02));
     assert_eq!(
@@ -470,7 +469,7 @@ fn sli_trips_100_turns_from_where_it_was_requested() {
 /// 13.6(b): SLI requested while running: code 14 at once.
 #[test]
 fn sli_requested_while_running_trips_at_once() {
-    let r = run_text(&lab("SLI", ""), &scenario("sli_running"), 22.0);
+    let r = run_text(LAB, &scenario("sli_running"), 22.0);
     let t = trip(&r);
     assert_eq!(t.fault, 14);
     assert!(in_window(t_s(t), 20.0, 0.02), "{}", t_s(t));
@@ -480,7 +479,7 @@ fn sli_requested_while_running_trips_at_once() {
 /// inside it.
 #[test]
 fn sli_keeps_monitoring_through_its_disable_delay() {
-    let r = run_text(&lab("SLI", ""), &scenario("sli_delay"), 30.0);
+    let r = run_text(LAB, &scenario("sli_delay"), 30.0);
     let released = r
         .samples
         .iter()
@@ -497,7 +496,7 @@ fn sli_keeps_monitoring_through_its_disable_delay() {
 /// 13.7(a) (A.8): SDP, driven backwards: code 15 at 200 turns back.
 #[test]
 fn sdp_trips_200_turns_back() {
-    let r = run_text(&lab("SDP", ""), &scenario("sdp"), 32.0);
+    let r = run_text(LAB, &scenario("sdp"), 32.0);
     let req = request_at(&r, bit("SDP"));
     let after = r.samples.iter().find(|s| t_s(s) > t_s(req)).unwrap();
     assert_eq!(after.sf_st & bit("SDP"), bit("SDP"), "tdi 0: at once");
@@ -510,9 +509,10 @@ fn sdp_trips_200_turns_back() {
         t.turns_e4
     );
     // (c) SDN forward trips the same way.
-    let sdn = lab("SDN", "");
-    let fwd = scenario("sdp").replace(", D01 = 1", "");
-    let r = run_text(&sdn, &fwd, 32.0);
+    let sdn_fwd = scenario("sdp")
+        .replace(", D01 = 1", "")
+        .replace("D14 = 1", "D15 = 1");
+    let r = run_text(LAB, &sdn_fwd, 32.0);
     let t = trip(&r);
     assert_eq!(t.fault, 15);
     assert!((t_s(t) - 28.3).abs() < 0.3, "{}", t_s(t));
@@ -521,7 +521,7 @@ fn sdp_trips_200_turns_back() {
 /// 13.7(b): SDP forward for 60 s: no trip, status 1 throughout.
 #[test]
 fn sdp_allows_forward_travel() {
-    let r = run_text(&lab("SDP", ""), &scenario("sdp_forward"), 68.0);
+    let r = run_text(LAB, &scenario("sdp_forward"), 68.0);
     assert!(r.faults.is_empty());
     assert!(r
         .samples
@@ -534,11 +534,7 @@ fn sdp_allows_forward_travel() {
 /// 13.10(a): `asr` 5.0 Hz/s: the drive decelerates by itself.
 #[test]
 fn asr_decelerates_at_5_hz_per_s_and_ss1_ends_by_the_early_limit() {
-    let r = run_text(
-        &lab("SS1", "048 asr K39 0050\n"),
-        &scenario("asr_ss1"),
-        30.0,
-    );
+    let r = run_text(&lab("048 asr K39 0050\n"), &scenario("asr_ss1"), 30.0);
     let req = request_at(&r, bit("SS1"));
     let at = |dt: f64| crate::common::at(&r.samples, t_s(req) + dt);
     assert!(at(1.2).f_cmd_hz <= 4.05, "{}", at(1.2).f_cmd_hz);
@@ -561,7 +557,7 @@ fn asr_decelerates_at_5_hz_per_s_and_ss1_ends_by_the_early_limit() {
 /// 13.12(b): SLA with aap 10.0 Hz/s: 10 -> 40 Hz trips within 0.2 s; reverse does not.
 #[test]
 fn sla_trips_on_the_forward_acceleration_limit_only() {
-    let program = lab("SLA", "")
+    let program = LAB
         .replace("043 aap K34 2000", "043 aap K34 0100")
         .replace("044 adp K35 2000", "044 adp K35 9999")
         .replace("045 aan K36 2000", "045 aan K36 9999")
@@ -579,7 +575,7 @@ fn sla_trips_on_the_forward_acceleration_limit_only() {
 /// 13.13: the link cut in SS2's delay: LINK within 60 ms, outputs off.
 #[test]
 fn a_link_cut_in_ss2s_delay_trips_link() {
-    let r = run_text(&lab("SS2", ""), &scenario("link_cut_ss2"), 24.0);
+    let r = run_text(LAB, &scenario("link_cut_ss2"), 24.0);
     assert!(crate::common::at(&r.samples, 21.9).sdc);
     let t = trip(&r);
     assert_eq!(t.fault, 5);
@@ -591,13 +587,13 @@ fn a_link_cut_in_ss2s_delay_trips_link() {
 /// safety_lab.plc, changed by any setting changed by 1, not by a setting line moving.
 #[test]
 fn the_verifier_refuses_missing_or_doubled_settings_and_the_signature_is_stable() {
-    let no_ts2 = lab("SS2", "").replace(
+    let no_ts2 = LAB.replace(
         "035 ts2 K26 0100     ; SS2 ramp monitoring time 10.0 s\n",
         "",
     );
     let e = hil_sim::run::parse_program(&no_ts2, "lab.plc").unwrap_err();
     assert!(e.to_string().ends_with("SS2 needs ts2"), "{e}");
-    let twice = lab("SS1", "049 fss K40 0040\n");
+    let twice = lab("049 fss K40 0040\n");
     let e = hil_sim::run::parse_program(&twice, "lab.plc").unwrap_err();
     assert!(e.to_string().ends_with("fss set twice (030)"), "{e}");
     let sig = |text: &str| {
@@ -620,7 +616,7 @@ fn the_verifier_refuses_missing_or_doubled_settings_and_the_signature_is_stable(
 /// 13.2(b): SOS at 2.0 Hz trips on the position, 100.000 s after the request.
 #[test]
 fn sos_trips_when_the_field_has_turned_200_times() {
-    let r = run_text(&lab("SOS", ""), &scenario("sos_position"), 125.0);
+    let r = run_text(LAB, &scenario("sos_position"), 125.0);
     let req = request_at(&r, bit("SOS"));
     let t = trip(&r);
     assert_eq!(t.fault, 12);
@@ -632,7 +628,7 @@ fn sos_trips_when_the_field_has_turned_200_times() {
 /// 13.4(b): SS2's standstill position window.
 #[test]
 fn ss2_trips_200_turns_from_its_standstill_position() {
-    let r = run_text(&lab("SS2", ""), &scenario("ss2_position"), 146.0);
+    let r = run_text(LAB, &scenario("ss2_position"), 146.0);
     let safe = r
         .samples
         .iter()
@@ -648,7 +644,7 @@ fn ss2_trips_200_turns_from_its_standstill_position() {
 /// 13.6(d): a new request inside the disable delay keeps the original position.
 #[test]
 fn sli_rerequested_in_its_delay_keeps_the_original_position() {
-    let r = run_text(&lab("SLI", ""), &scenario("sli_rerequest"), 32.0);
+    let r = run_text(LAB, &scenario("sli_rerequest"), 32.0);
     // The new curtain at about 9 Hz: no trip then (v > fss would trip a fresh request).
     let again = r
         .samples
@@ -670,7 +666,7 @@ fn sli_rerequested_in_its_delay_keeps_the_original_position() {
 /// 13.7(d): SDP's reference trails the furthest forward point.
 #[test]
 fn sdp_counts_back_from_the_furthest_point_reached() {
-    let r = run_text(&lab("SDP", ""), &scenario("sdp_trailing"), 60.0);
+    let r = run_text(LAB, &scenario("sdp_trailing"), 60.0);
     let t = trip(&r);
     assert_eq!(t.fault, 15);
     let max = r
@@ -690,11 +686,7 @@ fn sdp_counts_back_from_the_furthest_point_reached() {
 /// then leaves f at 0.
 #[test]
 fn asr_brings_ss2_to_standstill_and_holds_it() {
-    let r = run_text(
-        &lab("SS2", "048 asr K39 0050\n"),
-        &scenario("asr_ss2"),
-        36.0,
-    );
+    let r = run_text(&lab("048 asr K39 0050\n"), &scenario("asr_ss2"), 36.0);
     let req = request_at(&r, bit("SS2"));
     let safe = r
         .samples
@@ -712,10 +704,10 @@ fn asr_brings_ss2_to_standstill_and_holds_it() {
 /// fast deceleration.
 #[test]
 fn sla_passes_the_lag_with_lab_limits_and_trips_a_fast_deceleration() {
-    let r = run_text(&lab("SLA", ""), &scenario("sla_lab"), 34.0);
+    let r = run_text(LAB, &scenario("sla_lab"), 34.0);
     assert!(r.faults.is_empty(), "{:?}", r.faults);
     assert!(crate::common::at(&r.samples, 33.0).f_cmd_hz > 45.0);
-    let program = lab("SLA", "")
+    let program = LAB
         .replace("043 aap K34 2000", "043 aap K34 9999")
         .replace("044 adp K35 2000", "044 adp K35 0100")
         .replace("045 aan K36 2000", "045 aan K36 9999")
@@ -765,4 +757,166 @@ fn the_lcd_counts_ss1_down_then_shows_code_10() {
         rows.push(sim.plc().lcd().row(3).trim_end().to_string());
     }
     assert!(rows.iter().any(|r| r == "F10 SS1 done: STO"), "{rows:?}");
+}
+
+/// 001 4.2.1: the function is chosen at run time by the selection switches, not by
+/// editing the program: SOS's switch, then SS2's (make before break) while the curtain's
+/// request holds; the Reset releases whatever is selected.
+#[test]
+fn the_selection_switches_choose_the_function_at_run_time() {
+    let r = run_text(LAB, &scenario("selection"), 16.0);
+    let req = request_at(&r, bit("SOS"));
+    assert!(in_window(t_s(req), 5.0, 0.02), "{}", t_s(req));
+    let at = |t: f64| crate::common::at(&r.samples, t);
+    assert_eq!(at(7.0).sf_req, bit("SOS"), "SOS's switch on");
+    assert_eq!(at(7.0).sf_st, bit("SOS"), "SOS holds the standstill");
+    assert_eq!(at(8.05).sf_req, bit("SOS") | bit("SS2"), "both on");
+    assert_eq!(at(8.2).sf_req, bit("SS2"), "SOS's switch off: released");
+    // SS2 requested at 8.0 s below fss: standstill 5.000 s later (the early limit).
+    let ss2 = request_at(&r, bit("SS2"));
+    let safe = r
+        .samples
+        .iter()
+        .find(|s| s.sf_st & bit("SS2") != 0)
+        .expect("SS2 standstill");
+    assert!((t_s(safe) - t_s(ss2) - 5.0).abs() <= 0.002, "{}", t_s(safe));
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
+    assert_eq!(at(15.1).sf_req, 0, "Reset: nothing requested");
+}
+
+/// 001 A.3-A.8 ("Pohon - Pozice"): `SFP`, the whole field turns since the request, in the
+/// status and on LCD field 3; 0 after the release, from 0 again at the next request.
+#[test]
+fn sfp_counts_the_turns_since_the_request_and_resets() {
+    let r = run_text(LAB, &scenario("position"), 31.0);
+    let req = request_at(&r, bit("SOS"));
+    assert!(in_window(t_s(req), 10.0, 0.02));
+    let x0 = r
+        .samples
+        .iter()
+        .rfind(|s| s.t_ns < req.t_ns)
+        .expect("before")
+        .turns_e4;
+    assert!(x0 > 100_000, "turned before the request: {x0}");
+    for s in r.samples.iter().filter(|s| s.t_ns < req.t_ns) {
+        assert_eq!(s.sf_turns, 0, "nothing requested at {}", t_s(s));
+    }
+    // From the request to the Reset: the drive's own turns since the request, whole,
+    // truncated (the status and the sample are of the same tick).
+    let reset = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > 20.0 && s.sf_req == 0)
+        .expect("released");
+    assert!(in_window(t_s(reset), 25.0, 0.03), "{}", t_s(reset));
+    for s in r
+        .samples
+        .iter()
+        .filter(|s| s.t_ns >= req.t_ns && s.t_ns < reset.t_ns)
+    {
+        let want = (s.turns_e4 - x0) / 10_000;
+        assert_eq!(i64::from(s.sf_turns), want, "at {}", t_s(s));
+    }
+    // About 2 turns/s (the lag near 2.0 Hz): 27 after 14 s.
+    let before_reset = crate::common::at(&r.samples, 24.0);
+    let n = before_reset.sf_turns;
+    assert!((26..=28).contains(&n), "{n}");
+    // The PLC's `LD SFP`, on LCD field 3, from the status frames (every 10 ms or less).
+    let lcd = before_reset.lcd[2].expect("LCD field 3");
+    assert!((n - 1..=n).contains(&lcd), "{lcd}");
+    // Released: 0, in the drive and on the LCD.
+    for s in r
+        .samples
+        .iter()
+        .filter(|s| t_s(s) > t_s(reset) + 0.05 && t_s(s) < 27.0)
+    {
+        assert_eq!((s.sf_turns, s.lcd[2]), (0, Some(0)), "at {}", t_s(s));
+    }
+    // Requested again at 27 s: from 0 again.
+    let again = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > 26.0 && s.sf_req != 0)
+        .expect("requested again");
+    assert!(in_window(t_s(again), 27.0, 0.02), "{}", t_s(again));
+    let n = crate::common::at(&r.samples, 30.0).sf_turns;
+    assert!((5..=6).contains(&n), "{n} turns 3 s after the request");
+}
+
+/// 001 4.2.4 ("Stopky"): the stopwatch reads 0 once its function is deselected and holds
+/// at 15.0 s (the source's TP timer, PT = 15 s).
+#[test]
+fn the_stopwatch_clears_on_deselect_and_holds_at_15_s() {
+    let program = LAB.replace("032 trd K23 0050", "032 trd K23 0100");
+    let r = run_text(&program, &scenario("stopwatch"), 31.0);
+    let at = |t: f64| crate::common::at(&r.samples, t);
+    // The first request (3 s), released by the Reset at 6 s after 3.0 s.
+    assert!((29..=30).contains(&at(5.99).sft_ds), "{}", at(5.99).sft_ds);
+    assert_eq!(at(6.05).sf_req, 0);
+    assert_eq!(at(6.05).sft_ds, 0, "deselected: 0");
+    assert_eq!(at(7.9).lcd[1], Some(0), "LCD field 2");
+    // The second (8 s): counting from 0, held at 15.0 from 8 + 15 s on.
+    let req = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > 7.0 && s.sf_req != 0)
+        .expect("requested again");
+    assert!(in_window(t_s(req), 8.0, 0.02));
+    assert!((49..=50).contains(&at(t_s(req) + 5.0).sft_ds));
+    assert_eq!(at(t_s(req) + 15.01).sft_ds, 150);
+    let t = trip(&r);
+    assert_eq!(t.fault, 10);
+    assert!((t_s(t) - t_s(req) - 20.0).abs() <= 0.002, "{}", t_s(t));
+    for s in r
+        .samples
+        .iter()
+        .filter(|s| t_s(s) >= t_s(req) + 15.01 && t_s(s) < 30.0)
+    {
+        assert_eq!(s.sft_ds, 150, "at {}", t_s(s));
+    }
+    assert_eq!(at(29.9).lcd[1], Some(150));
+    // The Reset at 30 s releases SS1: 0.
+    assert_eq!(at(30.05).sf_req, 0);
+    assert_eq!(at(30.05).sft_ds, 0);
+    assert_eq!(at(30.9).lcd[1], Some(0));
+}
+
+/// 001 5.2.2: the curtain's two channels (SF_Equivalent, 200 ms discrepancy time, then
+/// SF_ESPE with manual reset). Either channel interrupted requests the function at once;
+/// both within 200 ms: the Reset releases it; one channel alone for longer: the
+/// discrepancy is latched and the Reset refused until both channels have been 0.
+#[test]
+fn the_curtain_latches_a_discrepancy_over_200_ms_until_both_channels_drop() {
+    let r = run_text(LAB, &scenario("curtain_discrepancy"), 13.0);
+    let at = |t: f64| crate::common::at(&r.samples, t);
+    let sos = bit("SOS");
+    let lamp = |s: &Sample| s.digital_out & (1 << 5) != 0;
+    // Both channels 150 ms apart: requested at the first, released by the Reset.
+    assert!(in_window(t_s(request_at(&r, sos)), 2.0, 0.02));
+    assert_eq!(at(3.9).sf_req, sos);
+    assert!(lamp(at(3.9)));
+    assert_eq!(at(4.05).sf_req, 0, "no discrepancy: released");
+    assert!(!lamp(at(4.1)));
+    // D06 alone for 300 ms: requested at once; the Reset at 7 s is refused.
+    let second = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > 5.0 && s.sf_req != 0)
+        .expect("requested");
+    assert!(in_window(t_s(second), 6.0, 0.02), "{}", t_s(second));
+    assert_eq!(at(7.5).sf_req, sos, "discrepancy: the Reset refused");
+    assert!(lamp(at(7.5)));
+    // Both 0 at 8 s clear the discrepancy; the Reset at 9.5 s releases.
+    assert_eq!(at(9.4).sf_req, sos);
+    assert_eq!(at(9.55).sf_req, 0);
+    // D07 alone for 150 ms: requested, and the Reset releases (no discrepancy).
+    let third = r
+        .samples
+        .iter()
+        .find(|s| t_s(s) > 10.0 && s.sf_req != 0)
+        .expect("requested");
+    assert!(in_window(t_s(third), 11.0, 0.02), "{}", t_s(third));
+    assert_eq!(at(11.9).sf_req, sos);
+    assert_eq!(at(12.05).sf_req, 0);
+    assert!(r.faults.is_empty(), "{:?}", r.faults);
 }

@@ -237,11 +237,11 @@ mod tests {
             ..Default::default()
         };
         // The safety fields add 6 bytes at their idle values (protocol 4), `program_loaded`
-        // one (protocol 5).
-        assert!(roundtrip(DriveMsg::Status(s)) <= 31);
+        // one (protocol 5), `sf_turns` one (protocol 7).
+        assert!(roundtrip(DriveMsg::Status(s)) <= 32);
         // With a warning and every safety field at its widest: the largest status. The
         // retransmission timeout's 160 byte times hold a largest PLC frame (99), this
-        // status (47) and an ack (9).
+        // status (50 with `sf_turns`, protocol 7) and an ack (9).
         let w = DriveStatus {
             warning: Some(crate::link::DriveWarning::PwfClamped {
                 line: 149,
@@ -255,10 +255,11 @@ mod tests {
             sf_signature: 0xFFFF,
             sto_in_low: true,
             program_loaded: true,
+            sf_turns: i16::MIN,
             ..s
         };
         let largest = roundtrip(DriveMsg::Status(w));
-        assert!(largest <= 47, "{largest}");
+        assert!(largest <= 50, "{largest}");
         let data = heapless::Vec::from_slice(&[0xFF; 64]).unwrap();
         assert!(
             roundtrip(PlcMsg::DownloadChunk {

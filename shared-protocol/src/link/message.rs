@@ -14,7 +14,8 @@ pub use crate::fault::{fault_name, fault_text, FaultCode};
 /// 3: `DriveMsg::AckRefused` (why the drive refused an acknowledgement).
 /// 4: the safety functions (safety.md 9): `PlcMsg::SafetyRequest`, the status's `sf_*`
 /// and `sto_in_low` fields, fault codes 9-16.
-pub const PROTOCOL_VERSION: u16 = 6;
+/// 7: the status ends with `sf_turns` (the PLC's `SFP`).
+pub const PROTOCOL_VERSION: u16 = 7;
 
 /// Most Q writes carried by one frame (a scan that writes more sends several frames).
 pub const MAX_Q_PER_FRAME: usize = 8;
@@ -136,6 +137,10 @@ pub struct DriveStatus {
     /// RUN that saw it true learns that the drive restarted and lost it.
     #[serde(serialize_with = "one_copy::bool")]
     pub program_loaded: bool,
+    /// Whole commanded field turns since the safety request mask left 0 (`SFP`; 0 while
+    /// nothing is requested).
+    #[serde(serialize_with = "one_copy::i16")]
+    pub sf_turns: i16,
 }
 
 impl DriveStatus {
@@ -372,6 +377,7 @@ mod tests {
         sf_signature: u16,
         sto_in_low: bool,
         program_loaded: bool,
+        sf_turns: i16,
     }
 
     #[derive(Serialize)]
@@ -402,7 +408,7 @@ mod tests {
     /// the handshake refuses the mismatched pair instead (`docs/contributing/add-a-trip.md`).
     #[test]
     fn the_protocol_version_names_its_fault_codes() {
-        const CODES_PER_VERSION: [(u16, usize); 2] = [(5, 16), (6, 17)];
+        const CODES_PER_VERSION: [(u16, usize); 3] = [(5, 16), (6, 17), (7, 17)];
         let known = CODES_PER_VERSION
             .iter()
             .find(|(v, _)| *v == PROTOCOL_VERSION);
@@ -442,6 +448,7 @@ mod tests {
                 sf_signature: s.sf_signature,
                 sto_in_low: s.sto_in_low,
                 program_loaded: s.program_loaded,
+                sf_turns: s.sf_turns,
             };
             assert_eq!(
                 postcard::to_slice(&s, &mut typed).unwrap(),
@@ -504,6 +511,7 @@ mod tests {
                 sf_signature: u(4),
                 sto_in_low: k % 5 == 0,
                 program_loaded: k % 7 == 0,
+                sf_turns: i(5),
             };
             let old = UntypedStatus {
                 state: s.state,
@@ -523,6 +531,7 @@ mod tests {
                 sf_signature: s.sf_signature,
                 sto_in_low: s.sto_in_low,
                 program_loaded: s.program_loaded,
+                sf_turns: s.sf_turns,
             };
             let n = postcard::to_slice(&s, &mut typed).unwrap().len();
             assert_eq!(typed[..n], *postcard::to_slice(&old, &mut untyped).unwrap());

@@ -15,7 +15,7 @@
 //! Named operand codes (kind 7): 0 `COM`, 1 `VLT`, 2 `AMP`, 3 `PW1`, 4 `PW3`, 5 `PW5`,
 //! 6 `FRQ`, 7 `UDC`, 8 `IMX`, 9 `FLT`, 10 `DIR`, 11 `RDY`, 12 `FLB`, 13 `IHW`, 14 `UHW`,
 //! then the safety operands (safety.md, appended): 15 + n the safety function of bit n
-//! (15 `STO` .. 26 `SLA`), 27 `SDC`, 28 `SFT`.
+//! (15 `STO` .. 26 `SLA`), 27 `SDC`, 28 `SFT`, 29 `SFP`.
 //!
 //! Example: `LD K00 0100` = `01 A0 00 64`; `150 LET B03` = `0B 60 C0 00`.
 //!
@@ -43,7 +43,7 @@ const CONSTANT_MASK: u32 = 0x3FFF;
 const INDEX_MAX: u32 = 99;
 
 /// Named operands by their code (kind 7).
-const NAMED: [Operand; 29] = [
+const NAMED: [Operand; 30] = [
     Operand::Com,
     Operand::Vlt,
     Operand::Amp,
@@ -73,6 +73,7 @@ const NAMED: [Operand; 29] = [
     Operand::Sf(SafetyFunction::Sla),
     Operand::Sdc,
     Operand::Sft,
+    Operand::Sfp,
 ];
 
 /// Why bytes are not a line.
@@ -280,7 +281,15 @@ mod tests {
         );
         assert_eq!(
             decode_line(&[0x01, 0xE7, 0x40, 0x00]),
-            Err(DecodeError::UnknownNamedOperand(29))
+            Ok(Instruction {
+                mnemonic: Mnemonic::Ld,
+                operand: Some(Operand::Sfp),
+                constant: 0
+            })
+        );
+        assert_eq!(
+            decode_line(&[0x01, 0xE7, 0x80, 0x00]),
+            Err(DecodeError::UnknownNamedOperand(30))
         );
         // K00 with constant 10000.
         assert_eq!(

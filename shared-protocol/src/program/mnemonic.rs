@@ -88,6 +88,7 @@ impl OperandSetName {
                 C::Sf,
                 C::Sdc,
                 C::Sft,
+                C::Sfp,
             ]),
             OperandSetName::SF_ONLY => OperandSet::of(&[C::Sf]),
             OperandSetName::PLC_WR => OperandSet::of(&[C::O, C::B, C::Q]),

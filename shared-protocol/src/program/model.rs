@@ -109,6 +109,8 @@ pub enum Operand {
     Sdc,
     /// `SFT`: the safety stopwatch, 0.1 s (int, read-only).
     Sft = 100,
+    /// `SFP`: commanded field turns since the safety request (int, read-only).
+    Sfp,
 }
 
 /// One program line's instruction.

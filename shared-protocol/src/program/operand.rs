@@ -40,11 +40,12 @@ pub enum OperandClass {
     Sf,
     Sdc,
     Sft,
+    Sfp,
 }
 
 impl OperandClass {
     /// Every class, in editor order.
-    pub const ALL: [OperandClass; 24] = [
+    pub const ALL: [OperandClass; 25] = [
         OperandClass::D,
         OperandClass::O,
         OperandClass::B,
@@ -69,6 +70,7 @@ impl OperandClass {
         OperandClass::Sf,
         OperandClass::Sdc,
         OperandClass::Sft,
+        OperandClass::Sfp,
     ];
 
     /// How many operands the class holds (`D` 16: D00-D15; named operands 1).
@@ -140,6 +142,7 @@ impl OperandClass {
             OperandClass::Sf => "STO..SLA",
             OperandClass::Sdc => "SDC",
             OperandClass::Sft => "SFT",
+            OperandClass::Sfp => "SFP",
         }
     }
 
@@ -181,6 +184,7 @@ impl OperandClass {
             OperandClass::Sf => Operand::Sf(SafetyFunction::from_bit_saturating(index)),
             OperandClass::Sdc => Operand::Sdc,
             OperandClass::Sft => Operand::Sft,
+            OperandClass::Sfp => Operand::Sfp,
         }
     }
 
@@ -218,6 +222,7 @@ impl Operand {
             Operand::Sf(_) => OperandClass::Sf,
             Operand::Sdc => OperandClass::Sdc,
             Operand::Sft => OperandClass::Sft,
+            Operand::Sfp => OperandClass::Sfp,
         }
     }
 

@@ -734,9 +734,9 @@ mod tests {
     fn editor_order_and_counts() {
         let ld: std::vec::Vec<_> = operands_for(Mnemonic::Ld, Section::Plc).collect();
         assert_eq!(ld.first(), Some(&Some(Operand::D(0))));
-        assert_eq!(ld.last(), Some(&Some(Operand::Sft)));
-        // 16 D + 8 O + 100 B + 4 A + 100 K + 64 Q + 12 named + 12 functions, SDC, SFT.
-        assert_eq!(ld.len(), 16 + 8 + 100 + 4 + 100 + 64 + 12 + 14);
+        assert_eq!(ld.last(), Some(&Some(Operand::Sfp)));
+        // 16 D + 8 O + 100 B + 4 A + 100 K + 64 Q + 12 named + 12 functions, SDC, SFT, SFP.
+        assert_eq!(ld.len(), 16 + 8 + 100 + 4 + 100 + 64 + 12 + 15);
         // SFR takes the twelve functions, in bit order; LDC the bits among them.
         let sfr: std::vec::Vec<_> = operands_for(Mnemonic::Sfr, Section::Plc).collect();
         let all: std::vec::Vec<_> = SafetyFunction::ALL
@@ -745,7 +745,8 @@ mod tests {
             .collect();
         assert_eq!(sfr, all);
         assert!(operands_for(Mnemonic::Ldc, Section::Plc).any(|o| o == Some(Operand::Sdc)));
-        assert!(!operands_for(Mnemonic::Ldc, Section::Plc).any(|o| o == Some(Operand::Sft)));
+        assert!(!operands_for(Mnemonic::Ldc, Section::Plc)
+            .any(|o| o == Some(Operand::Sft) || o == Some(Operand::Sfp)));
         for m in [
             Mnemonic::Wr,
             Mnemonic::Wrc,
@@ -753,8 +754,10 @@ mod tests {
             Mnemonic::Res,
             Mnemonic::Io,
         ] {
-            assert!(!operands_for(m, Section::Plc)
-                .any(|o| matches!(o, Some(Operand::Sf(_) | Operand::Sdc | Operand::Sft))));
+            assert!(!operands_for(m, Section::Plc).any(|o| matches!(
+                o,
+                Some(Operand::Sf(_) | Operand::Sdc | Operand::Sft | Operand::Sfp)
+            )));
         }
         let not: std::vec::Vec<_> = operands_for(Mnemonic::Not, Section::Plc).collect();
         assert_eq!(not, std::vec![None]);
