@@ -7,6 +7,8 @@
 //!   (1 KiB): the drive checks frames and downloads inside its critical sections against the
 //!   PWM interrupt (`firmware-drive/docs/critical-sections.md`), where one table look-up per
 //!   byte matters (about 6 instructions per byte, against about 10 with the nibble table).
+//!   The PLC image, which has no such interrupt, takes the nibble table (feature
+//!   `crc32c-nibble-table`); the values are the same (a test checks both tables).
 //! * [`ISO_HDLC`], CRC-32 (`crc::CRC_32_ISO_HDLC`): the PLC's stored program copies and
 //!   boot records. A nibble table (64 B): it runs only in the PLC's storage steps, which
 //!   have no such budget.
@@ -18,8 +20,18 @@ pub struct Crc32<const N: usize> {
     table: [u32; N],
 }
 
-/// CRC-32C (Castagnoli, reflected polynomial `0x82F6_3B78`), byte table.
-pub static CASTAGNOLI: Crc32<256> = Crc32::new(0x82F6_3B78);
+/// CRC-32C (Castagnoli, reflected polynomial `0x82F6_3B78`): a byte table, or a nibble
+/// table with feature `crc32c-nibble-table` (the PLC image: no PWM interrupt to keep short,
+/// and 960 B of flash back).
+pub static CASTAGNOLI: Crc32<CASTAGNOLI_ENTRIES> = Crc32::new(0x82F6_3B78);
+/// The entries of [`CASTAGNOLI`]'s table.
+pub const CASTAGNOLI_ENTRIES: usize = if cfg!(feature = "crc32c-nibble-table") {
+    16
+} else {
+    256
+};
+/// A running [`CASTAGNOLI`].
+pub type CastagnoliDigest = Digest<CASTAGNOLI_ENTRIES>;
 /// CRC-32 (ISO-HDLC, reflected polynomial `0xEDB8_8320`), nibble table.
 pub static ISO_HDLC: Crc32<16> = Crc32::new(0xEDB8_8320);
 
@@ -115,6 +127,17 @@ mod tests {
         for len in [0, 1, 2, 15, 16, 17, 255, 600] {
             assert_eq!(CASTAGNOLI.checksum(&data[..len]), c.checksum(&data[..len]));
             assert_eq!(ISO_HDLC.checksum(&data[..len]), i.checksum(&data[..len]));
+        }
+    }
+
+    /// The PLC image's CRC-32C (nibble table) equals the drive's (byte table).
+    #[test]
+    fn the_nibble_and_byte_tables_of_crc32c_agree() {
+        static NIBBLE: Crc32<16> = Crc32::new(0x82F6_3B78);
+        static BYTE: Crc32<256> = Crc32::new(0x82F6_3B78);
+        let data: std::vec::Vec<u8> = (0..600u32).map(|n| (n * 31 + n / 7) as u8).collect();
+        for len in [0, 1, 2, 15, 16, 17, 255, 600] {
+            assert_eq!(NIBBLE.checksum(&data[..len]), BYTE.checksum(&data[..len]));
         }
     }
 

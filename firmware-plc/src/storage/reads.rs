@@ -40,7 +40,7 @@ struct Scan {
     head: [u8; COPY_HEADER_BYTES],
     header: Option<CopyHeader>,
     iso: Digest<16>,
-    c32: Digest<256>,
+    c32: shared_protocol::crc32::CastagnoliDigest,
     parser: PayloadParser,
     results: [Option<CopyResult>; 2],
 }

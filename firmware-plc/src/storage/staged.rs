@@ -47,7 +47,7 @@ pub(crate) struct StagedCheck {
 enum Pass {
     /// CRC-32C, layout, decoding and verification.
     Check {
-        crc: Digest<256>,
+        crc: shared_protocol::crc32::CastagnoliDigest,
         parser: PayloadParser,
         verifier: ProgramVerifier,
         /// The first line the verifier refused, and its reason code.

@@ -16,7 +16,7 @@ use super::message::{
 use super::plc_decode::plc_frame;
 use super::session::{earliest, Reliable, Session, AT_ONCE};
 use super::LinkStats;
-use crate::crc32::Digest;
+use crate::crc32::CastagnoliDigest;
 use crate::fault::FaultCode;
 use crate::program::{
     decode_slot, DriveSection, VerifiedDriveSection, Verifier, VerifyError, DRIVE_LINES, LINE_BYTES,
@@ -83,7 +83,7 @@ struct DownloadRx {
     /// The CRC of the chunks received so far, in order: a complete download's is the
     /// section's (`section_crc` of `buf`), computed one chunk per receive call instead
     /// of ~4 200 instructions in one check step.
-    running: Digest<256>,
+    running: CastagnoliDigest,
     next_line: usize,
     /// Set when a chunk was out of place: the download will be refused at its end.
     broken: bool,
