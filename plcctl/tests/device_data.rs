@@ -119,6 +119,8 @@ fn answer(req: &Request, uptime_ms: u64) -> Answer {
                     code: 1,
                     power_up: 1,
                     uptime_s: 5,
+                    wall_s: None,
+                    values: [None, None],
                 })
                 .unwrap();
             Answer::FaultLog(FaultLog {
