@@ -289,7 +289,8 @@ fn l6_door_open_in_travel_is_a_latched_fault() {
     // The fault is in the PLC's fault log once (004 §2.3.3): application fault 10 (code
     // 110) with the floor (2: floor 2's zone was the last entered) and the target (3);
     // no time of day, the simulated PLC's clock is not set.
-    let logged = |sim: &Simulation| -> Vec<(u8, Option<i16>, Option<i16>, Option<u32>)> {
+    type Logged = (u8, Option<i16>, Option<i16>, Option<u32>);
+    let logged = |sim: &Simulation| -> Vec<Logged> {
         let log = sim.plc().app().fault_log();
         log.iter()
             .map(|e| (e.code, e.value(0), e.value(1), e.wall()))
