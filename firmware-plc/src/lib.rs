@@ -21,6 +21,7 @@ pub mod pace;
 pub mod service;
 pub mod storage;
 pub mod task;
+pub mod wide_div;
 
 #[cfg(test)]
 mod rig_tests;

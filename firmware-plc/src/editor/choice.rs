@@ -16,12 +16,26 @@ fn operand_list(m: Mnemonic, section: Section) -> OperandList {
     operands_for(m, section).take(OPERANDS_MAX).collect()
 }
 
+/// `(index + delta)` modulo `len` (0 for an empty list), in the index's width: an `i64`
+/// `rem_euclid` linked the 64-bit signed division into the image.
 fn wrap(index: usize, delta: i32, len: usize) -> usize {
-    if len == 0 {
+    let (Some(at), Some(step)) = (
+        index.checked_rem(len),
+        (delta.unsigned_abs() as usize).checked_rem(len),
+    ) else {
         return 0;
+    };
+    // Both below `len`: step forwards by `step`, or backwards (forwards by `len - step`).
+    let forward = if delta < 0 && step != 0 {
+        len - step
+    } else {
+        step
+    };
+    if at >= len - forward {
+        at - (len - forward)
+    } else {
+        at + forward
     }
-    let len_i = len as i64;
-    (index as i64 + i64::from(delta)).rem_euclid(len_i) as usize
 }
 
 /// The line completed for mnemonic `m`: the operand kept when still valid, else the
@@ -143,6 +157,39 @@ pub fn step_digit(current: Instruction, section: Section, digit: u8, up: bool) -
 mod tests {
     use super::*;
     use shared_protocol::program::verify_line;
+
+    #[test]
+    fn wrap_is_the_euclidean_remainder() {
+        let deltas = [
+            0,
+            1,
+            -1,
+            2,
+            -2,
+            9,
+            -9,
+            10,
+            -10,
+            319,
+            -320,
+            321,
+            -641,
+            i32::MAX,
+            i32::MIN,
+        ];
+        for len in [0usize, 1, 2, 3, 10, 320, 321] {
+            for index in [0, 1, 2, 9, 319, 320, 321, 1000].into_iter().chain(0..len) {
+                for delta in deltas.into_iter().chain(-700..700) {
+                    let want = if len == 0 {
+                        0
+                    } else {
+                        (index as i64 + i64::from(delta)).rem_euclid(len as i64) as usize
+                    };
+                    assert_eq!(wrap(index, delta, len), want, "{index} {delta:+} mod {len}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn mnemonic_cycle_covers_the_section_and_empty() {

@@ -16,6 +16,7 @@ pub mod link;
 pub mod outputs;
 pub mod service;
 pub mod shared;
+mod wide_div;
 
 /// The watchdog supervisor (`board_common::supervisor`), with this board's name for its
 /// main task's alive bit.
