@@ -24,6 +24,7 @@
     )
 )]
 
+pub mod crc16;
 pub mod crc32;
 pub mod drive_state;
 pub mod fault;

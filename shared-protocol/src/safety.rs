@@ -253,14 +253,6 @@ impl Default for SafetySettings {
     }
 }
 
-/// The signature's CRC: CRC-16/IBM-3740 (poly 0x1021, init 0xFFFF, not reflected,
-/// xorout 0; check 0x29B1), safety.md 8. With the crate's 256-entry table (512 bytes of
-/// flash): bitwise, the 48 bytes cost ~2 300 instructions in the drive's load of a new
-/// section, a critical section against the PWM interrupt (the emulated link
-/// section reached 9 872 instructions, over the 8 500-cycle budget).
-const SIGNATURE_CRC: crc::Crc<u16, crc::Table<1>> =
-    crc::Crc::<u16, crc::Table<1>>::new(&crc::CRC_16_IBM_3740);
-
 impl SafetySettings {
     /// The setting as written, `None` when absent.
     pub fn get(&self, s: SafetySetting) -> Option<u16> {
@@ -293,11 +285,7 @@ impl SafetySettings {
     /// The parameter signature (safety.md 8): CRC-16/IBM-3740 over 2 bytes per setting,
     /// big-endian, 0xFFFF when absent, in [`SafetySetting::ALL`] order.
     pub fn signature(&self) -> u16 {
-        let mut d = SIGNATURE_CRC.digest();
-        for r in self.raw {
-            d.update(&r.to_be_bytes());
-        }
-        d.finalize()
+        crate::crc16::of_be_words(&self.raw)
     }
 
     /// Does SS1 need `fss` (early limit or ramp monitoring on)?
@@ -317,6 +305,7 @@ impl SafetySettings {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::crc16::IBM_3740 as SIGNATURE_CRC;
 
     #[test]
     fn the_signature_crc_is_ibm_3740() {

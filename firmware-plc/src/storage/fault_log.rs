@@ -26,10 +26,9 @@
 
 use super::eeprom::{Eeprom, EepromError, PAGE_BYTES};
 use super::layout::{FAULT_ENTRY_BYTES, FAULT_LOG_ADDR, FAULT_LOG_ENTRIES};
-use crc::{Crc, CRC_16_IBM_3740};
-
-/// The entries' CRC (and the counters record's): one table in the image.
-pub(crate) static CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_IBM_3740);
+/// The entries' CRC (and the counters record's): the safety signature's, one
+/// definition in the image (`shared_protocol::crc16`).
+pub(crate) use shared_protocol::crc16::IBM_3740 as CRC16;
 /// Largest uptime an entry can hold (24 bits of seconds, about 194 days); longer saturates.
 pub const UPTIME_MAX_S: u32 = 0x00FF_FFFF;
 /// [`FaultEntry::wall_s`] of an entry made while the PLC's clock was not set.
