@@ -226,18 +226,59 @@ macro_rules! mnemonic_table {
             $( $(#[$doc])* $v = $code, )*
         }
 
+        /// Each mnemonic with its row's text literal (the test of [`Mnemonic::text`]).
+        #[cfg(test)]
+        const ROW_TEXTS: [(Mnemonic, &str); [$($code),*].len()] = [$((Mnemonic::$v, $text)),*];
+
         impl Mnemonic {
             /// All mnemonics, in the order the editor offers them (the table's).
             pub const ALL: [Mnemonic; [$($code),*].len()] = [$(Mnemonic::$v),*];
 
-            /// The text form, exactly as program.md writes it (canonical case). Out of
-            /// line: the PLC image had two copies of its table when it was inlined.
+            /// The text form, exactly as program.md writes it (canonical case): its
+            /// [`TEXT_BYTES`] bytes up to the first space. Out of line: one copy in the
+            /// image.
             #[inline(never)]
-            pub const fn text(self) -> &'static str {
-                match self {
-                    $(Mnemonic::$v => $text,)*
-                }
+            pub fn text(self) -> &'static str {
+                let at = self as usize * TEXT_BYTES;
+                let len = match TEXTS.as_bytes().get(at + TEXT_BYTES - 1) {
+                    Some(b' ') => TEXT_BYTES - 1,
+                    _ => TEXT_BYTES,
+                };
+                TEXTS.get(at..at + len).unwrap_or("")
             }
+        }
+
+        /// Every mnemonic's text in [`TEXT_BYTES`] bytes (padded with spaces) at its
+        /// code: one 3-byte row per code, instead of a pointer and a length per
+        /// mnemonic (the `match` of `&str`s compiled to two 4-byte tables).
+        const TEXTS: &str = {
+            const ROWS: usize = 1 + {
+                let mut max = 0;
+                $( if $code > max { max = $code; } )*
+                max
+            };
+            #[allow(clippy::indexing_slicing)] // Evaluated at compile time.
+            const BYTES: [u8; ROWS * TEXT_BYTES] = {
+                let mut t = [b' '; ROWS * TEXT_BYTES];
+                $(
+                    let s = $text.as_bytes();
+                    assert!(s.len() == TEXT_BYTES || s.len() == TEXT_BYTES - 1);
+                    assert!(s[s.len() - 1] != b' ');
+                    let mut j = 0;
+                    while j < s.len() {
+                        t[$code * TEXT_BYTES + j] = s[j];
+                        j += 1;
+                    }
+                )*
+                t
+            };
+            match core::str::from_utf8(&BYTES) {
+                Ok(s) => s,
+                Err(_) => "",
+            }
+        };
+
+        impl Mnemonic {
 
             /// The row's names packed in 16 bits (PLC operand set + 1, drive operand
             /// set + 1, 0 for none, 4 bits each; constant range; stack use): one
@@ -257,6 +298,9 @@ macro_rules! mnemonic_table {
         }
     };
 }
+
+/// The longest mnemonic's text, in bytes; every text has this length or one less.
+const TEXT_BYTES: usize = 3;
 
 impl Constants {
     const ANY_OR_NONE: Constants = Constants::ANY;
@@ -463,7 +507,7 @@ impl Mnemonic {
 
     /// The name of the parameter [`Mnemonic::drive_setting`] returns `self` for, in a
     /// verifier error: `PRx` for the prescaler, `dU` for dU, the text otherwise.
-    pub const fn setting_name(self) -> &'static str {
+    pub fn setting_name(self) -> &'static str {
         match self {
             Mnemonic::Pr0 | Mnemonic::Pr1 | Mnemonic::Pr2 => "PRx",
             Mnemonic::CalcDu | Mnemonic::DuSet => "dU",
@@ -572,6 +616,13 @@ mod tests {
     /// Every mnemonic belongs to a section, and in each of its sections its first and
     /// last operand with the smallest and largest constant verify, encode and decode back,
     /// and disassemble to text that assembles back to the same line.
+    #[test]
+    fn every_text_is_its_rows_literal() {
+        for (m, text) in ROW_TEXTS {
+            assert_eq!(m.text(), text, "{m:?}");
+        }
+    }
+
     #[test]
     fn every_row_verifies_encodes_and_round_trips_through_text() {
         for m in Mnemonic::ALL {
