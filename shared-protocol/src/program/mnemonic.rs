@@ -235,8 +235,8 @@ macro_rules! mnemonic_table {
             pub const ALL: [Mnemonic; [$($code),*].len()] = [$(Mnemonic::$v),*];
 
             /// The text form, exactly as program.md writes it (canonical case): its
-            /// [`TEXT_BYTES`] bytes up to the first space. Out of line: one copy in the
-            /// image.
+            /// row of the texts' table up to the first space. Out of line: one copy in
+            /// the image.
             #[inline(never)]
             pub fn text(self) -> &'static str {
                 let at = self as usize * TEXT_BYTES;
