@@ -12,6 +12,8 @@
 //! Time zone rule: the PLC keeps UTC, as seconds since 2000-01-01 00:00:00 UTC (the RTC's
 //! own epoch, year 00); only a PC shows local time (`plcctl`).
 
+pub mod rtc_format;
+
 use shared_protocol::service::WALL_MAX_S;
 use shared_protocol::units::Micros;
 
@@ -27,6 +29,8 @@ pub struct WallClock {
     anchor: Option<(u32, Micros)>,
     /// A time was set: the board writes it to the RTC.
     rtc_write_due: bool,
+    /// The board reads the RTC again from this uptime (µs; 0: at once).
+    next_read_us: u64,
 }
 
 impl WallClock {
@@ -35,6 +39,7 @@ impl WallClock {
         WallClock {
             anchor: None,
             rtc_write_due: false,
+            next_read_us: 0,
         }
     }
 
@@ -53,11 +58,24 @@ impl WallClock {
     /// leaves the clock as it is (a set time not yet written, or a board without a crystal
     /// whose clock runs on the uptime).
     pub fn rtc_read(&mut self, seconds: Option<u32>, now: Micros) {
+        self.next_read_us = now.0.saturating_add(RESYNC_US);
         if let Some(s) = seconds {
             if !self.rtc_write_due {
                 self.anchor = Some((s.min(WALL_MAX_S), now));
             }
         }
+    }
+
+    /// The board reads the RTC now: at the first pass after boot, then every
+    /// [`RESYNC_US`].
+    pub fn rtc_read_due(&self, now: Micros) -> bool {
+        now.0 >= self.next_read_us
+    }
+
+    /// A set time waits for the RTC: the board prepares it (LSE ready, initialization
+    /// mode), then takes the time with [`WallClock::take_rtc_write`] and writes it at once.
+    pub fn rtc_write_due(&self) -> bool {
+        self.rtc_write_due
     }
 
     /// The time the board must write to the RTC now, once per [`WallClock::set`].
@@ -99,10 +117,22 @@ mod tests {
     }
 
     #[test]
+    fn the_rtc_is_read_at_once_and_then_every_minute() {
+        let mut c = WallClock::new();
+        assert!(c.rtc_read_due(s(0)));
+        c.rtc_read(None, s(1));
+        assert!(!c.rtc_read_due(s(60)));
+        assert!(c.rtc_read_due(s(61)));
+    }
+
+    #[test]
     fn a_set_time_is_written_to_the_rtc_once() {
         let mut c = WallClock::new();
+        assert!(!c.rtc_write_due());
         c.set(500, s(1));
+        assert!(c.rtc_write_due());
         assert_eq!(c.take_rtc_write(s(3)), Some(502));
+        assert!(!c.rtc_write_due());
         assert_eq!(c.take_rtc_write(s(4)), None);
     }
 

@@ -14,6 +14,17 @@ impl<E: Eeprom> PlcApp<E> {
         self.wall.rtc_read(seconds, now);
     }
 
+    /// The board reads the RTC now (at the first pass, then every
+    /// [`crate::clock::RESYNC_US`]).
+    pub fn rtc_read_due(&self, now: Micros) -> bool {
+        self.wall.rtc_read_due(now)
+    }
+
+    /// A time set from the service waits to be written to the RTC.
+    pub fn rtc_write_due(&self) -> bool {
+        self.wall.rtc_write_due()
+    }
+
     /// The time the board must write to the RTC now (once per time set).
     pub fn take_rtc_write(&mut self, now: Micros) -> Option<u32> {
         self.wall.take_rtc_write(now)
