@@ -33,11 +33,13 @@ fn a_set_clock_survives_a_reset_and_a_power_on_loses_it() {
     assert_eq!(plc_clock(&out), Some(SET), "{out}");
     let set_at = sim.now_ns();
     // The image writes the RTC once the LSE runs (tSU(LSE) 2 s after its boot).
-    sim.run_until(ns(2.3).max(sim.now_ns() + 100_000_000), |_| {});
+    let until = ns(2.3).max(sim.now_ns() + 100_000_000);
+    sim.run_until(until, |_| {});
     let log: String = sim.plc().log().iter().map(|l| format!("{l}\n")).collect();
     assert!(log.contains("rtc: set to"), "PLC log:\n{log}");
     sim.plc_mut().cpu_mut().reset(ResetKind::Software);
-    sim.run_until(sim.now_ns() + 300_000_000, |_| {});
+    let until = sim.now_ns() + 300_000_000;
+    sim.run_until(until, |_| {});
     let (st, out, err) = plcctl_on_the_image(&mut sim, &["clock"]);
     assert!(st.success(), "plcctl clock: {st}\n{out}\n{err}");
     let read = plc_clock(&out).unwrap_or_else(|| panic!("set after the reset: {out}"));
@@ -47,7 +49,8 @@ fn a_set_clock_survives_a_reset_and_a_power_on_loses_it() {
         "{read} s: set {SET} s, {elapsed_s} s of virtual time since\n{out}"
     );
     sim.power_cycle_plc();
-    sim.run_until(sim.now_ns() + 300_000_000, |_| {});
+    let until = sim.now_ns() + 300_000_000;
+    sim.run_until(until, |_| {});
     let (st, out, err) = plcctl_on_the_image(&mut sim, &["clock"]);
     assert!(st.success(), "plcctl clock: {st}\n{out}\n{err}");
     assert!(
