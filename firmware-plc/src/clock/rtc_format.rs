@@ -22,7 +22,7 @@ fn from_bcd(v: u32, max: u32) -> Option<u32> {
 /// Days from 2000-01-01 to 1 January of year `y` (2000-2099: every fourth year from 2000 is
 /// a leap year).
 fn days_before_year(y: u32) -> u32 {
-    365 * y + (y + 3) / 4
+    365 * y + y.div_ceil(4)
 }
 
 /// Days from 1 January to the first of month `m` (0-based) in a year (`leap` or not).
@@ -40,7 +40,7 @@ pub fn registers(seconds: u32) -> (u32, u32) {
     let weekday = (days + 5) % 7 + 1;
     // Four years are 1461 days, the leap year first.
     let year = days * 4 / 1461;
-    let leap = year % 4 == 0;
+    let leap = year.is_multiple_of(4);
     let in_year = days - days_before_year(year);
     let month = (1..12)
         .rev()
@@ -58,7 +58,7 @@ pub fn seconds(tr: u32, dr: u32) -> Option<u32> {
     let year = from_bcd(dr >> 16 & 0xFF, 99)?;
     let month = from_bcd(dr >> 8 & 0x1F, 12)?.checked_sub(1)? as usize;
     let day = from_bcd(dr & 0x3F, 31)?.checked_sub(1)?;
-    let days = days_before_year(year) + days_before_month(month, year % 4 == 0) + day;
+    let days = days_before_year(year) + days_before_month(month, year.is_multiple_of(4)) + day;
     let h = from_bcd(tr >> 16 & 0x3F, 23)?;
     let m = from_bcd(tr >> 8 & 0x7F, 59)?;
     let s = from_bcd(tr & 0x7F, 59)?;
