@@ -14,6 +14,7 @@ pub mod keypad;
 pub mod lcd;
 pub mod link;
 pub mod outputs;
+pub mod rtc;
 pub mod service;
 pub mod shared;
 
@@ -35,7 +36,9 @@ pub const IMAGE: &str = "firmware-plc";
 
 /// Brings the board up and starts every task.
 pub async fn start(spawner: Spawner) {
-    let (p, _cause) = board_common::boot::init(IMAGE, env!("CARGO_PKG_VERSION"));
+    let (p, _cause) =
+        board_common::boot::init_with(IMAGE, env!("CARGO_PKG_VERSION"), rtc::keep_backup_domain());
+    rtc::open();
     let board = pins::split(p);
     // Outputs off before anything else can take time.
     let outputs = outputs::DigitalOutputs::new(board.outputs);

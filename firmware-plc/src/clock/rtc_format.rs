@@ -1,0 +1,104 @@
+//! The RTC's calendar registers (RM0440 RTC_TR, RTC_DR: BCD, 24-hour format, two-digit
+//! year from 2000, week day 1 = Monday) to and from seconds since 2000-01-01 00:00:00 UTC,
+//! so that the board only moves words between the registers and the core.
+
+use shared_protocol::service::WALL_MAX_S;
+
+const SECONDS_PER_DAY: u32 = 86_400;
+/// Days before each month of a common year.
+const DAYS_BEFORE_MONTH: [u32; 12] = [0, 31, 59, 90, 120, 151, 181, 212, 243, 273, 304, 334];
+
+fn bcd(v: u32) -> u32 {
+    ((v / 10) << 4) | (v % 10)
+}
+
+/// A BCD field, `None` when a digit is not decimal or the value exceeds `max`.
+fn from_bcd(v: u32, max: u32) -> Option<u32> {
+    let (tens, units) = (v >> 4, v & 0xF);
+    let n = tens * 10 + units;
+    (units < 10 && n <= max).then_some(n)
+}
+
+/// Days from 2000-01-01 to 1 January of year `y` (2000-2099: every fourth year from 2000 is
+/// a leap year).
+fn days_before_year(y: u32) -> u32 {
+    365 * y + y.div_ceil(4)
+}
+
+/// Days from 1 January to the first of month `m` (0-based) in a year (`leap` or not).
+fn days_before_month(m: usize, leap: bool) -> u32 {
+    DAYS_BEFORE_MONTH.get(m).copied().unwrap_or(0) + u32::from(leap && m >= 2)
+}
+
+/// RTC_TR and RTC_DR for `seconds` (at most [`WALL_MAX_S`]; later values write its
+/// last second).
+pub fn registers(seconds: u32) -> (u32, u32) {
+    let seconds = seconds.min(WALL_MAX_S);
+    let days = seconds / SECONDS_PER_DAY;
+    let in_day = seconds % SECONDS_PER_DAY;
+    // 2000-01-01 was a Saturday (6).
+    let weekday = (days + 5) % 7 + 1;
+    // Four years are 1461 days, the leap year first.
+    let year = days * 4 / 1461;
+    let leap = year.is_multiple_of(4);
+    let in_year = days - days_before_year(year);
+    let month = (1..12)
+        .rev()
+        .find(|&m| days_before_month(m, leap) <= in_year)
+        .unwrap_or(0);
+    let day = in_year - days_before_month(month, leap) + 1;
+    let tr = bcd(in_day % 60) | bcd(in_day / 60 % 60) << 8 | bcd(in_day / 3600) << 16;
+    let dr = bcd(day) | bcd(month as u32 + 1) << 8 | weekday << 13 | bcd(year) << 16;
+    (tr, dr)
+}
+
+/// Seconds since 2000-01-01 00:00:00 for RTC_TR and RTC_DR as read (24-hour format);
+/// `None` for a field out of range (a calendar never written by this firmware).
+pub fn seconds(tr: u32, dr: u32) -> Option<u32> {
+    let year = from_bcd(dr >> 16 & 0xFF, 99)?;
+    let month = from_bcd(dr >> 8 & 0x1F, 12)?.checked_sub(1)? as usize;
+    let day = from_bcd(dr & 0x3F, 31)?.checked_sub(1)?;
+    let days = days_before_year(year) + days_before_month(month, year.is_multiple_of(4)) + day;
+    let h = from_bcd(tr >> 16 & 0x3F, 23)?;
+    let m = from_bcd(tr >> 8 & 0x7F, 59)?;
+    let s = from_bcd(tr & 0x7F, 59)?;
+    Some(days * SECONDS_PER_DAY + h * 3600 + m * 60 + s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn known_dates_in_rm0440s_bcd() {
+        // 2000-01-01 00:00:00 was a Saturday (6); the backup-domain reset DR says Monday.
+        assert_eq!(registers(0), (0, 0x0000_C101));
+        // 2024-02-29 13:45:07, Thursday (4).
+        let s = 8_825 * 86_400 + 13 * 3600 + 45 * 60 + 7;
+        assert_eq!(registers(s), (0x0013_4507, 0x0024_8229));
+        // 2099-12-31 23:59:59, Thursday.
+        assert_eq!(registers(WALL_MAX_S), (0x0023_5959, 0x0099_9231));
+        assert_eq!(registers(u32::MAX), registers(WALL_MAX_S));
+    }
+
+    #[test]
+    fn every_day_of_the_century_round_trips() {
+        for day in 0..36_525u32 {
+            for in_day in [0, 43_199, 86_399] {
+                let s = day * 86_400 + in_day;
+                let (tr, dr) = registers(s);
+                assert_eq!(seconds(tr, dr), Some(s), "{s}: {tr:#x} {dr:#x}");
+            }
+        }
+    }
+
+    #[test]
+    fn fields_out_of_range_read_as_no_time() {
+        assert_eq!(seconds(0, 0x0000_2100), None, "day 0");
+        assert_eq!(seconds(0, 0x0000_2001), None, "month 0");
+        assert_eq!(seconds(0, 0x0000_3301), None, "month 13");
+        assert_eq!(seconds(0x0024_0000, 0x0000_2101), None, "hour 24");
+        assert_eq!(seconds(0x0000_000A, 0x0000_2101), None, "not BCD");
+        assert_eq!(seconds(0, 0x0000_2101), Some(0));
+    }
+}
