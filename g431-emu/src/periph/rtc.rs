@@ -753,10 +753,10 @@ mod tests {
         assert_eq!(r.read(DR, copy), Some(0x0026_2315));
         assert_ne!(r.read(ICSR, copy).unwrap() & icsr::INITS, 0);
         r.backup_domain_reset();
-        assert_eq!(r.read(DR, t), Some(DR_RESET));
+        assert_eq!(r.read(DR, copy), Some(DR_RESET));
         // The reset calendar counts on from 00:00:00 while RTCCLK is there (the SoC's BDRST
         // also clears RCC_BDCR.RTCEN, which stops it).
-        assert_eq!(r.read(TR, t + cycles(5, 1)), Some(0x0000_0005));
+        assert_eq!(r.read(TR, copy + cycles(5, 1)), Some(0x0000_0005));
     }
 
     #[test]
