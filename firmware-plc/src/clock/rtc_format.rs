@@ -4,9 +4,9 @@
 
 use shared_protocol::service::WALL_MAX_S;
 
+use crate::editor::calendar;
+
 const SECONDS_PER_DAY: u32 = 86_400;
-/// Days before each month of a common year.
-const DAYS_BEFORE_MONTH: [u32; 12] = [0, 31, 59, 90, 120, 151, 181, 212, 243, 273, 304, 334];
 
 fn bcd(v: u32) -> u32 {
     ((v / 10) << 4) | (v % 10)
@@ -19,15 +19,15 @@ fn from_bcd(v: u32, max: u32) -> Option<u32> {
     (units < 10 && n <= max).then_some(n)
 }
 
-/// Days from 2000-01-01 to 1 January of year `y` (2000-2099: every fourth year from 2000 is
-/// a leap year).
-fn days_before_year(y: u32) -> u32 {
-    365 * y + y.div_ceil(4)
-}
-
-/// Days from 1 January to the first of month `m` (0-based) in a year (`leap` or not).
-fn days_before_month(m: usize, leap: bool) -> u32 {
-    DAYS_BEFORE_MONTH.get(m).copied().unwrap_or(0) + u32::from(leap && m >= 2)
+/// Days from 2000-01-01 to `year` (0-99 from 2000), `month` (1-12), `day` (1-31): the
+/// inverse of [`calendar::date`] for the RTC's century. Days are counted from a March 1st
+/// (the leap day ends a year, `(153 * m + 2) / 5` days before March-based month `m`), from
+/// four years early so that January and February of 2000 stay unsigned.
+fn days(year: u32, month: u32, day: u32) -> u32 {
+    let march_based = (month + 9) % 12;
+    let y = year + 4 - u32::from(month <= 2);
+    // 1461: the four years added; 60: 2000-01-01 to 2000-03-01.
+    365 * y + y / 4 + (153 * march_based + 2) / 5 + day + 60 - 1 - 1461
 }
 
 /// RTC_TR and RTC_DR for `seconds` (at most [`WALL_MAX_S`]; later values write its
@@ -38,17 +38,9 @@ pub fn registers(seconds: u32) -> (u32, u32) {
     let in_day = seconds % SECONDS_PER_DAY;
     // 2000-01-01 was a Saturday (6).
     let weekday = (days + 5) % 7 + 1;
-    // Four years are 1461 days, the leap year first.
-    let year = days * 4 / 1461;
-    let leap = year.is_multiple_of(4);
-    let in_year = days - days_before_year(year);
-    let month = (1..12)
-        .rev()
-        .find(|&m| days_before_month(m, leap) <= in_year)
-        .unwrap_or(0);
-    let day = in_year - days_before_month(month, leap) + 1;
+    let (year, month, day) = calendar::date(days);
     let tr = bcd(in_day % 60) | bcd(in_day / 60 % 60) << 8 | bcd(in_day / 3600) << 16;
-    let dr = bcd(day) | bcd(month as u32 + 1) << 8 | weekday << 13 | bcd(year) << 16;
+    let dr = bcd(day) | bcd(month) << 8 | weekday << 13 | bcd(year - 2000) << 16;
     (tr, dr)
 }
 
@@ -56,13 +48,15 @@ pub fn registers(seconds: u32) -> (u32, u32) {
 /// `None` for a field out of range (a calendar never written by this firmware).
 pub fn seconds(tr: u32, dr: u32) -> Option<u32> {
     let year = from_bcd(dr >> 16 & 0xFF, 99)?;
-    let month = from_bcd(dr >> 8 & 0x1F, 12)?.checked_sub(1)? as usize;
-    let day = from_bcd(dr & 0x3F, 31)?.checked_sub(1)?;
-    let days = days_before_year(year) + days_before_month(month, year.is_multiple_of(4)) + day;
+    let month = from_bcd(dr >> 8 & 0x1F, 12)?;
+    let day = from_bcd(dr & 0x3F, 31)?;
+    if month == 0 || day == 0 {
+        return None;
+    }
     let h = from_bcd(tr >> 16 & 0x3F, 23)?;
     let m = from_bcd(tr >> 8 & 0x7F, 59)?;
     let s = from_bcd(tr & 0x7F, 59)?;
-    Some(days * SECONDS_PER_DAY + h * 3600 + m * 60 + s)
+    Some(days(year, month, day) * SECONDS_PER_DAY + h * 3600 + m * 60 + s)
 }
 
 #[cfg(test)]
