@@ -23,7 +23,8 @@ pub fn init(image: &str, version: &str) -> (Peripherals, ResetCause) {
 }
 
 /// [`init`] with the backup domain's clocks `ls` (embassy resets the backup domain when
-/// RCC_BDCR differs from them: the PLC passes what its RTC already runs on).
+/// RCC_BDCR differs from them: the PLC passes what its RTC runs on), the RTC's clock mux
+/// the same (embassy writes the mux's RTCSEL after the check).
 pub fn init_with(
     image: &str,
     version: &str,
@@ -34,6 +35,7 @@ pub fn init_with(
     config.bdma_interrupt_priority = BACKGROUND;
     config.rcc = clocks::config();
     config.rcc.ls = ls;
+    config.rcc.mux.rtcsel = ls.rtc;
     let p = embassy_stm32::init(config);
     clocks::enable_prefetch();
     interrupt::TIM4.set_priority(BACKGROUND);

@@ -8,26 +8,26 @@ use crate::editor::calendar;
 
 const SECONDS_PER_DAY: u32 = 86_400;
 
+/// `v` (0-99) in BCD: 16 per ten instead of 10.
 fn bcd(v: u32) -> u32 {
-    ((v / 10) << 4) | (v % 10)
+    v + 6 * (v / 10)
 }
 
-/// A BCD field, `None` when a digit is not decimal or the value exceeds `max`.
-fn from_bcd(v: u32, max: u32) -> Option<u32> {
-    let (tens, units) = (v >> 4, v & 0xF);
-    let n = tens * 10 + units;
-    (units < 10 && n <= max).then_some(n)
+/// A BCD field's value (digits above 9 give a number [`seconds`]' check refuses).
+fn from_bcd(v: u32) -> u32 {
+    v - 6 * (v >> 4)
 }
 
 /// Days from 2000-01-01 to `year` (0-99 from 2000), `month` (1-12), `day` (1-31): the
 /// inverse of [`calendar::date`] for the RTC's century. Days are counted from a March 1st
 /// (the leap day ends a year, `(153 * m + 2) / 5` days before March-based month `m`), from
-/// four years early so that January and February of 2000 stay unsigned.
+/// four years early so that January and February of 2000 stay unsigned. Fields out of
+/// range give some day count, never an overflow.
 fn days(year: u32, month: u32, day: u32) -> u32 {
     let march_based = (month + 9) % 12;
     let y = year + 4 - u32::from(month <= 2);
-    // 1461: the four years added; 60: 2000-01-01 to 2000-03-01.
-    365 * y + y / 4 + (153 * march_based + 2) / 5 + day + 60 - 1 - 1461
+    // 1461: the four years added; 59: 2000-01-01 to 2000-03-01, less the first day.
+    (365 * y + y / 4 + (153 * march_based + 2) / 5 + day + 59).saturating_sub(1461)
 }
 
 /// RTC_TR and RTC_DR for `seconds` (at most [`WALL_MAX_S`]; later values write its
@@ -45,18 +45,19 @@ pub fn registers(seconds: u32) -> (u32, u32) {
 }
 
 /// Seconds since 2000-01-01 00:00:00 for RTC_TR and RTC_DR as read (24-hour format);
-/// `None` for a field out of range (a calendar never written by this firmware).
+/// `None` unless they are exactly what [`registers`] writes for it (a field out of range,
+/// a digit above 9, a wrong week day or reserved bits set: a calendar this firmware did
+/// not write).
 pub fn seconds(tr: u32, dr: u32) -> Option<u32> {
-    let year = from_bcd(dr >> 16 & 0xFF, 99)?;
-    let month = from_bcd(dr >> 8 & 0x1F, 12)?;
-    let day = from_bcd(dr & 0x3F, 31)?;
-    if month == 0 || day == 0 {
-        return None;
-    }
-    let h = from_bcd(tr >> 16 & 0x3F, 23)?;
-    let m = from_bcd(tr >> 8 & 0x7F, 59)?;
-    let s = from_bcd(tr & 0x7F, 59)?;
-    Some(days(year, month, day) * SECONDS_PER_DAY + h * 3600 + m * 60 + s)
+    let days = days(
+        from_bcd(dr >> 16 & 0xFF),
+        from_bcd(dr >> 8 & 0x1F),
+        from_bcd(dr & 0x3F),
+    );
+    let in_day =
+        from_bcd(tr >> 16 & 0x3F) * 3600 + from_bcd(tr >> 8 & 0x7F) * 60 + from_bcd(tr & 0x7F);
+    let s = days.wrapping_mul(SECONDS_PER_DAY).wrapping_add(in_day);
+    (registers(s) == (tr, dr)).then_some(s)
 }
 
 #[cfg(test)]
@@ -88,11 +89,15 @@ mod tests {
 
     #[test]
     fn fields_out_of_range_read_as_no_time() {
-        assert_eq!(seconds(0, 0x0000_2100), None, "day 0");
-        assert_eq!(seconds(0, 0x0000_2001), None, "month 0");
-        assert_eq!(seconds(0, 0x0000_3301), None, "month 13");
-        assert_eq!(seconds(0x0024_0000, 0x0000_2101), None, "hour 24");
-        assert_eq!(seconds(0x0000_000A, 0x0000_2101), None, "not BCD");
-        assert_eq!(seconds(0, 0x0000_2101), Some(0));
+        assert_eq!(seconds(0, 0x0000_C100), None, "day 0");
+        assert_eq!(seconds(0, 0x0000_C001), None, "month 0");
+        assert_eq!(seconds(0, 0x0000_D301), None, "month 13");
+        assert_eq!(seconds(0x0024_0000, 0x0000_C101), None, "hour 24");
+        assert_eq!(seconds(0x0000_000A, 0x0000_C101), None, "not BCD");
+        assert_eq!(seconds(0, 0x0000_C230), None, "30 February");
+        assert_eq!(seconds(0, 0x0000_2101), None, "the reset value's Monday");
+        assert_eq!(seconds(0x0040_0000, 0x0000_C101), None, "PM");
+        assert_eq!(seconds(0, 0x0000_C101), Some(0));
+        assert_eq!(seconds(u32::MAX, u32::MAX), None);
     }
 }

@@ -36,9 +36,8 @@ pub const IMAGE: &str = "firmware-plc";
 
 /// Brings the board up and starts every task.
 pub async fn start(spawner: Spawner) {
-    let (p, _cause) =
-        board_common::boot::init_with(IMAGE, env!("CARGO_PKG_VERSION"), rtc::keep_backup_domain());
-    rtc::open();
+    rtc::prepare();
+    let (p, _cause) = board_common::boot::init_with(IMAGE, env!("CARGO_PKG_VERSION"), rtc::LS);
     let board = pins::split(p);
     // Outputs off before anything else can take time.
     let outputs = outputs::DigitalOutputs::new(board.outputs);
