@@ -117,16 +117,25 @@ pub fn clock_set(c: &mut Client, time: Option<DateTime<Utc>>) -> Result<()> {
     Ok(())
 }
 
+/// Why `serve` sets a PLC clock that reads `plc` when the PC's time is `pc`: unset, or off
+/// by more than [`SERVE_TOLERANCE_S`]; `None` leaves it alone.
+fn why_set(plc: Option<u32>, pc: DateTime<Utc>) -> Option<String> {
+    let Some(s) = plc else {
+        return Some("unset".to_string());
+    };
+    match offset_s(s, pc) {
+        Some(o) if o.abs() <= SERVE_TOLERANCE_S => None,
+        Some(o) => Some(format!("off by {o:+.1} s")),
+        None => Some(format!("at {s} s")),
+    }
+}
+
 /// `serve` on connecting: sets the clock to the PC's when it is unset or off by more than
 /// [`SERVE_TOLERANCE_S`]; returns the line to log when it did.
 pub fn sync_on_connect(c: &mut Client) -> Result<Option<String>> {
-    let why = match get(c)? {
-        (None, _) => "unset".to_string(),
-        (Some(s), pc) => match offset_s(s, pc) {
-            Some(o) if o.abs() <= SERVE_TOLERANCE_S => return Ok(None),
-            Some(o) => format!("off by {o:+.1} s"),
-            None => format!("at {s} s"),
-        },
+    let (plc, pc) = get(c)?;
+    let Some(why) = why_set(plc, pc) else {
+        return Ok(None);
     };
     let s = set(c, None)?;
     Ok(Some(format!("PLC clock was {why}: set to {}", show(s))))
@@ -166,5 +175,23 @@ mod tests {
     fn the_offset_is_the_plcs_minus_the_pcs() {
         let pc = parse_time("2026-11-29 10:00:03").unwrap();
         assert_eq!(offset_s(849_261_600, pc), Some(-3.0));
+    }
+
+    #[test]
+    fn serve_sets_an_unset_clock_or_one_off_by_more_than_2_s() {
+        let pc = parse_time("2026-11-29 10:00:00").unwrap();
+        let plc = 849_261_600;
+        assert_eq!(why_set(None, pc).as_deref(), Some("unset"));
+        assert_eq!(why_set(Some(plc), pc), None);
+        assert_eq!(why_set(Some(plc + 2), pc), None, "2 s ahead: left");
+        assert_eq!(why_set(Some(plc - 2), pc), None, "2 s behind: left");
+        assert_eq!(why_set(Some(plc + 3), pc).as_deref(), Some("off by +3.0 s"));
+        assert_eq!(why_set(Some(plc - 3), pc).as_deref(), Some("off by -3.0 s"));
+        // Half a second past the tolerance (the PC's time between whole seconds).
+        let pc_half = pc + chrono::Duration::milliseconds(2_500);
+        assert_eq!(
+            why_set(Some(plc), pc_half).as_deref(),
+            Some("off by -2.5 s")
+        );
     }
 }
