@@ -19,10 +19,23 @@ pub const BACKGROUND: Priority = Priority::P2;
 /// [`BACKGROUND`] (embassy-stm32 0.6 enables it at P0 and has no setting for it), prints
 /// the boot line and, with `dwt-cycles`, starts the cycle counter.
 pub fn init(image: &str, version: &str) -> (Peripherals, ResetCause) {
+    init_with(image, version, embassy_stm32::rcc::LsConfig::default())
+}
+
+/// [`init`] with the backup domain's clocks `ls` (embassy resets the backup domain when
+/// RCC_BDCR differs from them: the PLC passes what its RTC runs on), the RTC's clock mux
+/// the same (embassy writes the mux's RTCSEL after the check).
+pub fn init_with(
+    image: &str,
+    version: &str,
+    ls: embassy_stm32::rcc::LsConfig,
+) -> (Peripherals, ResetCause) {
     let cause = reset_cause::take();
     let mut config = embassy_stm32::Config::default();
     config.bdma_interrupt_priority = BACKGROUND;
     config.rcc = clocks::config();
+    config.rcc.ls = ls;
+    config.rcc.mux.rtcsel = ls.rtc;
     let p = embassy_stm32::init(config);
     clocks::enable_prefetch();
     interrupt::TIM4.set_priority(BACKGROUND);

@@ -60,6 +60,7 @@ use crate::storage::{
 use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 
 mod service;
+mod time_of_day;
 mod wall;
 
 pub(crate) use service::checked_slot;
@@ -154,6 +155,8 @@ pub struct PlcApp<E: Eeprom> {
     /// What the service port reports besides the above, and remote service
     /// (`app/service.rs`).
     observed: service::Observed,
+    /// The time of day (`crate::clock`).
+    wall: crate::clock::WallClock,
 }
 
 /// When each safety function was last requested (the rise of its bit in the drive's
@@ -259,6 +262,7 @@ impl<E: Eeprom> PlcApp<E> {
             drawn_alerts: None,
             reported_run: RunState::Stopped,
             observed: service::Observed::default(),
+            wall: crate::clock::WallClock::new(),
             safety: SafetyTimes {
                 seen: 0,
                 since_ms: [0; 12],

@@ -14,6 +14,7 @@
 
 pub mod app;
 pub mod bus_recovery;
+pub mod clock;
 pub mod debounce;
 pub mod editor;
 pub mod link;

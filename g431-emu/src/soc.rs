@@ -329,6 +329,9 @@ impl Soc {
         self.poll = Poll::default();
         self.stop = StopRequest::default();
         let now = self.now;
+        if why == crate::periph::rcc::ResetKind::PowerOn {
+            self.backup_domain_power_on();
+        }
         self.sync_backup_domain(now);
         self.cycles.reset();
     }

@@ -98,9 +98,8 @@ pub fn read_log(c: &mut Client) -> Result<Vec<LogEntry>> {
 
 /// The entry's time of day on the PLC's clock, local time, or [`CLOCK_NOT_SET`].
 pub fn wall_time(e: &LogEntry) -> String {
-    const UNIX_2000_S: i64 = 946_684_800;
     e.wall_s
-        .and_then(|s| chrono::DateTime::from_timestamp(UNIX_2000_S + i64::from(s), 0))
+        .and_then(crate::time_of_day::utc)
         .map(|t| {
             t.with_timezone(&chrono::Local)
                 .format("%Y-%m-%d %H:%M:%S")

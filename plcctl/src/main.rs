@@ -13,6 +13,7 @@ mod program;
 mod push;
 mod serve;
 mod status;
+mod time_of_day;
 mod trend;
 
 use std::path::PathBuf;
@@ -113,6 +114,12 @@ enum Cmd {
     Ack,
     /// Erase the fault log (remote service on, PLC in STOP).
     ClearFaults,
+    /// The PLC's clock (UTC, and this PC's local time) and its offset to this PC; `clock
+    /// set` sets it.
+    Clock {
+        #[command(subcommand)]
+        set: Option<ClockCmd>,
+    },
     /// The web monitor: one page, a JSON API and an event stream (plcctl/docs/serve.md).
     Serve {
         /// Address and port; port 0 picks a free one. Off loopback a token is required.
@@ -136,6 +143,16 @@ enum Cmd {
         /// Append the access and action log to this file too (always on stderr).
         #[arg(long)]
         log: Option<PathBuf>,
+    },
+}
+
+#[derive(Subcommand)]
+enum ClockCmd {
+    /// Set the PLC's clock (never guarded): to this PC's UTC time, or to --time.
+    Set {
+        /// RFC 3339 (2026-11-29T11:00:00+01:00), or YYYY-MM-DD HH:MM:SS in UTC.
+        #[arg(long, value_parser = time_of_day::parse_time)]
+        time: Option<chrono::DateTime<chrono::Utc>>,
     },
 }
 
@@ -196,6 +213,10 @@ fn real_main(cli: Cli) -> Result<()> {
         Cmd::Stop => done(&mut connect()?, Request::Stop, "STOP"),
         Cmd::Ack => done(&mut connect()?, Request::Ack, "acknowledge sent"),
         Cmd::ClearFaults => done(&mut connect()?, Request::ClearFaultLog, "fault log cleared"),
+        Cmd::Clock { set: None } => time_of_day::clock(&mut connect()?),
+        Cmd::Clock {
+            set: Some(ClockCmd::Set { time }),
+        } => time_of_day::clock_set(&mut connect()?, time),
         Cmd::Serve {
             bind,
             profile,

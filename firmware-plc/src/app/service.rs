@@ -471,6 +471,12 @@ impl<E: Eeprom> PlcApp<E> {
                 Ok(()) => Outcome::Answer(Answer::Done),
                 Err(crate::storage::QueueFull) => refused(RefuseReason::Busy),
             },
+            Request::SetClock { seconds } if !self.set_wall_clock(seconds, now) => {
+                refused(RefuseReason::Transfer)
+            }
+            Request::GetClock | Request::SetClock { .. } => Outcome::Answer(Answer::Clock {
+                seconds: self.wall_seconds(now),
+            }),
         }
     }
 

@@ -1,4 +1,5 @@
-//! The PLC's time of day, as the fault log stores it.
+//! The wall clock as the rest of the application reads it (the fault log's entries, the
+//! service's `GetClock`). The clock itself is `crate::clock`.
 
 use shared_protocol::units::Micros;
 
@@ -6,9 +7,8 @@ use super::PlcApp;
 use crate::storage::Eeprom;
 
 impl<E: Eeprom> PlcApp<E> {
-    /// seconds since 2000-01-01 00:00:00 UTC; None while the clock is unset
+    /// Seconds since 2000-01-01 00:00:00 UTC at `now`; `None` while the clock is unset.
     pub(crate) fn wall_seconds(&self, now: Micros) -> Option<u32> {
-        let _ = now;
-        None
+        self.wall.seconds(now)
     }
 }

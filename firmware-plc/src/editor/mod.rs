@@ -23,7 +23,7 @@
 //! * `A` (RUN) verifies first; on an error the listing jumps to the bad line and the
 //!   status row shows `NNN:reason`, and no RUN is requested.
 
-mod calendar;
+pub(crate) mod calendar;
 mod choice;
 mod key;
 mod pages;

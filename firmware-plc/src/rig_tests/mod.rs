@@ -5,6 +5,7 @@
 
 mod link_app;
 mod service;
+mod service_clock;
 mod service_counters;
 mod service_support;
 mod service_write;

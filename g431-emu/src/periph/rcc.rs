@@ -51,6 +51,7 @@ pub mod bdcr {
     pub const LSEON: u32 = 1 << 0;
     pub const LSERDY: u32 = 1 << 1;
     pub const RTCSEL_SHIFT: u32 = 8;
+    pub const RTCSEL: u32 = 0b11 << RTCSEL_SHIFT;
     pub const RTCEN: u32 = 1 << 15;
     pub const BDRST: u32 = 1 << 16;
     /// Read-only: LSERDY, LSECSSD (6), LSESYSRDY (11).
@@ -379,7 +380,17 @@ impl Rcc {
             self.backup_domain_reset = true;
             return;
         }
-        *self.reg_mut(BDCR) = (v & !bdcr::READ_ONLY) | (old & bdcr::READ_ONLY);
+        // RM0440 RCC_BDCR.RTCSEL: "Once the RTC clock source has been selected, it cannot
+        // be changed anymore unless the RTC domain is reset, or unless a failure is
+        // detected on LSE (LSECSSD is set)" (the LSE's CSS is not modelled): a selection
+        // holds until BDRST or a power-on, later writes of the field are ignored, silently
+        // as on the silicon (embassy's clock set-up writes its mux's RTCSEL at every boot).
+        let keep = if old & bdcr::RTCSEL != 0 {
+            bdcr::READ_ONLY | bdcr::RTCSEL
+        } else {
+            bdcr::READ_ONLY
+        };
+        *self.reg_mut(BDCR) = (v & !keep) | (old & keep);
         let on = v & bdcr::LSEON != 0;
         if !on {
             *self.reg_mut(BDCR) &= !bdcr::LSERDY;
@@ -635,6 +646,36 @@ impl Peripheral for Rcc {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// RM0440 RCC_BDCR.RTCSEL: once selected, the RTC's clock changes only through a
+    /// backup-domain reset; a later write of 00 (embassy's clock mux at every boot) leaves
+    /// the RTC on its clock.
+    #[test]
+    fn rtcsel_holds_its_selection_until_bdrst() {
+        let mut r = Rcc::new(ResetKind::PowerOn);
+        r.set_backup_writable(true);
+        let lse_rtc = bdcr::LSEON | (1 << bdcr::RTCSEL_SHIFT) | bdcr::RTCEN;
+        r.write(Write::word(BDCR, lse_rtc), 0);
+        assert_eq!(r.bdcr() & bdcr::RTCSEL, 1 << bdcr::RTCSEL_SHIFT);
+        r.write(Write::word(BDCR, bdcr::LSEON | bdcr::RTCEN), 1);
+        r.write(Write::word(BDCR, lse_rtc | (2 << bdcr::RTCSEL_SHIFT)), 2);
+        assert_eq!(r.bdcr() & bdcr::RTCSEL, 1 << bdcr::RTCSEL_SHIFT, "kept");
+        assert_eq!(r.bdcr() & bdcr::RTCEN, bdcr::RTCEN, "RTCEN takes writes");
+        r.write(Write::word(BDCR, bdcr::LSEON), 3);
+        assert_eq!(
+            r.bdcr() & (bdcr::RTCSEL | bdcr::RTCEN),
+            1 << bdcr::RTCSEL_SHIFT
+        );
+        // A system reset keeps it; BDRST clears it and a new selection takes.
+        r.system_reset(ResetKind::Software);
+        assert_eq!(r.bdcr() & bdcr::RTCSEL, 1 << bdcr::RTCSEL_SHIFT);
+        r.set_backup_writable(true);
+        r.write(Write::word(BDCR, bdcr::BDRST), 4);
+        r.write(Write::word(BDCR, 0), 5);
+        assert_eq!(r.bdcr(), 0);
+        r.write(Write::word(BDCR, 2 << bdcr::RTCSEL_SHIFT), 6);
+        assert_eq!(r.bdcr() & bdcr::RTCSEL, 2 << bdcr::RTCSEL_SHIFT);
+    }
 
     /// embassy's 170 MHz: HSI16 / 4 x 85 / 2 (PLLSRC = HSI16, PLLM = 3, PLLN = 85, PLLREN).
     const PLL_170: u32 = 2 | (3 << 4) | (85 << 8) | (1 << 24);

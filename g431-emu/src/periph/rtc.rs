@@ -167,9 +167,10 @@ impl Calendar {
 
     fn add_seconds(&mut self, n: u64) {
         let day_before = self.secs / SECONDS_PER_DAY;
-        // 2099-12-31 23:59:59 rolls over to 2000-01-01 (the year counter has two digits).
+        // RM0440 RTC_DR: "The calendar is frozen when reaching the maximum value, and can't
+        // roll over" (2099-12-31 23:59:59: the year counter has two digits).
         const CENTURY: u64 = 36_525 * SECONDS_PER_DAY;
-        self.secs = (self.secs + n) % CENTURY;
+        self.secs = self.secs.saturating_add(n).min(CENTURY - 1);
         let days = (self.secs / SECONDS_PER_DAY).wrapping_sub(day_before) % 7;
         if self.weekday != 0 {
             self.weekday = ((u64::from(self.weekday) - 1 + days) % 7 + 1) as u8;
@@ -208,6 +209,12 @@ pub struct Rtc {
     /// DR (and TR) locked by a read of SSR or TR, until DR is read.
     locked_dr: Option<u32>,
     locked_tr: Option<u32>,
+    /// A system reset put the shadow registers back to their reset values: reads give
+    /// those until the next copy (RM0440 "Reading the calendar", "Resetting the RTC").
+    shadow_reset: bool,
+    /// A system reset cleared RSF: the next copy is scheduled when RTCCLK is next given
+    /// ([`Rtc::set_clock`], right after the reset).
+    copy_after_reset: bool,
     reports: DistinctReports,
 }
 
@@ -240,6 +247,8 @@ impl Rtc {
             writable: false,
             locked_dr: None,
             locked_tr: None,
+            shadow_reset: false,
+            copy_after_reset: false,
             reports: DistinctReports::default(),
         }
     }
@@ -260,6 +269,10 @@ impl Rtc {
         if hz != self.clock_hz {
             self.clock_hz = hz;
             self.remainder = 0;
+        }
+        if self.copy_after_reset && self.running() {
+            self.copy_after_reset = false;
+            self.rsf_at = self.periods(COPY_PERIODS, now);
         }
     }
 
@@ -327,7 +340,10 @@ impl Rtc {
     }
 
     fn icsr(&self) -> u32 {
-        let mut v = 0;
+        // ALRAWF, ALRBWF, WUTWF: set while the alarms and the wake-up timer are disabled
+        // (they are not modelled: CR enabling them is reported), cleared in initialization
+        // mode (backup-domain reset value 0x0000_0007).
+        let mut v = if self.initf { 0 } else { 0b111 };
         if self.cal.secs >= 366 * SECONDS_PER_DAY {
             v |= icsr::INITS;
         }
@@ -390,6 +406,13 @@ impl Peripheral for Rtc {
         self.advance(now);
         let prediv_s = self.prediv_s();
         Some(match offset {
+            TR | DR | SSR if self.shadow_reset => {
+                self.read_calendar_early("TR/DR/SSR");
+                match offset {
+                    DR => DR_RESET,
+                    _ => 0,
+                }
+            }
             TR => {
                 self.read_calendar_early("TR");
                 let tr = self
@@ -505,6 +528,7 @@ impl Peripheral for Rtc {
             if self.rsf_at == Some(t) {
                 self.rsf_at = None;
                 self.rsf = true;
+                self.shadow_reset = false;
             }
         }
         self.count(now);
@@ -515,8 +539,25 @@ impl Peripheral for Rtc {
         self.reports.take()
     }
 
-    /// A system reset does not reach the backup domain: the calendar runs on.
-    fn reset(&mut self) {}
+    /// A system reset does not reach the backup domain: the calendar runs on (and a
+    /// calendar in initialization mode restarts). It clears INIT, INITF and RSF and resets
+    /// the shadow registers (RM0440 RTC_ICSR "System reset value", "Resetting the RTC"):
+    /// reads give the reset values until the next copy sets RSF again.
+    fn reset(&mut self) {
+        let now = self.last;
+        if self.init {
+            self.init = false;
+            self.initf = false;
+            self.initf_at = None;
+            self.restart_at = self.periods(RESTART_PERIODS, now);
+        }
+        self.rsf = false;
+        self.rsf_at = None;
+        self.locked_dr = None;
+        self.locked_tr = None;
+        self.shadow_reset = true;
+        self.copy_after_reset = true;
+    }
 }
 
 #[cfg(test)]
@@ -565,7 +606,7 @@ mod tests {
         assert_eq!(r.read(DR, 0), Some(DR_RESET));
         assert_eq!(r.read(TR, 0), Some(0));
         assert_eq!(r.read(PRER, 0), Some(PRER_RESET));
-        assert_eq!(r.read(ICSR, 0), Some(0));
+        assert_eq!(r.read(ICSR, 0), Some(0x0000_0007));
         assert_eq!(
             r.read(0x40, 0),
             None,
@@ -687,15 +728,64 @@ mod tests {
         let mut r = clocked();
         let mut now = 0;
         set_calendar(&mut r, 0x0008_0000, 0x0026_2315, &mut now);
-        r.reset();
         let t = now + cycles(3, 1);
-        assert_eq!(r.read(TR, t), Some(0x0008_0003), "ran on through the reset");
-        assert_eq!(r.read(DR, t), Some(0x0026_2315));
-        r.backup_domain_reset();
+        r.advance(t);
+        r.reset();
+        // As the SoC does after every reset: RTCCLK (still the LSE) given again.
+        r.set_clock(Some(LSE_HZ), t);
+        // INIT, INITF and RSF cleared; the shadow registers at their reset values until
+        // the next copy (reported: software must wait for RSF).
+        assert_eq!(
+            r.read(ICSR, t).unwrap() & (icsr::INIT | icsr::INITF | icsr::RSF),
+            0
+        );
+        assert_eq!(r.read(TR, t), Some(0));
         assert_eq!(r.read(DR, t), Some(DR_RESET));
+        assert!(r.take_reports().iter().any(|m| m.contains("RSF = 0")));
+        let copy = r.next_event().expect("the next copy is due");
+        assert_eq!(copy, t + (2 * HCLK_HZ).div_ceil(LSE_HZ));
+        assert_ne!(r.read(ICSR, copy).unwrap() & icsr::RSF, 0);
+        assert_eq!(
+            r.read(TR, copy),
+            Some(0x0008_0003),
+            "ran on through the reset"
+        );
+        assert_eq!(r.read(DR, copy), Some(0x0026_2315));
+        assert_ne!(r.read(ICSR, copy).unwrap() & icsr::INITS, 0);
+        r.backup_domain_reset();
+        assert_eq!(r.read(DR, copy), Some(DR_RESET));
         // The reset calendar counts on from 00:00:00 while RTCCLK is there (the SoC's BDRST
         // also clears RCC_BDCR.RTCEN, which stops it).
-        assert_eq!(r.read(TR, t + cycles(5, 1)), Some(0x0000_0005));
+        assert_eq!(r.read(TR, copy + cycles(5, 1)), Some(0x0000_0005));
+    }
+
+    #[test]
+    fn a_reset_in_initialization_mode_restarts_the_counters() {
+        let mut r = clocked();
+        unlock(&mut r, 0);
+        r.write(Write::word(ICSR, icsr::INIT), 0);
+        let initf = r.next_event().unwrap();
+        assert_eq!(
+            r.read(ICSR, initf).unwrap() & 0b111,
+            0,
+            "write flags clear in init"
+        );
+        r.reset();
+        r.set_clock(Some(LSE_HZ), initf);
+        assert_eq!(r.read(ICSR, initf).unwrap() & icsr::INIT, 0);
+        let t = initf + cycles(2, 1);
+        assert_eq!(r.read(TR, t), Some(0x0000_0001), "counting again");
+    }
+
+    #[test]
+    fn the_calendar_freezes_at_its_last_second() {
+        let mut r = clocked();
+        let mut now = 0;
+        // 2099-12-31 23:59:58, Thursday.
+        set_calendar(&mut r, 0x0023_5958, 0x0099_9231, &mut now);
+        let t = now + cycles(5, 1);
+        assert_eq!(r.read(TR, t), Some(0x0023_5959));
+        assert_eq!(r.read(DR, t), Some(0x0099_9231));
     }
 
     #[test]

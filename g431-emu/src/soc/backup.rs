@@ -51,6 +51,20 @@ impl Soc {
         self.refresh(r);
     }
 
+    /// A power-on: the boards have no battery on VBAT (the NUCLEO-G431RB's and the ESC1's
+    /// documents show none), so the backup domain is lost with VDD (RM0440 "Backup domain
+    /// reset": VDD or VBAT power-on when both were off). RCC_BDCR is reset by the RCC's
+    /// own power-on reset.
+    pub(super) fn backup_domain_power_on(&mut self) {
+        let (r, tp) = (self.wired.rtc, self.wired.tamp);
+        if let Some(rtc) = self.model_mut::<Rtc>(r) {
+            rtc.backup_domain_reset();
+        }
+        if let Some(tamp) = self.model_mut::<Tamp>(tp) {
+            tamp.backup_domain_reset();
+        }
+    }
+
     /// The RTC model (for the host and tests: the calendar the image set).
     pub fn rtc(&self) -> Option<&Rtc> {
         self.model::<Rtc>(self.wired.rtc)
@@ -146,6 +160,22 @@ mod tests {
         s.bus_write(BDCR, 4, 0);
         assert_eq!(s.bus_read(TAMP_BKP0R, 4), 0);
         assert_eq!(s.bus_read(RTC_DR, 4), 0x0000_2101);
+    }
+
+    #[test]
+    fn a_power_on_loses_the_backup_domain() {
+        let mut s = Soc::new(vec![0xFF; 16], Box::new(WithLse));
+        let start = start_calendar(&mut s).expect("LSERDY, INITF and RSF set");
+        s.bus_write(TAMP_BKP0R, 4, 0xC0FF_EE00);
+        s.system_reset(crate::periph::rcc::ResetKind::PowerOn);
+        s.advance_to(start + HCLK_HZ);
+        assert_eq!(s.bus_read(TAMP_BKP0R, 4), 0);
+        assert_eq!(s.bus_read(BDCR, 4), 0);
+        assert_eq!(
+            s.bus_read(RTC_ICSR, 4) & (1 << 4),
+            0,
+            "INITS: never initialized"
+        );
     }
 
     #[test]

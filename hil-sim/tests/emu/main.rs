@@ -16,6 +16,7 @@ mod common;
 mod board_findings;
 mod boot;
 mod cli;
+mod clock;
 mod exceptions;
 mod io;
 mod link;

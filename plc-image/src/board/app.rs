@@ -65,7 +65,9 @@ pub async fn run(
         let start = super::cycles::now();
         let now = shared::now();
         let report = shared::with(app, |a| {
-            svc.lock(|s| pass.run(a, &mut s.borrow_mut(), &mut io, &mut lcd, now))
+            let report = svc.lock(|s| pass.run(a, &mut s.borrow_mut(), &mut io, &mut lcd, now));
+            super::rtc::pass(a, now);
+            report
         });
         if report.link_due {
             board_common::link::kick();

@@ -14,6 +14,7 @@ pub mod keypad;
 pub mod lcd;
 pub mod link;
 pub mod outputs;
+pub mod rtc;
 pub mod service;
 pub mod shared;
 mod wide_div;
@@ -36,7 +37,8 @@ pub const IMAGE: &str = "firmware-plc";
 
 /// Brings the board up and starts every task.
 pub async fn start(spawner: Spawner) {
-    let (p, _cause) = board_common::boot::init(IMAGE, env!("CARGO_PKG_VERSION"));
+    rtc::prepare();
+    let (p, _cause) = board_common::boot::init_with(IMAGE, env!("CARGO_PKG_VERSION"), rtc::LS);
     let board = pins::split(p);
     // Outputs off before anything else can take time.
     let outputs = outputs::DigitalOutputs::new(board.outputs);

@@ -80,7 +80,7 @@ struct Ctx {
     shared: Arc<Shared>,
     access: Access,
     hosts: Hosts,
-    log: log::Log,
+    log: Arc<log::Log>,
     actions: Sender<Action>,
     profile: Value,
 }
@@ -91,7 +91,7 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
         None => profile::Profile::default(),
     };
     let q = profile.subscribed_q();
-    let log = log::Log::open(args.log.as_deref()).map_err(|e| {
+    let log = Arc::new(log::Log::open(args.log.as_deref()).map_err(|e| {
         Fail::Usage(anyhow::anyhow!(
             "cannot open the log {}: {e}",
             args.log
@@ -99,7 +99,7 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
                 .unwrap_or(std::path::Path::new(""))
                 .display()
         ))
-    })?;
+    })?);
     let listener = TcpListener::bind(&args.bind)
         .map_err(|e| Fail::Usage(anyhow::anyhow!("cannot bind {}: {e}", args.bind)))?;
     let addr: SocketAddr = listener.local_addr()?;
@@ -119,7 +119,8 @@ pub fn serve(connect: impl Fn() -> Result<Client> + Send + 'static, args: ServeA
     {
         let shared = Arc::clone(&shared);
         let port = args.port.clone();
-        std::thread::spawn(move || plc::keep_running(connect, port, q, shared, rx));
+        let log = Arc::clone(&log);
+        std::thread::spawn(move || plc::keep_running(connect, port, q, shared, rx, log));
     }
     let ctx = Arc::new(Ctx {
         shared,

@@ -136,10 +136,11 @@ pub fn keep_running(
     q: Vec<u8>,
     shared: Arc<Shared>,
     actions: Receiver<Action>,
+    log: Arc<super::log::Log>,
 ) {
     loop {
         let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            run(&connect, &port, &q, &shared, &actions)
+            run(&connect, &port, &q, &shared, &actions, &log)
         }));
         if let Err(panic) = r {
             let text = panic
@@ -164,11 +165,16 @@ fn run(
     q: &[u8],
     shared: &Shared,
     actions: &Receiver<Action>,
+    log: &super::log::Log,
 ) {
     loop {
         let attempt = connect().and_then(|mut c| {
             let mine = check_identity(&mut shared.lock().plc_uid, c.identity.uid, port);
             mine.map_err(|m| Fail::Usage(anyhow::anyhow!(m)))?;
+            // The PLC's clock stamps its log: set it when unset or off (docs/serve.md).
+            if let Some(line) = crate::time_of_day::sync_on_connect(&mut c)? {
+                log.line(None, &line);
+            }
             subscribe(&mut c, q).map(|_| c)
         });
         let mut c = match attempt {
@@ -383,6 +389,7 @@ mod tests {
                     vec![0, 1],
                     shared,
                     rx,
+                    Arc::new(crate::serve::log::Log::open(None).unwrap()),
                 )
             });
         }

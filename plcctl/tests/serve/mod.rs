@@ -13,6 +13,7 @@ use super::{announced, motor, temp, Sim, PLCCTL};
 
 mod browser;
 mod cdp;
+mod clock;
 mod limits;
 
 /// A running `plcctl serve` on a free loopback port.

@@ -76,6 +76,14 @@ pub enum Request {
     Ack,
     /// Guarded, STOP only: erase the fault log (it then holds the event `LOGCLR`).
     ClearFaultLog,
+    /// The PLC's time of day ([`Answer::Clock`]).
+    GetClock,
+    /// Never guarded (it writes no EEPROM and changes no output): set the PLC's clock to
+    /// `seconds` since 2000-01-01 00:00:00 UTC ([`super::WALL_MAX_S`] at most, else
+    /// `Refused(Transfer)`); answered with the clock as set ([`Answer::Clock`]).
+    SetClock {
+        seconds: u32,
+    },
 }
 
 impl Request {
@@ -124,6 +132,11 @@ pub enum Answer {
     WriteResult(WriteResult),
     /// Sent with id 0, unasked, while subscribed.
     Sample(Sample),
+    /// The PLC's time of day: seconds since 2000-01-01 00:00:00 UTC, `None` while its
+    /// clock is unset (never set since its backup domain lost power).
+    Clock {
+        seconds: Option<u32>,
+    },
 }
 
 /// Why a request was refused (service.md 3).

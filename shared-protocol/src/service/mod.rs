@@ -24,7 +24,8 @@ use crate::link::frame::{encode_frame, Frame, FrameError, FrameReader};
 /// (slot 0 is the program in RAM).
 pub const SLOTS: u8 = 4;
 /// The service protocol's version (`Hello`), independent of the link's: 3 since a
-/// fault-log entry holds the time of day and two application values (docs/service.md).
+/// fault-log entry holds the time of day and two application values, and the PC reads and
+/// sets the PLC's clock (docs/service.md).
 pub const SERVICE_VERSION: u16 = 3;
 /// Default line rate (a firmware constant; `plcctl --baud` must match).
 pub const SERVICE_BAUD: u32 = 115_200;
@@ -59,6 +60,12 @@ pub const LOG_POSITIONS: u8 = 32;
 pub const LOG_FROM_NEWEST: u8 = 0xFF;
 /// Largest program payload (eeprom-image.md: one copy's 63 pages minus its header).
 pub const PROGRAM_MAX_BYTES: u16 = 4016;
+/// The last second the PLC's clock holds, 2099-12-31 23:59:59 UTC, in seconds since
+/// 2000-01-01 00:00:00 UTC: the RTC counts two-digit years (RM0440 RTC_DR) and stops there.
+pub const WALL_MAX_S: u32 = 36_525 * 86_400 - 1;
+/// Unix time of 2000-01-01 00:00:00 UTC, the epoch of the PLC's clock.
+pub const WALL_EPOCH_UNIX_S: i64 = 946_684_800;
+
 /// A log entry's uptime at this value means "this long or longer" (24 bits of seconds).
 pub const UPTIME_LIMIT_S: u32 = 0x00FF_FFFF;
 

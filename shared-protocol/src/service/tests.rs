@@ -141,6 +141,9 @@ fn largest_answers() -> std::vec::Vec<Answer> {
         Answer::WriteResult(WriteResult::Saved {
             generation: u32::MAX
         }),
+        Answer::Clock {
+            seconds: Some(u32::MAX),
+        },
         Answer::Sample(Sample {
             uptime_ms: u64::MAX,
             plc: PlcState::Starting,
@@ -195,6 +198,8 @@ fn largest_requests() -> std::vec::Vec<Request> {
         Request::Stop,
         Request::Ack,
         Request::ClearFaultLog,
+        Request::GetClock,
+        Request::SetClock { seconds: u32::MAX },
     ]
 }
 
@@ -247,7 +252,7 @@ fn guarded_set_is_the_spec_table() {
         guarded,
         [
             false, false, false, false, false, false, false, false, false, true, true, true, true,
-            false, true, true
+            false, true, true, false, false
         ]
     );
 }
