@@ -39,7 +39,7 @@ fn plcctl() -> &'static PathBuf {
 /// moving the pty's bytes to and from the image while virtual time never runs ahead of
 /// the wall clock (plcctl's retries are wall-clock times). Returns its exit status,
 /// stdout and stderr.
-fn plcctl_on_the_image(sim: &mut EmuSim, args: &[&str]) -> (ExitStatus, String, String) {
+pub(crate) fn plcctl_on_the_image(sim: &mut EmuSim, args: &[&str]) -> (ExitStatus, String, String) {
     let mut pty = Pty::open().expect("a pty");
     let mut child = Command::new(plcctl())
         .env(
