@@ -5,8 +5,9 @@
 //! byte, see `docs/link.md` "Fault codes on the wire").
 //!
 //! **One table.** `fault_table!` below is the only list of codes: it makes the enum,
-//! [`FaultCode::ALL`], [`FaultCode::COUNT`], [`FaultCode::from_code`], the names, the
-//! texts and the automatic-restart bits ([`FaultCode::restart_bit`]). Everything sized per code follows [`FaultCode::COUNT`]: the PLC's trip counters
+//! [`FaultCode::ALL`], [`FaultCode::COUNT`], [`FaultCode::from_code`], the names, the texts
+//! and the automatic-restart bits ([`FaultCode::restart_bit`]). Everything sized per code
+//! follows [`FaultCode::COUNT`]: the PLC's trip counters
 //! (`firmware_plc::storage::counters::TRIP_CODES`, its EEPROM record), the service's
 //! [`crate::service::Trips`], plcctl's and hil-sim's texts (they call [`fault_name`] and
 //! [`fault_text`]), and `docs/fault-codes.md` (a test walks the table against it). A new
