@@ -39,28 +39,10 @@ impl RestartPolicy {
     };
 }
 
-/// The bit of `arc` that lets `f` restart; 0 for the classes that never restart. Every
-/// code is listed, so that a new one is placed here knowingly.
+/// The bit of `arc` that lets `f` restart; 0 for the classes that never restart: the fault
+/// table's `arc` column (`shared_protocol::fault`), where every code states it.
 pub const fn class_bit(f: FaultCode) -> u16 {
-    match f {
-        FaultCode::Uv => 1,
-        FaultCode::Ov => 2,
-        FaultCode::Oc => 4,
-        FaultCode::OcHw
-        | FaultCode::OvHw
-        | FaultCode::Link
-        | FaultCode::Prog
-        | FaultCode::Wdg
-        | FaultCode::Boot
-        | FaultCode::Sto
-        | FaultCode::Ss1
-        | FaultCode::Ramp
-        | FaultCode::Sos
-        | FaultCode::Sls
-        | FaultCode::Sli
-        | FaultCode::Sdi
-        | FaultCode::Sla => 0,
-    }
+    f.restart_bit()
 }
 
 /// The restart's counters, stepped every millisecond by the control tick.

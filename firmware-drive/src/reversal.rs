@@ -113,7 +113,12 @@ impl Reversal {
 }
 
 #[cfg(test)]
+#[path = "../tests/support/ramp_profile.rs"]
+mod ramp_profile;
+
+#[cfg(test)]
 mod tests {
+    use super::ramp_profile::{ramp_profile, ramp_segments};
     use super::*;
 
     #[test]
@@ -250,43 +255,6 @@ mod tests {
         assert_eq!(r.cycle(42, 200, 0), None);
     }
 
-    /// A command profile of ramp segments: to `target` (0.1 Hz) by `step` every `every_ms`,
-    /// then held `hold_ms`: slow ramps with plateaus (the motor example's lag), fast ones,
-    /// steps, stops.
-    fn profile(segments: &[(i16, i16, u8, u8)]) -> std::vec::Vec<i16> {
-        let mut f = 0i16;
-        let mut out = std::vec::Vec::new();
-        for &(target, step, every_ms, hold_ms) in segments {
-            while f != target {
-                f = if f < target {
-                    (f + step).min(target)
-                } else {
-                    (f - step).max(target)
-                };
-                for _ in 0..every_ms {
-                    out.push(f);
-                }
-            }
-            for _ in 0..hold_ms {
-                out.push(f);
-            }
-        }
-        out
-    }
-
-    fn segments() -> impl proptest::strategy::Strategy<Value = std::vec::Vec<(i16, i16, u8, u8)>> {
-        use proptest::prelude::*;
-        proptest::collection::vec(
-            (
-                prop_oneof![1 => Just(0i16), 3 => 0i16..=300, 1 => 300i16..=600],
-                prop_oneof![3 => Just(1i16), 1 => 1i16..=50],
-                1u8..=6,
-                0u8..=60,
-            ),
-            1..10,
-        )
-    }
-
     proptest::proptest! {
         /// 002 4.2 over random ramps and request times (before a ramp-down, during it, at
         /// a steady speed, at standstill): the phase order changes only at standstill
@@ -296,12 +264,12 @@ mod tests {
         /// applies at the first rise below frv, and one pending at a command of 0 applies.
         #[test]
         fn swaps_only_when_rising_below_frv_or_at_standstill(
-            segs in segments(),
+            segs in ramp_segments(10),
             requests in proptest::collection::vec(0u16..1000, 0..8),
             frv in 1i16..300,
             fmn in 0i16..100,
         ) {
-            let fs = profile(&segs);
+            let fs = ramp_profile(&segs);
             let n = fs.len();
             // Request times as fractions of the profile (toggling the direction).
             let at: std::vec::Vec<usize> =

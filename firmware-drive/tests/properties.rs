@@ -13,6 +13,10 @@ use shared_protocol::program::{
     Section,
 };
 
+#[path = "support/ramp_profile.rs"]
+mod ramp_profile;
+use ramp_profile::{ramp_profile, ramp_segments};
+
 /// A valid drive line: mnemonic, operand and constant chosen from the verifier's own
 /// tables; Q operands folded onto Q00-Q03 so that the random commands hit them.
 fn instruction() -> impl Strategy<Value = Instruction> {
@@ -461,37 +465,6 @@ proptest! {
     }
 }
 
-/// A command profile of ramp segments: to `target` (0.1 Hz) by `step` every `every_ms`,
-/// then held `hold_ms` (slow ramps with plateaus, fast ones, steps, stops).
-fn ramp_profile(segments: &[(i16, i16, u8, u8)]) -> Vec<i16> {
-    let mut f = 0i16;
-    let mut out = Vec::new();
-    for &(target, step, every_ms, hold_ms) in segments {
-        while f != target {
-            f = if f < target {
-                (f + step).min(target)
-            } else {
-                (f - step).max(target)
-            };
-            out.extend(std::iter::repeat_n(f, usize::from(every_ms)));
-        }
-        out.extend(std::iter::repeat_n(f, usize::from(hold_ms)));
-    }
-    out
-}
-
-fn ramp_segments() -> impl Strategy<Value = Vec<(i16, i16, u8, u8)>> {
-    prop::collection::vec(
-        (
-            prop_oneof![1 => Just(0i16), 3 => 0i16..=300, 1 => 300i16..=600],
-            prop_oneof![3 => Just(1i16), 1 => 1i16..=50],
-            1u8..=6,
-            0u8..=60,
-        ),
-        1..8,
-    )
-}
-
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
 
@@ -504,7 +477,7 @@ proptest! {
     /// pending while the command fell is in effect at the first rise below frv.
     #[test]
     fn the_phase_order_changes_only_when_the_command_rises_below_frv_or_at_standstill(
-        segs in ramp_segments(),
+        segs in ramp_segments(8),
         requests in prop::collection::vec(0u16..1000, 0..8),
         frv in 1i16..300,
         fmn in 0i16..100,

@@ -5,8 +5,9 @@
 //! byte, see `docs/link.md` "Fault codes on the wire").
 //!
 //! **One table.** `fault_table!` below is the only list of codes: it makes the enum,
-//! [`FaultCode::ALL`], [`FaultCode::COUNT`], [`FaultCode::from_code`], the names and the
-//! texts. Everything sized per code follows [`FaultCode::COUNT`]: the PLC's trip counters
+//! [`FaultCode::ALL`], [`FaultCode::COUNT`], [`FaultCode::from_code`], the names, the texts
+//! and the automatic-restart bits ([`FaultCode::restart_bit`]). Everything sized per code
+//! follows [`FaultCode::COUNT`]: the PLC's trip counters
 //! (`firmware_plc::storage::counters::TRIP_CODES`, its EEPROM record), the service's
 //! [`crate::service::Trips`], plcctl's and hil-sim's texts (they call [`fault_name`] and
 //! [`fault_text`]), and `docs/fault-codes.md` (a test walks the table against it). A new
@@ -14,10 +15,13 @@
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-/// The table: `Variant = code, "NAME", "text";` with the doc comment of the code. Codes
-/// are consecutive from 1 (a test checks it), so that per-code arrays index `code - 1`.
+/// The table: `Variant = code, "NAME", "text", arc bit;` with the doc comment of the code.
+/// Codes are consecutive from 1 (a test checks it), so that per-code arrays index
+/// `code - 1`. `arc bit`: the bit of the drive section's `arc` setting that lets the code
+/// restart by itself ([`FaultCode::restart_bit`]), 0 for a latched class; every code
+/// states it, so that a new one is placed knowingly.
 macro_rules! fault_table {
-    ($($(#[$doc:meta])* $v:ident = $code:literal, $name:literal, $text:literal;)+) => {
+    ($($(#[$doc:meta])* $v:ident = $code:literal, $name:literal, $text:literal, arc $arc:literal;)+) => {
         /// Latched fault codes (drive.md table; `Boot` is this project's addition,
         /// drive.md's code 8; `Ov` is this project's, `docs/fault-codes.md`).
         #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -58,49 +62,61 @@ macro_rules! fault_table {
                     $(FaultCode::$v => $text,)+
                 }
             }
+
+            /// The bit of the drive section's `arc` that lets this code restart by itself
+            /// (`firmware-drive` `docs/drive-core.md` "Automatic restart"): only the
+            /// software trips whose cause lies outside the drive and goes by itself, `UV`
+            /// 1, `OV` 2, `OC` 4. 0: a latched class, never restarted whatever `arc` says
+            /// (the hardware trips, `STO` and the safety functions, `LINK`, `PROG`, `WDG`,
+            /// `BOOT`).
+            pub const fn restart_bit(self) -> u16 {
+                match self {
+                    $(FaultCode::$v => $arc,)+
+                }
+            }
         }
     };
 }
 
 fault_table! {
     /// Software overcurrent: |i_a| or |i_b| above `I>`.
-    Oc = 1, "OC", "overcurrent";
+    Oc = 1, "OC", "overcurrent", arc 4;
     /// Hardware comparator on a phase current (TIM1 break input).
-    OcHw = 2, "OC_HW", "overcurrent (HW)";
+    OcHw = 2, "OC_HW", "overcurrent (HW)", arc 0;
     /// Hardware comparator on the DC link (TIM1 break input), and its software twin at
     /// `U>>` every PWM period.
-    OvHw = 3, "OV_HW", "overvoltage (HW)";
+    OvHw = 3, "OV_HW", "overvoltage (HW)", arc 0;
     /// DC link below `U<` while the PWM is on.
-    Uv = 4, "UV", "undervoltage";
+    Uv = 4, "UV", "undervoltage", arc 1;
     /// No valid frame from the PLC within the link timeout in RUN.
-    Link = 5, "LINK", "link lost";
+    Link = 5, "LINK", "link lost", arc 0;
     /// Drive section rejected on download.
-    Prog = 6, "PROG", "program rejected";
+    Prog = 6, "PROG", "program rejected", arc 0;
     /// The drive restarted through its watchdog.
-    Wdg = 7, "WDG", "watchdog reset";
+    Wdg = 7, "WDG", "watchdog reset", arc 0;
     /// The boot self-test failed (sine table, timer setup or current-sensor offset out of
     /// tolerance).
-    Boot = 8, "BOOT", "self-test failed";
+    Boot = 8, "BOOT", "self-test failed", arc 0;
     /// Safety (NOT RATED, safety.md 7): STO requested in RUN (`SFR STO` or `STO_IN` low).
-    Sto = 9, "STO", "STO requested";
+    Sto = 9, "STO", "STO requested", arc 0;
     /// SS1 reached its end (time or early limit): STO.
-    Ss1 = 10, "SS1", "SS1 done: STO";
+    Ss1 = 10, "SS1", "SS1 done: STO", arc 0;
     /// Ramp envelope exceeded, or an SS2/SLS target missed at the end of the ramp.
-    Ramp = 11, "RAMP", "ramp violated";
+    Ramp = 11, "RAMP", "ramp violated", arc 0;
     /// Standstill lost (SOS, or SS2 in standstill).
-    Sos = 12, "SOS", "standstill lost";
+    Sos = 12, "SOS", "standstill lost", arc 0;
     /// Over an SLS limit in its safe state.
-    Sls = 13, "SLS", "over SLS limit";
+    Sls = 13, "SLS", "over SLS limit", arc 0;
     /// SLI: moved more than `pli`, or requested while moving.
-    Sli = 14, "SLI", "SLI turns exceed";
+    Sli = 14, "SLI", "SLI turns exceed", arc 0;
     /// SDI: moved more than `pss` against the allowed direction.
-    Sdi = 15, "SDI", "wrong direction";
+    Sdi = 15, "SDI", "wrong direction", arc 0;
     /// SLA: acceleration or deceleration above its limit.
-    Sla = 16, "SLA", "over SLA limit";
+    Sla = 16, "SLA", "over SLA limit", arc 0;
     /// Software overvoltage: the DC link above `U>` while the outputs switch, on a board
     /// without a brake chopper (`docs/fault-codes.md`): between the overvoltage
     /// controller's level and `U>>`.
-    Ov = 17, "OV", "overvoltage";
+    Ov = 17, "OV", "overvoltage", arc 2;
 }
 
 /// A byte that is no [`FaultCode`] (0 is "no fault", codes above [`FaultCode::COUNT`] are
