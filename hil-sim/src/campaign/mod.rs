@@ -257,7 +257,10 @@ mod tests {
         };
         s.by_class[0] = 5;
         let r = s.render();
-        assert!(r.starts_with("3 runs, 5 faults injected, 1 violations\n"), "{r}");
+        assert!(
+            r.starts_with("3 runs, 5 faults injected, 1 violations\n"),
+            "{r}"
+        );
         assert!(r.contains("link_bit_errors 5"), "{r}");
     }
 }

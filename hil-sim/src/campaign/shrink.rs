@@ -7,10 +7,18 @@ use super::runner::{run, Outcome};
 use super::world::World;
 
 /// The shortest list found that still breaks `invariant`, and its outcome.
-pub fn shrink(world: &World, faults: &[Fault], invariant: &str, first: Outcome) -> (Vec<Fault>, Outcome) {
+pub fn shrink(
+    world: &World,
+    faults: &[Fault],
+    invariant: &str,
+    first: Outcome,
+) -> (Vec<Fault>, Outcome) {
     shrink_with(faults, first, |f| {
         let o = run(world, f);
-        let same = o.violation.as_ref().is_some_and(|v| v.invariant == invariant);
+        let same = o
+            .violation
+            .as_ref()
+            .is_some_and(|v| v.invariant == invariant);
         same.then_some(o)
     })
 }

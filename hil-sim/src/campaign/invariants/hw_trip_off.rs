@@ -52,6 +52,9 @@ mod tests {
         let mut inv = HwTripOff;
         assert_eq!(first_firing(&mut inv, &[on, off]), None);
         assert!(first_firing(&mut inv, &[sto]).unwrap().1.contains("STO_IN"));
-        assert!(first_firing(&mut inv, &[comp]).unwrap().1.contains("comparator"));
+        assert!(first_firing(&mut inv, &[comp])
+            .unwrap()
+            .1
+            .contains("comparator"));
     }
 }

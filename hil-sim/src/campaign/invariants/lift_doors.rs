@@ -52,7 +52,10 @@ mod tests {
     #[test]
     fn fires_on_an_open_door_in_travel() {
         let mut inv = LiftDoors;
-        assert_eq!(first_firing(&mut inv, &[lift(1.0, 0.0), lift(0.0, 500.0)]), None);
+        assert_eq!(
+            first_firing(&mut inv, &[lift(1.0, 0.0), lift(0.0, 500.0)]),
+            None
+        );
         let (_, m) = first_firing(&mut inv, &[lift(0.5, -300.0)]).unwrap();
         assert!(m.contains("50 % open"), "{m}");
     }

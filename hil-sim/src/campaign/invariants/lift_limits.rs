@@ -47,6 +47,9 @@ mod tests {
         let mut inv = LiftLimits;
         assert_eq!(first_firing(&mut inv, &[car(-39.0), car(3039.0)]), None);
         assert!(first_firing(&mut inv, &[car(-41.0)]).is_some());
-        assert!(first_firing(&mut inv, &[car(3041.0)]).unwrap().1.contains("3041"));
+        assert!(first_firing(&mut inv, &[car(3041.0)])
+            .unwrap()
+            .1
+            .contains("3041"));
     }
 }

@@ -61,10 +61,11 @@ pub fn check_all(invariants: &mut [Box<dyn Invariant>], o: &Observation) -> Opti
 
 /// Test helper: the first step of `trace` at which `inv` fires.
 #[cfg(test)]
-pub(crate) fn first_firing(inv: &mut dyn Invariant, trace: &[Observation]) -> Option<(u64, String)> {
-    trace
-        .iter()
-        .find_map(|o| inv.check(o).map(|m| (o.t_ns, m)))
+pub(crate) fn first_firing(
+    inv: &mut dyn Invariant,
+    trace: &[Observation],
+) -> Option<(u64, String)> {
+    trace.iter().find_map(|o| inv.check(o).map(|m| (o.t_ns, m)))
 }
 
 #[cfg(test)]

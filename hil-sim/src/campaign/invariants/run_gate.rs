@@ -85,10 +85,18 @@ mod tests {
         let (run, idle) = (DriveState::Run, DriveState::Idle);
         let mut inv = RunGate::default();
         // The period of the default observation is 100 us.
-        let fine = [at(0, run, true, true), at(10, idle, true, true), at(100_000, idle, true, true)];
+        let fine = [
+            at(0, run, true, true),
+            at(10, idle, true, true),
+            at(100_000, idle, true, true),
+        ];
         assert_eq!(first_firing(&mut inv, &fine), None);
         let mut inv = RunGate::default();
-        let late = [at(0, run, true, true), at(10, DriveState::Fault, true, true), at(102_000, DriveState::Fault, true, true)];
+        let late = [
+            at(0, run, true, true),
+            at(10, DriveState::Fault, true, true),
+            at(102_000, DriveState::Fault, true, true),
+        ];
         let m = first_firing(&mut inv, &late).unwrap().1;
         assert!(m.contains("FAULT"), "{m}");
     }
@@ -101,7 +109,10 @@ mod tests {
         assert_eq!(first_firing(&mut inv, &fine), None);
         let mut inv = RunGate::default();
         let late = [at(0, run, true, true), at(60_000_000, run, false, true)];
-        assert!(first_firing(&mut inv, &late).unwrap().1.contains("left RUN"));
+        assert!(first_firing(&mut inv, &late)
+            .unwrap()
+            .1
+            .contains("left RUN"));
         let mut inv = RunGate::default();
         assert!(first_firing(&mut inv, &[at(0, run, false, true)]).is_some());
     }

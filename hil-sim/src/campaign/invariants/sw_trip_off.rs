@@ -59,7 +59,12 @@ mod tests {
     fn fires_when_the_outputs_outlive_the_fault_by_more_than_a_pwm_period() {
         // The period of the default observation is 100 us.
         let mut inv = SwTripOff::default();
-        let in_time = [at(0, 0, true), at(10, 1, true), at(100_010, 1, true), at(100_020, 1, false)];
+        let in_time = [
+            at(0, 0, true),
+            at(10, 1, true),
+            at(100_010, 1, true),
+            at(100_020, 1, false),
+        ];
         assert_eq!(first_firing(&mut inv, &in_time), None);
         let mut inv = SwTripOff::default();
         let late = [at(0, 0, true), at(10, 4, true), at(101_011, 4, true)];

@@ -73,7 +73,11 @@ mod tests {
     #[test]
     fn fires_when_a_break_leaves_no_fault() {
         let mut inv = TripLatched::default();
-        let latched = [at(0, true, false, 0), at(10, false, true, 0), at(500_000, false, false, 9)];
+        let latched = [
+            at(0, true, false, 0),
+            at(10, false, true, 0),
+            at(500_000, false, false, 9),
+        ];
         assert_eq!(first_firing(&mut inv, &latched), None);
         let mut inv = TripLatched::default();
         let lost = [
