@@ -19,15 +19,16 @@ pub enum FaultKind {
     LinkBurst { to_drive: bool, bytes: u32 },
     /// Both wires cut for `for_ns`, then restored.
     LinkCut { for_ns: u64 },
-    /// A spike on one sensed phase current (what the comparators see) in the next PWM
-    /// period, `width_ns` wide from `from_ns` into it.
+    /// A spike on one sensed phase current (what the comparators see), `width_ns` wide
+    /// from `from_ns` into the next PWM period; one wider than the period goes on for
+    /// whole periods ([`sustain`]).
     CurrentSpike {
         phase: usize,
         amps: f64,
         from_ns: u64,
         width_ns: u64,
     },
-    /// A spike on the sensed DC-link voltage in the next PWM period.
+    /// A spike on the sensed DC-link voltage, as [`FaultKind::CurrentSpike`].
     UdcSpike {
         volts: f64,
         from_ns: u64,
@@ -90,7 +91,9 @@ impl FaultKind {
             | FaultKind::LinkCut { for_ns }
             | FaultKind::Supply { for_ns, .. }
             | FaultKind::LockedRotor { for_ns } => for_ns,
-            FaultKind::StoPulse { width_ns } => width_ns,
+            FaultKind::StoPulse { width_ns }
+            | FaultKind::CurrentSpike { width_ns, .. }
+            | FaultKind::UdcSpike { width_ns, .. } => width_ns,
             _ => 0,
         }
     }
@@ -235,6 +238,42 @@ pub fn apply(sim: &mut Simulation, edge: &FaultEdge, base: &Baseline) {
         (FaultKind::PlcPowerCut, false) => sim.restart_plc(),
         (FaultKind::CurrentSpike { .. } | FaultKind::UdcSpike { .. }, true)
         | (FaultKind::DrivePowerCut | FaultKind::PlcPowerCut, true) => {}
+    }
+}
+
+/// A spike wider than the PWM period running when it starts goes on past that period.
+pub fn outlasts_the_period(kind: &FaultKind, period_ns: u64) -> bool {
+    match *kind {
+        FaultKind::CurrentSpike {
+            from_ns, width_ns, ..
+        }
+        | FaultKind::UdcSpike {
+            from_ns, width_ns, ..
+        } => from_ns.saturating_add(width_ns) > period_ns,
+        _ => false,
+    }
+}
+
+/// Arms `kind`'s spike for the whole of the next PWM period (the plant takes a spike for
+/// one period at a time): a spike wider than a period is rounded up to whole periods.
+pub fn sustain(sim: &mut Simulation, kind: &FaultKind) {
+    match *kind {
+        FaultKind::CurrentSpike { phase, amps, .. } => {
+            sim.plant_mut().inject_sense_spike(SenseSpike {
+                phase,
+                amps,
+                from_ns: 0,
+                to_ns: u64::MAX,
+            })
+        }
+        FaultKind::UdcSpike { volts, .. } => {
+            sim.plant_mut().inject_udc_sense_spike(UdcSenseSpike {
+                volts,
+                from_ns: 0,
+                to_ns: u64::MAX,
+            })
+        }
+        _ => {}
     }
 }
 

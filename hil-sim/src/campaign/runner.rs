@@ -3,7 +3,7 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use super::faults::{apply, edges, Fault};
+use super::faults::{apply, edges, outlasts_the_period, sustain, Fault, FaultKind};
 use super::invariants::{self, check_all, Violation, NO_PANIC};
 use super::observe::Observation;
 use super::world::World;
@@ -86,6 +86,8 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
     let edges = edges(faults);
     let mut k = 0;
     let end = world.duration_ns;
+    // Spikes wider than a PWM period, until their end: re-armed for every period.
+    let mut sustained: Vec<(u64, FaultKind)> = Vec::new();
     let mut last: Option<Observation> = None;
     let mut observe = |sim: &Simulation, p: &mut Progress| -> Option<Violation> {
         p.sim_ns = sim.now_ns();
@@ -115,8 +117,16 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
             apply(&mut sim, e, &world.baseline);
             if !e.end {
                 p.injected += 1;
+                if outlasts_the_period(&e.kind, sim.plant().period_ns()) {
+                    sustained.push((e.at_ns + e.kind.duration_ns(), e.kind));
+                }
             }
             k += 1;
+        }
+        let now = sim.now_ns();
+        sustained.retain(|(until, _)| *until > now);
+        for (_, kind) in &sustained {
+            sustain(&mut sim, kind);
         }
         sim.run_until(next, |_| {});
         if let Some(v) = observe(&sim, p) {

@@ -258,12 +258,12 @@ fn fault_kind(rng: &mut Rng) -> FaultKind {
             phase: rng.range(0, 3) as usize,
             amps: if rng.chance(0.5) { 1.0 } else { -1.0 } * rng.uniform(1.0, 15.0),
             from_ns: us(rng.uniform(0.0, 120.0)),
-            width_ns: us(rng.log_uniform(0.1, 100.0)),
+            width_ns: us(rng.log_uniform(0.1, 5000.0)),
         },
         4 => FaultKind::UdcSpike {
             volts: rng.uniform(2.0, 30.0),
             from_ns: us(rng.uniform(0.0, 120.0)),
-            width_ns: us(rng.log_uniform(0.1, 100.0)),
+            width_ns: us(rng.log_uniform(0.1, 5000.0)),
         },
         5 => FaultKind::StoPulse {
             width_ns: us(rng.log_uniform(1.0, 50_000.0)),
