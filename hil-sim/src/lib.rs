@@ -13,6 +13,7 @@
 //! Decisions and model equations: `hil-sim/docs/`.
 
 pub mod args;
+pub mod campaign;
 pub mod decimate;
 pub mod emu;
 pub mod lab;

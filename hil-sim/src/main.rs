@@ -72,6 +72,28 @@ enum Cmd {
         #[arg(long)]
         log: bool,
     },
+    /// A seeded fault campaign on the cores: generated worlds, injected faults, invariants
+    /// checked at every step (docs/campaign.md). Exits 3 when an invariant broke.
+    Campaign {
+        /// How many seeds (worlds) to run.
+        #[arg(long)]
+        seeds: u64,
+        /// The first seed; seeds `first .. first + seeds` run.
+        #[arg(long, default_value_t = 1)]
+        first: u64,
+        /// Worlds run in parallel (threads).
+        #[arg(long, default_value_t = 1)]
+        jobs: usize,
+        /// Simulated seconds per world.
+        #[arg(long, default_value_t = 2.0, value_parser = hil_sim::args::duration_s)]
+        duration: f64,
+        /// At most this many faults per world.
+        #[arg(long, default_value_t = 6)]
+        max_faults: u32,
+        /// Report failing seeds without shrinking their fault lists.
+        #[arg(long)]
+        no_shrink: bool,
+    },
 }
 
 /// What `run` and `emu` share: the program, the scenario and the record.
@@ -297,7 +319,52 @@ fn real_main(cli: Cli) -> Result<ExitCode> {
             plc_elf,
             log,
         } => cmd_emu(&record, drive_elf.as_deref(), plc_elf.as_deref(), log),
+        Cmd::Campaign {
+            seeds,
+            first,
+            jobs,
+            duration,
+            max_faults,
+            no_shrink,
+        } => cmd_campaign(hil_sim::campaign::CampaignOptions {
+            first,
+            seeds,
+            jobs,
+            world: hil_sim::campaign::world::WorldOptions {
+                duration_ns: (duration * 1e9).round() as u64,
+                max_faults,
+                ..Default::default()
+            },
+            shrink: !no_shrink,
+        }),
     }
+}
+
+/// Exit status of `campaign` when an invariant broke (the campaign itself completed).
+const EXIT_VIOLATIONS: u8 = 3;
+
+fn cmd_campaign(opts: hil_sim::campaign::CampaignOptions) -> Result<ExitCode> {
+    use hil_sim::campaign::{render_failure, run_campaign};
+    let started = std::time::Instant::now();
+    let (summary, _) = run_campaign(&opts, |r| {
+        if let Some(f) = &r.failure {
+            let mut out = std::io::stdout().lock();
+            let _ = write!(out, "{}", render_failure(r.seed, f, &opts.world));
+            let _ = out.flush();
+        }
+    })?;
+    println!("{}", summary.render());
+    let wall = started.elapsed().as_secs_f64();
+    println!(
+        "wall {wall:.1} s on {} job(s), {:.1}x real time",
+        opts.jobs.max(1),
+        summary.sim_ns as f64 / 1e9 / wall.max(1e-9)
+    );
+    Ok(if summary.violations > 0 {
+        ExitCode::from(EXIT_VIOLATIONS)
+    } else {
+        ExitCode::SUCCESS
+    })
 }
 
 /// `--sample-ms` in ns. The co-simulation's clock is the cores' (`Micros`): nothing in it

@@ -360,6 +360,46 @@ impl Simulation {
         self.line.forget(End::Drive);
     }
 
+    /// Restarts the PLC MCU now (its supply cycled): the board powers up from the EEPROM
+    /// as it is (a write in progress is lost or done whole, as `MemEeprom` writes), its
+    /// link task starts again; the drive, the plant and the pins carry on.
+    pub fn restart_plc(&mut self) {
+        let eeprom = self.plc.app_mut().storage().eeprom().clone();
+        let link = LinkConfig::at_baud(self.scenario.baud);
+        let mut plc = SimPlc::new(eeprom, link, Micros(self.now_ns / 1000));
+        plc.app_mut()
+            .set_scan_period_us((self.scenario.scan_time_ns / 1000).max(1));
+        self.plc = plc;
+        self.line.forget(End::Plc);
+    }
+
+    /// The bit error rate of both wires from now on (the scenario's `bit_error_rate` is
+    /// the rate at power-up).
+    pub fn set_link_bit_error_rate(&mut self, rate: f64) {
+        self.line.set_impairments(Impairments {
+            bit_error_rate: rate,
+            ..Impairments::default()
+        });
+    }
+
+    /// A noise burst on one wire: the next `bytes` bytes sent toward the drive
+    /// (`to_drive`) or toward the PLC each get at least one bit flipped.
+    pub fn link_burst(&mut self, to_drive: bool, bytes: u32) {
+        let end = if to_drive { End::Plc } else { End::Drive };
+        self.line.outbox(end).burst(bytes);
+    }
+
+    /// The drive's TIM1 registers (what the gates are told).
+    pub fn tim1(&self) -> &SimTim1 {
+        &self.tim1
+    }
+
+    /// When the next event of the scheduler is due, ns (an observer steps event by
+    /// event with `run_until(next_event_at_ns())`).
+    pub fn next_event_at_ns(&self) -> u64 {
+        self.next_event_ns()
+    }
+
     /// A fault of the drive's phase-1 current sensor: `counts` added to its ADC reading
     /// (0: healthy). The drive measures the zero at boot only: a restart with an offset
     /// beyond its tolerance fails the self-test (fault BOOT).

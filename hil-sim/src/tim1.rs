@@ -67,6 +67,11 @@ impl SimTim1 {
         self.ccr5_active
     }
 
+    /// CCR1-3 in effect (loaded at the last update event), timer counts.
+    pub fn compares(&self) -> [u16; 3] {
+        self.ccr_active
+    }
+
     pub fn timing(&self) -> &PwmTiming {
         &self.active
     }

@@ -313,6 +313,11 @@ impl Plant {
         self.cmd = cmd;
     }
 
+    /// The gate command in force (before a break, [`Plant::hw_break`], opens the legs).
+    pub fn gate_command(&self) -> GateCommand {
+        self.cmd
+    }
+
     pub fn set_brake(&mut self, on: bool) {
         self.brake_on = on;
     }

@@ -6,6 +6,7 @@
 mod common;
 
 mod brake_and_determinism;
+mod campaign;
 mod cli;
 mod debounce;
 mod drive_bodies;
