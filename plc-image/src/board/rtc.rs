@@ -52,9 +52,9 @@ pub const LS: LsConfig = {
 const SYNC_POLLS: u32 = 50_000;
 
 /// Before embassy's set-up: the RTC's bus clock, and RCC_BDCR to [`BDCR`]. After a
-/// power-on it is 0: the LSE starts and the RTC is selected (RM0440 lets RTCSEL be written
-/// before LSERDY; it changes only through a backup-domain reset, which any other
-/// configuration gets first). Backup-domain writes stay allowed after it: embassy's set-up
+/// power-on it is 0: the LSE starts and the RTC is selected at once (it counts once the
+/// LSE runs; the calendar is written only after LSERDY). RTCSEL changes only through a
+/// backup-domain reset (RM0440 RCC_BDCR), which any other configuration gets first. Backup-domain writes stay allowed after it: embassy's set-up
 /// resets PWR (DBP = 0) and sets DBP again.
 #[inline(never)]
 pub fn prepare() {
