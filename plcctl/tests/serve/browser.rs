@@ -367,8 +367,11 @@ fn the_page_in_headless_chromium_follows_the_lift() {
     };
 
     // RUN after the initialisation: green, and it stays green (idle at floor 1, the
-    // travel to floor 2, its door cycle) until `*7`.
-    run.until("green", 60.0, |o| o["colour"] == "green");
+    // travel to floor 2, its door cycle) until `*7`. The lift's first scan (state 0) is
+    // green too, before its initialisation run (orange): wait for the idle state.
+    run.until("green, idle", 60.0, |o| {
+        o["colour"] == "green" && o["detail"] == "idle at a floor"
+    });
     run.screens("idle", GREEN, "green");
     // Idle at a floor: the guarded actions are disabled without remote service, with
     // the reason; Stop is not.
