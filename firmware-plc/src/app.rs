@@ -61,7 +61,6 @@ use crate::vm::{self, DriveView, PlcVm, ScanInputs, ScanOutputs};
 
 mod service;
 mod time_of_day;
-mod wall;
 
 pub(crate) use service::checked_slot;
 pub(crate) use service::up_to;

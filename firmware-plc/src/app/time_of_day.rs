@@ -1,5 +1,6 @@
-//! The board's and the service's side of the wall clock (`crate::clock`): the RTC read in,
-//! the time to write out, the time a PC sets.
+//! The wall clock (`crate::clock`) as the application, the board and the service use it:
+//! the time read (the fault log's entries, `GetClock`), the RTC read in, the time to write
+//! out, the time a PC sets.
 
 use shared_protocol::units::Micros;
 
@@ -7,6 +8,11 @@ use super::PlcApp;
 use crate::storage::Eeprom;
 
 impl<E: Eeprom> PlcApp<E> {
+    /// Seconds since 2000-01-01 00:00:00 UTC at `now`; `None` while the clock is unset.
+    pub(crate) fn wall_seconds(&self, now: Micros) -> Option<u32> {
+        self.wall.seconds(now)
+    }
+
     /// The RTC as the board read it at `now` (at boot, then every
     /// [`crate::clock::RESYNC_US`]): `Some` seconds since 2000-01-01 00:00:00 UTC when it
     /// holds a set time.
