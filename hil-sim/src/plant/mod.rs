@@ -13,7 +13,7 @@ pub mod sensors;
 
 pub use inverter::{GateCommand, Leg, PwmMode};
 pub use motor::MotorParams;
-pub use sensors::{AdcSample, Comparators, HwDefaults};
+pub use sensors::{AdcSample, ComparatorTable, Comparators, HwDefaults};
 
 use firmware_drive::comparators::BoardProfile;
 use firmware_drive::power_port::ComparatorLevels;
@@ -485,7 +485,10 @@ impl Plant {
 
     /// Advances the plant by `dt_ns` under the present command.
     pub fn advance(&mut self, dt_ns: u64) {
-        let c = Coeffs::new(&self.params, self.lift);
+        let c = Coeffs::new(&self.params, self.lift, &self.comparators);
+        // The stator current after the last step (nothing else changes the state
+        // between the steps of one advance).
+        let mut i_s = None;
         let mut left = dt_ns;
         while left > 0 {
             let seg_end = match self.params.pwm_mode {
@@ -506,7 +509,7 @@ impl Plant {
             let mut done = 0;
             for k in 0..n {
                 let step = (seg * (k + 1)) / n - (seg * k) / n;
-                self.step(&c, step, conns, self.tau_ns + done + step);
+                i_s = Some(self.step(&c, i_s, step, conns, self.tau_ns + done + step));
                 done += step;
                 if self.hw_break && conns.iter().any(|c| matches!(c, Conn::Frac(_))) {
                     // The break forces every leg off at once: finish the segment floating.
@@ -554,11 +557,20 @@ impl Plant {
         }
     }
 
-    /// One RK4 step of `dt_ns` with the legs connected as given.
-    fn step(&mut self, c: &Coeffs, dt_ns: u64, conns: [Conn; 3], tau_end_ns: u64) {
+    /// One RK4 step of `dt_ns` with the legs connected as given, from the stator current
+    /// `i_s_start` (the previous step's result, or `None`: computed from the state).
+    /// Returns the stator current at the step's end.
+    fn step(
+        &mut self,
+        c: &Coeffs,
+        i_s_start: Option<[f64; 2]>,
+        dt_ns: u64,
+        conns: [Conn; 3],
+        tau_end_ns: u64,
+    ) -> [f64; 2] {
         let h = dt_ns as f64 * 1e-9;
         let all_float = conns.iter().all(|c| matches!(c, Conn::Float));
-        let (i_s, _) = self.stator(&self.x);
+        let i_s = i_s_start.unwrap_or_else(|| self.stator(&self.x).0);
         let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
         let contactor_open = self.lift.is_some_and(|l| l.contactor_open);
         // The holding brake at rest: it holds while the torques it must resist stay below
@@ -626,8 +638,8 @@ impl Plant {
             let u = 0.5 * (x0[UDC] + self.x[UDC]);
             self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
         }
-        let o = self.outputs();
-        let mut sensed = o.i_abc_a;
+        let (i_s_end, _) = self.stator(&self.x);
+        let mut sensed = motor_to_legs(motor::inverse_clarke(i_s_end));
         if let Some(sp) = self.spike {
             if (sp.from_ns..=sp.to_ns).contains(&tau_end_ns) {
                 if let Some(i) = sensed.get_mut(sp.phase) {
@@ -635,13 +647,13 @@ impl Plant {
                 }
             }
         }
-        let mut u_sensed = o.u_dc_v;
+        let mut u_sensed = self.x[UDC];
         if let Some(sp) = self.udc_spike {
             if (sp.from_ns..=sp.to_ns).contains(&tau_end_ns) {
                 u_sensed += sp.volts;
             }
         }
-        let mut levels = self.comparators.levels(sensed, u_sensed);
+        let mut levels = c.comparators.levels(sensed, u_sensed);
         if self.blanking_at(tau_end_ns) {
             // RM0440: a blanked comparator's output (and VALUE) is 0 during the window.
             for spec in self
@@ -667,6 +679,7 @@ impl Plant {
             self.hw_break = true;
             self.sto_flag = true;
         }
+        i_s_end
     }
 
     /// The derivative of the state, with the motor's alpha-beta voltage `v_unit` per volt
@@ -738,9 +751,9 @@ impl Plant {
 }
 
 /// The rig's constants as the derivative uses them: ratios and reciprocals of the
-/// parameters, computed once per [`Plant::advance`] (the parameters change only between
-/// advances), so that RK4's four derivative evaluations per step multiply instead of
-/// dividing. The model is the same; the last bits of the results differ from dividing
+/// parameters, computed once per [`Plant::advance`] (the parameters and the comparators'
+/// DAC values change only between advances), so that RK4's four derivative evaluations
+/// per step multiply instead of dividing. The model is the same; the last bits of the results differ from dividing
 /// at every evaluation (rounding of the reciprocal, ~1e-16 relative).
 #[derive(Debug, Clone, Copy)]
 struct Coeffs {
@@ -760,10 +773,11 @@ struct Coeffs {
     per_supply_r: f64,
     per_brake_r: f64,
     per_capacitance: f64,
+    comparators: ComparatorTable,
 }
 
 impl Coeffs {
-    fn new(p: &RigParams, lift: Option<lift::LiftShaft>) -> Self {
+    fn new(p: &RigParams, lift: Option<lift::LiftShaft>, comparators: &Comparators) -> Self {
         let m = &p.motor;
         let d = m.det_h2();
         let pp = f64::from(m.pole_pairs);
@@ -779,6 +793,7 @@ impl Coeffs {
             per_supply_r: 1.0 / p.supply_r_ohm,
             per_brake_r: 1.0 / p.brake_resistor_ohm,
             per_capacitance: 1.0 / p.dc_capacitor_f,
+            comparators: ComparatorTable::new(comparators),
         }
     }
 }
