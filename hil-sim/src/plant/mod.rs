@@ -213,6 +213,9 @@ pub struct Plant {
     /// The lift on the shaft (`[lift]`), if any: gravity, reflected mass, holding brake,
     /// motor contactor.
     lift: Option<lift::LiftShaft>,
+    /// The integration's constants for the present parameters, comparators and lift
+    /// (`None`: to be computed at the next advance).
+    coeffs: Option<Coeffs>,
 }
 
 impl Plant {
@@ -243,12 +246,14 @@ impl Plant {
             period_avg: ([0.0; 3], 0.0),
             brake_energy_j: 0.0,
             lift: None,
+            coeffs: None,
         }
     }
 
     /// Attaches the lift's shaft side (or updates its brake and contactor).
     pub fn set_lift_shaft(&mut self, shaft: Option<lift::LiftShaft>) {
         self.lift = shaft;
+        self.coeffs = None;
     }
 
     pub fn lift_shaft(&self) -> Option<lift::LiftShaft> {
@@ -261,6 +266,7 @@ impl Plant {
 
     /// Run-time parameter changes (scenario events). The state is kept.
     pub fn params_mut(&mut self) -> &mut RigParams {
+        self.coeffs = None;
         &mut self.params
     }
 
@@ -382,6 +388,9 @@ impl Plant {
 
     /// The drive wrote its threshold DACs (board profile and values from the core).
     pub fn set_comparators(&mut self, c: Comparators) {
+        if c != self.comparators {
+            self.coeffs = None;
+        }
         self.comparators = c;
     }
 
@@ -485,7 +494,14 @@ impl Plant {
 
     /// Advances the plant by `dt_ns` under the present command.
     pub fn advance(&mut self, dt_ns: u64) {
-        let c = Coeffs::new(&self.params, self.lift, &self.comparators);
+        let c = match self.coeffs {
+            Some(c) => c,
+            None => {
+                let c = Coeffs::new(&self.params, self.lift, &self.comparators);
+                self.coeffs = Some(c);
+                c
+            }
+        };
         // The stator current after the last step (nothing else changes the state
         // between the steps of one advance).
         let mut i_s = None;
@@ -751,9 +767,9 @@ impl Plant {
 }
 
 /// The rig's constants as the derivative uses them: ratios and reciprocals of the
-/// parameters, computed once per [`Plant::advance`] (the parameters and the comparators'
-/// DAC values change only between advances), so that RK4's four derivative evaluations
-/// per step multiply instead of dividing. The model is the same; the last bits of the results differ from dividing
+/// parameters, computed when the parameters, the comparators' DAC values or the lift
+/// change (each only between advances), so that RK4's four derivative evaluations per
+/// step multiply instead of dividing. The model is the same; the last bits of the results differ from dividing
 /// at every evaluation (rounding of the reciprocal, ~1e-16 relative).
 #[derive(Debug, Clone, Copy)]
 struct Coeffs {
