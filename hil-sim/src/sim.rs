@@ -4,10 +4,12 @@
 //! Sources of events, each with its own next time: the drive's PWM period (from the timer
 //! setup the firmware programs, exact to the timer tick, no drift), the drive's and the
 //! PLC's 1 ms ticks, the PLC scan, bytes arriving on either UART wire, a UART becoming
-//! free, scenario actions, the wire cut, and CSV samples. The plant is advanced to each
-//! event's time before the event is handled. Events at the same time run in a fixed
-//! order (scenario, cut, UART receive, PWM, drive tick, PLC tick, scan, UART transmit,
-//! sample), so a run is a pure function of its inputs and the seed.
+//! free, scenario actions, the wire cut, and CSV samples. The plant is advanced to the time
+//! of each event that reads or changes it (PWM period, drive tick, sample, scenario
+//! action) before the event is handled, and to the end of every `run_until`. Events at
+//! the same time run in a fixed order (scenario, cut, UART receive, PWM, drive tick, PLC
+//! tick, scan, UART transmit, sample), so a run is a pure function of its inputs and the
+//! seed.
 
 use anyhow::{Context, Result};
 use firmware_drive::{AdcSample, DriveConfig, ResetCause};
@@ -504,7 +506,9 @@ impl Simulation {
             if t > end_ns {
                 break;
             }
-            self.advance_plant(t);
+            if self.event_touches_plant(t) {
+                self.advance_plant(t);
+            }
             self.now_ns = t;
             self.handle_events(t, &mut on_sample);
         }
@@ -517,6 +521,22 @@ impl Simulation {
     /// reported as a trip.
     pub fn unstable_at_ns(&self) -> Option<u64> {
         self.unstable_at_ns
+    }
+
+    /// Whether an event due at `t` reads or changes the plant: a PWM period, the drive's
+    /// 1 ms tick (with the lift's step), a sample, a scenario action. The UART bytes and
+    /// the PLC's tick alone do not (the link tasks see neither the timer nor the plant), so
+    /// the plant is not integrated up to them: its steps do not depend on the link's
+    /// traffic.
+    fn event_touches_plant(&self, t: u64) -> bool {
+        t >= self.next_pwm_ns
+            || t >= self.next_drive_tick_ns
+            || t >= self.next_sample_ns
+            || self
+                .scenario
+                .actions
+                .get(self.next_action)
+                .is_some_and(|a| a.at_ns <= t)
     }
 
     fn advance_plant(&mut self, t: u64) {

@@ -13,7 +13,7 @@ pub mod sensors;
 
 pub use inverter::{GateCommand, Leg, PwmMode};
 pub use motor::MotorParams;
-pub use sensors::{AdcSample, Comparators, HwDefaults};
+pub use sensors::{AdcSample, ComparatorTable, Comparators, HwDefaults};
 
 use firmware_drive::comparators::BoardProfile;
 use firmware_drive::power_port::ComparatorLevels;
@@ -213,6 +213,9 @@ pub struct Plant {
     /// The lift on the shaft (`[lift]`), if any: gravity, reflected mass, holding brake,
     /// motor contactor.
     lift: Option<lift::LiftShaft>,
+    /// The integration's constants for the present parameters, comparators and lift
+    /// (`None`: to be computed at the next advance).
+    coeffs: Option<Coeffs>,
 }
 
 impl Plant {
@@ -243,12 +246,14 @@ impl Plant {
             period_avg: ([0.0; 3], 0.0),
             brake_energy_j: 0.0,
             lift: None,
+            coeffs: None,
         }
     }
 
     /// Attaches the lift's shaft side (or updates its brake and contactor).
     pub fn set_lift_shaft(&mut self, shaft: Option<lift::LiftShaft>) {
         self.lift = shaft;
+        self.coeffs = None;
     }
 
     pub fn lift_shaft(&self) -> Option<lift::LiftShaft> {
@@ -261,6 +266,7 @@ impl Plant {
 
     /// Run-time parameter changes (scenario events). The state is kept.
     pub fn params_mut(&mut self) -> &mut RigParams {
+        self.coeffs = None;
         &mut self.params
     }
 
@@ -382,6 +388,9 @@ impl Plant {
 
     /// The drive wrote its threshold DACs (board profile and values from the core).
     pub fn set_comparators(&mut self, c: Comparators) {
+        if c != self.comparators {
+            self.coeffs = None;
+        }
         self.comparators = c;
     }
 
@@ -485,6 +494,17 @@ impl Plant {
 
     /// Advances the plant by `dt_ns` under the present command.
     pub fn advance(&mut self, dt_ns: u64) {
+        let c = match self.coeffs {
+            Some(c) => c,
+            None => {
+                let c = Coeffs::new(&self.params, self.lift, &self.comparators);
+                self.coeffs = Some(c);
+                c
+            }
+        };
+        // The stator current after the last step (nothing else changes the state
+        // between the steps of one advance).
+        let mut i_s = None;
         let mut left = dt_ns;
         while left > 0 {
             let seg_end = match self.params.pwm_mode {
@@ -505,7 +525,7 @@ impl Plant {
             let mut done = 0;
             for k in 0..n {
                 let step = (seg * (k + 1)) / n - (seg * k) / n;
-                self.step(step, conns, self.tau_ns + done + step);
+                i_s = Some(self.step(&c, i_s, step, conns, self.tau_ns + done + step));
                 done += step;
                 if self.hw_break && conns.iter().any(|c| matches!(c, Conn::Frac(_))) {
                     // The break forces every leg off at once: finish the segment floating.
@@ -553,11 +573,20 @@ impl Plant {
         }
     }
 
-    /// One RK4 step of `dt_ns` with the legs connected as given.
-    fn step(&mut self, dt_ns: u64, conns: [Conn; 3], tau_end_ns: u64) {
+    /// One RK4 step of `dt_ns` with the legs connected as given, from the stator current
+    /// `i_s_start` (the previous step's result, or `None`: computed from the state).
+    /// Returns the stator current at the step's end.
+    fn step(
+        &mut self,
+        c: &Coeffs,
+        i_s_start: Option<[f64; 2]>,
+        dt_ns: u64,
+        conns: [Conn; 3],
+        tau_end_ns: u64,
+    ) -> [f64; 2] {
         let h = dt_ns as f64 * 1e-9;
         let all_float = conns.iter().all(|c| matches!(c, Conn::Float));
-        let (i_s, _) = self.stator(&self.x);
+        let i_s = i_s_start.unwrap_or_else(|| self.stator(&self.x).0);
         let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
         let contactor_open = self.lift.is_some_and(|l| l.contactor_open);
         // The holding brake at rest: it holds while the torques it must resist stay below
@@ -583,11 +612,12 @@ impl Plant {
             conns[1].frac(i_abc[1]),
             conns[2].frac(i_abc[2]),
         ];
+        let v_unit = unit_voltage(fracs);
         let x0 = self.x;
-        let k1 = self.deriv(&x0, fracs);
-        let k2 = self.deriv(&axpy(&x0, h / 2.0, &k1), fracs);
-        let k3 = self.deriv(&axpy(&x0, h / 2.0, &k2), fracs);
-        let k4 = self.deriv(&axpy(&x0, h, &k3), fracs);
+        let k1 = self.deriv(c, &x0, v_unit);
+        let k2 = self.deriv(c, &axpy(&x0, h / 2.0, &k1), v_unit);
+        let k3 = self.deriv(c, &axpy(&x0, h / 2.0, &k2), v_unit);
+        let k4 = self.deriv(c, &axpy(&x0, h, &k3), v_unit);
         for i in 0..6 {
             self.x[i] = x0[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
         }
@@ -624,8 +654,8 @@ impl Plant {
             let u = 0.5 * (x0[UDC] + self.x[UDC]);
             self.brake_energy_j += u * u / self.params.brake_resistor_ohm * h;
         }
-        let o = self.outputs();
-        let mut sensed = o.i_abc_a;
+        let (i_s_end, _) = self.stator(&self.x);
+        let mut sensed = motor_to_legs(motor::inverse_clarke(i_s_end));
         if let Some(sp) = self.spike {
             if (sp.from_ns..=sp.to_ns).contains(&tau_end_ns) {
                 if let Some(i) = sensed.get_mut(sp.phase) {
@@ -633,13 +663,13 @@ impl Plant {
                 }
             }
         }
-        let mut u_sensed = o.u_dc_v;
+        let mut u_sensed = self.x[UDC];
         if let Some(sp) = self.udc_spike {
             if (sp.from_ns..=sp.to_ns).contains(&tau_end_ns) {
                 u_sensed += sp.volts;
             }
         }
-        let mut levels = self.comparators.levels(sensed, u_sensed);
+        let mut levels = c.comparators.levels(sensed, u_sensed);
         if self.blanking_at(tau_end_ns) {
             // RM0440: a blanked comparator's output (and VALUE) is 0 during the window.
             for spec in self
@@ -665,55 +695,50 @@ impl Plant {
             self.hw_break = true;
             self.sto_flag = true;
         }
+        i_s_end
     }
 
-    fn deriv(&self, x: &State, fracs: [f64; 3]) -> State {
+    /// The derivative of the state, with the motor's alpha-beta voltage `v_unit` per volt
+    /// of DC link ([`unit_voltage`] of the legs' fractions).
+    fn deriv(&self, c: &Coeffs, x: &State, v_unit: [f64; 2]) -> State {
         let p = &self.params;
         let m = &p.motor;
         let udc = x[UDC];
-        let wr = f64::from(m.pole_pairs) * x[WM];
+        let wr = c.pole_pairs * x[WM];
         let mut dx = [0.0; 6];
         let (te, i_dc_inv) = if let Load::Rl { r_ohm, .. } = p.load {
             if self.open {
                 (0.0, 0.0)
             } else {
                 let (i_s, _) = self.stator(x);
-                let v_ab = motor::clarke(legs_to_motor([
-                    fracs[0] * udc,
-                    fracs[1] * udc,
-                    fracs[2] * udc,
-                ]));
-                dx[PSA] = v_ab[0] - r_ohm * i_s[0];
-                dx[PSB] = v_ab[1] - r_ohm * i_s[1];
-                let i_abc = motor_to_legs(motor::inverse_clarke(i_s));
-                let i_dc = fracs[0] * i_abc[0] + fracs[1] * i_abc[1] + fracs[2] * i_abc[2];
-                (0.0, i_dc)
+                dx[PSA] = udc * v_unit[0] - r_ohm * i_s[0];
+                dx[PSB] = udc * v_unit[1] - r_ohm * i_s[1];
+                (0.0, dc_current(v_unit, i_s))
             }
         } else if self.open {
             // is = 0: ir = ψr / Lr.
-            let lr = m.lr_h();
-            dx[PRA] = -m.rr_ohm * x[PRA] / lr - wr * x[PRB];
-            dx[PRB] = -m.rr_ohm * x[PRB] / lr + wr * x[PRA];
+            dx[PRA] = -c.rr_per_lr * x[PRA] - wr * x[PRB];
+            dx[PRB] = -c.rr_per_lr * x[PRB] + wr * x[PRA];
             (0.0, 0.0)
         } else {
-            let f = motor::Fluxes {
-                psi_s: [x[PSA], x[PSB]],
-                psi_r: [x[PRA], x[PRB]],
-            };
-            let c = f.currents(m);
-            let v_ab = motor::clarke(legs_to_motor([
-                fracs[0] * udc,
-                fracs[1] * udc,
-                fracs[2] * udc,
-            ]));
-            dx[PSA] = v_ab[0] - m.rs_ohm * c.i_s[0];
-            dx[PSB] = v_ab[1] - m.rs_ohm * c.i_s[1];
-            dx[PRA] = -m.rr_ohm * c.i_r[0] - wr * x[PRB];
-            dx[PRB] = -m.rr_ohm * c.i_r[1] + wr * x[PRA];
-            let i_abc = motor_to_legs(motor::inverse_clarke(c.i_s));
-            let i_dc = fracs[0] * i_abc[0] + fracs[1] * i_abc[1] + fracs[2] * i_abc[2];
-            (motor::torque_nm(m, f.psi_s, c.i_s), i_dc)
+            let (sa, sb, ra, rb) = (x[PSA], x[PSB], x[PRA], x[PRB]);
+            let i_s = [
+                c.lr_per_det * sa - c.lm_per_det * ra,
+                c.lr_per_det * sb - c.lm_per_det * rb,
+            ];
+            let i_r = [
+                c.ls_per_det * ra - c.lm_per_det * sa,
+                c.ls_per_det * rb - c.lm_per_det * sb,
+            ];
+            dx[PSA] = udc * v_unit[0] - m.rs_ohm * i_s[0];
+            dx[PSB] = udc * v_unit[1] - m.rs_ohm * i_s[1];
+            dx[PRA] = -m.rr_ohm * i_r[0] - wr * rb;
+            dx[PRB] = -m.rr_ohm * i_r[1] + wr * ra;
+            let te = c.torque_per_flux_current * (sa * i_s[1] - sb * i_s[0]);
+            (te, dc_current(v_unit, i_s))
         };
+        let load_nm =
+            m.load_torque_nm * (x[WM] * c.per_load_band).clamp(-1.0, 1.0) + m.friction_nms * x[WM];
         dx[WM] = if m.locked_rotor || matches!(p.load, Load::Rl { .. }) {
             0.0
         } else if let Some(l) = self.lift {
@@ -726,20 +751,79 @@ impl Plant {
             } else {
                 drive.clamp(-l.brake_torque_nm, l.brake_torque_nm)
             };
-            (drive - motor::load_torque_nm(m, x[WM]) - t_b)
-                / (m.inertia_kgm2 + l.extra_inertia_kgm2)
+            (drive - load_nm - t_b) * c.per_inertia
         } else {
-            (te - motor::load_torque_nm(m, x[WM])) / m.inertia_kgm2
+            (te - load_nm) * c.per_inertia
         };
-        let i_src = ((p.supply_v - udc) / p.supply_r_ohm).max(0.0);
+        let i_src = ((p.supply_v - udc) * c.per_supply_r).max(0.0);
         let i_brake = if self.brake_on {
-            udc / p.brake_resistor_ohm
+            udc * c.per_brake_r
         } else {
             0.0
         };
-        dx[UDC] = (i_src - i_dc_inv - i_brake) / p.dc_capacitor_f;
+        dx[UDC] = (i_src - i_dc_inv - i_brake) * c.per_capacitance;
         dx
     }
+}
+
+/// The rig's constants as the derivative uses them: ratios and reciprocals of the
+/// parameters, computed when the parameters, the comparators' DAC values or the lift
+/// change (each only between advances), so that RK4's four derivative evaluations per
+/// step multiply instead of dividing. The model is the same; the last bits of the results differ from dividing
+/// at every evaluation (rounding of the reciprocal, ~1e-16 relative).
+#[derive(Debug, Clone, Copy)]
+struct Coeffs {
+    /// Stator and rotor currents from the fluxes: is = (Lr ψs − Lm ψr)/D,
+    /// ir = (Ls ψr − Lm ψs)/D, D = Ls Lr − Lm².
+    lr_per_det: f64,
+    ls_per_det: f64,
+    lm_per_det: f64,
+    /// Rotor time constant's reciprocal, for the open stator (ir = ψr/Lr).
+    rr_per_lr: f64,
+    pole_pairs: f64,
+    /// Te = 3/2 p (ψsα isβ − ψsβ isα).
+    torque_per_flux_current: f64,
+    per_load_band: f64,
+    /// 1/J of the shaft (with the lift's reflected inertia).
+    per_inertia: f64,
+    per_supply_r: f64,
+    per_brake_r: f64,
+    per_capacitance: f64,
+    comparators: ComparatorTable,
+}
+
+impl Coeffs {
+    fn new(p: &RigParams, lift: Option<lift::LiftShaft>, comparators: &Comparators) -> Self {
+        let m = &p.motor;
+        let d = m.det_h2();
+        let pp = f64::from(m.pole_pairs);
+        Coeffs {
+            lr_per_det: m.lr_h() / d,
+            ls_per_det: m.ls_h() / d,
+            lm_per_det: m.lm_h / d,
+            rr_per_lr: m.rr_ohm / m.lr_h(),
+            pole_pairs: pp,
+            torque_per_flux_current: 1.5 * pp,
+            per_load_band: 1.0 / m.load_band_rad_s.max(1e-9),
+            per_inertia: 1.0 / (m.inertia_kgm2 + lift.map_or(0.0, |l| l.extra_inertia_kgm2)),
+            per_supply_r: 1.0 / p.supply_r_ohm,
+            per_brake_r: 1.0 / p.brake_resistor_ohm,
+            per_capacitance: 1.0 / p.dc_capacitor_f,
+            comparators: ComparatorTable::new(comparators),
+        }
+    }
+}
+
+/// The alpha-beta voltage of the motor terminals per volt of DC link, with the inverter
+/// legs at the fractions `fracs` of the link (constant over a step).
+fn unit_voltage(fracs: [f64; 3]) -> [f64; 2] {
+    motor::clarke(legs_to_motor(fracs))
+}
+
+/// The inverter's DC-link current: the power the legs deliver, 3/2 (vα iα + vβ iβ), per
+/// volt of DC link (equal to Σ fraction × leg current for a star point that floats).
+fn dc_current(v_unit: [f64; 2], i_s: [f64; 2]) -> f64 {
+    1.5 * (v_unit[0] * i_s[0] + v_unit[1] * i_s[1])
 }
 
 fn axpy(x: &State, a: f64, k: &State) -> State {

@@ -14,7 +14,9 @@
 //! The simulator trips exactly where the board does, not on |i|.
 
 use firmware_drive::comparator_trim::TrimmedZeros;
-use firmware_drive::comparators::{dac_values, BoardProfile, DacValues, HwThresholds, Signal};
+use firmware_drive::comparators::{
+    dac_values, BoardProfile, DacValues, Direction, HwThresholds, Signal,
+};
 use firmware_drive::power_port::ComparatorLevels;
 use shared_protocol::program::{I_MAX_HW_LIMIT, U_MAX_HW_LIMIT};
 use shared_protocol::units::{CentiAmps, Volts};
@@ -155,6 +157,88 @@ impl Comparators {
     }
 }
 
+/// One comparator of [`ComparatorTable`]: its input as `offset + gain * signal` (counts;
+/// the signal in A or V).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Linear {
+    /// Index into [`ComparatorLevels`].
+    level: usize,
+    signal: Signal,
+    offset_counts: f64,
+    gain_counts: f64,
+    dac: f64,
+    above: bool,
+}
+
+/// [`Comparators::levels`] with each comparator's scaling folded into one gain and one
+/// offset (the plant evaluates the comparators after every integration step; the
+/// parameters hold for one [`super::Plant::advance`]). The same straight lines: the
+/// input differs from `levels`' by rounding only (~1e-13 counts), so a decision can
+/// differ only for a signal within that of a threshold.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComparatorTable {
+    rows: [Option<Linear>; 7],
+}
+
+impl ComparatorTable {
+    pub fn new(c: &Comparators) -> Self {
+        let mut rows = [None; 7];
+        let sc = &c.board.scaling;
+        let zero = f64::from(sc.current_zero_counts);
+        let mut n = 0;
+        for spec in c.board.comparators {
+            let Some(dac) = c.dacs.get(spec.dac) else {
+                continue;
+            };
+            let level = usize::from(spec.comp.saturating_sub(1));
+            if level >= 7 || n >= rows.len() {
+                continue;
+            }
+            let div = f64::from(spec.input_divider.max(1));
+            // counts = zero + (adc - zero) / div, adc = adc0 + k * signal.
+            let (adc0, k) = match spec.signal {
+                Signal::DcLink => (
+                    0.0,
+                    10.0 / f64::from(sc.udc_full_decivolts.max(1)) * f64::from(ADC_MAX),
+                ),
+                _ => (zero, f64::from(sc.current_millicounts_per_amp) / 1000.0),
+            };
+            rows[n] = Some(Linear {
+                level,
+                signal: spec.signal,
+                offset_counts: zero + (adc0 - zero) / div,
+                gain_counts: k / div,
+                dac: f64::from(dac),
+                above: matches!(spec.direction, Direction::Above),
+            });
+            n += 1;
+        }
+        ComparatorTable { rows }
+    }
+
+    /// As [`Comparators::levels`].
+    pub fn levels(&self, i_abc: [f64; 3], u_dc: f64) -> ComparatorLevels {
+        let mut out = ComparatorLevels::default();
+        for r in self.rows.iter().flatten() {
+            let x = match r.signal {
+                Signal::CurrentA => i_abc[0],
+                Signal::CurrentB => i_abc[1],
+                Signal::CurrentC => i_abc[2],
+                Signal::DcLink => u_dc,
+            };
+            let counts = r.offset_counts + r.gain_counts * x;
+            if let Some(l) = out.0.get_mut(r.level) {
+                *l = if r.above {
+                    counts > r.dac
+                } else {
+                    counts < r.dac
+                };
+            }
+        }
+        out
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -279,5 +363,27 @@ mod tests {
             c.levels([2.9, 2.9, -5.8], 39.9).causes(c.board),
             Causes::NONE
         );
+    }
+
+    #[test]
+    fn the_table_decides_as_the_comparators_do() {
+        for board in [&B_G431B_ESC1, &SOURCE_SENSORS] {
+            let t = HwDefaults {
+                oc_hw_a: 3.0,
+                ov_hw_v: 30.0,
+            };
+            let c = Comparators::new(board, t.thresholds());
+            let table = ComparatorTable::new(&c);
+            let mut trips = 0;
+            for k in -4000..4000 {
+                let i = f64::from(k) * 0.0013;
+                let u = 20.0 + f64::from(k) * 0.0031;
+                let abc = [i, -0.7 * i, 1.3 * i];
+                let want = c.levels(abc, u);
+                assert_eq!(table.levels(abc, u), want, "{} {i} A {u} V", board.name);
+                trips += want.0.iter().filter(|l| **l).count();
+            }
+            assert!(trips > 1000, "{}: {trips}", board.name);
+        }
     }
 }
