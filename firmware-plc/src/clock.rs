@@ -4,15 +4,17 @@
 //!
 //! Its source is the MCU's RTC on the NUCLEO's 32.768 kHz crystal, in the backup domain:
 //! it runs on through every reset and is lost with the supply (the board has no battery on
-//! VBAT). The board reads the RTC at boot and then every [`RESYNC_US`]
-//! ([`WallClock::rtc_read`]: the uptime runs on HSI16, ±1 %, the RTC on the crystal), and
-//! writes it when [`WallClock::take_rtc_write`] hands it a time set from the service port.
+//! VBAT). The RTC task ([`rtc_sync::pass`]) reads the RTC at boot and then every
+//! [`RESYNC_US`] ([`WallClock::rtc_read`]: the uptime runs on HSI16, ±1 %, the RTC on the
+//! crystal), and writes it when [`WallClock::take_rtc_write`] hands it a time set from the
+//! service port.
 //! On hosts without an RTC (hil-sim) the uptime alone carries the clock once set.
 //!
 //! Time zone rule: the PLC keeps UTC, as seconds since 2000-01-01 00:00:00 UTC (the RTC's
 //! own epoch, year 00); only a PC shows local time (`plcctl`).
 
 pub mod rtc_format;
+pub mod rtc_sync;
 
 use shared_protocol::service::WALL_MAX_S;
 use shared_protocol::units::Micros;

@@ -1,6 +1,6 @@
 //! The wall clock (`crate::clock`) as the application, the board and the service use it:
-//! the time read (the fault log's entries, `GetClock`), the RTC read in, the time to write
-//! out, the time a PC sets.
+//! the time read (the fault log's entries, `GetClock`), the RTC task's pass, the time a PC
+//! sets.
 
 use shared_protocol::units::Micros;
 
@@ -13,27 +13,14 @@ impl<E: Eeprom> PlcApp<E> {
         self.wall.seconds(now)
     }
 
-    /// The RTC as the board read it at `now` (at boot, then every
-    /// [`crate::clock::RESYNC_US`]): `Some` seconds since 2000-01-01 00:00:00 UTC when it
-    /// holds a set time.
-    pub fn rtc_read(&mut self, seconds: Option<u32>, now: Micros) {
-        self.wall.rtc_read(seconds, now);
-    }
-
-    /// The board reads the RTC now (at the first pass, then every
-    /// [`crate::clock::RESYNC_US`]).
-    pub fn rtc_read_due(&self, now: Micros) -> bool {
-        self.wall.rtc_read_due(now)
-    }
-
-    /// A time set from the service waits to be written to the RTC.
-    pub fn rtc_write_due(&self) -> bool {
-        self.wall.rtc_write_due()
-    }
-
-    /// The time the board must write to the RTC now (once per time set).
-    pub fn take_rtc_write(&mut self, now: Micros) -> Option<u32> {
-        self.wall.take_rtc_write(now)
+    /// The RTC task body after each application pass (`crate::clock::rtc_sync::pass`):
+    /// the write of a time set from the service port, else the read the clock asks for.
+    pub fn rtc_pass(
+        &mut self,
+        rtc: &mut impl crate::clock::rtc_sync::RtcPort,
+        now: Micros,
+    ) -> Option<crate::clock::rtc_sync::RtcEvent> {
+        crate::clock::rtc_sync::pass(&mut self.wall, rtc, now)
     }
 
     /// Sets the clock (service `SetClock`); false beyond the RTC's last second.

@@ -1,34 +1,28 @@
 //! The RTC of the backup domain on the NUCLEO-G431RB's 32.768 kHz crystal X2 (LSE, PC14/
-//! PC15, UM2505), bound to the core's wall clock (`firmware_plc::clock`): read when the
-//! core asks (the first pass, then every minute), written when the core hands over a time
-//! set from the service port. The core decides what the time is; this module moves it in
-//! and out of RM0440's registers (RTC_TR/DR in BCD through
-//! `firmware_plc::clock::rtc_format`). Synchronous, from the application task's pass: the
-//! waits are RM0440's few RTCCLK periods, bounded.
+//! PC15, UM2505), bound to the core's wall clock: the RTC port of
+//! `firmware_plc::clock::rtc_sync`, whose `pass` (the task body, after each application
+//! pass) decides when to read, when to write and what a read means. This module moves words
+//! in and out of RM0440's registers and waits RM0440's few RTCCLK periods, bounded.
+//! Synchronous, from the application task.
 //!
 //! The backup domain (RCC_BDCR, the RTC, TAMP_BKPxR) survives every reset and is lost with
-//! the supply (the NUCLEO has no battery on VBAT). A set clock is told by [`MARKER`] in
-//! TAMP_BKP0R, written after the calendar; anything else reads as unset.
+//! the supply (the NUCLEO has no battery on VBAT).
 //!
 //! RCC_BDCR holds one configuration, [`BDCR`] (the LSE oscillator at [`DRIVE`], the RTC on
 //! it), set by [`prepare`] before embassy's clock set-up. embassy compares RCC_BDCR with
 //! its `LsConfig` and resets the backup domain when they differ, then waits for LSERDY;
 //! given [`LS`], the same configuration, it finds RCC_BDCR as it wants it and neither
 //! resets the domain nor waits for the crystal (tSU(LSE) is 2 s typical, with no maximum,
-//! DS12589 table 41). The calendar is written only once LSERDY is set: a time set before
-//! stays due (the core's clock runs on the uptime meanwhile).
+//! DS12589 table 41).
 
 use embassy_stm32::pac;
 use embassy_stm32::pac::rcc::vals::Rtcsel;
 use embassy_stm32::rcc::{LsConfig, LseConfig, LseDrive, LseMode};
 use embassy_stm32::time::Hertz;
-use firmware_plc::clock::rtc_format;
+use firmware_plc::clock::rtc_sync::{Calendar, RtcEvent, RtcPort};
 use shared_protocol::units::Micros;
 
 use super::shared::App;
-
-/// TAMP_BKP0R after a complete set of the calendar by this firmware.
-pub const MARKER: u32 = 0x504C_4331;
 /// The crystal's drive (RCC_BDCR.LSEDRV): embassy's `default_lse`; UM2505 as reached does
 /// not name one.
 const DRIVE: LseDrive = LseDrive::MediumHigh;
@@ -47,10 +41,6 @@ pub const LS: LsConfig = {
     });
     ls
 };
-/// Register polls for INITF and RSF (each sets within a few RTCCLK periods, 30.5 us each;
-/// this bound is well over 1 ms at 170 MHz).
-const SYNC_POLLS: u32 = 50_000;
-
 /// Before embassy's set-up: the RTC's bus clock, and RCC_BDCR to [`BDCR`]. After a
 /// power-on it is 0: the LSE starts and the RTC is selected at once (it counts once the
 /// LSE runs; the calendar is written only after LSERDY). RTCSEL changes only through a
@@ -73,67 +63,66 @@ pub fn prepare() {
     }
 }
 
+/// Register polls for INITF and RSF (each sets within a few RTCCLK periods, 30.5 us each;
+/// this bound is well over 1 ms at 170 MHz).
+const SYNC_POLLS: u32 = 50_000;
+
 /// Polls `done` at most [`SYNC_POLLS`] times.
 fn sync(done: impl Fn() -> bool) -> bool {
     (0..SYNC_POLLS).any(|_| done())
 }
 
-/// The calendar when a set one runs: seconds since 2000, and the second's elapsed
-/// fraction (RTC_SSR, PREDIV_S at its reset value 255: 3906 us a count) in microseconds.
-#[inline(never)]
-fn read() -> Option<(u32, u64)> {
-    // After a system reset the shadow registers hold their reset values until RSF.
-    if pac::TAMP.bkpr(0).read().bkp() != MARKER || !sync(|| pac::RTC.icsr().read().rsf()) {
-        return None;
+/// RM0440's RTC, TAMP_BKP0R and RCC_BDCR.LSERDY.
+struct Registers;
+
+impl RtcPort for Registers {
+    fn crystal_ready(&mut self) -> bool {
+        pac::RCC.bdcr().read().lserdy()
     }
-    let ss = u64::from(pac::RTC.ssr().read().ss() & 0xFF);
-    let tr = pac::RTC.tr().read().0;
-    let dr = pac::RTC.dr().read().0;
-    Some((rtc_format::seconds(tr, dr)?, (255 - ss) * 3_906))
+
+    fn marker(&mut self) -> u32 {
+        pac::TAMP.bkpr(0).read().bkp()
+    }
+
+    fn set_marker(&mut self, value: u32) {
+        pac::TAMP.bkpr(0).write(|w| w.set_bkp(value));
+    }
+
+    /// After a system reset the shadow registers hold their reset values until RSF.
+    fn read_calendar(&mut self) -> Option<Calendar> {
+        if !sync(|| pac::RTC.icsr().read().rsf()) {
+            return None;
+        }
+        Some(Calendar {
+            ssr: pac::RTC.ssr().read().ss(),
+            tr: pac::RTC.tr().read().0,
+            dr: pac::RTC.dr().read().0,
+        })
+    }
+
+    fn enter_init(&mut self) -> bool {
+        let rtc = pac::RTC;
+        rtc.wpr().write_value(pac::rtc::regs::Wpr(0xCA));
+        rtc.wpr().write_value(pac::rtc::regs::Wpr(0x53));
+        rtc.icsr().modify(|w| w.set_init(true));
+        sync(|| rtc.icsr().read().initf())
+    }
+
+    fn write_calendar(&mut self, tr: u32, dr: u32) {
+        pac::RTC.tr().write_value(pac::rtc::regs::Tr(tr));
+        pac::RTC.dr().write_value(pac::rtc::regs::Dr(dr));
+    }
+
+    fn exit_init(&mut self) {
+        pac::RTC.icsr().modify(|w| w.set_init(false));
+        pac::RTC.wpr().write_value(pac::rtc::regs::Wpr(0xFF));
+    }
 }
 
-/// Writes the core's time into the calendar (RM0440 "Calendar initialization and
-/// configuration"), PRER at its reset value (1 Hz from 32.768 kHz), 24-hour format.
-#[inline(never)]
-fn write(app: &mut App, now: Micros) {
-    pac::TAMP.bkpr(0).write(|w| w.set_bkp(0));
-    let rtc = pac::RTC;
-    rtc.wpr().write_value(pac::rtc::regs::Wpr(0xCA));
-    rtc.wpr().write_value(pac::rtc::regs::Wpr(0x53));
-    rtc.icsr().modify(|w| w.set_init(true));
-    // Without INITF the time stays due: written at a later pass.
-    let seconds = if sync(|| rtc.icsr().read().initf()) {
-        app.take_rtc_write(now)
-    } else {
-        None
-    };
-    if let Some(s) = seconds {
-        let (tr, dr) = rtc_format::registers(s);
-        rtc.tr().write_value(pac::rtc::regs::Tr(tr));
-        rtc.dr().write_value(pac::rtc::regs::Dr(dr));
-    }
-    rtc.icsr().modify(|w| w.set_init(false));
-    rtc.wpr().write_value(pac::rtc::regs::Wpr(0xFF));
-    if let Some(s) = seconds {
-        pac::TAMP.bkpr(0).write(|w| w.set_bkp(MARKER));
-        defmt::info!("rtc: set to {=u32} s since 2000 UTC", s);
-    }
-}
-
-/// The application task's share after each pass: the write the core asks for once the
-/// LSE runs, else the read it asks for.
+/// The application task's share after each pass.
 #[inline(never)]
 pub fn pass(app: &mut App, now: Micros) {
-    if app.rtc_write_due() {
-        if pac::RCC.bdcr().read().lserdy() {
-            write(app, now);
-        }
-    } else if app.rtc_read_due(now) {
-        match read() {
-            Some((s, elapsed_us)) => {
-                app.rtc_read(Some(s), Micros(now.0.saturating_sub(elapsed_us)))
-            }
-            None => app.rtc_read(None, now),
-        }
+    if let Some(RtcEvent::Set { seconds }) = app.rtc_pass(&mut Registers, now) {
+        defmt::info!("rtc: set to {=u32} s since 2000 UTC", seconds);
     }
 }
