@@ -10,17 +10,24 @@
 //!   [`service`]: the PLC's service port on a pty (`--service-pty`);
 //!   [`lab`]: the source's lab chapter (ramp times, current ripple), `docs/lab.md`.
 //!
+//! [`emu`], [`panel`] and [`plot`] are the default features of the same names (what each
+//! brings in: `Cargo.toml`); without them the library still parses scenarios and runs the
+//! cores on the plant.
+//!
 //! Decisions and model equations: `hil-sim/docs/`.
 
 pub mod args;
 pub mod campaign;
 pub mod decimate;
+#[cfg(feature = "emu")]
 pub mod emu;
 pub mod lab;
 pub mod latency;
 pub mod mcu;
+#[cfg(feature = "panel")]
 pub mod panel;
 pub mod plant;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod record;
 pub mod run;
@@ -29,6 +36,7 @@ pub mod service;
 pub mod sim;
 pub mod tim1;
 
+#[cfg(feature = "panel")]
 use std::path::Path;
 
 /// Size of the EEPROM image `asm -o` writes.
@@ -47,6 +55,7 @@ pub fn image_bytes(program: &shared_protocol::program::Program) -> anyhow::Resul
 /// `hil-sim panel`: the interactive front panel.
 /// `lift`: the lift plant on the shaft (`--lift`, lift.md 4).
 /// `service_version`: with `--service-pty`, the service port on a pty announcing it.
+#[cfg(feature = "panel")]
 pub fn panel_command(
     program: Option<&Path>,
     eeprom: Option<&Path>,

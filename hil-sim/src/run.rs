@@ -11,9 +11,9 @@ use shared_protocol::program::{assemble, assemble_runnable, verify, Program};
 
 use crate::mcu::SimLcd;
 use crate::plant::lift::LiftEvent;
-use crate::plot::Marks;
 use crate::scenario::{Action, Input, PlantChange, Scenario, TimedAction};
 use crate::sim::{FaultRecord, RunOptions, Sample, Simulation};
+use trend_plot::Marks;
 
 /// Reads a program that the PLC would start: `.plc` text, or a whole-EEPROM image
 /// (32 KiB, as `asm -o` writes), checked by the whole-program verifier (e.g. the drive

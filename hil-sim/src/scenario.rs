@@ -8,7 +8,6 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
-use g431_emu::periph::analog_errors::AnalogErrors;
 use shared_protocol::program::DIGITAL_INPUTS;
 
 use crate::plant::lift::{
@@ -92,44 +91,26 @@ const MAX_OFFSET_V: f64 = 0.2;
 const MAX_COMP_DELAY_NS: f64 = 1.0e6;
 
 impl AnalogKeys {
-    fn errors(&self) -> Result<AnalogErrors> {
-        let mut e = match self.part.unwrap_or(AnalogPart::Typical) {
-            AnalogPart::Typical => AnalogErrors::TYPICAL,
-            AnalogPart::Ideal => AnalogErrors::IDEAL,
-            AnalogPart::WorstHigh => AnalogErrors::worst(1.0),
-            AnalogPart::WorstLow => AnalogErrors::worst(-1.0),
-        };
-        for (name, val, slot) in [
-            (
-                "analog.comp_offset_v",
-                self.comp_offset_v,
-                &mut e.comp_offset_v,
-            ),
-            (
-                "analog.dac_offset_v",
-                self.dac_offset_v,
-                &mut e.dac_offset_v,
-            ),
-            (
-                "analog.opamp_offset_v",
-                self.opamp_offset_v,
-                &mut e.opamp_offset_v,
-            ),
+    /// The keys, each checked against its range. Which figures the part and the keys give
+    /// is the emulator's business (`emu::analog`): the parser needs none of its data.
+    fn checked(self) -> Result<AnalogKeys> {
+        for (name, val) in [
+            ("analog.comp_offset_v", self.comp_offset_v),
+            ("analog.dac_offset_v", self.dac_offset_v),
+            ("analog.opamp_offset_v", self.opamp_offset_v),
         ] {
             if let Some(v) = val {
                 if !v.is_finite() || v.abs() > MAX_OFFSET_V {
                     bail!("{name} must be within +-{MAX_OFFSET_V} V, got {v}");
                 }
-                *slot = v;
             }
         }
         if let Some(v) = non_negative("analog.comp_delay_ns", self.comp_delay_ns)? {
             if v > MAX_COMP_DELAY_NS {
                 bail!("analog.comp_delay_ns must be at most {MAX_COMP_DELAY_NS}, got {v}");
             }
-            e.comp_delay_ns = v;
         }
-        Ok(e)
+        Ok(self)
     }
 }
 
@@ -147,7 +128,23 @@ pub struct EmuKeys {
     /// board's network) or `as_image_assumes` (what an earlier image assumed, not
     /// the board: a what-if, `docs/cli.md`).
     #[serde(default)]
-    pub esc1_amplifier_inputs: crate::emu::boards::Esc1Sense,
+    pub esc1_amplifier_inputs: Esc1Sense,
+}
+
+/// What the bare ESC1's amplifier input pins carry in `hil-sim emu` (scenario key
+/// `[emu] esc1_amplifier_inputs`, `hil-sim/docs/cli.md`; the voltages are `emu::boards`').
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Esc1Sense {
+    /// The board's documented network (`g431_emu::boards::b_g431b_esc1`): both amplifier
+    /// pins of each leg at the network's bias.
+    #[default]
+    Documented,
+    /// The voltages the drive image once assumed (0.103 V at 0 A on VINP,
+    /// -1.714 mV/A, VINM0 pins at 0 V): **not the board**. A what-if only: the emulator
+    /// tests ran on it while the image's amplifier mode was wrong for the documented board
+    ///; since the fix they run on the documented network.
+    AsImageAssumes,
 }
 
 /// What can go wrong with an image as a whole (`[emu] expect`).
@@ -357,15 +354,8 @@ pub enum BoardKind {
 }
 
 impl BoardKind {
-    /// The plant's profile for the emulated drive board `b` (the cores' scaling and
-    /// comparators that `hil-sim run` uses for that board).
-    pub fn of(b: g431_emu::boards::DriveBoardId) -> Self {
-        match b {
-            g431_emu::boards::DriveBoardId::Esc1 => BoardKind::Esc1,
-            g431_emu::boards::DriveBoardId::SourceSensors => BoardKind::Source,
-        }
-    }
-
+    /// The cores' scaling and comparators that `hil-sim run` uses for this board (`emu`
+    /// takes the kind from the drive image's board, `emu::boards::board_kind`).
     pub fn profile(self) -> &'static firmware_drive::comparators::BoardProfile {
         match self {
             BoardKind::Source => &firmware_drive::comparators::SOURCE_SENSORS,
@@ -530,12 +520,13 @@ pub struct Scenario {
     pub lift: Option<LiftParams>,
     /// `[service] flood = true`.
     pub service_flood: bool,
-    /// `[analog]`: the drive MCU's analog errors in the emulator.
-    pub analog: AnalogErrors,
+    /// `[analog]`: the drive MCU's analog errors in the emulator, checked (the figures:
+    /// `emu::analog`).
+    pub analog: AnalogKeys,
     /// `[emu] expect`: image troubles the scenario provokes on purpose.
     pub expected_trouble: Vec<ImageTrouble>,
     /// `[emu] esc1_amplifier_inputs`.
-    pub esc1_amplifier_inputs: crate::emu::boards::Esc1Sense,
+    pub esc1_amplifier_inputs: Esc1Sense,
     /// `[silicon]`.
     pub silicon: SiliconParams,
 }
@@ -553,9 +544,9 @@ impl Default for Scenario {
             keys_start_run: false,
             lift: None,
             service_flood: false,
-            analog: AnalogErrors::TYPICAL,
+            analog: AnalogKeys::default(),
             expected_trouble: Vec::new(),
-            esc1_amplifier_inputs: crate::emu::boards::Esc1Sense::Documented,
+            esc1_amplifier_inputs: Esc1Sense::Documented,
             silicon: SiliconParams::default(),
         }
     }
@@ -603,7 +594,7 @@ impl Scenario {
         let mut s = Scenario {
             duration_s: positive("duration_s", f.duration_s)?,
             service_flood: f.service.flood,
-            analog: f.analog.errors()?,
+            analog: f.analog.checked()?,
             expected_trouble: f.emu.expect.clone(),
             esc1_amplifier_inputs: f.emu.esc1_amplifier_inputs,
             ..Scenario::default()
@@ -933,30 +924,30 @@ mod tests {
     use super::*;
 
     #[test]
-    fn analog_errors_default_to_the_typical_part_and_each_key_overrides_one() {
+    fn analog_keys_are_kept_as_written_and_each_checked_against_its_range() {
         assert_eq!(
             Scenario::parse("").expect("empty").analog,
-            AnalogErrors::TYPICAL
+            AnalogKeys::default()
         );
         let s = Scenario::parse("[analog]\npart = \"worst_low\"\ncomp_offset_v = 0.004\n")
             .expect("parses");
-        let w = AnalogErrors::worst(-1.0);
-        assert_eq!(s.analog.comp_offset_v, 0.004);
         assert_eq!(
-            (
-                s.analog.dac_offset_v,
-                s.analog.opamp_offset_v,
-                s.analog.comp_delay_ns
-            ),
-            (w.dac_offset_v, w.opamp_offset_v, w.comp_delay_ns)
+            s.analog,
+            AnalogKeys {
+                part: Some(AnalogPart::WorstLow),
+                comp_offset_v: Some(0.004),
+                ..AnalogKeys::default()
+            }
         );
         let s =
             Scenario::parse("[analog]\npart = \"ideal\"\ncomp_delay_ns = 50.0\n").expect("parses");
-        assert_eq!(s.analog.comp_delay_ns, 50.0);
-        assert_eq!(s.analog.dac_offset_v, 0.0);
+        assert_eq!(s.analog.comp_delay_ns, Some(50.0));
         for bad in [
             "[analog]\ncomp_offset_v = 0.5\n",
+            "[analog]\ncomp_offset_v = nan\n",
+            "[analog]\nopamp_offset_v = -0.3\n",
             "[analog]\ncomp_delay_ns = -1.0\n",
+            "[analog]\ncomp_delay_ns = 2e6\n",
             "[analog]\npart = \"worst\"\n",
             "[analog]\ncomp_offset_mv = 2.0\n",
         ] {
@@ -976,10 +967,6 @@ mod tests {
         assert_eq!(Scenario::parse("").unwrap().rig.board, esc1);
         let s = Scenario::parse("[plant]\nboard = \"source\"\n").unwrap();
         assert_eq!(s.rig.board, &firmware_drive::comparators::SOURCE_SENSORS);
-        assert_eq!(
-            BoardKind::of(g431_emu::boards::DriveBoardId::Esc1).profile(),
-            esc1
-        );
     }
 
     const SPEC_EXAMPLE: &str = r#"

@@ -97,8 +97,11 @@ mod timer;
 
 #[cfg(test)]
 mod differential;
-#[cfg(test)]
-mod reference;
+/// The reference interpreter, the oracle of the compiled form: for this crate's tests and,
+/// with feature `reference`, for the differential fuzz target (`fuzz/`). The image never
+/// enables the feature.
+#[cfg(any(test, feature = "reference"))]
+pub mod reference;
 
 pub use io::{
     DriveView, ScanInputs, ScanOutputs, Warning, INPUTS, INPUT_MASK, LCD_FIELDS, OUTPUTS,

@@ -1,5 +1,5 @@
-//! The first PLC VM, kept as the test oracle of the compiled form (`cfg(test)` only: the
-//! image does not carry it). It interprets the stored [`Program`] lines directly, exactly
+//! The first PLC VM, kept as the test oracle of the compiled form (`cfg(test)`, and
+//! feature `reference` for the differential fuzz target: the image does not carry it). It interprets the stored [`Program`] lines directly, exactly
 //! as the first VM did, before the compiled form (the code below is that interpreter, renamed
 //! `ReferenceVm`, with its timer functions below as they were); `differential.rs` runs
 //! random programs on both and compares everything a scan produces. It shares only the

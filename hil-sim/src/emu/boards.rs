@@ -32,6 +32,7 @@ use g431_emu::soc::Board;
 use g431_emu::time::{cycles_to_ns, ns_to_cycles, Cycles};
 
 use crate::plant::{Comparators, GateCommand, Leg, Plant};
+use crate::scenario::{BoardKind, Esc1Sense};
 
 /// ADC reference of both boards.
 pub const VREF: f64 = VDDA_VOLTS;
@@ -48,22 +49,6 @@ pub fn pin_id(name: &str) -> Option<(u8, u8)> {
     let port = b[1].checked_sub(b'A')?;
     let n: u8 = name.get(2..)?.parse().ok()?;
     Some((port, n))
-}
-
-/// What the bare ESC1's amplifier input pins carry (scenario key
-/// `[emu] esc1_amplifier_inputs`, `hil-sim/docs/cli.md`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Esc1Sense {
-    /// The board's documented network (`g431_emu::boards::b_g431b_esc1`): both amplifier
-    /// pins of each leg at the network's bias.
-    #[default]
-    Documented,
-    /// The voltages the drive image once assumed (0.103 V at 0 A on VINP,
-    /// -1.714 mV/A, VINM0 pins at 0 V): **not the board**. A what-if only: the emulator
-    /// tests ran on it while the image's amplifier mode was wrong for the documented board
-    ///; since the fix they run on the documented network.
-    AsImageAssumes,
 }
 
 impl Esc1Sense {
@@ -274,6 +259,15 @@ pub fn gate_command(g: &GateState) -> (u64, GateCommand) {
 /// (ids defined by the board layer, `g431_emu::boards::DriveBoardId`).
 pub fn image_board(image: &g431_emu::elf::Image) -> Option<DriveBoardId> {
     DriveBoardId::from_marker(image.flash_symbol("DRIVE_BOARD_PROFILE")?)
+}
+
+/// The scenario's `[plant] board` for the emulated drive board `b`: the cores' scaling and
+/// comparators that `hil-sim run` uses for that board.
+pub fn board_kind(b: DriveBoardId) -> BoardKind {
+    match b {
+        DriveBoardId::Esc1 => BoardKind::Esc1,
+        DriveBoardId::SourceSensors => BoardKind::Source,
+    }
 }
 
 /// The drive board around the emulated drive MCU.
@@ -539,6 +533,12 @@ mod tests {
 
     fn rig(board: DriveBoardId) -> Rig {
         Rig::new(Plant::new(RigParams::default()), board)
+    }
+
+    #[test]
+    fn each_emulated_drive_board_runs_the_cores_profile_of_its_kind() {
+        assert_eq!(board_kind(DriveBoardId::Esc1), BoardKind::Esc1);
+        assert_eq!(board_kind(DriveBoardId::SourceSensors), BoardKind::Source);
     }
 
     #[test]

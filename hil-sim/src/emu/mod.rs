@@ -3,11 +3,13 @@
 //! in the loop, the same scenario and the same record as `hil-sim run`.
 //!
 //! * [`images`]: where the ELFs are (and building them for the tests).
+//! * [`analog`]: the scenario's `[analog]` keys as the drive MCU's analog errors.
 //! * [`boards`]: what each pin of the two MCUs is wired to.
 //! * [`sim`]: the co-simulation.
 //! * [`silicon`]: the scenario's faults of the silicon applied to the MCUs.
 //! * [`run`]: one whole `emu` run as the CLI does it.
 
+pub mod analog;
 pub mod boards;
 pub mod images;
 pub mod run;

@@ -48,11 +48,13 @@ use shared_protocol::link::message::{DriveMsg, DriveStatus, PlcMsg};
 use shared_protocol::link::FrameReader;
 use shared_protocol::program::Program;
 
-use super::boards::{drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig};
+use super::boards::{
+    board_kind, drive_pins, image_board, pin_id, plc_pins, DriveBoard, PlcBoard, PlcIo, Rig,
+};
 use crate::mcu::SimLcd;
 use crate::plant::Plant;
 use crate::scenario::silicon::McuSide;
-use crate::scenario::{Action, BoardKind, ImageTrouble, Input, Scenario};
+use crate::scenario::{Action, ImageTrouble, Input, Scenario};
 use crate::sim::{FaultRecord, RunOptions, Sample};
 
 /// Longest slice both MCUs run before the wire hands characters over.
@@ -245,13 +247,13 @@ impl EmuSim {
                 drive_elf.display()
             )
         })?;
-        scenario.rig.board = BoardKind::of(board).profile();
+        scenario.rig.board = board_kind(board).profile();
         let rig = Rc::new(RefCell::new(Rig::new(Plant::new(scenario.rig), board)));
         rig.borrow_mut().esc1_sense = scenario.esc1_amplifier_inputs;
         let mut drive = Mcu::new("drive", drive_image, Box::new(DriveBoard::new(rig.clone())))
             .with_context(|| format!("drive image {}", drive_elf.display()))?;
         // The drive MCU's analog errors (`[analog]`: the datasheet's typical part by default).
-        drive.soc_mut().set_analog_errors(&scenario.analog);
+        drive.soc_mut().set_analog_errors(&scenario.analog.errors());
         let io = Rc::new(RefCell::new(PlcIo::default()));
         let mut plc = Mcu::load("plc", plc_elf, Box::new(PlcBoard::new(io.clone())))
             .with_context(|| format!("PLC image {}", plc_elf.display()))?;
