@@ -3,7 +3,13 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use super::faults::{apply, edges, outlasts_the_period, sustain, Fault, FaultKind};
+use firmware_plc::storage::Job;
+
+use super::faults::{
+    aim, apply, arm_cut, edges, outlasts_the_period, plc_cut_happened, sustain, Fault, FaultKind,
+    AIM_WINDOW_NS,
+};
+use super::invariants::storage_decodes::{self, StorageTrack};
 use super::invariants::{self, check_all, Violation, NO_PANIC};
 use super::observe::Observation;
 use super::world::World;
@@ -26,6 +32,9 @@ pub struct Outcome {
     pub outputs_on_ns: u64,
     /// The drive's faults in the order they latched (codes).
     pub trips: Vec<u8>,
+    /// Armed cuts that stopped an EEPROM write, by the storage job in flight (`None`: a
+    /// write outside the job queue, the counters record).
+    pub write_cuts: Vec<Option<Job>>,
 }
 
 /// Runs `world` with `faults` (the world's own or a shrunk list) to its end or to the
@@ -54,6 +63,7 @@ pub fn run(world: &World, faults: &[Fault]) -> Outcome {
         sim_ns: p.sim_ns,
         outputs_on_ns: p.outputs_on_ns,
         trips: p.trips,
+        write_cuts: p.write_cuts,
     }
 }
 
@@ -64,6 +74,61 @@ struct Progress {
     sim_ns: u64,
     outputs_on_ns: u64,
     trips: Vec<u8>,
+    write_cuts: Vec<Option<Job>>,
+}
+
+/// The PLC's storage between events: a cut that stopped a write restarts the PLC and is
+/// checked (`storage_decodes`); a job that ends refreshes the track's snapshot; a save
+/// that starts tells it which program it writes.
+struct StorageWatch {
+    track: StorageTrack,
+    job: Option<Job>,
+    /// A cut waiting for its job ([`aim`]) until a time.
+    aimed: Option<(fn(&Job) -> bool, u32, u64)>,
+}
+
+impl StorageWatch {
+    fn after_event(&mut self, sim: &mut Simulation, p: &mut Progress) -> Option<Violation> {
+        if plc_cut_happened(sim) {
+            p.write_cuts.push(self.job);
+            sim.restart_plc();
+            return self.after_cut(sim);
+        }
+        if let Some((wanted, at_byte, until)) = self.aimed {
+            let first = sim.plc_mut().app_mut().storage().jobs().next();
+            if first.as_ref().is_some_and(wanted) {
+                arm_cut(sim, at_byte);
+                self.aimed = None;
+            } else if sim.now_ns() > until {
+                self.aimed = None;
+            }
+        }
+        let job = sim.plc_mut().app_mut().storage().active_job();
+        if job != self.job {
+            if self.job.is_some() {
+                self.track
+                    .snapshot(sim.plc_mut().app_mut().storage().eeprom());
+            }
+            if let Some(Job::Save { slot }) = job {
+                self.track.save_started(slot, sim.plc().program());
+            }
+            self.job = job;
+        }
+        None
+    }
+
+    /// The PLC has just powered up again after a cut.
+    fn after_cut(&mut self, sim: &mut Simulation) -> Option<Violation> {
+        self.job = None;
+        let m = self
+            .track
+            .after_cut(sim.plc_mut().app_mut().storage().eeprom())?;
+        Some(Violation {
+            invariant: storage_decodes::NAME,
+            t_ns: sim.now_ns(),
+            message: m,
+        })
+    }
 }
 
 fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violation> {
@@ -83,6 +148,21 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
         }
     };
     let mut invs = invariants::all();
+    let track = match StorageTrack::new(sim.plc_mut().app_mut().storage().eeprom()) {
+        Ok(t) => t,
+        Err(m) => {
+            return Some(Violation {
+                invariant: storage_decodes::NAME,
+                t_ns: 0,
+                message: format!("at power-up: {m}"),
+            })
+        }
+    };
+    let mut storage = StorageWatch {
+        track,
+        job: None,
+        aimed: None,
+    };
     let edges = edges(faults);
     let mut k = 0;
     let end = world.duration_ns;
@@ -114,7 +194,18 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
             if let Some(v) = observe(&sim, p) {
                 return Some(v);
             }
+            if let Some(v) = storage.after_event(&mut sim, p) {
+                return Some(v);
+            }
             apply(&mut sim, e, &world.baseline);
+            if let (Some((wanted, at_byte)), false) = (aim(&e.kind), e.end) {
+                storage.aimed = Some((wanted, at_byte, e.at_ns + AIM_WINDOW_NS));
+            }
+            if matches!((e.kind, e.end), (FaultKind::PlcPowerCut, false)) {
+                if let Some(v) = storage.after_cut(&mut sim) {
+                    return Some(v);
+                }
+            }
             if !e.end {
                 p.injected += 1;
                 if outlasts_the_period(&e.kind, sim.plant().period_ns()) {
@@ -130,6 +221,9 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
         }
         sim.run_until(next, |_| {});
         if let Some(v) = observe(&sim, p) {
+            return Some(v);
+        }
+        if let Some(v) = storage.after_event(&mut sim, p) {
             return Some(v);
         }
         if next >= end {

@@ -10,6 +10,7 @@ pub mod lift_doors;
 pub mod lift_limits;
 pub mod min_pulse;
 pub mod run_gate;
+pub mod storage_decodes;
 pub mod sw_trip_off;
 pub mod trip_latched;
 
@@ -76,6 +77,7 @@ mod tests {
     fn names_are_unique() {
         let mut names: Vec<&str> = all().iter().map(|i| i.name()).collect();
         names.push(NO_PANIC);
+        names.push(storage_decodes::NAME);
         let n = names.len();
         names.sort_unstable();
         names.dedup();
