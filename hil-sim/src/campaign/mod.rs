@@ -49,6 +49,7 @@ pub struct SeedResult {
     pub trips: Vec<u8>,
     /// Armed cuts that stopped an EEPROM write, by what was written (as [`WRITES`]).
     pub write_cuts: [u64; WRITES.len()],
+    pub checks: runner::Checks,
     pub failure: Option<Failure>,
 }
 
@@ -93,6 +94,7 @@ pub struct Summary {
     pub trips: u64,
     /// Armed cuts that stopped an EEPROM write, by [`WRITES`].
     pub write_cuts: [u64; WRITES.len()],
+    pub checks: runner::Checks,
     /// By invariant name.
     pub by_invariant: Vec<(&'static str, u64)>,
 }
@@ -128,6 +130,12 @@ impl Summary {
             "PLC power cuts inside EEPROM writes: {} ({})",
             self.write_cuts.iter().sum::<u64>(),
             cuts.join(", ")
+        );
+        let c = &self.checks;
+        let _ = writeln!(
+            s,
+            "storage checked after {} PLC power cuts, fault log counted {} times, {} drive trips learned and logged",
+            c.storage_after_cut, c.log_counted, c.trips_learned
         );
         let _ = write!(
             s,
@@ -178,6 +186,7 @@ pub fn run_seed(seed: u64, opts: &WorldOptions, shrink: bool) -> Result<SeedResu
         outputs_on_ns: out.outputs_on_ns,
         trips: out.trips.clone(),
         write_cuts,
+        checks: out.checks,
         failure,
     })
 }
@@ -267,6 +276,9 @@ pub fn run_campaign(
         for (a, b) in sum.write_cuts.iter_mut().zip(r.write_cuts) {
             *a += b;
         }
+        sum.checks.storage_after_cut += r.checks.storage_after_cut;
+        sum.checks.log_counted += r.checks.log_counted;
+        sum.checks.trips_learned += r.checks.trips_learned;
         for (a, b) in sum.by_class.iter_mut().zip(r.injected_by_class) {
             *a += b;
         }

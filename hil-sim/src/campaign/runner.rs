@@ -3,16 +3,17 @@
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
-use firmware_plc::storage::Job;
+use firmware_plc::storage::{fault_log, FaultEntry, Job, FAULT_LOG_ENTRIES};
 
 use super::faults::{
     aim, apply, arm_cut, edges, outlasts_the_period, plc_cut_happened, sustain, Fault, FaultKind,
     AIM_WINDOW_NS,
 };
 use super::invariants::storage_decodes::{self, StorageTrack};
+use super::invariants::trip_logged_once::{self, TripLog};
 use super::invariants::{self, check_all, Violation, NO_PANIC};
 use super::observe::Observation;
-use super::world::World;
+use super::world::{World, BOOT_RECORD_BYTES};
 use crate::sim::{RunOptions, Simulation};
 
 /// The name of the violation a diverging plant gives (a model error, not the firmware's:
@@ -35,6 +36,19 @@ pub struct Outcome {
     /// Armed cuts that stopped an EEPROM write, by the storage job in flight (`None`: a
     /// write outside the job queue, the counters record).
     pub write_cuts: Vec<Option<Job>>,
+    /// How often the storage invariants looked (they are not vacuous).
+    pub checks: Checks,
+}
+
+/// What `storage_decodes` and `trip_logged_once` checked in a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Checks {
+    /// PLC power cuts after which the EEPROM was decoded and compared.
+    pub storage_after_cut: u64,
+    /// Times the fault log was read and counted against the entries queued.
+    pub log_counted: u64,
+    /// Drive trips the PLC had to learn of and did (an entry with the code queued).
+    pub trips_learned: u64,
 }
 
 /// Runs `world` with `faults` (the world's own or a shrunk list) to its end or to the
@@ -64,6 +78,7 @@ pub fn run(world: &World, faults: &[Fault]) -> Outcome {
         outputs_on_ns: p.outputs_on_ns,
         trips: p.trips,
         write_cuts: p.write_cuts,
+        checks: p.checks,
     }
 }
 
@@ -75,6 +90,23 @@ struct Progress {
     outputs_on_ns: u64,
     trips: Vec<u8>,
     write_cuts: Vec<Option<Job>>,
+    checks: Checks,
+}
+
+/// A fault after which a drive trip may legitimately never reach the PLC's log: of the
+/// link, of either MCU's supply, or a cut inside an EEPROM write.
+fn disturbs_the_link(kind: &FaultKind) -> bool {
+    matches!(
+        kind,
+        FaultKind::LinkBitErrors { .. }
+            | FaultKind::LinkBurst { .. }
+            | FaultKind::LinkCut { .. }
+            | FaultKind::DrivePowerCut
+            | FaultKind::PlcPowerCut
+            | FaultKind::CutInSave { .. }
+            | FaultKind::CutInLog { .. }
+            | FaultKind::CutInCounters { .. }
+    )
 }
 
 /// The PLC's storage between events: a cut that stopped a write restarts the PLC and is
@@ -83,16 +115,30 @@ struct Progress {
 struct StorageWatch {
     track: StorageTrack,
     job: Option<Job>,
+    /// The EEPROM's bytes written when `job` became the active one.
+    job_bytes: u32,
     /// A cut waiting for its job ([`aim`]) until a time.
     aimed: Option<(fn(&Job) -> bool, u32, u64)>,
+    trips: TripLog,
+    /// Drive trips already given to `trips`.
+    trips_seen: usize,
 }
 
 impl StorageWatch {
     fn after_event(&mut self, sim: &mut Simulation, p: &mut Progress) -> Option<Violation> {
         if plc_cut_happened(sim) {
-            p.write_cuts.push(self.job);
+            // A boot-record job settles (waits for its write cycle) in the pass that
+            // then writes the counters record: past its bytes, the cut is in that.
+            let written = sim.plc_mut().app_mut().storage().eeprom().bytes_written();
+            let settled = matches!(self.job, Some(Job::Boot(_)))
+                && written.saturating_sub(self.job_bytes) >= BOOT_RECORD_BYTES as u32;
+            p.write_cuts.push(if settled { None } else { self.job });
             sim.restart_plc();
+            p.checks.storage_after_cut += 1;
             return self.after_cut(sim);
+        }
+        if let Some(v) = self.trip_log(sim, p) {
+            return Some(v);
         }
         if let Some((wanted, at_byte, until)) = self.aimed {
             let first = sim.plc_mut().app_mut().storage().jobs().next();
@@ -113,13 +159,57 @@ impl StorageWatch {
                 self.track.save_started(slot, sim.plc().program());
             }
             self.job = job;
+            self.job_bytes = sim.plc_mut().app_mut().storage().eeprom().bytes_written();
         }
         None
+    }
+
+    /// `trip_logged_once`: the drive's new trips, the log entries queued, the log when
+    /// they have all been written.
+    fn trip_log(&mut self, sim: &mut Simulation, p: &mut Progress) -> Option<Violation> {
+        let link_up = sim.plc().app().link().is_up() && sim.drive().app().link().is_up();
+        for f in sim.faults().iter().skip(self.trips_seen) {
+            self.trips.drive_trip(f.t_ns, f.code, link_up);
+        }
+        self.trips_seen = sim.faults().len();
+        let storage = sim.plc_mut().app_mut().storage();
+        let queue: Vec<FaultEntry> = storage
+            .jobs()
+            .filter_map(|j| match j {
+                Job::LogFault(e) => Some(e),
+                _ => None,
+            })
+            .collect();
+        let now = sim.now_ns();
+        let violation = |m| {
+            Some(Violation {
+                invariant: trip_logged_once::NAME,
+                t_ns: now,
+                message: m,
+            })
+        };
+        let r = self.trips.step(now, &queue);
+        p.checks.trips_learned = self.trips.learned;
+        match r {
+            Err(m) => violation(m),
+            Ok(false) => None,
+            Ok(true) => {
+                p.checks.log_counted += 1;
+                let mut e = sim.plc_mut().app_mut().storage().eeprom().clone();
+                let mut log = heapless::Vec::<FaultEntry, FAULT_LOG_ENTRIES>::new();
+                match fault_log::read_all(&mut e, &mut log) {
+                    Err(x) => violation(format!("the fault log does not read: {x}")),
+                    Ok(()) => self.trips.check_log(&log).and_then(violation),
+                }
+            }
+        }
     }
 
     /// The PLC has just powered up again after a cut.
     fn after_cut(&mut self, sim: &mut Simulation) -> Option<Violation> {
         self.job = None;
+        self.trips.cut();
+        self.trips.disturbed();
         let m = self
             .track
             .after_cut(sim.plc_mut().app_mut().storage().eeprom())?;
@@ -161,7 +251,10 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
     let mut storage = StorageWatch {
         track,
         job: None,
+        job_bytes: 0,
         aimed: None,
+        trips: TripLog::default(),
+        trips_seen: 0,
     };
     let edges = edges(faults);
     let mut k = 0;
@@ -198,10 +291,14 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
                 return Some(v);
             }
             apply(&mut sim, e, &world.baseline);
+            if disturbs_the_link(&e.kind) {
+                storage.trips.disturbed();
+            }
             if let (Some((wanted, at_byte)), false) = (aim(&e.kind), e.end) {
                 storage.aimed = Some((wanted, at_byte, e.at_ns + AIM_WINDOW_NS));
             }
             if matches!((e.kind, e.end), (FaultKind::PlcPowerCut, false)) {
+                p.checks.storage_after_cut += 1;
                 if let Some(v) = storage.after_cut(&mut sim) {
                     return Some(v);
                 }

@@ -136,7 +136,7 @@ pub struct World {
 
 /// The boot record's bytes (`firmware-plc/src/storage/boot.rs`, `RECORD_BYTES`;
 /// docs/eeprom-image.md).
-const BOOT_RECORD_BYTES: usize = 18;
+pub const BOOT_RECORD_BYTES: usize = 18;
 
 /// Faults start no earlier than this: the drive has booted and the program runs.
 const FIRST_FAULT_NS: u64 = 100_000_000;

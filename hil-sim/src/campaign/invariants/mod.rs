@@ -13,6 +13,7 @@ pub mod run_gate;
 pub mod storage_decodes;
 pub mod sw_trip_off;
 pub mod trip_latched;
+pub mod trip_logged_once;
 
 /// One rule over the trace of observations; it may keep state between steps.
 pub trait Invariant {
@@ -78,6 +79,7 @@ mod tests {
         let mut names: Vec<&str> = all().iter().map(|i| i.name()).collect();
         names.push(NO_PANIC);
         names.push(storage_decodes::NAME);
+        names.push(trip_logged_once::NAME);
         let n = names.len();
         names.sort_unstable();
         names.dedup();
