@@ -134,8 +134,8 @@ impl Summary {
         let c = &self.checks;
         let _ = writeln!(
             s,
-            "storage checked after {} PLC power cuts, fault log counted {} times, {} drive trips learned and logged",
-            c.storage_after_cut, c.log_counted, c.trips_learned
+            "storage checked after {} PLC power cuts, fault log counted {} times, {} drive trips learned and logged; {} Q values applied in order, {} settled Q steps compared",
+            c.storage_after_cut, c.log_counted, c.trips_learned, c.q_applied, c.q_settled
         );
         let _ = write!(
             s,
@@ -279,6 +279,8 @@ pub fn run_campaign(
         sum.checks.storage_after_cut += r.checks.storage_after_cut;
         sum.checks.log_counted += r.checks.log_counted;
         sum.checks.trips_learned += r.checks.trips_learned;
+        sum.checks.q_applied += r.checks.q_applied;
+        sum.checks.q_settled += r.checks.q_settled;
         for (a, b) in sum.by_class.iter_mut().zip(r.injected_by_class) {
             *a += b;
         }

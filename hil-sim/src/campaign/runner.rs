@@ -9,12 +9,16 @@ use super::faults::{
     aim, apply, arm_cut, edges, outlasts_the_period, plc_cut_happened, sustain, Fault, FaultKind,
     AIM_WINDOW_NS,
 };
+use super::invariants::command_fresh::{self, QTrack, QView};
 use super::invariants::storage_decodes::{self, StorageTrack};
 use super::invariants::trip_logged_once::{self, TripLog};
 use super::invariants::{self, check_all, Violation, NO_PANIC};
 use super::observe::Observation;
 use super::world::{World, BOOT_RECORD_BYTES};
 use crate::sim::{RunOptions, Simulation};
+use firmware_plc::app::{drive_written_q, RunState};
+use shared_protocol::link::Q_COUNT;
+use shared_protocol::program::{Mnemonic, Operand, Program, Section};
 
 /// The name of the violation a diverging plant gives (a model error, not the firmware's:
 /// docs/campaign.md).
@@ -49,6 +53,10 @@ pub struct Checks {
     pub log_counted: u64,
     /// Drive trips the PLC had to learn of and did (an entry with the code queued).
     pub trips_learned: u64,
+    /// Q values the drive applied, each found in the PLC's order.
+    pub q_applied: u64,
+    /// Steps at which a settled Q was compared (drive's copy = PLC's last write).
+    pub q_settled: u64,
 }
 
 /// Runs `world` with `faults` (the world's own or a shrunk list) to its end or to the
@@ -91,6 +99,56 @@ struct Progress {
     trips: Vec<u8>,
     write_cuts: Vec<Option<Job>>,
     checks: Checks,
+}
+
+/// The Qs `command_fresh` follows: written by the PLC section, not by the drive section.
+fn followed_qs(program: &Program) -> Vec<u8> {
+    let plc = program
+        .section(Section::Plc)
+        .filter(|(_, i)| i.mnemonic == Mnemonic::Wr)
+        .filter_map(|(_, i)| match i.operand {
+            Some(Operand::Q(n)) if usize::from(n) < Q_COUNT => Some(n),
+            _ => None,
+        });
+    let drive = drive_written_q(program);
+    let mut v: Vec<u8> = plc.filter(|n| drive & (1u64 << n) == 0).collect();
+    v.sort_unstable();
+    v.dedup();
+    v
+}
+
+/// `command_fresh` on every followed Q.
+struct Commands {
+    qs: Vec<(u8, QTrack)>,
+}
+
+impl Commands {
+    fn check(&mut self, sim: &Simulation) -> Option<Violation> {
+        let live = sim.plc().run_state() == RunState::Running
+            && sim.plc().app().link().is_up()
+            && sim.drive().app().link().is_up();
+        let t_ns = sim.now_ns();
+        for (n, q) in &mut self.qs {
+            let v = QView {
+                t_ns,
+                plc: sim.plc().app().q(*n),
+                drive: sim.drive().core().vm().q(*n),
+                live,
+            };
+            if let Some(m) = q.check(*n, &v) {
+                return Some(Violation {
+                    invariant: command_fresh::NAME,
+                    t_ns,
+                    message: m,
+                });
+            }
+        }
+        None
+    }
+
+    fn disturbed(&mut self, t_ns: u64) {
+        self.qs.iter_mut().for_each(|(_, q)| q.disturbed(t_ns));
+    }
 }
 
 /// A fault after which a drive trip may legitimately never reach the PLC's log: of the
@@ -248,6 +306,12 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
             })
         }
     };
+    let mut commands = Commands {
+        qs: followed_qs(&world.program)
+            .into_iter()
+            .map(|n| (n, QTrack::default()))
+            .collect(),
+    };
     let mut storage = StorageWatch {
         track,
         job: None,
@@ -293,6 +357,7 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
             apply(&mut sim, e, &world.baseline);
             if disturbs_the_link(&e.kind) {
                 storage.trips.disturbed();
+                commands.disturbed(e.at_ns);
             }
             if let (Some((wanted, at_byte)), false) = (aim(&e.kind), e.end) {
                 storage.aimed = Some((wanted, at_byte, e.at_ns + AIM_WINDOW_NS));
@@ -322,6 +387,12 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
         }
         if let Some(v) = storage.after_event(&mut sim, p) {
             return Some(v);
+        }
+        let v = commands.check(&sim);
+        p.checks.q_applied = commands.qs.iter().map(|(_, q)| q.applied).sum();
+        p.checks.q_settled = commands.qs.iter().map(|(_, q)| q.settled).sum();
+        if v.is_some() {
+            return v;
         }
         if next >= end {
             return None;

@@ -4,6 +4,7 @@
 
 use super::observe::Observation;
 
+pub mod command_fresh;
 pub mod hw_trip_off;
 pub mod leg_interlock;
 pub mod lift_doors;
@@ -79,6 +80,7 @@ mod tests {
         let mut names: Vec<&str> = all().iter().map(|i| i.name()).collect();
         names.push(NO_PANIC);
         names.push(storage_decodes::NAME);
+        names.push(command_fresh::NAME);
         names.push(trip_logged_once::NAME);
         let n = names.len();
         names.sort_unstable();
