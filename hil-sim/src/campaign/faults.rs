@@ -58,10 +58,17 @@ pub enum FaultKind {
     /// The RUN/STOP key typed (a stop writes the boot record and the counters record)
     /// and the PLC's supply failing `at_byte` bytes into the writes from now.
     CutInCounters { at_byte: u32 },
+    /// The drive's task stalls and its watchdog restarts it (reset cause watchdog: the
+    /// drive latches `WDG` after boot, drive.md). The core simulation has no task
+    /// timing: the stall is seen by its end, the watchdog reset.
+    DriveWatchdog,
+    /// The EEPROM's write cycles last `polls` ready polls (the chip NACKs its address
+    /// meanwhile, 24xx datasheet: up to 5 ms) for `for_ns`.
+    EepromBusy { polls: u32, for_ns: u64 },
 }
 
 /// The classes, for the per-class counts (in this order).
-pub const CLASSES: [&str; 15] = [
+pub const CLASSES: [&str; 17] = [
     "link_bit_errors",
     "link_burst",
     "link_cut",
@@ -77,6 +84,8 @@ pub const CLASSES: [&str; 15] = [
     "cut_in_save",
     "cut_in_log",
     "cut_in_counters",
+    "drive_watchdog",
+    "eeprom_busy",
 ];
 
 impl FaultKind {
@@ -98,6 +107,8 @@ impl FaultKind {
             FaultKind::CutInSave { .. } => "cut_in_save",
             FaultKind::CutInLog { .. } => "cut_in_log",
             FaultKind::CutInCounters { .. } => "cut_in_counters",
+            FaultKind::DriveWatchdog => "drive_watchdog",
+            FaultKind::EepromBusy { .. } => "eeprom_busy",
         }
     }
 
@@ -107,7 +118,8 @@ impl FaultKind {
             FaultKind::LinkBitErrors { for_ns, .. }
             | FaultKind::LinkCut { for_ns }
             | FaultKind::Supply { for_ns, .. }
-            | FaultKind::LockedRotor { for_ns } => for_ns,
+            | FaultKind::LockedRotor { for_ns }
+            | FaultKind::EepromBusy { for_ns, .. } => for_ns,
             FaultKind::StoPulse { width_ns }
             | FaultKind::CurrentSpike { width_ns, .. }
             | FaultKind::UdcSpike { width_ns, .. } => width_ns,
@@ -180,6 +192,10 @@ impl std::fmt::Display for Fault {
                 at_byte,
             } => write!(f, " STO {:.0} us wide, at byte {at_byte}", us(sto_width_ns)),
             FaultKind::CutInCounters { at_byte } => write!(f, " at byte {at_byte}"),
+            FaultKind::DriveWatchdog => Ok(()),
+            FaultKind::EepromBusy { polls, for_ns } => {
+                write!(f, " {polls} polls a write cycle for {:.0} us", us(for_ns))
+            }
         }
     }
 }
@@ -275,9 +291,16 @@ pub fn apply(sim: &mut Simulation, edge: &FaultEdge, base: &Baseline) {
             arm_cut(sim, at_byte)
         }
         (FaultKind::CutInCounters { .. }, true) => sim.key(RUN_KEY, false),
+        (FaultKind::DriveWatchdog, false) => sim.restart_drive(ResetCause::Watchdog),
+        (FaultKind::EepromBusy { polls, .. }, end) => sim
+            .plc_mut()
+            .app_mut()
+            .storage()
+            .eeprom()
+            .set_busy_polls(if end { 0 } else { polls }),
         (FaultKind::CurrentSpike { .. } | FaultKind::UdcSpike { .. }, true)
         | (FaultKind::DrivePowerCut | FaultKind::PlcPowerCut, true)
-        | (FaultKind::CutInSave { .. }, true) => {}
+        | (FaultKind::CutInSave { .. } | FaultKind::DriveWatchdog, true) => {}
     }
 }
 

@@ -24,6 +24,10 @@ use shared_protocol::program::{Mnemonic, Operand, Program, Section};
 /// docs/campaign.md).
 pub const PLANT_DIVERGED: &str = "plant_diverged";
 
+/// The name of the violation an access to the EEPROM in its write cycle gives
+/// (`firmware-plc/src/storage/job.rs`: "no access ever meets a busy chip").
+pub const EEPROM_POLLED: &str = "eeprom_polled";
+
 /// What one run gave.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Outcome {
@@ -160,6 +164,7 @@ fn disturbs_the_link(kind: &FaultKind) -> bool {
             | FaultKind::LinkBurst { .. }
             | FaultKind::LinkCut { .. }
             | FaultKind::DrivePowerCut
+            | FaultKind::DriveWatchdog
             | FaultKind::PlcPowerCut
             | FaultKind::CutInSave { .. }
             | FaultKind::CutInLog { .. }
@@ -197,6 +202,16 @@ impl StorageWatch {
         }
         if let Some(v) = self.trip_log(sim, p) {
             return Some(v);
+        }
+        let busy = sim.plc_mut().app_mut().storage().eeprom().busy_violations();
+        if busy > 0 {
+            return Some(Violation {
+                invariant: EEPROM_POLLED,
+                t_ns: sim.now_ns(),
+                message: format!(
+                    "{busy} EEPROM access(es) met the chip in its write cycle (it NACKs): the storage must poll it ready first"
+                ),
+            });
         }
         if let Some((wanted, at_byte, until)) = self.aimed {
             let first = sim.plc_mut().app_mut().storage().jobs().next();

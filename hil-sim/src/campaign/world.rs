@@ -287,7 +287,7 @@ fn save_bytes(program: &Program) -> u32 {
 fn fault_kind(rng: &mut Rng, save_bytes: u32) -> FaultKind {
     let ms = |x: f64| (x * 1e6) as u64;
     let us = |x: f64| (x * 1e3) as u64;
-    match rng.range(0, 15) {
+    match rng.range(0, 17) {
         0 => FaultKind::LinkBitErrors {
             rate: rng.log_uniform(1e-5, 1e-2),
             for_ns: ms(rng.log_uniform(1.0, 500.0)),
@@ -336,6 +336,11 @@ fn fault_kind(rng: &mut Rng, save_bytes: u32) -> FaultKind {
         13 => FaultKind::CutInLog {
             sto_width_ns: ms(rng.log_uniform(1.0, 20.0)),
             at_byte: rng.range(0, FAULT_ENTRY_BYTES as u64) as u32,
+        },
+        15 => FaultKind::DriveWatchdog,
+        16 => FaultKind::EepromBusy {
+            polls: rng.range(1, 6) as u32,
+            for_ns: ms(rng.log_uniform(10.0, 2000.0)),
         },
         _ => FaultKind::CutInCounters {
             // A stop writes the boot record, then the counters record (one page).

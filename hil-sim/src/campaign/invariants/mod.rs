@@ -81,6 +81,7 @@ mod tests {
         names.push(NO_PANIC);
         names.push(storage_decodes::NAME);
         names.push(command_fresh::NAME);
+        names.push(crate::campaign::runner::EEPROM_POLLED);
         names.push(trip_logged_once::NAME);
         let n = names.len();
         names.sort_unstable();
