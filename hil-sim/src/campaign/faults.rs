@@ -304,10 +304,13 @@ pub fn apply(sim: &mut Simulation, edge: &FaultEdge, base: &Baseline) {
     }
 }
 
+/// Which storage job an aimed cut waits for.
+pub type JobFilter = fn(&Job) -> bool;
+
 /// The storage job a cut waits for, and where in it the supply fails: a cut in a save
 /// or in a log entry is armed as that job comes first in the PLC's storage queue, at
 /// most [`AIM_WINDOW_NS`] after the fault.
-pub fn aim(kind: &FaultKind) -> Option<(fn(&Job) -> bool, u32)> {
+pub fn aim(kind: &FaultKind) -> Option<(JobFilter, u32)> {
     match *kind {
         FaultKind::CutInSave { at_byte, .. } => Some((|j| matches!(j, Job::Save { .. }), at_byte)),
         FaultKind::CutInLog { at_byte, .. } => Some((|j| matches!(j, Job::LogFault(_)), at_byte)),

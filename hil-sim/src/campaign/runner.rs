@@ -7,7 +7,7 @@ use firmware_plc::storage::{fault_log, FaultEntry, Job, FAULT_LOG_ENTRIES};
 
 use super::faults::{
     aim, apply, arm_cut, edges, outlasts_the_period, plc_cut_happened, sustain, Fault, FaultKind,
-    AIM_WINDOW_NS,
+    JobFilter, AIM_WINDOW_NS,
 };
 use super::invariants::command_fresh::{self, QTrack, QView};
 use super::invariants::storage_decodes::{self, StorageTrack};
@@ -181,7 +181,7 @@ struct StorageWatch {
     /// The EEPROM's bytes written when `job` became the active one.
     job_bytes: u32,
     /// A cut waiting for its job ([`aim`]) until a time.
-    aimed: Option<(fn(&Job) -> bool, u32, u64)>,
+    aimed: Option<(JobFilter, u32, u64)>,
     trips: TripLog,
     /// Drive trips already given to `trips`.
     trips_seen: usize,

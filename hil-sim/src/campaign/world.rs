@@ -258,7 +258,7 @@ fn user_actions(rng: &mut Rng, t: &Template, opts: &WorldOptions, dur: u64) -> V
 
 /// A keypad save into `slot` (`C` `n`, firmware-plc/docs/keymap.md) from `at_ns`: the
 /// digit goes down at `at_ns + 2 KEY_HOLD`.
-fn save_keys(slot: u8, at_ns: u64) -> Vec<TimedAction> {
+pub fn save_keys(slot: u8, at_ns: u64) -> Vec<TimedAction> {
     let digit = char::from(b'0' + slot);
     let mut out = Vec::new();
     for (i, c) in ['C', digit].into_iter().enumerate() {
