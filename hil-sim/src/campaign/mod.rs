@@ -196,8 +196,9 @@ pub fn render_failure(seed: u64, f: &Failure, opts: &WorldOptions) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {}`",
-        opts.duration_ns as f64 / 1e9
+        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {} --max-faults {}`",
+        opts.duration_ns as f64 / 1e9,
+        opts.max_faults
     );
     let v = &f.violation;
     let _ = writeln!(

@@ -150,8 +150,8 @@ impl Commands {
         None
     }
 
-    fn disturbed(&mut self, t_ns: u64) {
-        self.qs.iter_mut().for_each(|(_, q)| q.disturbed(t_ns));
+    fn disturbed(&mut self, until_ns: u64) {
+        self.qs.iter_mut().for_each(|(_, q)| q.disturbed(until_ns));
     }
 }
 
@@ -282,7 +282,7 @@ impl StorageWatch {
     fn after_cut(&mut self, sim: &mut Simulation) -> Option<Violation> {
         self.job = None;
         self.trips.cut();
-        self.trips.disturbed();
+        self.trips.disturbed(sim.now_ns());
         let m = self
             .track
             .after_cut(sim.plc_mut().app_mut().storage().eeprom())?;
@@ -371,8 +371,9 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
             }
             apply(&mut sim, e, &world.baseline);
             if disturbs_the_link(&e.kind) {
-                storage.trips.disturbed();
-                commands.disturbed(e.at_ns);
+                let until = e.at_ns + if e.end { 0 } else { e.kind.duration_ns() };
+                storage.trips.disturbed(until);
+                commands.disturbed(until);
             }
             if let (Some((wanted, at_byte)), false) = (aim(&e.kind), e.end) {
                 storage.aimed = Some((wanted, at_byte, e.at_ns + AIM_WINDOW_NS));

@@ -16,8 +16,10 @@
 //!   powers up and each RUN starts with its Q cleared: link.md "RUN starts with Q
 //!   cleared"), and moves nothing;
 //! * **fresh after recovery**: once the PLC runs, both ends of the link have been up, no
-//!   fault of the link or of either supply has started or ended, and the PLC's value has
-//!   not changed for [`SETTLE_NS`], the drive's copy equals it.
+//!   fault of the link or of either supply is under way or has ended, and the PLC's
+//!   value has not changed, for [`SETTLE_NS`], the drive's copy equals it. (While bit
+//!   errors hit the wires the link may stay up with every other frame lost: a write
+//!   may then take longer; the rule waits for the end of the fault.)
 
 pub const NAME: &str = "command_fresh";
 
@@ -53,19 +55,19 @@ pub struct QTrack {
 }
 
 impl QTrack {
-    /// A fault of the link or of a supply started or ended now.
-    pub fn disturbed(&mut self, t_ns: u64) {
-        self.steady_since = t_ns;
+    /// A fault of the link or of a supply disturbs it until `until_ns` (its end).
+    pub fn disturbed(&mut self, until_ns: u64) {
+        self.steady_since = self.steady_since.max(until_ns);
     }
 
     pub fn check(&mut self, n: u8, v: &QView) -> Option<String> {
         if self.history.last() != Some(&v.plc) {
             self.history.push(v.plc);
-            self.steady_since = v.t_ns;
+            self.steady_since = self.steady_since.max(v.t_ns);
         }
         if v.live != self.live {
             self.live = v.live;
-            self.steady_since = v.t_ns;
+            self.steady_since = self.steady_since.max(v.t_ns);
         }
         if v.drive != self.drive {
             self.drive = v.drive;
@@ -157,8 +159,10 @@ mod tests {
         };
         assert_eq!(q.check(1, &down), None);
         assert_eq!(q.check(1, &v(60, 10, 0)), None);
-        q.disturbed(100_000_000);
+        // Bit errors from 100 ms to 150 ms: the rule waits until 250 ms.
+        q.disturbed(150_000_000);
         assert_eq!(q.check(1, &v(159, 10, 0)), None);
-        assert!(q.check(1, &v(201, 10, 0)).is_some());
+        assert_eq!(q.check(1, &v(249, 10, 0)), None);
+        assert!(q.check(1, &v(251, 10, 0)).is_some());
     }
 }

@@ -5,8 +5,8 @@
 //!
 //! Two halves, both on what the rig shows:
 //! * **learned**: a drive trip latched while both ends of the link are up, with no fault
-//!   of the link, of either supply or inside an EEPROM write in the next
-//!   [`LEARN_NS`], makes the PLC queue a fault-log entry with that code within
+//!   of the link, of either supply or inside an EEPROM write under way or starting in
+//!   the next [`LEARN_NS`], makes the PLC queue a fault-log entry with that code within
 //!   [`LEARN_NS`] (the report is one frame and its acknowledgement; the link's timeout is
 //!   50 ms);
 //! * **once**: whenever the PLC's storage has no log entry queued or in flight, every
@@ -42,20 +42,23 @@ pub struct TripLog {
     learn: Vec<(u64, u8)>,
     /// Drive trips it had to learn of and did.
     pub learned: u64,
+    /// No disturbance is under way from here on.
+    quiet_from: u64,
 }
 
 impl TripLog {
     /// The drive latched `code` at `t_ns`; `link_up`: both ends of the link are up.
     pub fn drive_trip(&mut self, t_ns: u64, code: u8, link_up: bool) {
-        if link_up {
+        if link_up && t_ns >= self.quiet_from {
             self.learn.push((t_ns, code));
         }
     }
 
-    /// A fault of the link, a supply or an EEPROM write started or ended: a trip near it
-    /// may legitimately never reach the PLC.
-    pub fn disturbed(&mut self) {
+    /// A fault of the link, a supply or an EEPROM write is under way until `until_ns`: a
+    /// trip before that may legitimately never reach the PLC in time.
+    pub fn disturbed(&mut self, until_ns: u64) {
         self.learn.clear();
+        self.quiet_from = self.quiet_from.max(until_ns);
     }
 
     /// The log entries in the PLC's storage queue (the one in flight first) at `t_ns`.
@@ -192,7 +195,12 @@ mod tests {
         assert_eq!(t.step(LEARN_NS * 2, &[]), Ok(true));
         let mut t = TripLog::default();
         t.drive_trip(1_000, 9, true);
-        t.disturbed();
+        t.disturbed(2_000);
+        assert_eq!(t.step(LEARN_NS * 2, &[]), Ok(false));
+        // A trip while bit errors still hit the wires (until 5 ms).
+        let mut t = TripLog::default();
+        t.disturbed(5_000_000);
+        t.drive_trip(1_000_000, 9, true);
         assert_eq!(t.step(LEARN_NS * 2, &[]), Ok(false));
     }
 }
