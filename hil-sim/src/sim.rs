@@ -363,10 +363,12 @@ impl Simulation {
     }
 
     /// Restarts the PLC MCU now (its supply cycled): the board powers up from the EEPROM
-    /// as it is (a write in progress is lost or done whole, as `MemEeprom` writes), its
+    /// as it is (a page write in progress is lost or done whole, or stopped where an
+    /// armed `MemEeprom::cut_power_after` stopped it; the chip is powered again), its
     /// link task starts again; the drive, the plant and the pins carry on.
     pub fn restart_plc(&mut self) {
-        let eeprom = self.plc.app_mut().storage().eeprom().clone();
+        let mut eeprom = self.plc.app_mut().storage().eeprom().clone();
+        eeprom.restore_power();
         let link = LinkConfig::at_baud(self.scenario.baud);
         let mut plc = SimPlc::new(eeprom, link, Micros(self.now_ns / 1000));
         plc.app_mut()

@@ -2,12 +2,13 @@
 //!
 //! A fault starts at its time; a fault with a duration is undone at its end (the link
 //! reconnected, the supply and the rotor restored). The classes are the ones the core
-//! simulation injects cheaply (docs/campaign.md "Fault classes"); EEPROM and I2C errors,
-//! a stalled task and service-port floods come with later classes.
+//! simulation injects cheaply (docs/campaign.md "A world").
 
 use firmware_drive::ResetCause;
+use firmware_plc::storage::Job;
 
 use crate::plant::{SenseSpike, UdcSenseSpike};
+use crate::scenario::{KEY_HOLD_S, RUN_KEY};
 use crate::sim::Simulation;
 
 /// What is injected.
@@ -47,10 +48,27 @@ pub enum FaultKind {
     DrivePowerCut,
     /// The PLC MCU's supply cycled (it powers up from its EEPROM).
     PlcPowerCut,
+    /// The world typed `C` `slot` (a keypad save), the digit now; the PLC's supply fails
+    /// `at_byte` bytes into the save's writes, between or inside its page writes
+    /// (`MemEeprom::cut_power_after`); the PLC restarts when the write fails.
+    CutInSave { slot: u8, at_byte: u32 },
+    /// `STO_IN` low for `sto_width_ns` (a trip the PLC learns of and logs) and the
+    /// PLC's supply failing `at_byte` bytes into the log entry's page write.
+    CutInLog { sto_width_ns: u64, at_byte: u32 },
+    /// The RUN/STOP key typed (a stop writes the boot record and the counters record)
+    /// and the PLC's supply failing `at_byte` bytes into the writes from now.
+    CutInCounters { at_byte: u32 },
+    /// The drive's task stalls and its watchdog restarts it (reset cause watchdog: the
+    /// drive latches `WDG` after boot, drive.md). The core simulation has no task
+    /// timing: the stall is seen by its end, the watchdog reset.
+    DriveWatchdog,
+    /// The EEPROM's write cycles last `polls` ready polls (the chip NACKs its address
+    /// meanwhile, 24xx datasheet: up to 5 ms) for `for_ns`.
+    EepromBusy { polls: u32, for_ns: u64 },
 }
 
 /// The classes, for the per-class counts (in this order).
-pub const CLASSES: [&str; 12] = [
+pub const CLASSES: [&str; 17] = [
     "link_bit_errors",
     "link_burst",
     "link_cut",
@@ -63,6 +81,11 @@ pub const CLASSES: [&str; 12] = [
     "locked_rotor",
     "drive_power_cut",
     "plc_power_cut",
+    "cut_in_save",
+    "cut_in_log",
+    "cut_in_counters",
+    "drive_watchdog",
+    "eeprom_busy",
 ];
 
 impl FaultKind {
@@ -81,6 +104,11 @@ impl FaultKind {
             FaultKind::LockedRotor { .. } => "locked_rotor",
             FaultKind::DrivePowerCut => "drive_power_cut",
             FaultKind::PlcPowerCut => "plc_power_cut",
+            FaultKind::CutInSave { .. } => "cut_in_save",
+            FaultKind::CutInLog { .. } => "cut_in_log",
+            FaultKind::CutInCounters { .. } => "cut_in_counters",
+            FaultKind::DriveWatchdog => "drive_watchdog",
+            FaultKind::EepromBusy { .. } => "eeprom_busy",
         }
     }
 
@@ -90,14 +118,20 @@ impl FaultKind {
             FaultKind::LinkBitErrors { for_ns, .. }
             | FaultKind::LinkCut { for_ns }
             | FaultKind::Supply { for_ns, .. }
-            | FaultKind::LockedRotor { for_ns } => for_ns,
+            | FaultKind::LockedRotor { for_ns }
+            | FaultKind::EepromBusy { for_ns, .. } => for_ns,
             FaultKind::StoPulse { width_ns }
             | FaultKind::CurrentSpike { width_ns, .. }
             | FaultKind::UdcSpike { width_ns, .. } => width_ns,
+            FaultKind::CutInLog { sto_width_ns, .. } => sto_width_ns,
+            FaultKind::CutInCounters { .. } => KEY_HOLD_NS,
             _ => 0,
         }
     }
 }
+
+/// How long a key is held, ns.
+pub const KEY_HOLD_NS: u64 = (KEY_HOLD_S * 1e9) as u64;
 
 /// One injected fault.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -150,6 +184,18 @@ impl std::fmt::Display for Fault {
             }
             FaultKind::LoadStep { nm } => write!(f, " to {nm:.3} N m"),
             FaultKind::DrivePowerCut | FaultKind::PlcPowerCut => Ok(()),
+            FaultKind::CutInSave { slot, at_byte } => {
+                write!(f, " slot {slot} at byte {at_byte}")
+            }
+            FaultKind::CutInLog {
+                sto_width_ns,
+                at_byte,
+            } => write!(f, " STO {:.0} us wide, at byte {at_byte}", us(sto_width_ns)),
+            FaultKind::CutInCounters { at_byte } => write!(f, " at byte {at_byte}"),
+            FaultKind::DriveWatchdog => Ok(()),
+            FaultKind::EepromBusy { polls, for_ns } => {
+                write!(f, " {polls} polls a write cycle for {:.0} us", us(for_ns))
+            }
         }
     }
 }
@@ -236,9 +282,59 @@ pub fn apply(sim: &mut Simulation, edge: &FaultEdge, base: &Baseline) {
         }
         (FaultKind::DrivePowerCut, false) => sim.restart_drive(ResetCause::PowerOn),
         (FaultKind::PlcPowerCut, false) => sim.restart_plc(),
+        // The runner arms these cuts as the save or the log entry starts (`aim`).
+        (FaultKind::CutInSave { .. }, false) => {}
+        (FaultKind::CutInLog { .. }, false) => sim.plant_mut().set_sto_input(false),
+        (FaultKind::CutInLog { .. }, true) => sim.plant_mut().set_sto_input(true),
+        (FaultKind::CutInCounters { at_byte }, false) => {
+            sim.key(RUN_KEY, true);
+            arm_cut(sim, at_byte)
+        }
+        (FaultKind::CutInCounters { .. }, true) => sim.key(RUN_KEY, false),
+        (FaultKind::DriveWatchdog, false) => sim.restart_drive(ResetCause::Watchdog),
+        (FaultKind::EepromBusy { polls, .. }, end) => sim
+            .plc_mut()
+            .app_mut()
+            .storage()
+            .eeprom()
+            .set_busy_polls(if end { 0 } else { polls }),
         (FaultKind::CurrentSpike { .. } | FaultKind::UdcSpike { .. }, true)
-        | (FaultKind::DrivePowerCut | FaultKind::PlcPowerCut, true) => {}
+        | (FaultKind::DrivePowerCut | FaultKind::PlcPowerCut, true)
+        | (FaultKind::CutInSave { .. } | FaultKind::DriveWatchdog, true) => {}
     }
+}
+
+/// Which storage job an aimed cut waits for.
+pub type JobFilter = fn(&Job) -> bool;
+
+/// The storage job a cut waits for, and where in it the supply fails: a cut in a save
+/// or in a log entry is armed as that job comes first in the PLC's storage queue, at
+/// most [`AIM_WINDOW_NS`] after the fault.
+pub fn aim(kind: &FaultKind) -> Option<(JobFilter, u32)> {
+    match *kind {
+        FaultKind::CutInSave { at_byte, .. } => Some((|j| matches!(j, Job::Save { .. }), at_byte)),
+        FaultKind::CutInLog { at_byte, .. } => Some((|j| matches!(j, Job::LogFault(_)), at_byte)),
+        _ => None,
+    }
+}
+
+/// How long an aimed cut waits for its job (a save the editor refused, a pulse that
+/// tripped nothing, never comes).
+pub const AIM_WINDOW_NS: u64 = 200_000_000;
+
+/// The PLC's supply fails `at_byte` bytes into its next EEPROM writes (the runner
+/// restarts the PLC when a write has failed: [`plc_cut_happened`]).
+pub fn arm_cut(sim: &mut Simulation, at_byte: u32) {
+    sim.plc_mut()
+        .app_mut()
+        .storage()
+        .eeprom()
+        .cut_power_after(at_byte);
+}
+
+/// An armed cut has stopped an EEPROM write: the PLC has lost its supply.
+pub fn plc_cut_happened(sim: &mut Simulation) -> bool {
+    sim.plc_mut().app_mut().storage().eeprom().power_lost()
 }
 
 /// A spike wider than the PWM period running when it starts goes on past that period.

@@ -47,7 +47,26 @@ pub struct SeedResult {
     pub outputs_on_ns: u64,
     /// The drive's trips (fault codes, in order).
     pub trips: Vec<u8>,
+    /// Armed cuts that stopped an EEPROM write, by what was written (as [`WRITES`]).
+    pub write_cuts: [u64; WRITES.len()],
+    pub checks: runner::Checks,
     pub failure: Option<Failure>,
+}
+
+/// What an armed cut stopped: the storage job in flight, or a write outside the queue
+/// (the counters record).
+pub const WRITES: [&str; 5] = ["save", "fault log", "boot record", "counters", "other"];
+
+/// The index in [`WRITES`] of a cut with `job` in flight.
+fn write_index(job: &Option<firmware_plc::storage::Job>) -> usize {
+    use firmware_plc::storage::Job;
+    match job {
+        Some(Job::Save { .. } | Job::Commit { .. }) => 0,
+        Some(Job::LogFault(_)) => 1,
+        Some(Job::Boot(_)) => 2,
+        None => 3,
+        Some(_) => 4,
+    }
 }
 
 /// A failing seed.
@@ -73,6 +92,9 @@ pub struct Summary {
     pub outputs_on_ns: u64,
     /// The drive's trips, all worlds.
     pub trips: u64,
+    /// Armed cuts that stopped an EEPROM write, by [`WRITES`].
+    pub write_cuts: [u64; WRITES.len()],
+    pub checks: runner::Checks,
     /// By invariant name.
     pub by_invariant: Vec<(&'static str, u64)>,
 }
@@ -98,6 +120,23 @@ impl Summary {
                 .collect();
             let _ = writeln!(s, "violations by invariant: {}", inv.join(", "));
         }
+        let cuts: Vec<String> = WRITES
+            .iter()
+            .zip(self.write_cuts)
+            .map(|(c, n)| format!("{c} {n}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "PLC power cuts inside EEPROM writes: {} ({})",
+            self.write_cuts.iter().sum::<u64>(),
+            cuts.join(", ")
+        );
+        let c = &self.checks;
+        let _ = writeln!(
+            s,
+            "storage checked after {} PLC power cuts, fault log counted {} times, {} drive trips learned and logged; {} Q values applied in order, {} settled Q steps compared",
+            c.storage_after_cut, c.log_counted, c.trips_learned, c.q_applied, c.q_settled
+        );
         let _ = write!(
             s,
             "simulated {:.1} s ({:.3} h), outputs on {:.1} s, {} drive trips",
@@ -120,6 +159,12 @@ pub fn run_seed(seed: u64, opts: &WorldOptions, shrink: bool) -> Result<SeedResu
             by_class[i] += 1;
         }
     }
+    let mut write_cuts = [0u64; WRITES.len()];
+    for j in &out.write_cuts {
+        if let Some(n) = write_cuts.get_mut(write_index(j)) {
+            *n += 1;
+        }
+    }
     let failure = out.violation.clone().map(|v| {
         let so_far: Vec<Fault> = world.faults.iter().take(out.injected).copied().collect();
         let shrunk = shrink.then(|| {
@@ -140,6 +185,8 @@ pub fn run_seed(seed: u64, opts: &WorldOptions, shrink: bool) -> Result<SeedResu
         sim_ns: out.sim_ns,
         outputs_on_ns: out.outputs_on_ns,
         trips: out.trips.clone(),
+        write_cuts,
+        checks: out.checks,
         failure,
     })
 }
@@ -149,8 +196,9 @@ pub fn render_failure(seed: u64, f: &Failure, opts: &WorldOptions) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {}`",
-        opts.duration_ns as f64 / 1e9
+        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {} --max-faults {}`",
+        opts.duration_ns as f64 / 1e9,
+        opts.max_faults
     );
     let v = &f.violation;
     let _ = writeln!(
@@ -226,6 +274,14 @@ pub fn run_campaign(
         sum.sim_ns += r.sim_ns;
         sum.outputs_on_ns += r.outputs_on_ns;
         sum.trips += r.trips.len() as u64;
+        for (a, b) in sum.write_cuts.iter_mut().zip(r.write_cuts) {
+            *a += b;
+        }
+        sum.checks.storage_after_cut += r.checks.storage_after_cut;
+        sum.checks.log_counted += r.checks.log_counted;
+        sum.checks.trips_learned += r.checks.trips_learned;
+        sum.checks.q_applied += r.checks.q_applied;
+        sum.checks.q_settled += r.checks.q_settled;
         for (a, b) in sum.by_class.iter_mut().zip(r.injected_by_class) {
             *a += b;
         }

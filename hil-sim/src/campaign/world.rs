@@ -6,7 +6,10 @@
 use anyhow::{Context, Result};
 use shared_protocol::program::Program;
 
-use super::faults::{Baseline, Fault, FaultKind};
+use firmware_plc::storage::layout::FAULT_ENTRY_BYTES;
+use firmware_plc::storage::{MemEeprom, Storage, PAGE_BYTES, SLOTS};
+
+use super::faults::{Baseline, Fault, FaultKind, KEY_HOLD_NS};
 use super::rng::Rng;
 use crate::plant::Load;
 use crate::scenario::{Action, Input, Scenario, TimedAction, KEY_HOLD_S, RUN_KEY};
@@ -131,6 +134,10 @@ pub struct World {
     pub summary: String,
 }
 
+/// The boot record's bytes (`firmware-plc/src/storage/boot.rs`, `RECORD_BYTES`;
+/// docs/eeprom-image.md).
+pub const BOOT_RECORD_BYTES: usize = 18;
+
 /// Faults start no earlier than this: the drive has booted and the program runs.
 const FIRST_FAULT_NS: u64 = 100_000_000;
 
@@ -164,14 +171,23 @@ impl World {
         scenario.actions.extend(actions);
         scenario.actions.sort_by_key(|a| a.at_ns);
 
+        let save_bytes = save_bytes(&program);
         let n = rng.range(1, u64::from(opts.max_faults.max(1)) + 1);
         let mut faults: Vec<Fault> = (0..n)
             .map(|_| Fault {
                 at_ns: rng.range(FIRST_FAULT_NS, dur),
-                kind: fault_kind(&mut rng),
+                kind: fault_kind(&mut rng, save_bytes),
             })
             .collect();
         faults.sort_by_key(|f| f.at_ns);
+        // A cut in a save: the user types `C` `n`, the cut is armed as the digit goes down.
+        for f in &faults {
+            if let FaultKind::CutInSave { slot, .. } = f.kind {
+                let at = f.at_ns.saturating_sub(2 * KEY_HOLD_NS);
+                scenario.actions.extend(save_keys(slot, at));
+            }
+        }
+        scenario.actions.sort_by_key(|a| a.at_ns);
         let summary = format!(
             "template {}, supply {:.2} V, inertia {:.2e} kg m2, load {:.3} N m, {n_actions} user actions",
             template.name,
@@ -192,7 +208,7 @@ impl World {
     }
 }
 
-/// Inputs toggled, pots turned, RUN/STOP and ACK typed, at random times.
+/// Inputs toggled, pots turned, RUN/STOP, saves and ACK typed, at random times.
 fn user_actions(rng: &mut Rng, t: &Template, opts: &WorldOptions, dur: u64) -> Vec<TimedAction> {
     let key_ns = (KEY_HOLD_S * 1e9) as u64;
     let mut out = Vec::new();
@@ -209,7 +225,7 @@ fn user_actions(rng: &mut Rng, t: &Template, opts: &WorldOptions, dur: u64) -> V
                 action: Action::KeyUp(c),
             });
         };
-        match rng.range(0, 4) {
+        match rng.range(0, 5) {
             0 => {
                 if let Some(&d) = rng.pick(t.digital) {
                     let v = rng.range(0, 2) as u16;
@@ -229,6 +245,7 @@ fn user_actions(rng: &mut Rng, t: &Template, opts: &WorldOptions, dur: u64) -> V
                 }
             }
             2 => key(RUN_KEY, at_ns, &mut out),
+            3 => out.extend(save_keys(rng.range(1, 5) as u8, at_ns)),
             _ => {
                 // ACK from the keypad (`*` `9`, firmware-plc/docs/keymap.md).
                 key('*', at_ns, &mut out);
@@ -239,10 +256,38 @@ fn user_actions(rng: &mut Rng, t: &Template, opts: &WorldOptions, dur: u64) -> V
     out
 }
 
-fn fault_kind(rng: &mut Rng) -> FaultKind {
+/// A keypad save into `slot` (`C` `n`, firmware-plc/docs/keymap.md) from `at_ns`: the
+/// digit goes down at `at_ns + 2 KEY_HOLD`.
+pub fn save_keys(slot: u8, at_ns: u64) -> Vec<TimedAction> {
+    let digit = char::from(b'0' + slot);
+    let mut out = Vec::new();
+    for (i, c) in ['C', digit].into_iter().enumerate() {
+        let t = at_ns + 2 * i as u64 * KEY_HOLD_NS;
+        out.push(TimedAction {
+            at_ns: t,
+            action: Action::KeyDown(c),
+        });
+        out.push(TimedAction {
+            at_ns: t + KEY_HOLD_NS,
+            action: Action::KeyUp(c),
+        });
+    }
+    out
+}
+
+/// Bytes a save of `program` writes (both copies): what a cut in a save draws from.
+fn save_bytes(program: &Program) -> u32 {
+    let mut s = Storage::new(MemEeprom::new());
+    match s.save(1, program) {
+        Ok(_) => s.eeprom().bytes_written().max(1),
+        Err(_) => 1,
+    }
+}
+
+fn fault_kind(rng: &mut Rng, save_bytes: u32) -> FaultKind {
     let ms = |x: f64| (x * 1e6) as u64;
     let us = |x: f64| (x * 1e3) as u64;
-    match rng.range(0, 12) {
+    match rng.range(0, 17) {
         0 => FaultKind::LinkBitErrors {
             rate: rng.log_uniform(1e-5, 1e-2),
             for_ns: ms(rng.log_uniform(1.0, 500.0)),
@@ -283,7 +328,24 @@ fn fault_kind(rng: &mut Rng) -> FaultKind {
             for_ns: ms(rng.log_uniform(10.0, 1000.0)),
         },
         10 => FaultKind::DrivePowerCut,
-        _ => FaultKind::PlcPowerCut,
+        11 => FaultKind::PlcPowerCut,
+        12 => FaultKind::CutInSave {
+            slot: rng.range(1, u64::from(SLOTS) + 1) as u8,
+            at_byte: rng.range(0, u64::from(save_bytes)) as u32,
+        },
+        13 => FaultKind::CutInLog {
+            sto_width_ns: ms(rng.log_uniform(1.0, 20.0)),
+            at_byte: rng.range(0, FAULT_ENTRY_BYTES as u64) as u32,
+        },
+        15 => FaultKind::DriveWatchdog,
+        16 => FaultKind::EepromBusy {
+            polls: rng.range(1, 6) as u32,
+            for_ns: ms(rng.log_uniform(10.0, 2000.0)),
+        },
+        _ => FaultKind::CutInCounters {
+            // A stop writes the boot record, then the counters record (one page).
+            at_byte: rng.range(0, (BOOT_RECORD_BYTES + PAGE_BYTES) as u64) as u32,
+        },
     }
 }
 

@@ -82,3 +82,70 @@ fn a_sub_period_sto_pulse_while_running_latches_code_9_and_breaks_nothing() {
         out.outputs_on_ns
     );
 }
+
+/// The PLC's supply fails inside a keypad save (`C` `2`, the digit at 1.0 s) at several
+/// bytes of it, between and inside page writes: the PLC restarts, slot 2 loads empty or
+/// with the program (`storage_decodes`), and nothing else breaks.
+#[test]
+fn a_power_cut_inside_a_keypad_save_leaves_the_slot_old_or_new() {
+    use firmware_plc::storage::Job;
+    use firmware_plc::storage::{MemEeprom, Storage};
+    use hil_sim::campaign::faults::KEY_HOLD_NS;
+    let program = motor_world(Vec::new(), 0).program;
+    let mut s = Storage::new(MemEeprom::new());
+    s.save(2, &program).unwrap();
+    let full = s.eeprom().bytes_written();
+    for at_byte in [0, 63, 64, full / 2, full - 1] {
+        let at_ns = 1_000_000_000;
+        let mut w = motor_world(
+            vec![Fault {
+                at_ns,
+                kind: FaultKind::CutInSave { slot: 2, at_byte },
+            }],
+            1_300_000_000,
+        );
+        w.scenario
+            .actions
+            .extend(hil_sim::campaign::world::save_keys(
+                2,
+                at_ns - 2 * KEY_HOLD_NS,
+            ));
+        w.scenario.actions.sort_by_key(|a| a.at_ns);
+        let out = runner::run(&w, &w.faults);
+        assert_eq!(out.violation, None, "cut at byte {at_byte}");
+        assert_eq!(
+            out.write_cuts,
+            [Some(Job::Save { slot: 2 })],
+            "cut at byte {at_byte}"
+        );
+        assert!(out.checks.storage_after_cut >= 1);
+    }
+}
+
+/// An STO pulse trips the running drive (code 9); the PLC's supply fails inside the log
+/// entry's page write: the torn entry may be lost (it was in flight), nothing is logged
+/// twice, the storage decodes.
+#[test]
+fn a_power_cut_inside_the_log_write_of_a_trip_loses_at_most_that_entry() {
+    use firmware_plc::storage::Job;
+    for at_byte in [0, 7, 15] {
+        let w = motor_world(
+            vec![Fault {
+                at_ns: 1_000_000_000,
+                kind: FaultKind::CutInLog {
+                    sto_width_ns: 5_000_000,
+                    at_byte,
+                },
+            }],
+            1_300_000_000,
+        );
+        let out = runner::run(&w, &w.faults);
+        assert_eq!(out.violation, None, "cut at byte {at_byte}");
+        assert!(out.trips.contains(&9), "{:?}", out.trips);
+        assert!(
+            matches!(out.write_cuts.as_slice(), [Some(Job::LogFault(e))] if e.code == 9),
+            "{:?}",
+            out.write_cuts
+        );
+    }
+}

@@ -4,14 +4,17 @@
 
 use super::observe::Observation;
 
+pub mod command_fresh;
 pub mod hw_trip_off;
 pub mod leg_interlock;
 pub mod lift_doors;
 pub mod lift_limits;
 pub mod min_pulse;
 pub mod run_gate;
+pub mod storage_decodes;
 pub mod sw_trip_off;
 pub mod trip_latched;
+pub mod trip_logged_once;
 
 /// One rule over the trace of observations; it may keep state between steps.
 pub trait Invariant {
@@ -76,6 +79,10 @@ mod tests {
     fn names_are_unique() {
         let mut names: Vec<&str> = all().iter().map(|i| i.name()).collect();
         names.push(NO_PANIC);
+        names.push(storage_decodes::NAME);
+        names.push(command_fresh::NAME);
+        names.push(crate::campaign::runner::EEPROM_POLLED);
+        names.push(trip_logged_once::NAME);
         let n = names.len();
         names.sort_unstable();
         names.dedup();
