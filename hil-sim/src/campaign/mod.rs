@@ -7,6 +7,8 @@
 //! failing seed prints its one-line reproduction, the invariant, the time and the faults
 //! injected so far, and its fault list shrunk ([`shrink`]) to the fewest that still fail.
 
+pub mod emu;
+pub mod emu_observe;
 pub mod faults;
 pub mod invariants;
 pub mod observe;
@@ -75,6 +77,8 @@ pub struct Summary {
     pub trips: u64,
     /// By invariant name.
     pub by_invariant: Vec<(&'static str, u64)>,
+    /// Seeds whose world cannot run where the campaign runs (the lift under `--emu`).
+    pub skipped: u64,
 }
 
 impl Summary {
@@ -106,6 +110,13 @@ impl Summary {
             self.outputs_on_ns as f64 / 1e9,
             self.trips
         );
+        if self.skipped > 0 {
+            let _ = write!(
+                s,
+                "\n{} seed(s) skipped: the lift's plant runs on the cores only",
+                self.skipped
+            );
+        }
         s
     }
 }
@@ -146,10 +157,15 @@ pub fn run_seed(seed: u64, opts: &WorldOptions, shrink: bool) -> Result<SeedResu
 
 /// The report of a failing seed: the reproduction line first.
 pub fn render_failure(seed: u64, f: &Failure, opts: &WorldOptions) -> String {
+    render_failure_with(seed, f, opts, "")
+}
+
+/// [`render_failure`] with `flags` (such as ` --emu`) in the reproduction.
+pub fn render_failure_with(seed: u64, f: &Failure, opts: &WorldOptions, flags: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {}`",
+        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {}{flags}`",
         opts.duration_ns as f64 / 1e9
     );
     let v = &f.violation;
@@ -187,6 +203,21 @@ pub fn run_campaign(
     opts: &CampaignOptions,
     on_result: impl Fn(&SeedResult) + Sync,
 ) -> Result<(Summary, Vec<SeedResult>)> {
+    run_campaign_with(
+        opts,
+        |seed| run_seed(seed, &opts.world, opts.shrink).map(Some),
+        on_result,
+    )
+}
+
+/// [`run_campaign`] with `run_one` running a seed (`None`: the seed's world cannot run
+/// there and is skipped), on the cores or the images ([`emu::run_seed`]).
+pub fn run_campaign_with(
+    opts: &CampaignOptions,
+    run_one: impl Fn(u64) -> Result<Option<SeedResult>> + Sync,
+    on_result: impl Fn(&SeedResult) + Sync,
+) -> Result<(Summary, Vec<SeedResult>)> {
+    let skipped = AtomicU64::new(0);
     let next = AtomicU64::new(0);
     let results = Mutex::new(Vec::new());
     let error = Mutex::new(None);
@@ -198,8 +229,11 @@ pub fn run_campaign(
                     return;
                 }
                 let seed = opts.first.wrapping_add(i);
-                match run_seed(seed, &opts.world, opts.shrink) {
-                    Ok(r) => {
+                match run_one(seed) {
+                    Ok(None) => {
+                        skipped.fetch_add(1, Ordering::Relaxed);
+                    }
+                    Ok(Some(r)) => {
                         on_result(&r);
                         if let Ok(mut v) = results.lock() {
                             v.push(r);
@@ -220,7 +254,10 @@ pub fn run_campaign(
     }
     let mut results = results.into_inner().unwrap_or_default();
     results.sort_by_key(|r| r.seed);
-    let mut sum = Summary::default();
+    let mut sum = Summary {
+        skipped: skipped.into_inner(),
+        ..Summary::default()
+    };
     for r in &results {
         sum.runs += 1;
         sum.sim_ns += r.sim_ns;
