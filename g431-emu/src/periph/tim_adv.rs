@@ -1825,6 +1825,7 @@ mod tests {
         let mut b = Bus::new();
         let cen = drive_init(&mut b, 0, 4250, 0x95);
         b.at(cen + 10_000);
+        b.modify(BDTR, |v| v | MOE);
         assert!(b.tim.gate().outputs_enabled);
         let _ = b.events();
         b.tim.reset();
