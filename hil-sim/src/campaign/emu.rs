@@ -48,7 +48,7 @@ pub const IMAGE_TROUBLE: &str = "image_trouble";
 
 /// The fault classes the emulator injects (every class of the cores' first slice);
 /// a class added later is not drawn under `--emu` until it is listed here with its
-/// injection in [`apply`].
+/// injection in `apply`.
 #[allow(unreachable_patterns)]
 pub fn supported(kind: &FaultKind) -> bool {
     matches!(
