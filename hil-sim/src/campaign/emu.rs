@@ -381,7 +381,10 @@ fn run_inner(
         }
         let now = sim.now_ns();
         let sto_in_low = sim.rig().plant.sto_in_low();
-        checker.note(now, Change::Sto(sto_in_low));
+        // At the instant TIM1's BKIN took it (the cycle of `now`, as its events are
+        // stamped), so that the wire and the break it opens are seen together.
+        let at = now.max(EmuSim::ns(g431_emu::time::ns_to_cycles(now)));
+        checker.note(at, Change::Sto(sto_in_low));
         sim.rig_mut().sense_spikes.retain(|s| s.to_ns >= now);
         sim.rig_mut().udc_spikes.retain(|s| s.to_ns >= now);
         if sim.now_ns() >= end {
