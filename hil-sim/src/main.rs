@@ -72,8 +72,9 @@ enum Cmd {
         #[arg(long)]
         log: bool,
     },
-    /// A seeded fault campaign on the cores: generated worlds, injected faults, invariants
-    /// checked at every step (docs/campaign.md). Exits 3 when an invariant broke.
+    /// A seeded fault campaign on the cores (or, with --emu, on the release images):
+    /// generated worlds, injected faults, invariants checked at every step
+    /// (docs/campaign.md). Exits 3 when an invariant broke.
     Campaign {
         /// How many seeds (worlds) to run.
         #[arg(long)]
@@ -93,6 +94,15 @@ enum Cmd {
         /// Report failing seeds without shrinking their fault lists.
         #[arg(long)]
         no_shrink: bool,
+        /// Run each world on the exact release images in the emulator (as `emu`).
+        #[arg(long)]
+        emu: bool,
+        /// With --emu: the drive's ELF (default: the release image in the target directory).
+        #[arg(long, requires = "emu")]
+        drive_elf: Option<PathBuf>,
+        /// With --emu: the PLC's ELF (default: the release image in the target directory).
+        #[arg(long, requires = "emu")]
+        plc_elf: Option<PathBuf>,
     },
 }
 
@@ -326,30 +336,59 @@ fn real_main(cli: Cli) -> Result<ExitCode> {
             duration,
             max_faults,
             no_shrink,
-        } => cmd_campaign(hil_sim::campaign::CampaignOptions {
-            first,
-            seeds,
-            jobs,
-            world: hil_sim::campaign::world::WorldOptions {
-                duration_ns: (duration * 1e9).round() as u64,
-                max_faults,
-                ..Default::default()
+            emu,
+            drive_elf,
+            plc_elf,
+        } => cmd_campaign(
+            hil_sim::campaign::CampaignOptions {
+                first,
+                seeds,
+                jobs,
+                world: hil_sim::campaign::world::WorldOptions {
+                    duration_ns: (duration * 1e9).round() as u64,
+                    max_faults,
+                    ..Default::default()
+                },
+                shrink: !no_shrink,
             },
-            shrink: !no_shrink,
-        }),
+            emu.then_some((drive_elf, plc_elf)),
+        ),
     }
 }
 
 /// Exit status of `campaign` when an invariant broke (the campaign itself completed).
 const EXIT_VIOLATIONS: u8 = 3;
 
-fn cmd_campaign(opts: hil_sim::campaign::CampaignOptions) -> Result<ExitCode> {
-    use hil_sim::campaign::{render_failure, run_campaign};
+/// `emu`: on the images, with these ELFs (default: the release images).
+type EmuElfs = (Option<PathBuf>, Option<PathBuf>);
+
+fn cmd_campaign(
+    opts: hil_sim::campaign::CampaignOptions,
+    emu: Option<EmuElfs>,
+) -> Result<ExitCode> {
+    use hil_sim::campaign::{emu as on_images, render_failure_with, run_campaign_with, run_seed};
+    use hil_sim::emu::images::{existing, Firmware};
+    let images = match emu {
+        Some((d, p)) => Some(on_images::EmuImages {
+            drive: d.map_or_else(|| existing(Firmware::Drive), Ok)?,
+            plc: p.map_or_else(|| existing(Firmware::Plc), Ok)?,
+        }),
+        None => None,
+    };
+    let flags = if images.is_some() { " --emu" } else { "" };
     let started = std::time::Instant::now();
-    let (summary, _) = run_campaign(&opts, |r| {
+    let run_one = |seed| match &images {
+        Some(i) => on_images::run_seed(seed, &opts.world, opts.shrink, i),
+        None => run_seed(seed, &opts.world, opts.shrink).map(Some),
+    };
+    let (summary, _) = run_campaign_with(&opts, run_one, |r| {
         if let Some(f) = &r.failure {
             let mut out = std::io::stdout().lock();
-            let _ = write!(out, "{}", render_failure(r.seed, f, &opts.world));
+            let _ = write!(
+                out,
+                "{}",
+                render_failure_with(r.seed, f, &opts.world, flags)
+            );
             let _ = out.flush();
         }
     })?;

@@ -635,6 +635,12 @@ impl TimAdv {
         self.settle_with(now, OffCause::DebugFreeze);
     }
 
+    /// Break 1 (BKIN, the comparators routed to it, the system break) and break 2 active
+    /// now, after their filters and enables (what holds MOE at 0).
+    pub fn breaks_active(&self) -> [bool; 2] {
+        [self.active1, self.active2]
+    }
+
     /// The gate state at `now` (after `advance(now)`).
     pub fn gate(&self) -> GateState {
         self.gate
@@ -1511,6 +1517,7 @@ impl Peripheral for TimAdv {
 
     fn reset(&mut self) {
         let (bkin, bkin2, comp, sys) = (self.bkin, self.bkin2, self.comp, self.sys_brk);
+        let (at, driven) = (self.last, self.outputs_on);
         *self = TimAdv::new(self.name);
         // The inputs are the outside world's: they survive a reset.
         self.bkin = bkin;
@@ -1518,6 +1525,15 @@ impl Peripheral for TimAdv {
         self.comp = comp;
         self.sys_brk = sys;
         self.update_break_inputs(0);
+        // A reset takes MOE and every CCxE to 0 (RM0440 TIMx_BDTR, TIMx_CCER reset values):
+        // the power stage sees its gates released, as after any other gate change.
+        if driven {
+            self.last = at;
+            self.events.push_back(TimEvent::GateChanged {
+                at,
+                gate: self.gate,
+            });
+        }
     }
 }
 
@@ -1802,6 +1818,25 @@ mod tests {
         b.t = t + 2;
         b.wr(SR, !sr::UIF);
         assert_ne!(b.rd(SR) & sr::BIF, 0, "writing !UIF leaves BIF alone");
+    }
+
+    #[test]
+    fn a_reset_with_the_outputs_on_releases_the_gates() {
+        let mut b = Bus::new();
+        let cen = drive_init(&mut b, 0, 4250, 0x95);
+        b.at(cen + 10_000);
+        b.modify(BDTR, |v| v | MOE);
+        assert!(b.tim.gate().outputs_enabled);
+        let _ = b.events();
+        b.tim.reset();
+        let ev = b.events();
+        assert!(
+            matches!(ev.as_slice(), [TimEvent::GateChanged { gate, .. }] if !gate.outputs_enabled && !gate.moe),
+            "{ev:?}"
+        );
+        // A timer reset with its outputs off says nothing.
+        b.tim.reset();
+        assert!(b.events().is_empty());
     }
 
     #[test]

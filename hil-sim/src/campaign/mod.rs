@@ -7,6 +7,10 @@
 //! failing seed prints its one-line reproduction, the invariant, the time and the faults
 //! injected so far, and its fault list shrunk ([`shrink`]) to the fewest that still fail.
 
+#[cfg(feature = "emu")]
+pub mod emu;
+#[cfg(feature = "emu")]
+pub mod emu_observe;
 pub mod faults;
 pub mod invariants;
 pub mod observe;
@@ -97,6 +101,8 @@ pub struct Summary {
     pub checks: runner::Checks,
     /// By invariant name.
     pub by_invariant: Vec<(&'static str, u64)>,
+    /// Seeds whose world cannot run where the campaign runs (the lift under `--emu`).
+    pub skipped: u64,
 }
 
 impl Summary {
@@ -145,6 +151,13 @@ impl Summary {
             self.outputs_on_ns as f64 / 1e9,
             self.trips
         );
+        if self.skipped > 0 {
+            let _ = write!(
+                s,
+                "\n{} seed(s) skipped: the lift's plant runs on the cores only",
+                self.skipped
+            );
+        }
         s
     }
 }
@@ -193,10 +206,15 @@ pub fn run_seed(seed: u64, opts: &WorldOptions, shrink: bool) -> Result<SeedResu
 
 /// The report of a failing seed: the reproduction line first.
 pub fn render_failure(seed: u64, f: &Failure, opts: &WorldOptions) -> String {
+    render_failure_with(seed, f, opts, "")
+}
+
+/// [`render_failure`] with `flags` (such as ` --emu`) in the reproduction.
+pub fn render_failure_with(seed: u64, f: &Failure, opts: &WorldOptions, flags: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {} --max-faults {}`",
+        "FAIL seed {seed}: reproduce with `hil-sim campaign --seeds 1 --first {seed} --duration {} --max-faults {}{flags}`",
         opts.duration_ns as f64 / 1e9,
         opts.max_faults
     );
@@ -235,6 +253,21 @@ pub fn run_campaign(
     opts: &CampaignOptions,
     on_result: impl Fn(&SeedResult) + Sync,
 ) -> Result<(Summary, Vec<SeedResult>)> {
+    run_campaign_with(
+        opts,
+        |seed| run_seed(seed, &opts.world, opts.shrink).map(Some),
+        on_result,
+    )
+}
+
+/// [`run_campaign`] with `run_one` running a seed (`None`: the seed's world cannot run
+/// there and is skipped), on the cores or the images (`emu::run_seed`).
+pub fn run_campaign_with(
+    opts: &CampaignOptions,
+    run_one: impl Fn(u64) -> Result<Option<SeedResult>> + Sync,
+    on_result: impl Fn(&SeedResult) + Sync,
+) -> Result<(Summary, Vec<SeedResult>)> {
+    let skipped = AtomicU64::new(0);
     let next = AtomicU64::new(0);
     let results = Mutex::new(Vec::new());
     let error = Mutex::new(None);
@@ -246,8 +279,11 @@ pub fn run_campaign(
                     return;
                 }
                 let seed = opts.first.wrapping_add(i);
-                match run_seed(seed, &opts.world, opts.shrink) {
-                    Ok(r) => {
+                match run_one(seed) {
+                    Ok(None) => {
+                        skipped.fetch_add(1, Ordering::Relaxed);
+                    }
+                    Ok(Some(r)) => {
                         on_result(&r);
                         if let Ok(mut v) = results.lock() {
                             v.push(r);
@@ -268,7 +304,10 @@ pub fn run_campaign(
     }
     let mut results = results.into_inner().unwrap_or_default();
     results.sort_by_key(|r| r.seed);
-    let mut sum = Summary::default();
+    let mut sum = Summary {
+        skipped: skipped.into_inner(),
+        ..Summary::default()
+    };
     for r in &results {
         sum.runs += 1;
         sum.sim_ns += r.sim_ns;

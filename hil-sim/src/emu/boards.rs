@@ -84,6 +84,12 @@ pub struct Rig {
     pub bemf_dividers_on: bool,
     /// Times the STO wire and the CAN transceiver drove the STO net to opposite levels.
     pub sto_contentions: u64,
+    /// Disturbances of the sensed DC-link voltage (what the divider's pin carries on top
+    /// of the plant's DC link).
+    pub udc_spikes: Vec<UdcSpikeAt>,
+    /// When `Some`, every TIM1 gate event the board receives is copied here (the seeded
+    /// campaign observes the gates at each of them, `campaign::emu`).
+    pub tim_trace: Option<Vec<TimEvent>>,
 }
 
 /// A disturbance of one sensed phase current from `from_ns` to `to_ns` (emulated time).
@@ -92,6 +98,14 @@ pub struct SenseSpikeAt {
     /// Inverter leg 0..=2.
     pub phase: usize,
     pub amps: f64,
+    pub from_ns: u64,
+    pub to_ns: u64,
+}
+
+/// A disturbance of the sensed DC-link voltage from `from_ns` to `to_ns` (emulated time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct UdcSpikeAt {
+    pub volts: f64,
     pub from_ns: u64,
     pub to_ns: u64,
 }
@@ -116,6 +130,8 @@ impl Rig {
             can_shdn: Drive::Released { pull: Pull::None },
             bemf_dividers_on: false,
             sto_contentions: 0,
+            udc_spikes: Vec::new(),
+            tim_trace: None,
         }
     }
 
@@ -137,7 +153,9 @@ impl Rig {
     pub fn next_sense_step(&self, after: Cycles) -> Option<Cycles> {
         self.sense_spikes
             .iter()
-            .flat_map(|s| [s.from_ns, s.to_ns.saturating_add(1)])
+            .map(|s| (s.from_ns, s.to_ns))
+            .chain(self.udc_spikes.iter().map(|s| (s.from_ns, s.to_ns)))
+            .flat_map(|(from, to)| [from, to.saturating_add(1)])
             .map(ns_to_cycles)
             .filter(|&c| c > after)
             .min()
@@ -147,7 +165,13 @@ impl Rig {
     pub fn quantities(&self, ns: u64) -> PowerStageQuantities {
         PowerStageQuantities {
             phase_currents_a: self.sensed_currents(ns),
-            dc_link_v: self.plant.outputs().u_dc_v,
+            dc_link_v: self.plant.outputs().u_dc_v
+                + self
+                    .udc_spikes
+                    .iter()
+                    .filter(|s| (s.from_ns..=s.to_ns).contains(&ns))
+                    .map(|s| s.volts)
+                    .sum::<f64>(),
         }
     }
 
@@ -340,6 +364,9 @@ impl Board for DriveBoard {
 
     fn power_stage(&mut self, ev: &TimEvent) {
         let mut rig = self.rig.borrow_mut();
+        if let Some(t) = rig.tim_trace.as_mut() {
+            t.push(*ev);
+        }
         match *ev {
             TimEvent::Update { at, gate } => {
                 rig.advance_to(cycles_to_ns(at));

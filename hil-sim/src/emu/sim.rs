@@ -82,6 +82,8 @@ struct Wire {
     ber: f64,
     /// The next this many characters arrive with a framing error (injected by a test).
     force_framing: u32,
+    /// The next this many characters arrive with at least one data bit flipped.
+    force_flip: u32,
     /// The frames on this wire, decoded for the record.
     reader: FrameReader,
 }
@@ -94,6 +96,7 @@ impl Wire {
             noise: Noise::from_state(seed | 1),
             ber,
             force_framing: 0,
+            force_flip: 0,
             reader: FrameReader::new(),
         }
     }
@@ -105,6 +108,11 @@ impl Wire {
         if self.force_framing > 0 {
             self.force_framing -= 1;
             b.framing_error = true;
+        }
+        if self.force_flip > 0 {
+            self.force_flip -= 1;
+            // At least one bit, as the cores' `Channel::burst`.
+            b.data ^= u16::from((self.noise.next_u64() as u8) | 1);
         }
         if self.ber <= 0.0 {
             return b;
@@ -430,6 +438,32 @@ impl EmuSim {
     /// Host bytes lost because the PLC had no service receiver on PA3.
     pub fn service_lost(&self) -> u64 {
         self.service.lost
+    }
+
+    /// Both wires of the link flip each bit with `rate` from now on (the scenario's
+    /// `bit_error_rate` at the start).
+    pub fn set_link_bit_error_rate(&mut self, rate: f64) {
+        self.to_drive.ber = rate;
+        self.to_plc.ber = rate;
+    }
+
+    /// The next `chars` characters on one wire (to the drive, or back) each get at least
+    /// one data bit flipped (a burst of noise, as the cores' `Channel::burst`).
+    pub fn link_burst(&mut self, to_drive: bool, chars: u32) {
+        let wire = if to_drive {
+            &mut self.to_drive
+        } else {
+            &mut self.to_plc
+        };
+        wire.force_flip = chars;
+    }
+
+    /// Switches the drive board off and on again: the MCU restarts from power-on (TIM1
+    /// and every peripheral to reset, the outputs open).
+    pub fn power_cycle_drive(&mut self) {
+        self.drive
+            .cpu_mut()
+            .reset(g431_emu::periph::rcc::ResetKind::PowerOn);
     }
 
     /// Cuts (or reconnects) both wires of the link.

@@ -15,6 +15,7 @@ mod common;
 
 mod board_findings;
 mod boot;
+mod campaign;
 mod cli;
 mod clock;
 mod exceptions;
