@@ -505,21 +505,17 @@ fn entry_row(e: &FaultEntry, item: usize, narrow: bool, s: &mut Line) {
     }
 }
 
-/// The short name of a field I/O fault (200-203), in the shield profile only (the
-/// default image never logs one and keeps its flash).
+/// The short name of a field I/O fault (200-203), also its text on the LCD, in the
+/// shield profile only (the default image never logs one and keeps its flash; the long
+/// texts are the PC's, `shared_protocol::service::LogText`).
 #[cfg(feature = "field-io")]
 fn field_io_name(code: u8) -> Option<&'static str> {
-    shared_protocol::service::field_fault(code).map(|(name, _)| name)
+    shared_protocol::service::field_fault_name(code)
 }
 
 #[cfg(not(feature = "field-io"))]
 fn field_io_name(_code: u8) -> Option<&'static str> {
     None
-}
-
-/// The text of a field I/O fault (200-203); only called where [`field_io_name`] knew it.
-fn field_io_text(code: u8) -> &'static str {
-    shared_protocol::service::field_fault(code).map_or("", |(_, text)| text)
 }
 
 /// A log entry's text: the drive's fault text, `application fault n` (the texts of an
@@ -533,7 +529,7 @@ fn log_text(code: u8, s: &mut Line) {
             s.str(match code {
                 EVENT_LOG_CLEARED => "fault log cleared",
                 EVENT_PROGRAM_WRITTEN => "program written svc",
-                c => field_io_name(c).map_or(fault_text(c), |_| field_io_text(c)),
+                c => field_io_name(c).unwrap_or(fault_text(c)),
             });
         }
     }

@@ -289,10 +289,10 @@ fn field_io_faults_sit_between_the_application_faults_and_the_events() {
         FIELD_FAULT_SPI,
     ] {
         assert!(app_fault_of(code).is_none() && !is_event(code));
-        assert!(field_fault(code).is_some());
+        assert!(field_fault_name(code).is_some() && field_fault_text(code).is_some());
     }
-    assert_eq!(field_fault(204), None);
-    assert_eq!(field_fault(199), None);
+    assert_eq!(field_fault_name(204), None);
+    assert_eq!(field_fault_text(199), None);
     assert_eq!(LogText(201).to_string(), "field 24 V supply lost");
 }
 
