@@ -78,7 +78,8 @@ impl Shield {
     }
 
     /// Writes the output image O00..O07 (bit n = On) to the VNI8200XP. OUT_EN goes low
-    /// before the command when the image is all off or a trip is latched, and high only
+    /// before the command when the image is all off or a trip is latched (then the command
+    /// is all off, every pass), and high only
     /// after a command the chip confirmed. An answer that fails its check, or whose PC bit
     /// says the chip refused the previous command (the answer of an exchange is shifted
     /// out while its command comes in, so PC is about the exchange before), is exchanged
@@ -86,6 +87,10 @@ impl Shield {
     pub fn write_outputs<P: SpiPort>(&mut self, image: u8, port: &mut P) {
         if self.latched.is_some() {
             port.set_out_enable(false);
+            // The all-off command every pass, its answer unused: the chip's fault bits stay
+            // latched until an exchange takes them, so without it the first answer after
+            // RUN would report the heat of the trip, not of the pass before.
+            let _ = port.exchange_outputs(vni8200::command(0));
             return;
         }
         if image == 0 {
