@@ -451,6 +451,18 @@ impl<E: Eeprom> PlcApp<E> {
         self.queue_boot(false);
     }
 
+    /// A trip of the field I/O (`crate::field_io`, fault-log code `code`): the port has
+    /// already turned the outputs off; the program stops (and with it the drive), the
+    /// code is shown as the newest fault and logged.
+    pub fn field_trip(&mut self, code: u8, now: Micros) {
+        if self.run != RunState::Stopped {
+            self.stop();
+        }
+        self.newest_fault = Some(code);
+        self.editor.notify(Notice::Text("FIELD I/O TRIP"));
+        self.log_fault(code, now);
+    }
+
     /// Hands STOP to the link, which never refuses it for lack of room (it goes to the
     /// head of the queue, `PlcLink::stop`). Refused only while the link is down: nothing
     /// to send then, the drive stops by itself on a lost link (`LINK`, and STOP).

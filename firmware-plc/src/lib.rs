@@ -17,6 +17,7 @@ pub mod bus_recovery;
 pub mod clock;
 pub mod debounce;
 pub mod editor;
+pub mod field_io;
 pub mod link;
 pub mod pace;
 pub mod service;

@@ -49,16 +49,41 @@
 
 use embassy_stm32::gpio::AnyPin;
 use embassy_stm32::{peripherals as p, Peri, Peripherals};
-use shared_protocol::program::{DIGITAL_INPUTS, DIGITAL_OUTPUTS};
+use shared_protocol::program::DIGITAL_INPUTS;
+#[cfg(not(feature = "shield-plc01a1"))]
+use shared_protocol::program::DIGITAL_OUTPUTS;
 
-/// The digital inputs D00..D15, in order.
+/// The digital inputs read at GPIO pins, in order: D00..D15, or D08..D15 in the shield
+/// profile (D00..D07 come from the shield's CLT01-38SQ7).
 pub struct Inputs {
-    pub pins: [Peri<'static, AnyPin>; DIGITAL_INPUTS as usize],
+    pub pins: [Peri<'static, AnyPin>; GPIO_INPUTS],
 }
 
+/// Number of digital inputs at GPIO pins.
+#[cfg(not(feature = "shield-plc01a1"))]
+pub const GPIO_INPUTS: usize = DIGITAL_INPUTS as usize;
+/// Number of digital inputs at GPIO pins (D08..D15).
+#[cfg(feature = "shield-plc01a1")]
+pub const GPIO_INPUTS: usize = DIGITAL_INPUTS as usize - 8;
+
 /// The digital outputs O00..O07, in order.
+#[cfg(not(feature = "shield-plc01a1"))]
 pub struct Outputs {
     pub pins: [Peri<'static, AnyPin>; DIGITAL_OUTPUTS as usize],
+}
+
+/// The X-NUCLEO-PLC01A1 (`firmware-plc/docs/field-io.md`): SPI1 with SCK on D3 (PB3, tied
+/// to D13 on the shield), MISO D12 (PA6), MOSI D11 (PA7); the CLT01-38SQ7's chip select
+/// D10 (PB6), the VNI8200XP's D9 (PC7), its OUT_EN D6 (PB10).
+#[cfg(feature = "shield-plc01a1")]
+pub struct Shield {
+    pub spi: Peri<'static, p::SPI1>,
+    pub sck: Peri<'static, p::PB3>,
+    pub miso: Peri<'static, p::PA6>,
+    pub mosi: Peri<'static, p::PA7>,
+    pub cs_inputs: Peri<'static, AnyPin>,
+    pub cs_outputs: Peri<'static, AnyPin>,
+    pub out_enable: Peri<'static, AnyPin>,
 }
 
 /// The four analog inputs A00..A03 on ADC1.
@@ -70,16 +95,10 @@ pub struct Analog {
     pub a03: Peri<'static, p::PC1>,
 }
 
-/// The 4x4 keypad matrix.
+/// The 4x4 keypad matrix: rows R0..R3, columns C0..C3.
 pub struct Keypad {
-    pub r0: Peri<'static, p::PA6>,
-    pub r1: Peri<'static, p::PA7>,
-    pub r2: Peri<'static, p::PB6>,
-    pub r3: Peri<'static, p::PB7>,
-    pub c0: Peri<'static, p::PC2>,
-    pub c1: Peri<'static, p::PC3>,
-    pub c2: Peri<'static, p::PC4>,
-    pub c3: Peri<'static, p::PC5>,
+    pub rows: [Peri<'static, AnyPin>; 4],
+    pub cols: [Peri<'static, AnyPin>; 4],
 }
 
 /// The I2C bus with the EEPROM and the LCD backpack.
@@ -104,13 +123,18 @@ pub struct Service {
 /// Everything else the PLC binds.
 pub struct Misc {
     pub iwdg: Peri<'static, p::IWDG>,
-    pub led: Peri<'static, p::PA5>,
+    /// The heartbeat LED (LD2 on PA5); in the shield profile a spare pin (LD2 is on the
+    /// shield's SPI clock there).
+    pub led: Peri<'static, AnyPin>,
 }
 
 /// The PLC board, grouped by job.
 pub struct Board {
     pub inputs: Inputs,
+    #[cfg(not(feature = "shield-plc01a1"))]
     pub outputs: Outputs,
+    #[cfg(feature = "shield-plc01a1")]
+    pub shield: Shield,
     pub analog: Analog,
     pub keypad: Keypad,
     pub bus: Bus,
@@ -122,6 +146,7 @@ pub struct Board {
 /// Hands each board module the peripherals it owns.
 pub fn split(p: Peripherals) -> Board {
     Board {
+        #[cfg(not(feature = "shield-plc01a1"))]
         inputs: Inputs {
             pins: [
                 p.PC6.into(),  // D00
@@ -142,6 +167,20 @@ pub fn split(p: Peripherals) -> Board {
                 p.PC0.into(),  // D15
             ],
         },
+        #[cfg(feature = "shield-plc01a1")]
+        inputs: Inputs {
+            pins: [
+                p.PA4.into(),  // D08
+                p.PA11.into(), // D09
+                p.PA12.into(), // D10
+                p.PA15.into(), // D11 (JTDI at reset: input only)
+                p.PB1.into(),  // D12
+                p.PB2.into(),  // D13
+                p.PB4.into(),  // D14 (NJTRST at reset: input only)
+                p.PC0.into(),  // D15
+            ],
+        },
+        #[cfg(not(feature = "shield-plc01a1"))]
         outputs: Outputs {
             pins: [
                 p.PB10.into(), // O00
@@ -154,6 +193,16 @@ pub fn split(p: Peripherals) -> Board {
                 p.PB8.into(),  // O07 (BOOT0: an output only)
             ],
         },
+        #[cfg(feature = "shield-plc01a1")]
+        shield: Shield {
+            spi: p.SPI1,
+            sck: p.PB3,
+            miso: p.PA6,
+            mosi: p.PA7,
+            cs_inputs: p.PB6.into(),
+            cs_outputs: p.PC7.into(),
+            out_enable: p.PB10.into(),
+        },
         analog: Analog {
             adc: p.ADC1,
             a00: p.PA0,
@@ -161,15 +210,17 @@ pub fn split(p: Peripherals) -> Board {
             a02: p.PB0,
             a03: p.PC1,
         },
+        #[cfg(not(feature = "shield-plc01a1"))]
         keypad: Keypad {
-            r0: p.PA6,
-            r1: p.PA7,
-            r2: p.PB6,
-            r3: p.PB7,
-            c0: p.PC2,
-            c1: p.PC3,
-            c2: p.PC4,
-            c3: p.PC5,
+            rows: [p.PA6.into(), p.PA7.into(), p.PB6.into(), p.PB7.into()],
+            cols: [p.PC2.into(), p.PC3.into(), p.PC4.into(), p.PC5.into()],
+        },
+        // R0..R2's pins are the shield's MISO, MOSI and CS; they move to morpho pins the
+        // shield's GPIO inputs D00..D02 left free.
+        #[cfg(feature = "shield-plc01a1")]
+        keypad: Keypad {
+            rows: [p.PC8.into(), p.PC9.into(), p.PC10.into(), p.PB7.into()],
+            cols: [p.PC2.into(), p.PC3.into(), p.PC4.into(), p.PC5.into()],
         },
         bus: Bus {
             i2c: p.I2C3,
@@ -192,7 +243,12 @@ pub fn split(p: Peripherals) -> Board {
         },
         misc: Misc {
             iwdg: p.IWDG,
-            led: p.PA5,
+            #[cfg(not(feature = "shield-plc01a1"))]
+            led: p.PA5.into(),
+            // PA5 (LD2) is tied to the shield's SPI clock through D13-D3: never driven.
+            // The heartbeat goes to PC6 (morpho CN10 pin 4, free in this profile).
+            #[cfg(feature = "shield-plc01a1")]
+            led: p.PC6.into(),
         },
     }
 }

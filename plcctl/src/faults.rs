@@ -5,8 +5,8 @@
 
 use serde::Serialize;
 use shared_protocol::service::{
-    app_fault_of, log_name, Answer, LogEntry, LogText, Request, LOG_ENTRIES_PER_ANSWER,
-    LOG_FROM_NEWEST, LOG_POSITIONS, UPTIME_LIMIT_S,
+    app_fault_of, field_fault_name, log_name, Answer, LogEntry, LogText, Request,
+    LOG_ENTRIES_PER_ANSWER, LOG_FROM_NEWEST, LOG_POSITIONS, UPTIME_LIMIT_S,
 };
 
 use crate::client::{unexpected, Client};
@@ -179,7 +179,7 @@ fn row(c: &Client, e: &LogEntry, names: &LogNames) -> Row {
         power_up: e.power_up,
         uptime_s: e.uptime_s,
         code: e.code,
-        name: log_name(e.code),
+        name: field_fault_name(e.code).unwrap_or(log_name(e.code)),
         text: names.text(e.code),
         values: e.values,
         value_names: names.values.clone(),

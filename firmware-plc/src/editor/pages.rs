@@ -447,7 +447,7 @@ pub(super) fn fault_log_page(ed: &Editor, view: &View<'_>, out: &mut Screen) {
                 .str(" F")
                 .dec(u32::from(e.code))
                 .char(' ')
-                .str(log_name(e.code));
+                .str(field_io_name(e.code).unwrap_or(log_name(e.code)));
         }
     }
     pad_row(out, 0, &s);
@@ -505,6 +505,19 @@ fn entry_row(e: &FaultEntry, item: usize, narrow: bool, s: &mut Line) {
     }
 }
 
+/// The short name of a field I/O fault (200-203), also its text on the LCD, in the
+/// shield profile only (the default image never logs one and keeps its flash; the long
+/// texts are the PC's, `shared_protocol::service::LogText`).
+#[cfg(feature = "field-io")]
+fn field_io_name(code: u8) -> Option<&'static str> {
+    shared_protocol::service::field_fault_name(code)
+}
+
+#[cfg(not(feature = "field-io"))]
+fn field_io_name(_code: u8) -> Option<&'static str> {
+    None
+}
+
 /// A log entry's text: the drive's fault text, `application fault n` (the texts of an
 /// application's faults are in its profile, on the PC), or the event's.
 fn log_text(code: u8, s: &mut Line) {
@@ -516,7 +529,7 @@ fn log_text(code: u8, s: &mut Line) {
             s.str(match code {
                 EVENT_LOG_CLEARED => "fault log cleared",
                 EVENT_PROGRAM_WRITTEN => "program written svc",
-                c => fault_text(c),
+                c => field_io_name(c).unwrap_or(fault_text(c)),
             });
         }
     }

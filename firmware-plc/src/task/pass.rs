@@ -14,7 +14,7 @@ use shared_protocol::link::pump::is_due;
 use shared_protocol::units::Micros;
 
 use super::lcd::{CharLcd, LcdSync};
-use crate::app::{PlcApp, RawIo, Tick};
+use crate::app::{PlcApp, RawIo, RunState, Tick};
 use crate::editor::Screen;
 use crate::pace::RetryTimer;
 use crate::service::endpoint;
@@ -30,6 +30,13 @@ pub trait IoPort {
     fn sample(&mut self) -> RawIo;
     /// O00..O07 (bit n = On).
     fn write_outputs(&mut self, outputs: u8);
+    /// A trip of the field I/O not yet reported (its fault-log code), once per trip; a
+    /// port of bare GPIO never trips (the shield profile's does, `crate::field_io`).
+    fn take_trip(&mut self) -> Option<u8> {
+        None
+    }
+    /// RUN was started: a latched field I/O trip is cleared and checked again.
+    fn rearm(&mut self) {}
 }
 
 /// What happened to the LCD in a pass, for the board's log.
@@ -102,8 +109,18 @@ impl AppPass {
         now: Micros,
     ) -> PassReport<L::Error> {
         let raw = io.sample();
+        // A trip of the inputs stops the program before this pass's scan.
+        if let Some(code) = io.take_trip() {
+            app.field_trip(code, now);
+        }
         let tick = app.tick_1ms(now, raw, &mut self.screen);
+        if matches!(tick.run_change, Some((RunState::Stopped, _))) {
+            io.rearm();
+        }
         io.write_outputs(tick.outputs);
+        if let Some(code) = io.take_trip() {
+            app.field_trip(code, now);
+        }
         let link_due = is_due(app.link().poll_timeout(), now);
         // After the outputs: the trend sample, one EEPROM step of a service read.
         let service_due = endpoint::after_scan(svc, app, &tick, now);
@@ -151,6 +168,8 @@ mod tests {
     struct Pins {
         raw: RawIo,
         written: Vec<u8>,
+        trip: Option<u8>,
+        rearms: u32,
     }
 
     impl IoPort for Pins {
@@ -159,6 +178,12 @@ mod tests {
         }
         fn write_outputs(&mut self, outputs: u8) {
             self.written.push(outputs);
+        }
+        fn take_trip(&mut self) -> Option<u8> {
+            self.trip.take()
+        }
+        fn rearm(&mut self) {
+            self.rearms += 1;
         }
     }
 
@@ -297,5 +322,24 @@ mod tests {
         let _ = rig.pass();
         assert_eq!(rig.lcd.inits, 1);
         assert!(rig.pass.lcd_up());
+    }
+
+    #[test]
+    fn a_field_io_trip_stops_the_program_and_is_logged_once() {
+        let mut rig = Rig::new(true);
+        rig.app.run(None, rig.now);
+        let _ = rig.pass();
+        assert_ne!(rig.app.run_state(), RunState::Stopped);
+        assert_eq!(rig.pins.rearms, 1, "RUN clears the port's latch");
+        rig.pins.trip = Some(201);
+        let _ = rig.pass();
+        assert_eq!(rig.app.run_state(), RunState::Stopped);
+        assert_eq!(rig.app.status().newest_fault.map(|(c, _)| c), Some(201));
+        for _ in 0..50 {
+            let _ = rig.pass();
+        }
+        let logged = rig.app.fault_log().iter().filter(|e| e.code == 201).count();
+        assert_eq!(logged, 1);
+        assert_eq!(*rig.pins.written.last().unwrap(), 0);
     }
 }

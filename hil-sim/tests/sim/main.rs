@@ -11,6 +11,7 @@ mod cli;
 mod debounce;
 mod drive_bodies;
 mod examples_on_rig;
+mod field_io;
 mod hw_comparators;
 mod keypad;
 mod lab;

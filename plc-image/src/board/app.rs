@@ -15,6 +15,7 @@ use super::analog::AnalogInputs;
 use super::inputs::DigitalInputs;
 use super::keypad::KeypadScanner;
 use super::lcd::{self, Lcd, LcdError};
+#[cfg(not(feature = "shield-plc01a1"))]
 use super::outputs::DigitalOutputs;
 use super::{shared, supervisor};
 
@@ -26,11 +27,16 @@ pub const PERIOD: Duration = Duration::from_millis(1);
 /// The pins the application task owns.
 pub struct PlcIo {
     pub inputs: DigitalInputs,
+    #[cfg(not(feature = "shield-plc01a1"))]
     pub outputs: DigitalOutputs,
+    /// D00..D07 and O00..O07 through the X-NUCLEO-PLC01A1.
+    #[cfg(feature = "shield-plc01a1")]
+    pub outputs: super::shield::ShieldIo,
     pub analog: AnalogInputs,
     pub keypad: KeypadScanner,
 }
 
+#[cfg(not(feature = "shield-plc01a1"))]
 impl IoPort for PlcIo {
     fn sample(&mut self) -> RawIo {
         RawIo {
@@ -42,6 +48,30 @@ impl IoPort for PlcIo {
 
     fn write_outputs(&mut self, outputs: u8) {
         self.outputs.write(outputs);
+    }
+}
+
+/// D00..D07 from the shield's CLT01-38SQ7, D08..D15 from the GPIO pins.
+#[cfg(feature = "shield-plc01a1")]
+impl IoPort for PlcIo {
+    fn sample(&mut self) -> RawIo {
+        RawIo {
+            digital: u16::from(self.outputs.read_inputs()) | self.inputs.sample() << 8,
+            analog: self.analog.sample(),
+            keys: self.keypad.scan(),
+        }
+    }
+
+    fn write_outputs(&mut self, outputs: u8) {
+        self.outputs.write_outputs(outputs);
+    }
+
+    fn take_trip(&mut self) -> Option<u8> {
+        self.outputs.take_trip()
+    }
+
+    fn rearm(&mut self) {
+        self.outputs.rearm();
     }
 }
 

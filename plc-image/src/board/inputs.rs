@@ -1,12 +1,13 @@
-//! The digital inputs D00..D15 (opto-isolator outputs, active high, pulled down).
+//! The digital inputs at GPIO pins (opto-isolator outputs, active high, pulled down):
+//! D00..D15, or D08..D15 in the shield profile.
 
 use embassy_stm32::gpio::{Input, Pull};
 
-use crate::pins::Inputs;
+use crate::pins::{Inputs, GPIO_INPUTS};
 
-/// D00..D15 in order.
+/// The GPIO inputs in order.
 pub struct DigitalInputs {
-    pins: [Input<'static>; firmware_plc::vm::INPUTS as usize],
+    pins: [Input<'static>; GPIO_INPUTS],
 }
 
 impl DigitalInputs {
@@ -16,7 +17,8 @@ impl DigitalInputs {
         }
     }
 
-    /// The raw pin levels, bit n = Dn (debouncing is the core's `debounce` module).
+    /// The raw pin levels, bit n = the nth pin of [`Inputs`] (debouncing is the core's
+    /// `debounce` module).
     pub fn sample(&self) -> u16 {
         self.pins
             .iter()

@@ -21,19 +21,11 @@ impl KeypadScanner {
     pub fn new(k: Keypad) -> Self {
         let row = |pin: Peri<'static, AnyPin>| OutputOpenDrain::new(pin, Level::High, Speed::Low);
         let col = |pin: Peri<'static, AnyPin>| Input::new(pin, Pull::Up);
+        let [r0, r1, r2, r3] = k.rows;
+        let [c0, c1, c2, c3] = k.cols;
         Self {
-            rows: [
-                row(k.r0.into()),
-                row(k.r1.into()),
-                row(k.r2.into()),
-                row(k.r3.into()),
-            ],
-            cols: [
-                col(k.c0.into()),
-                col(k.c1.into()),
-                col(k.c2.into()),
-                col(k.c3.into()),
-            ],
+            rows: [row(r0), row(r1), row(r2), row(r3)],
+            cols: [col(c0), col(c1), col(c2), col(c3)],
         }
     }
 

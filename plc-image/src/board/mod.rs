@@ -13,10 +13,13 @@ pub mod inputs;
 pub mod keypad;
 pub mod lcd;
 pub mod link;
+#[cfg(not(feature = "shield-plc01a1"))]
 pub mod outputs;
 pub mod rtc;
 pub mod service;
 pub mod shared;
+#[cfg(feature = "shield-plc01a1")]
+pub mod shield;
 mod wide_div;
 
 /// The watchdog supervisor (`board_common::supervisor`), with this board's name for its
@@ -41,7 +44,10 @@ pub async fn start(spawner: Spawner) {
     let (p, _cause) = board_common::boot::init_with(IMAGE, env!("CARGO_PKG_VERSION"), rtc::LS);
     let board = pins::split(p);
     // Outputs off before anything else can take time.
+    #[cfg(not(feature = "shield-plc01a1"))]
     let outputs = outputs::DigitalOutputs::new(board.outputs);
+    #[cfg(feature = "shield-plc01a1")]
+    let outputs = shield::ShieldIo::new(board.shield);
     let bus = i2c_bus::open(board.bus);
     let mut lcd = lcd::Lcd::new(bus);
     let lcd_up = lcd
@@ -71,7 +77,7 @@ pub async fn start(spawner: Spawner) {
 
     let tasks = supervisor::TASK_LINK | supervisor::TASK_SCAN;
     spawner.spawn(
-        board_common::supervisor::run(board.misc.iwdg, board.misc.led.into(), tasks)
+        board_common::supervisor::run(board.misc.iwdg, board.misc.led, tasks)
             .expect("spawn supervisor"),
     );
     spawner.spawn(link::run(port, app).expect("spawn link"));

@@ -92,6 +92,39 @@ pub const fn app_fault_of(code: u8) -> Option<u8> {
     }
 }
 
+/// Fault-log codes 200-203: the field I/O of the X-NUCLEO-PLC01A1 shield profile
+/// (`firmware-plc/docs/field-io.md`), between the application faults and the events.
+/// An output channel in over-temperature, or the output chip's case warning.
+pub const FIELD_FAULT_OVT: u8 = 200;
+/// The 24 V field supply lost or low.
+pub const FIELD_FAULT_24V: u8 = 201;
+/// The input chip in over-temperature.
+pub const FIELD_FAULT_INT: u8 = 202;
+/// A field I/O frame failed its check twice in a row.
+pub const FIELD_FAULT_SPI: u8 = 203;
+
+/// Short name of a field I/O fault-log code (200-203).
+pub const fn field_fault_name(code: u8) -> Option<&'static str> {
+    match code {
+        FIELD_FAULT_OVT => Some("FIO_OVT"),
+        FIELD_FAULT_24V => Some("FIO_24V"),
+        FIELD_FAULT_INT => Some("FIO_INT"),
+        FIELD_FAULT_SPI => Some("FIO_SPI"),
+        _ => None,
+    }
+}
+
+/// Text of a field I/O fault-log code (200-203).
+pub const fn field_fault_text(code: u8) -> Option<&'static str> {
+    match code {
+        FIELD_FAULT_OVT => Some("field output overtemperature"),
+        FIELD_FAULT_24V => Some("field 24 V supply lost"),
+        FIELD_FAULT_INT => Some("field input overtemperature"),
+        FIELD_FAULT_SPI => Some("field I/O frame check failed"),
+        _ => None,
+    }
+}
+
 /// Whether a fault-log code is an event (240-254): listed, never counted as a trip nor
 /// shown as the newest fault.
 pub const fn is_event(code: u8) -> bool {
@@ -119,6 +152,7 @@ impl core::fmt::Display for LogText {
         match self.0 {
             EVENT_LOG_CLEARED => f.write_str("fault log cleared"),
             EVENT_PROGRAM_WRITTEN => f.write_str("program written over the service port"),
+            c if field_fault_text(c).is_some() => f.write_str(field_fault_text(c).unwrap_or("")),
             c if app_fault_of(c).is_some() => {
                 write!(f, "application fault {}", c.saturating_sub(APP_FAULT_BASE))
             }

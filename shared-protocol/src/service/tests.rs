@@ -280,6 +280,22 @@ fn log_texts() {
     assert!(is_event(240) && is_event(254) && !is_event(255) && !is_event(8));
 }
 
+#[test]
+fn field_io_faults_sit_between_the_application_faults_and_the_events() {
+    for code in [
+        FIELD_FAULT_OVT,
+        FIELD_FAULT_24V,
+        FIELD_FAULT_INT,
+        FIELD_FAULT_SPI,
+    ] {
+        assert!(app_fault_of(code).is_none() && !is_event(code));
+        assert!(field_fault_name(code).is_some() && field_fault_text(code).is_some());
+    }
+    assert_eq!(field_fault_name(204), None);
+    assert_eq!(field_fault_text(199), None);
+    assert_eq!(LogText(201).to_string(), "field 24 V supply lost");
+}
+
 fn cases() -> u32 {
     if cfg!(debug_assertions) {
         2_000
