@@ -366,6 +366,9 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
             if let Some(v) = observe(&sim, p) {
                 return Some(v);
             }
+            if let Some(v) = commands.check(&sim) {
+                return Some(v);
+            }
             if let Some(v) = storage.after_event(&mut sim, p) {
                 return Some(v);
             }
@@ -401,14 +404,16 @@ fn run_inner(world: &World, faults: &[Fault], p: &mut Progress) -> Option<Violat
         if let Some(v) = observe(&sim, p) {
             return Some(v);
         }
-        if let Some(v) = storage.after_event(&mut sim, p) {
-            return Some(v);
-        }
+        // Before a cut in a write can restart the PLC: a value it wrote in this event
+        // (and may have sent) is part of its history.
         let v = commands.check(&sim);
         p.checks.q_applied = commands.qs.iter().map(|(_, q)| q.applied).sum();
         p.checks.q_settled = commands.qs.iter().map(|(_, q)| q.settled).sum();
         if v.is_some() {
             return v;
+        }
+        if let Some(v) = storage.after_event(&mut sim, p) {
+            return Some(v);
         }
         if next >= end {
             return None;
