@@ -160,11 +160,7 @@ pub fn run(world: &World, faults: &[Fault], images: &EmuImages) -> Outcome {
     let violation = match r {
         Ok(v) => v,
         Err(payload) => {
-            let msg = payload
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| payload.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "a panic".into());
+            let msg = super::runner::panic_message(payload.as_ref());
             Some(Violation {
                 invariant: NO_PANIC,
                 t_ns: p.sim_ns,

@@ -63,6 +63,15 @@ pub struct Checks {
     pub q_settled: u64,
 }
 
+/// The text of a caught panic (`&str` or `String` payloads, as `panic!` makes them).
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic".into())
+}
+
 /// Runs `world` with `faults` (the world's own or a shrunk list) to its end or to the
 /// first violation.
 pub fn run(world: &World, faults: &[Fault]) -> Outcome {
@@ -71,11 +80,7 @@ pub fn run(world: &World, faults: &[Fault]) -> Outcome {
     let violation = match r {
         Ok(v) => v,
         Err(payload) => {
-            let msg = payload
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| payload.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "a panic".into());
+            let msg = panic_message(payload.as_ref());
             Some(Violation {
                 invariant: NO_PANIC,
                 t_ns: p.sim_ns,
