@@ -49,7 +49,6 @@ pub const IMAGE_TROUBLE: &str = "image_trouble";
 /// The fault classes the emulator injects (every class of the cores' first slice);
 /// a class added later is not drawn under `--emu` until it is listed here with its
 /// injection in `apply`.
-#[allow(unreachable_patterns)]
 pub fn supported(kind: &FaultKind) -> bool {
     matches!(
         kind,
@@ -91,7 +90,6 @@ fn emu_invariants() -> Vec<Box<dyn Invariant>> {
 }
 
 /// Applies one fault edge to the images' rig now.
-#[allow(unreachable_patterns)]
 fn apply(sim: &mut EmuSim, e: &FaultEdge, world: &World) {
     let now = sim.now_ns();
     let base = &world.baseline;
